@@ -1,0 +1,347 @@
+"""Scenarios: TOML files in human units, converted to SI once and validated.
+
+A scenario file names its unit in every key (`lat_deg`, `duration_s`, `rate_hz`) and carries
+a unit comment on every line. `load_scenario(path)` checks every field against the schema
+below (type, unit, range, allowed values), rejects unknown keys (typos), and returns a
+`Scenario` whose fields are SI (rad, m, s, Hz). Errors name the file, the field, the value
+and what was expected.
+
+Satellite-selection rule (`starlink.selection`): at each Starlink epoch the N satellites are
+chosen once, at the scenario start, among those above the mask for the whole window:
+`"highest-elevation"` takes the N with the highest elevation at the start (the default);
+`"random"` draws N at random per trial from the seed. Asking for more satellites than are
+visible is an error that names the count available, never a silent cap.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised on Python 3.10 only
+    import tomli as tomllib
+
+from leonav_runtime.errors import UserInputError
+
+BUILTIN_DIR = Path(__file__).with_name("scenarios")
+
+MODES = (
+    "gps+imu",
+    "leo-alpha+imu",
+    "gps+leo-alpha+imu",
+    "leo-ofdm+imu",
+    "leo-alpha+ofdm+imu",
+    "leo-doppler+alpha+imu",
+)
+"""Fusion modes: which observables feed the filter (IMU always propagates)."""
+
+MODE_OBSERVABLES: dict[str, tuple[str, ...]] = {
+    "gps+imu": ("pseudorange",),
+    "leo-alpha+imu": ("doppler_rate",),
+    "gps+leo-alpha+imu": ("pseudorange", "doppler_rate"),
+    "leo-ofdm+imu": ("ofdm_range_diff",),
+    "leo-alpha+ofdm+imu": ("doppler_rate", "ofdm_range_diff"),
+    "leo-doppler+alpha+imu": ("doppler", "doppler_rate"),
+}
+
+IMU_PROFILES = ("tactical", "consumer-wt901")
+TRAJECTORY_KINDS = ("static", "maneuvers")
+SELECTION_RULES = ("highest-elevation", "random")
+
+
+@dataclass(frozen=True)
+class Field:
+    """One scenario key: its type, unit (conversion to SI), bounds and default."""
+
+    kind: type | tuple[type, ...]
+    unit: str  # "deg" converts to rad; others are already SI
+    lo: float | None = None
+    hi: float | None = None
+    default: Any = ...
+    choices: tuple[str, ...] | None = None
+    doc: str = ""
+
+
+_REQUIRED = ...
+
+# section -> key -> Field. The unit suffix in the key name is the unit in the file.
+SCHEMA: dict[str, dict[str, Field]] = {
+    "": {
+        "name": Field(str, "-", default="scenario", doc="short name used in output folders"),
+        "description": Field(str, "-", default=""),
+    },
+    "site": {
+        "lat_deg": Field(float, "deg", -90, 90, default=43.0848638, doc="WGS84 geodetic latitude"),
+        "lon_deg": Field(float, "deg", -180, 360, default=-77.6786127, doc="WGS84 longitude"),
+        "alt_m": Field(float, "m", -500, 1e5, default=170.0, doc="WGS84 ellipsoidal height"),
+    },
+    "time": {
+        "epoch": Field(str, "UTC", default=_REQUIRED, doc="scenario start, ISO 8601 UTC"),
+        "duration_s": Field(float, "s", 1e-3, 86400, default=_REQUIRED),
+    },
+    "trajectory": {
+        "kind": Field(str, "-", default="static", choices=TRAJECTORY_KINDS),
+        "attitude_deg": Field(list, "deg", default=[0.0, 0.0, 90.0],
+                              doc="initial roll, pitch, yaw; yaw from East towards North"),
+        "speed_mps": Field(float, "m/s", 0, 400, default=0.0, doc="initial speed along heading"),
+        # Each manoeuvre: [duration_s, acceleration_mps2, turn_rate_deg_s]
+        "maneuvers": Field(list, "mixed", default=[]),
+        "roll_amplitude_deg": Field(float, "deg", 0, 45, default=0.0, doc="wave-induced roll"),
+        "pitch_amplitude_deg": Field(float, "deg", 0, 45, default=0.0, doc="wave-induced pitch"),
+        "wave_period_s": Field(float, "s", 0.5, 60, default=8.0),
+    },
+    "imu": {
+        "profile": Field(str, "-", default="tactical", choices=IMU_PROFILES),
+        "rate_hz": Field(float, "Hz", 1, 2000, default=100.0),
+    },
+    "gps": {
+        "rate_hz": Field(float, "Hz", 0.01, 100, default=10.0),
+        "pseudorange_sigma_m": Field(float, "m", 1e-3, 1e3, default=3.0),
+        "elevation_mask_deg": Field(float, "deg", -5, 90, default=10.0),
+        "max_satellites": Field(int, "-", 4, 64, default=8),
+        "clock_bias_m": Field(float, "m", -1e6, 1e6, default=100.0, doc="true initial c*dt"),
+        "clock_drift_mps": Field(float, "m/s", -1e3, 1e3, default=0.1, doc="true initial c*ddt"),
+        "outages_s": Field(list, "s", default=[], doc="[[start_s, end_s], ...] GPS denied"),
+    },
+    "starlink": {
+        "rate_hz": Field(float, "Hz", 0.01, 100, default=1.0),
+        "carrier_hz": Field(float, "Hz", 1e9, 3e10, default=11.325e9),
+        "elevation_mask_deg": Field(float, "deg", -5, 90, default=28.0),
+        "counts": Field(list, "-", default=[5, 10, 15, 20, 25, 30, 35, 40, 45]),
+        "selection": Field(str, "-", default="highest-elevation", choices=SELECTION_RULES),
+        # Paper's five matched beacons: median |d alpha| 0.8 Hz/s -> sigma = 0.8/0.6745 = 1.19.
+        "doppler_rate_sigma_hz_s": Field(float, "Hz/s", 1e-4, 1e3, default=1.2),
+        "doppler_sigma_hz": Field(float, "Hz", 1e-3, 1e4, default=5.0),
+        "lo_offset_hz": Field(float, "Hz", -5e6, 5e6, default=120e3, doc="true LNB LO offset"),
+        "ofdm_sigma_m": Field(float, "m", 1e-3, 1e4, default=3.0),
+    },
+    "elements": {
+        "source": Field(str, "-", default="builtin", choices=("builtin", "files")),
+        "files": Field(list, "-", default=[], doc="TLE/OMM paths, relative to the scenario file"),
+    },
+    "filter": {
+        "initial_position_sigma_m": Field(float, "m", 1e-3, 1e6, default=10.0),
+        "initial_velocity_sigma_mps": Field(float, "m/s", 1e-4, 1e3, default=0.5),
+        "initial_attitude_sigma_deg": Field(float, "deg", 1e-4, 180, default=1.0),
+        "gate_nis": Field(float, "-", 0, 1e6, default=10.83, doc="chi2(1) 99.9 %; 0 disables"),
+    },
+    "monte_carlo": {
+        "trials": Field(int, "-", 1, 100000, default=100),
+        "seed": Field(int, "-", 0, 2**63 - 1, default=1),
+        "modes": Field(list, "-", default=list(MODES)),
+    },
+}
+
+
+@dataclass
+class Scenario:
+    """A validated scenario in SI units (rad, m, s, Hz). `source` is the file it came from."""
+
+    name: str
+    description: str
+    lat_rad: float
+    lon_rad: float
+    alt_m: float
+    epoch_utc: _dt.datetime
+    duration_s: float
+    trajectory: dict[str, Any]
+    imu_profile: str
+    imu_rate_hz: float
+    gps: dict[str, Any]
+    starlink: dict[str, Any]
+    element_source: str
+    element_files: list[Path]
+    filter: dict[str, Any]
+    trials: int
+    seed: int
+    modes: list[str]
+    source: str = "<defaults>"
+    raw: dict[str, Any] = field(default_factory=dict, repr=False)
+
+
+def _where(source: str, section: str, key: str) -> str:
+    return f"{source}: [{section}] {key}" if section else f"{source}: {key}"
+
+
+def _check_value(source: str, section: str, key: str, spec: Field, value: Any) -> Any:
+    where = _where(source, section, key)
+    kinds = spec.kind if isinstance(spec.kind, tuple) else (spec.kind,)
+    if float in kinds and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if not isinstance(value, kinds) or isinstance(value, bool):
+        names = " or ".join(k.__name__ for k in kinds)
+        raise UserInputError(f"{where} = {value!r}: expected a {names} in {spec.unit}")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise UserInputError(f"{where} = {value!r}: expected a finite number in {spec.unit}")
+    if isinstance(value, (int, float)):
+        if (spec.lo is not None and value < spec.lo) or (spec.hi is not None and value > spec.hi):
+            raise UserInputError(
+                f"{where} = {value!r}: expected {spec.unit} in [{spec.lo}, {spec.hi}]"
+            )
+    if spec.choices is not None and value not in spec.choices:
+        raise UserInputError(f"{where} = {value!r}: expected one of {', '.join(spec.choices)}")
+    return value
+
+
+def _numbers(source: str, section: str, key: str, value: Any, length: int | None,
+             unit: str) -> list[float]:
+    where = _where(source, section, key)
+    ok = isinstance(value, list) and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value
+    )
+    if not ok or (length is not None and len(value) != length):
+        n = f"{length} " if length is not None else ""
+        raise UserInputError(f"{where} = {value!r}: expected a list of {n}numbers in {unit}")
+    return [float(v) for v in value]
+
+
+def _parse_epoch(source: str, text: str) -> _dt.datetime:
+    try:
+        epoch = _dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except ValueError:
+        raise UserInputError(
+            f"{source}: [time] epoch = {text!r}: expected ISO 8601 UTC, e.g. 2026-01-30T17:00:00Z"
+        ) from None
+    if epoch.tzinfo is None:
+        raise UserInputError(
+            f"{source}: [time] epoch = {text!r}: expected an explicit UTC offset (end with Z)"
+        )
+    return epoch.astimezone(_dt.timezone.utc)
+
+
+def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
+                       base_dir: Path | None = None) -> Scenario:
+    """Validate a parsed TOML mapping and convert it to an SI `Scenario`."""
+    values: dict[str, dict[str, Any]] = {}
+    for key in data:
+        if key not in SCHEMA and not (key in SCHEMA[""]):
+            raise UserInputError(
+                f"{source}: unknown section or key {key!r}; expected one of "
+                f"{', '.join(sorted(k for k in SCHEMA if k) | set(SCHEMA['']))}"
+            )
+    for section, fields in SCHEMA.items():
+        given = data if section == "" else data.get(section, {})
+        if section and not isinstance(given, dict):
+            raise UserInputError(f"{source}: [{section}] must be a table, got {given!r}")
+        if section:
+            unknown = set(given) - set(fields)
+            if unknown:
+                raise UserInputError(
+                    f"{source}: [{section}] unknown key {sorted(unknown)[0]!r}; expected one of "
+                    f"{', '.join(fields)}"
+                )
+        out: dict[str, Any] = {}
+        for key, spec in fields.items():
+            if key in given:
+                out[key] = _check_value(source, section, key, spec, given[key])
+            elif spec.default is _REQUIRED:
+                raise UserInputError(f"{_where(source, section, key)} is missing: required ({spec.unit})")
+            else:
+                out[key] = spec.default
+        values[section] = out
+
+    traj = dict(values["trajectory"])
+    att = _numbers(source, "trajectory", "attitude_deg", traj["attitude_deg"], 3, "deg")
+    traj["attitude_rad"] = [math.radians(a) for a in att]
+    maneuvers = []
+    for i, m in enumerate(traj["maneuvers"]):
+        row = _numbers(source, "trajectory", f"maneuvers[{i}]", m, 3,
+                       "[duration_s, acceleration_mps2, turn_rate_deg_s]")
+        if row[0] <= 0:
+            raise UserInputError(
+                f"{source}: [trajectory] maneuvers[{i}] duration {row[0]!r} s: expected > 0 s"
+            )
+        maneuvers.append((row[0], row[1], math.radians(row[2])))
+    traj["maneuvers"] = maneuvers
+    traj["roll_amplitude_rad"] = math.radians(traj.pop("roll_amplitude_deg"))
+    traj["pitch_amplitude_rad"] = math.radians(traj.pop("pitch_amplitude_deg"))
+    del traj["attitude_deg"]
+
+    duration = values["time"]["duration_s"]
+    gps = dict(values["gps"])
+    outages = []
+    for i, w in enumerate(gps.pop("outages_s")):
+        a, b = _numbers(source, "gps", f"outages_s[{i}]", w, 2, "[start_s, end_s]")
+        if not 0 <= a < b <= duration:
+            raise UserInputError(
+                f"{source}: [gps] outages_s[{i}] = {w!r}: expected 0 <= start < end <= "
+                f"duration ({duration} s)"
+            )
+        outages.append((a, b))
+    gps["outages"] = outages
+    gps["elevation_mask_rad"] = math.radians(gps.pop("elevation_mask_deg"))
+
+    star = dict(values["starlink"])
+    counts = star["counts"]
+    if not counts or not all(isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in counts):
+        raise UserInputError(
+            f"{source}: [starlink] counts = {counts!r}: expected a non-empty list of integers >= 1"
+        )
+    star["elevation_mask_rad"] = math.radians(star.pop("elevation_mask_deg"))
+
+    files = values["elements"]["files"]
+    if not all(isinstance(f, str) for f in files):
+        raise UserInputError(f"{source}: [elements] files = {files!r}: expected a list of paths")
+    base = base_dir or Path.cwd()
+    element_files = [(base / f) if not Path(f).is_absolute() else Path(f) for f in files]
+    if values["elements"]["source"] == "files" and not element_files:
+        raise UserInputError(f"{source}: [elements] source = 'files' but files is empty")
+
+    modes = values["monte_carlo"]["modes"]
+    bad = [m for m in modes if m not in MODES] if isinstance(modes, list) else [modes]
+    if bad or not modes:
+        raise UserInputError(
+            f"{source}: [monte_carlo] modes contains {bad[0] if bad else modes!r}: expected a "
+            f"non-empty list of {', '.join(MODES)}"
+        )
+    filt = dict(values["filter"])
+    filt["initial_attitude_sigma_rad"] = math.radians(filt.pop("initial_attitude_sigma_deg"))
+
+    return Scenario(
+        name=values[""]["name"],
+        description=values[""]["description"],
+        lat_rad=math.radians(values["site"]["lat_deg"]),
+        lon_rad=math.radians(values["site"]["lon_deg"]),
+        alt_m=values["site"]["alt_m"],
+        epoch_utc=_parse_epoch(source, values["time"]["epoch"]),
+        duration_s=duration,
+        trajectory=traj,
+        imu_profile=values["imu"]["profile"],
+        imu_rate_hz=values["imu"]["rate_hz"],
+        gps=gps,
+        starlink=star,
+        element_source=values["elements"]["source"],
+        element_files=element_files,
+        filter=filt,
+        trials=values["monte_carlo"]["trials"],
+        seed=values["monte_carlo"]["seed"],
+        modes=list(modes),
+        source=source,
+        raw=data,
+    )
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Load and validate a scenario TOML file; a bare name like `paper` picks a built-in one."""
+    path = Path(path)
+    if not path.exists() and (BUILTIN_DIR / f"{path.name}.toml").exists():
+        path = BUILTIN_DIR / f"{path.name}.toml"
+    if not path.exists():
+        builtins = ", ".join(sorted(p.stem for p in BUILTIN_DIR.glob("*.toml")))
+        raise UserInputError(f"{path}: scenario file not found (built-in scenarios: {builtins})")
+    text = path.read_text()
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise UserInputError(f"{path}: not valid TOML: {exc}") from None
+    return scenario_from_dict(data, source=str(path), base_dir=path.parent)
+
+
+def builtin_scenarios() -> list[str]:
+    """Names of the scenarios shipped with leonav."""
+    return sorted(p.stem for p in BUILTIN_DIR.glob("*.toml"))
