@@ -28,7 +28,8 @@ class _InlineExecutor(Executor):
 
 
 @contextlib.contextmanager
-def make_executor(workers: int | None = None, dask_address: str | None = None) -> Iterator[Executor]:
+def make_executor(workers: int | None = None, dask_address: str | None = None,
+                  connect_timeout_s: float = 10.0) -> Iterator[Executor]:
     """Context manager yielding the executor for a sweep.
 
     workers: local processes (default: all cores; 1 runs inline). dask_address: a Dask
@@ -43,7 +44,7 @@ def make_executor(workers: int | None = None, dask_address: str | None = None) -
                 "--dask needs the 'distributed' package: pip install 'dask[distributed]'"
             ) from None
         try:
-            client = Client(dask_address, timeout="10s")
+            client = Client(dask_address, timeout=f"{connect_timeout_s}s")
         except (OSError, TimeoutError) as exc:
             raise UserInputError(f"--dask {dask_address}: cannot reach the scheduler ({exc})") from None
         try:
