@@ -1,0 +1,341 @@
+"""IQ capture readers and writers: RTL-SDR raw cu8, SigMF, raw complex64.
+
+A capture is described by `CaptureInfo` (sample rate, tuned frequency, LNB LO, start
+time, sample format) and read with `iter_chunks`, a generator of complex64 blocks, so
+memory stays bounded whatever the file length.
+
+Frequency bookkeeping (all Hz): the SDR is tuned to `center_freq_hz` (the IF, e.g.
+1.575 GHz); a universal Ku LNB with local oscillator `lnb_lo_hz` (9.75 GHz) sits in front,
+so baseband 0 Hz corresponds to the RF frequency `rf_center_hz = center_freq_hz +
+lnb_lo_hz` (LO below the signal: the Doppler sign is kept).
+
+Supported formats
+- ``cu8``: `rtl_sdr` output, interleaved unsigned 8-bit I,Q with offset 127.5. The file has
+  no metadata: give it on the CLI or in a JSON side file ``<capture>.json``.
+- ``ci8``: interleaved signed 8-bit I,Q (HackRF style).
+- ``cf32``: interleaved little-endian float32 I,Q (numpy complex64), JSON side file / CLI.
+- SigMF: ``.sigmf-meta`` + ``.sigmf-data`` with ``core:datatype`` cu8, ci8 or cf32_le,
+  ``core:sample_rate``, ``core:frequency`` and ``core:datetime`` in the first capture,
+  and the extension fields ``leonav:lnb_lo_hz`` / ``leonav:rf_center_hz`` (global).
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import json
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+
+from leonav_runtime.errors import UserInputError
+
+DEFAULT_LNB_LO_HZ = 9.75e9
+BYTES_PER_SAMPLE = {"cu8": 2, "ci8": 2, "cf32": 8}
+_SIGMF_DATATYPES = {"cu8": "cu8", "ci8": "ci8", "cf32_le": "cf32"}
+_RAW_SUFFIXES = {".cu8": "cu8", ".bin": "cu8", ".iq": "cu8", ".dat": "cu8", ".raw": "cu8",
+                 ".ci8": "ci8", ".cf32": "cf32", ".c64": "cf32", ".complex64": "cf32",
+                 ".cfile": "cf32"}
+# Largest |I|,|Q| accepted in a cf32 file; larger (or non-finite) values mean the bytes are
+# not float32 IQ (e.g. a cu8 capture read as cf32).
+_CF32_MAX_ABS = 1e6
+
+
+@dataclasses.dataclass
+class CaptureInfo:
+    """What is known about one capture file (SI units, UTC)."""
+
+    path: Path                       # file with the samples
+    sample_format: str               # cu8 | ci8 | cf32
+    sample_rate_hz: float
+    center_freq_hz: float            # SDR tuned frequency (IF)
+    lnb_lo_hz: float                 # nominal LNB local oscillator (0 if no LNB)
+    start_utc: _dt.datetime | None   # time of the first sample
+    n_samples: int                   # complete IQ samples in the file
+    trailing_bytes: int = 0          # bytes after the last complete sample (ignored, counted)
+    header_bytes: int = 0
+    source: str = ""                 # where the metadata came from
+
+    @property
+    def rf_center_hz(self) -> float:
+        """RF frequency that maps to baseband 0 Hz."""
+        return self.center_freq_hz + self.lnb_lo_hz
+
+    @property
+    def duration_s(self) -> float:
+        return self.n_samples / self.sample_rate_hz
+
+    def describe(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["path"] = str(self.path)
+        d["rf_center_hz"] = self.rf_center_hz
+        d["duration_s"] = self.duration_s
+        return d
+
+
+def parse_utc(text: str, where: str) -> _dt.datetime:
+    """Parse an ISO-8601 time ('Z' or offset allowed; naive means UTC)."""
+    try:
+        t = _dt.datetime.fromisoformat(str(text).strip().replace("Z", "+00:00"))
+    except ValueError:
+        raise UserInputError(f"{where}: expected an ISO-8601 UTC time like 2026-02-23T12:00:00Z, got {text!r}") from None
+    if t.tzinfo is None:
+        t = t.replace(tzinfo=_dt.timezone.utc)
+    return t.astimezone(_dt.timezone.utc)
+
+
+def _positive(value, where: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise UserInputError(f"{where}: expected a positive number, got {value!r}") from None
+    if not np.isfinite(v) or v <= 0:
+        raise UserInputError(f"{where}: expected a positive number, got {value!r}")
+    return v
+
+
+def _finite(value, where: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise UserInputError(f"{where}: expected a number, got {value!r}") from None
+    if not np.isfinite(v):
+        raise UserInputError(f"{where}: expected a finite number, got {value!r}")
+    return v
+
+
+def _sizes(path: Path, fmt: str, header_bytes: int = 0) -> tuple[int, int]:
+    """(complete samples, trailing bytes) of a raw sample file."""
+    if not path.is_file():
+        raise UserInputError(f"{path}: capture data file not found")
+    size = path.stat().st_size - header_bytes
+    if size <= 0:
+        raise UserInputError(f"{path}: capture file is empty (0 bytes of samples)")
+    bps = BYTES_PER_SAMPLE[fmt]
+    return size // bps, size % bps
+
+
+def _check_rf_consistency(center: float, lnb: float, rf_center: float | None, where: str) -> None:
+    if rf_center is not None and abs(center + lnb - rf_center) > 1.0:
+        raise UserInputError(
+            f"{where}: inconsistent metadata: leonav:rf_center_hz={rf_center:.0f} but "
+            f"core:frequency + leonav:lnb_lo_hz = {center:.0f} + {lnb:.0f} = {center + lnb:.0f}")
+
+
+def open_capture(path: str | Path, sample_format: str | None = None, *,
+                 sample_rate_hz: float | None = None, center_freq_hz: float | None = None,
+                 lnb_lo_hz: float | None = None, start_utc: _dt.datetime | str | None = None) -> CaptureInfo:
+    """Describe a capture file. Keyword values override the file's own metadata.
+
+    Raw files (cu8/ci8/cf32) read metadata from a JSON side file ``<path>.json`` with keys
+    ``sample_rate_hz, center_freq_hz, lnb_lo_hz, start_utc`` when present; otherwise the
+    sample rate and centre frequency must be given. SigMF recordings are recognised by
+    the ``.sigmf-meta``/``.sigmf-data`` suffix (either may be given).
+    """
+    path = Path(path)
+    if isinstance(start_utc, str):
+        start_utc = parse_utc(start_utc, "--start")
+    name = path.name
+    if name.endswith(".sigmf-meta") or name.endswith(".sigmf-data") or sample_format == "sigmf":
+        info = _open_sigmf(path)
+    else:
+        info = _open_raw(path, sample_format)
+    if sample_rate_hz is not None:
+        info.sample_rate_hz = _positive(sample_rate_hz, "--sample-rate")
+    if center_freq_hz is not None:
+        info.center_freq_hz = _positive(center_freq_hz, "--center-freq")
+    if lnb_lo_hz is not None:
+        info.lnb_lo_hz = _finite(lnb_lo_hz, "--lnb-lo")
+    if start_utc is not None:
+        info.start_utc = start_utc
+    missing = [k for k in ("sample_rate_hz", "center_freq_hz") if getattr(info, k) is None]
+    if missing:
+        raise UserInputError(
+            f"{path}: raw {info.sample_format} capture has no {', '.join(missing)}: give "
+            f"--sample-rate/--center-freq or a side file {path.name}.json with those keys")
+    return info
+
+
+def _open_raw(path: Path, sample_format: str | None) -> CaptureInfo:
+    fmt = sample_format or _RAW_SUFFIXES.get(path.suffix.lower())
+    if fmt is None:
+        raise UserInputError(
+            f"{path}: cannot tell the sample format from the suffix {path.suffix!r}; expected one of "
+            f"{sorted(_RAW_SUFFIXES)} or .sigmf-meta, or give --format cu8|ci8|cf32|sigmf")
+    if fmt not in BYTES_PER_SAMPLE:
+        raise UserInputError(f"{path}: unknown sample format {fmt!r}; expected cu8, ci8, cf32 or sigmf")
+    n, trailing = _sizes(path, fmt)
+    meta: dict = {}
+    side = path.with_name(path.name + ".json")
+    source = "command line"
+    if side.is_file():
+        try:
+            meta = json.loads(side.read_text())
+        except json.JSONDecodeError as exc:
+            raise UserInputError(f"{side}: line {exc.lineno}: not valid JSON ({exc.msg})") from None
+        if not isinstance(meta, dict):
+            raise UserInputError(f"{side}: expected a JSON object with sample_rate_hz, center_freq_hz, ...")
+        source = str(side)
+    sr = _positive(meta["sample_rate_hz"], f"{side}: field sample_rate_hz") if "sample_rate_hz" in meta else None
+    fc = _positive(meta["center_freq_hz"], f"{side}: field center_freq_hz") if "center_freq_hz" in meta else None
+    lnb = _finite(meta.get("lnb_lo_hz", DEFAULT_LNB_LO_HZ), f"{side}: field lnb_lo_hz")
+    if fc is not None and "rf_center_hz" in meta:
+        _check_rf_consistency(fc, lnb, _finite(meta["rf_center_hz"], f"{side}: field rf_center_hz"), str(side))
+    t0 = parse_utc(meta["start_utc"], f"{side}: field start_utc") if "start_utc" in meta else None
+    return CaptureInfo(path, fmt, sr, fc, lnb, t0, n, trailing, 0, source)
+
+
+def _open_sigmf(path: Path) -> CaptureInfo:
+    import sigmf  # local import: only SigMF users pay for it
+
+    base = str(path)
+    for suffix in (".sigmf-meta", ".sigmf-data"):
+        if base.endswith(suffix):
+            base = base[: -len(suffix)]
+    meta_path, data_path = Path(base + ".sigmf-meta"), Path(base + ".sigmf-data")
+    if not meta_path.is_file():
+        raise UserInputError(f"{meta_path}: SigMF metadata file not found")
+    try:
+        doc = json.loads(meta_path.read_text())
+    except json.JSONDecodeError as exc:
+        raise UserInputError(f"{meta_path}: line {exc.lineno}: not valid JSON ({exc.msg})") from None
+    try:
+        handle = sigmf.SigMFFile(metadata=doc, skip_checksum=True)
+        handle.validate()
+    except Exception as exc:  # sigmf raises its own error types for schema violations
+        raise UserInputError(f"{meta_path}: not a valid SigMF recording: {exc}") from None
+    glob = doc.get("global", {})
+    where = f"{meta_path}: global"
+    dtype = glob.get("core:datatype")
+    if dtype not in _SIGMF_DATATYPES:
+        raise UserInputError(f"{where} core:datatype={dtype!r}; expected one of {sorted(_SIGMF_DATATYPES)}")
+    if glob.get("core:num_channels", 1) != 1:
+        raise UserInputError(f"{where} core:num_channels={glob.get('core:num_channels')}; expected 1")
+    if "core:sample_rate" not in glob:
+        raise UserInputError(f"{where}: missing core:sample_rate (samples per second)")
+    sr = _positive(glob["core:sample_rate"], f"{where} core:sample_rate")
+    caps = doc.get("captures") or []
+    if not caps:
+        raise UserInputError(f"{meta_path}: captures: expected at least one capture segment")
+    cap = caps[0]
+    if "core:frequency" not in cap:
+        raise UserInputError(f"{meta_path}: captures[0]: missing core:frequency (SDR tuned frequency, Hz)")
+    fc = _positive(cap["core:frequency"], f"{meta_path}: captures[0] core:frequency")
+    if len(caps) > 1 and any(c.get("core:frequency", fc) != fc for c in caps[1:]):
+        raise UserInputError(f"{meta_path}: captures: the tuned frequency changes within the recording; "
+                             "expected one frequency (split the recording)")
+    t0 = parse_utc(cap["core:datetime"], f"{meta_path}: captures[0] core:datetime") if "core:datetime" in cap else None
+    lnb = _finite(glob.get("leonav:lnb_lo_hz", DEFAULT_LNB_LO_HZ), f"{where} leonav:lnb_lo_hz")
+    rf = glob.get("leonav:rf_center_hz")
+    if rf is not None:
+        _check_rf_consistency(fc, lnb, _finite(rf, f"{where} leonav:rf_center_hz"), where)
+    fmt = _SIGMF_DATATYPES[dtype]
+    header = int(cap.get("core:header_bytes", 0))
+    n, trailing = _sizes(data_path, fmt, header)
+    return CaptureInfo(data_path, fmt, sr, fc, lnb, t0, n, trailing, header, str(meta_path))
+
+
+def _to_complex64(raw: np.ndarray, fmt: str) -> np.ndarray:
+    """Convert raw bytes of whole samples to complex64 (full scale ~ +/-1 for 8-bit)."""
+    if fmt == "cu8":
+        f = raw.astype(np.float32)
+        f -= 127.5
+        f *= 1.0 / 127.5
+        return f.view(np.complex64)
+    if fmt == "ci8":
+        f = raw.view(np.int8).astype(np.float32)
+        f *= 1.0 / 128.0
+        return f.view(np.complex64)
+    return raw.view(np.complex64).copy()
+
+
+def iter_chunks(info: CaptureInfo, chunk_samples: int = 1 << 20, start_sample: int = 0,
+                n_samples: int | None = None) -> Iterator[np.ndarray]:
+    """Yield consecutive complex64 blocks of at most `chunk_samples` samples.
+
+    cf32 blocks are checked for non-finite or absurd values, which means the file is not
+    float32 IQ (raises UserInputError naming the file and sample index).
+    """
+    bps = BYTES_PER_SAMPLE[info.sample_format]
+    stop = info.n_samples if n_samples is None else min(info.n_samples, start_sample + n_samples)
+    with open(info.path, "rb") as fh:
+        fh.seek(info.header_bytes + start_sample * bps)
+        pos = start_sample
+        while pos < stop:
+            n = min(chunk_samples, stop - pos)
+            raw = np.frombuffer(fh.read(n * bps), dtype=np.uint8)
+            if raw.size < n * bps:  # the file shrank while reading
+                raise UserInputError(f"{info.path}: truncated while reading at sample {pos}")
+            block = _to_complex64(raw, info.sample_format)
+            if info.sample_format == "cf32":
+                bad = ~np.isfinite(block) | (np.abs(block.view(np.float32)).reshape(-1, 2).max(axis=1) > _CF32_MAX_ABS)
+                if bad.any():
+                    i = pos + int(np.argmax(bad))
+                    raise UserInputError(
+                        f"{info.path}: sample {i} is not a plausible float32 IQ value "
+                        f"({block[i - pos]!r}); is the file really cf32 (complex64)? try --format cu8")
+            yield block
+            pos += n
+
+
+def read_all(info: CaptureInfo) -> np.ndarray:
+    """Whole capture as one complex64 array (for small files and tests)."""
+    blocks = list(iter_chunks(info))
+    return np.concatenate(blocks) if blocks else np.zeros(0, np.complex64)
+
+
+def quantize_cu8(iq: np.ndarray, full_scale: float, rng: np.random.Generator | None = None) -> np.ndarray:
+    """Quantize complex samples to interleaved uint8 as an RTL-SDR does.
+
+    `full_scale` is the amplitude that maps to the ADC limits (+/-127.5 codes); values
+    beyond it clip. Rounding is to the nearest code (value + 127.5).
+    """
+    inter = np.empty(2 * iq.size, np.float32)
+    inter[0::2] = iq.real
+    inter[1::2] = iq.imag
+    inter *= 127.5 / full_scale
+    inter += 127.5
+    np.clip(np.rint(inter), 0, 255, out=inter)
+    return inter.astype(np.uint8)
+
+
+def write_side_json(path: str | Path, sample_rate_hz: float, center_freq_hz: float, lnb_lo_hz: float,
+                    start_utc: _dt.datetime | None, extra: dict | None = None) -> Path:
+    """Write the JSON side file read by `open_capture` for raw captures."""
+    side = Path(str(path) + ".json")
+    meta = {"sample_rate_hz": sample_rate_hz, "center_freq_hz": center_freq_hz,
+            "lnb_lo_hz": lnb_lo_hz, "rf_center_hz": center_freq_hz + lnb_lo_hz}
+    if start_utc is not None:
+        meta["start_utc"] = start_utc.isoformat().replace("+00:00", "Z")
+    meta.update(extra or {})
+    side.write_text(json.dumps(meta, indent=2) + "\n")
+    return side
+
+
+def write_sigmf_meta(base: str | Path, datatype: str, sample_rate_hz: float, center_freq_hz: float,
+                     lnb_lo_hz: float, start_utc: _dt.datetime | None, description: str = "",
+                     extra: dict | None = None) -> Path:
+    """Write `<base>.sigmf-meta` for an existing `<base>.sigmf-data` (validated by sigmf)."""
+    import sigmf
+
+    base = Path(base)
+    glob = {
+        "core:datatype": datatype,
+        "core:sample_rate": float(sample_rate_hz),
+        "core:version": sigmf.__specification__,
+        "core:description": description,
+        "core:recorder": "leonav",
+        "leonav:lnb_lo_hz": float(lnb_lo_hz),
+        "leonav:rf_center_hz": float(center_freq_hz + lnb_lo_hz),
+        "core:extensions": [{"name": "leonav", "version": "0.1.0", "optional": True}],
+    }
+    for k, v in (extra or {}).items():
+        glob[f"leonav:{k}"] = v
+    cap = {"core:sample_start": 0, "core:frequency": float(center_freq_hz)}
+    if start_utc is not None:
+        cap["core:datetime"] = start_utc.astimezone(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+    doc = {"global": glob, "captures": [cap], "annotations": []}
+    sigmf.SigMFFile(metadata=doc, skip_checksum=True).validate()
+    meta_path = Path(str(base) + ".sigmf-meta")
+    meta_path.write_text(json.dumps(doc, indent=2) + "\n")
+    return meta_path

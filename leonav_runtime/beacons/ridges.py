@@ -1,0 +1,208 @@
+"""Tone detection in STFT slices and tracking of simultaneous ridges.
+
+Detection: per slice, a bin is a tone candidate when its power exceeds the slice's noise
+floor `median + k*MAD` and is a local maximum. For noise-only bins (exponential power of
+mean mu) the threshold is mu*(ln 2 + k ln(phi)) = mu*(0.693 + 0.481 k): k_detect = 25 gives
+12.7 mu, a per-bin false-alarm probability of 3e-6 (about 0.05 false peaks per slice of
+16k bins), used to start ridges; k_track = 12 (6.5 mu, 1.5e-3) is used inside the gate of
+an existing ridge, where a false alarm is unlikely and a weak tone is worth keeping.
+
+Tracking: each ridge predicts its next frequency with its current rate (straight-line
+fit over its recent points) and looks for the strongest local maximum within a gate of
+`gate_bins` bins plus the rate uncertainty times the time since its last point. Peaks are
+shared out strongest ridge first; a ridge missing for `max_gap_s` ends. Ridges shorter
+than `min_duration_s` are discarded (counted) as noise. Fragments of one tone broken by a
+crossing or fade are joined when one extrapolates onto the other.
+
+Sub-bin frequency: quadratic interpolation of the log magnitude over the peak bin and its
+two neighbours (Gaussian interpolation).
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Iterable
+
+import numpy as np
+
+from leonav_runtime.beacons.waterfall import SpectrumBlock
+
+
+@dataclasses.dataclass
+class TrackerConfig:
+    k_detect: float = 25.0       # start threshold, MADs above the median
+    k_track: float = 12.0        # continuation threshold inside a gate
+    gate_bins: float = 3.0       # gate half-width (bins) before the rate term
+    rate_sigma_young_hz_s: float = 5000.0  # rate uncertainty of a ridge with few points
+    rate_sigma_hz_s: float = 300.0         # rate uncertainty once the rate is fitted
+    rate_fit_s: float = 0.3      # recent span used for the running rate
+    max_gap_s: float = 0.5       # a ridge unseen this long ends
+    min_duration_s: float = 1.0  # shorter ridges are discarded as noise
+    exclusion_bins: int = 6      # a weaker peak this close to a stronger one is a side lobe
+    join_gap_s: float = 3.0      # largest gap bridged when joining fragments
+    join_tol_hz: float = 150.0   # largest extrapolation miss when joining
+
+
+@dataclasses.dataclass
+class Ridge:
+    """One tracked tone: times (s since capture start), baseband frequency (Hz), SNR (dB/bin)."""
+
+    t_s: np.ndarray
+    f_hz: np.ndarray
+    snr_db: np.ndarray
+    ridge_id: int = -1
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t_s[-1] - self.t_s[0]) if self.t_s.size else 0.0
+
+
+@dataclasses.dataclass
+class TrackStats:
+    slices: int = 0
+    births: int = 0
+    discarded_short: int = 0
+    joined: int = 0
+
+
+class _Track:
+    __slots__ = ("t", "f", "snr", "rate", "n_fit")
+
+    def __init__(self, t: float, f: float, snr: float):
+        self.t, self.f, self.snr = [t], [f], [snr]
+        self.rate, self.n_fit = 0.0, 0
+
+    def refit_rate(self, span_s: float) -> None:
+        t = np.asarray(self.t[-64:])
+        keep = t >= t[-1] - span_s
+        if keep.sum() >= 5:
+            tt, ff = t[keep], np.asarray(self.f[-64:])[keep]
+            tt = tt - tt.mean()
+            self.rate = float(np.dot(tt, ff - ff.mean()) / np.dot(tt, tt))
+            self.n_fit = int(keep.sum())
+
+
+def interpolate_peak(power_row: np.ndarray, k: int) -> float:
+    """Sub-bin offset (in bins, within +/-0.5) of a peak at bin k from its log magnitude."""
+    if k <= 0 or k >= power_row.size - 1:
+        return 0.0
+    a, b, c = np.log(power_row[k - 1: k + 2].astype(np.float64) + 1e-30)
+    den = a - 2 * b + c
+    if den >= 0:
+        return 0.0
+    return float(np.clip(0.5 * (a - c) / den, -0.5, 0.5))
+
+
+class RidgeTracker:
+    """Streaming multi-ridge tracker; feed `SpectrumBlock`s, then call `finish()`."""
+
+    def __init__(self, f_hz: np.ndarray, cfg: TrackerConfig | None = None):
+        self.cfg = cfg or TrackerConfig()
+        self.f_hz = f_hz
+        self.df = float(f_hz[1] - f_hz[0])
+        self.active: list[_Track] = []
+        self.done: list[_Track] = []
+        self.stats = TrackStats()
+
+    def add_block(self, blk: SpectrumBlock) -> None:
+        cfg = self.cfg
+        thr_det = blk.noise_median + cfg.k_detect * blk.noise_mad
+        thr_trk = blk.noise_median + cfg.k_track * blk.noise_mad
+        p = blk.power
+        above = p[:, 1:-1] > thr_trk[:, None]
+        is_max = above & (p[:, 1:-1] >= p[:, :-2]) & (p[:, 1:-1] > p[:, 2:])
+        rows, cols = np.nonzero(is_max)
+        cols = cols + 1
+        starts = np.searchsorted(rows, np.arange(p.shape[0] + 1))
+        for s in range(p.shape[0]):
+            c = cols[starts[s]: starts[s + 1]]
+            self._slice(float(blk.t_s[s]), p[s], c, float(thr_det[s]), float(blk.noise_mean[s]))
+        self.stats.slices += p.shape[0]
+
+    def _slice(self, t: float, row: np.ndarray, peaks: np.ndarray, thr_det: float, noise_mean: float) -> None:
+        cfg, df = self.cfg, self.df
+        taken = np.zeros(peaks.size, bool)
+        # strongest ridges pick first so a weak ridge cannot steal a strong tone
+        order = sorted(self.active, key=lambda tr: -np.mean(tr.snr[-8:]))
+        f0 = self.f_hz[0]
+        for tr in order:
+            gap = t - tr.t[-1]
+            f_pred = tr.f[-1] + tr.rate * gap
+            rate_sig = cfg.rate_sigma_hz_s if tr.n_fit >= 5 else cfg.rate_sigma_young_hz_s
+            half = cfg.gate_bins * df + rate_sig * gap
+            if peaks.size == 0:
+                continue
+            pf = f0 + peaks * df
+            cand = np.nonzero(~taken & (np.abs(pf - f_pred) <= half))[0]
+            if cand.size == 0:
+                continue
+            best = cand[np.argmax(row[peaks[cand]])]
+            k = int(peaks[best])
+            f = f0 + (k + interpolate_peak(row, k)) * df
+            tr.t.append(t)
+            tr.f.append(f)
+            tr.snr.append(10 * np.log10(row[k] / noise_mean))
+            tr.refit_rate(cfg.rate_fit_s)
+            near = np.abs(peaks - k) <= cfg.exclusion_bins
+            taken |= near
+        # births: strong peaks not explained by a ridge, strongest first, side lobes skipped
+        free = np.nonzero(~taken & (row[peaks] > thr_det))[0] if peaks.size else np.zeros(0, int)
+        for i in free[np.argsort(-row[peaks[free]])]:
+            if taken[i]:
+                continue
+            k = int(peaks[i])
+            f = f0 + (k + interpolate_peak(row, k)) * df
+            self.active.append(_Track(t, f, 10 * np.log10(row[k] / noise_mean)))
+            self.stats.births += 1
+            taken |= np.abs(peaks - k) <= cfg.exclusion_bins
+        # end ridges not seen for too long
+        still = []
+        for tr in self.active:
+            (still if t - tr.t[-1] <= cfg.max_gap_s else self.done).append(tr)
+        self.active = still
+
+    def finish(self) -> list[Ridge]:
+        """Close all ridges, join fragments, drop short ones; ridges sorted by start time."""
+        tracks = self.done + self.active
+        self.active, self.done = [], []
+        ridges = [Ridge(np.asarray(tr.t), np.asarray(tr.f), np.asarray(tr.snr)) for tr in tracks if len(tr.t) >= 3]
+        self.stats.discarded_short += len(tracks) - len(ridges)
+        ridges = self._join(sorted(ridges, key=lambda r: r.t_s[0]))
+        keep = [r for r in ridges if r.duration_s >= self.cfg.min_duration_s]
+        self.stats.discarded_short += len(ridges) - len(keep)
+        for i, r in enumerate(keep):
+            r.ridge_id = i
+        return keep
+
+    def _join(self, ridges: list[Ridge]) -> list[Ridge]:
+        cfg = self.cfg
+        merged = True
+        while merged:
+            merged = False
+            for i, a in enumerate(ridges):
+                for j, b in enumerate(ridges):
+                    if i == j or a.duration_s < 0.2:
+                        continue
+                    gap = b.t_s[0] - a.t_s[-1]
+                    if not (0 < gap <= cfg.join_gap_s):
+                        continue
+                    tail = a.t_s >= a.t_s[-1] - 1.0
+                    deg = 2 if tail.sum() >= 20 else 1
+                    coef = np.polyfit(a.t_s[tail] - a.t_s[-1], a.f_hz[tail], deg)
+                    if abs(np.polyval(coef, gap) - b.f_hz[0]) <= cfg.join_tol_hz:
+                        ridges[i] = Ridge(np.concatenate([a.t_s, b.t_s]), np.concatenate([a.f_hz, b.f_hz]),
+                                          np.concatenate([a.snr_db, b.snr_db]))
+                        del ridges[j]
+                        self.stats.joined += 1
+                        merged = True
+                        break
+                if merged:
+                    break
+        return ridges
+
+
+def track_ridges(blocks: Iterable[SpectrumBlock], f_hz: np.ndarray, cfg: TrackerConfig | None = None) -> tuple[list[Ridge], TrackStats]:
+    """Run the tracker over all spectrum blocks; returns (ridges, statistics)."""
+    tracker = RidgeTracker(f_hz, cfg)
+    for blk in blocks:
+        tracker.add_block(blk)
+    return tracker.finish(), tracker.stats
