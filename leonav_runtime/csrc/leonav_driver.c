@@ -1,0 +1,334 @@
+/*
+ * leonav driver: dispatch of records to the generated CasADi steps, gating, status codes.
+ * See leonav_driver.h for the API contract. C99, no allocation, no exit.
+ */
+#include "leonav_driver.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "leonav_gen.h"
+
+#define NX LEONAV_NX
+#define NDX LEONAV_NDX
+#define NMAT (LEONAV_NDX * LEONAV_NDX)
+#define MAX_OUT 5     /* most outputs of any generated function (update: 5) */
+#define MAX_IN 6      /* most inputs of any generated function (update: 6) */
+#define WORK_MAGIC 0x6c656f6e61763031ULL
+
+/* ---- table of generated functions ------------------------------------------------ */
+
+typedef int (*gen_eval_fn)(const double **arg, double **res, int *iw, double *w, int mem);
+typedef int (*gen_work_fn)(int *sz_arg, int *sz_res, int *sz_iw, int *sz_w);
+typedef const int *(*gen_sparsity_fn)(int i);
+typedef int (*gen_count_fn)(void);
+
+typedef struct {
+    gen_eval_fn eval;
+    gen_work_fn work;
+    gen_sparsity_fn sparsity_out;
+    gen_count_fn n_out;
+} gen_fn;
+
+#define GEN_FN(name) {name, name##_work, name##_sparsity_out, name##_n_out}
+
+typedef struct {
+    gen_fn h;
+    gen_fn update;
+} meas_fns;
+
+/* Measurement id -> generated functions. Adding an observable = one line here. */
+#define MEAS_ENTRY(id, k) [id] = {GEN_FN(leonav_h_##k), GEN_FN(leonav_update_##k)}
+static const meas_fns MEAS[LEONAV_N_MEAS] = {
+    MEAS_ENTRY(LEONAV_MEAS_PSEUDORANGE, pseudorange),
+    MEAS_ENTRY(LEONAV_MEAS_POS_E, pos_e),
+    MEAS_ENTRY(LEONAV_MEAS_POS_N, pos_n),
+    MEAS_ENTRY(LEONAV_MEAS_POS_U, pos_u),
+    MEAS_ENTRY(LEONAV_MEAS_VEL_E, vel_e),
+    MEAS_ENTRY(LEONAV_MEAS_VEL_N, vel_n),
+    MEAS_ENTRY(LEONAV_MEAS_VEL_U, vel_u),
+    MEAS_ENTRY(LEONAV_MEAS_DOPPLER_RATE, doppler_rate),
+    MEAS_ENTRY(LEONAV_MEAS_DOPPLER, doppler),
+    MEAS_ENTRY(LEONAV_MEAS_OFDM_RANGE_DIFF, ofdm_range_diff),
+};
+static const gen_fn MECH = GEN_FN(leonav_mech);
+static const gen_fn PREDICT = GEN_FN(leonav_predict);
+
+/* ---- workspace ------------------------------------------------------------------- */
+
+typedef struct {
+    unsigned long long magic;
+    const double **arg;         /* sz_arg entries */
+    double **res;               /* sz_res entries */
+    int *iw;                    /* sz_iw entries */
+    double *w;                  /* sz_w entries */
+    double nz[MAX_OUT][NMAT];   /* nonzeros of sparse outputs before scattering */
+    double x_tmp[NX];
+    double P_tmp[NMAT];
+    double vec[NDX];            /* PCRB: B H^T */
+} workspace;
+
+typedef struct {
+    int sz_arg, sz_res, sz_iw, sz_w;
+} work_sizes;
+
+static void max_sizes(const gen_fn *f, work_sizes *m)
+{
+    int a = 0, r = 0, iw = 0, w = 0;
+    f->work(&a, &r, &iw, &w);
+    if (a > m->sz_arg) m->sz_arg = a;
+    if (r > m->sz_res) m->sz_res = r;
+    if (iw > m->sz_iw) m->sz_iw = iw;
+    if (w > m->sz_w) m->sz_w = w;
+}
+
+static work_sizes all_sizes(void)
+{
+    work_sizes m = {MAX_IN, MAX_OUT, 0, 0};
+    max_sizes(&MECH, &m);
+    max_sizes(&PREDICT, &m);
+    for (int k = 0; k < LEONAV_N_MEAS; ++k) {
+        max_sizes(&MEAS[k].h, &m);
+        max_sizes(&MEAS[k].update, &m);
+    }
+    return m;
+}
+
+static size_t align8(size_t n) { return (n + 7u) & ~(size_t)7u; }
+
+size_t leonav_work_size(void)
+{
+    work_sizes m = all_sizes();
+    return align8(sizeof(workspace)) + align8(sizeof(double *) * (size_t)m.sz_arg) +
+           align8(sizeof(double *) * (size_t)m.sz_res) + sizeof(double) * (size_t)m.sz_w +
+           align8(sizeof(int) * (size_t)m.sz_iw) + 8u;
+}
+
+static int outputs_fit(const gen_fn *f)
+{
+    for (int i = 0; i < f->n_out(); ++i) {
+        const int *sp = f->sparsity_out(i);
+        if (!sp || (long)sp[0] * sp[1] > NMAT) return 0;
+    }
+    return f->n_out() <= MAX_OUT;
+}
+
+int leonav_work_init(void *work, size_t nbytes)
+{
+    if (!work || nbytes < leonav_work_size()) return LEONAV_ERR_WORK;
+    if (!outputs_fit(&MECH) || !outputs_fit(&PREDICT)) return LEONAV_ERR_LAYOUT;
+    for (int k = 0; k < LEONAV_N_MEAS; ++k)
+        if (!outputs_fit(&MEAS[k].h) || !outputs_fit(&MEAS[k].update)) return LEONAV_ERR_LAYOUT;
+    work_sizes m = all_sizes();
+    char *base = (char *)work;
+    workspace *ws = (workspace *)base;
+    memset(ws, 0, sizeof(workspace));
+    size_t off = align8(sizeof(workspace));
+    ws->arg = (const double **)(base + off);
+    off += align8(sizeof(double *) * (size_t)m.sz_arg);
+    ws->res = (double **)(base + off);
+    off += align8(sizeof(double *) * (size_t)m.sz_res);
+    ws->w = (double *)(base + off);
+    off += sizeof(double) * (size_t)m.sz_w;
+    ws->iw = (int *)(base + off);
+    ws->magic = WORK_MAGIC;
+    return LEONAV_OK;
+}
+
+static workspace *get_ws(void *work)
+{
+    workspace *ws = (workspace *)work;
+    return (ws && ws->magic == WORK_MAGIC) ? ws : NULL;
+}
+
+/* ---- calling a generated function with dense outputs ------------------------------ */
+
+/* CasADi sparsity: {nrow, ncol, 1} is dense; else {nrow, ncol, colind[ncol+1], row[nnz]}. */
+static int is_dense(const int *sp) { return sp[2] == 1; }
+
+static void scatter(const int *sp, const double *nz, double *dense)
+{
+    const int nrow = sp[0], ncol = sp[1];
+    const int *colind = sp + 2, *row = sp + 3 + ncol;
+    memset(dense, 0, sizeof(double) * (size_t)nrow * (size_t)ncol);
+    for (int c = 0; c < ncol; ++c)
+        for (int k = colind[c]; k < colind[c + 1]; ++k) dense[row[k] + c * nrow] = nz[k];
+}
+
+/* Evaluate f(in...) writing each non-NULL out[i] as a dense column-major matrix. */
+static int call_gen(workspace *ws, const gen_fn *f, const double **in, int n_in, double **out, int n_out)
+{
+    for (int i = 0; i < n_in; ++i) ws->arg[i] = in[i];
+    for (int i = 0; i < n_out; ++i) {
+        if (!out[i]) ws->res[i] = NULL;
+        else ws->res[i] = is_dense(f->sparsity_out(i)) ? out[i] : ws->nz[i];
+    }
+    if (f->eval(ws->arg, ws->res, ws->iw, ws->w, 0) != 0) return -1;
+    for (int i = 0; i < n_out; ++i)
+        if (out[i] && ws->res[i] == ws->nz[i]) scatter(f->sparsity_out(i), ws->nz[i], out[i]);
+    return 0;
+}
+
+static int all_finite(const double *v, int n)
+{
+    for (int i = 0; i < n; ++i)
+        if (!isfinite(v[i])) return 0;
+    return 1;
+}
+
+/* ---- steps ----------------------------------------------------------------------- */
+
+int leonav_mech_step(double *x, const double *u, double dt, const double *p, void *work)
+{
+    workspace *ws = get_ws(work);
+    if (!ws) return LEONAV_ERR_WORK;
+    if (!all_finite(u, 6) || !isfinite(dt) || dt < 0.0) return LEONAV_STATUS_FAILED;
+    const double *in[4] = {x, u, &dt, p};
+    double *out[1] = {ws->x_tmp};
+    if (call_gen(ws, &MECH, in, 4, out, 1) != 0 || !all_finite(ws->x_tmp, NX)) return LEONAV_STATUS_FAILED;
+    memcpy(x, ws->x_tmp, sizeof(double) * NX);
+    return 0;
+}
+
+int leonav_predict_step(double *x, double *P, const double *u, double dt, const double *p,
+                        double *F, double *Qd, void *work)
+{
+    workspace *ws = get_ws(work);
+    if (!ws) return LEONAV_ERR_WORK;
+    if (!all_finite(u, 6) || !isfinite(dt) || dt < 0.0) return LEONAV_STATUS_FAILED;
+    const double *in[5] = {x, P, u, &dt, p};
+    double *out[4] = {ws->x_tmp, ws->P_tmp, F, Qd};
+    if (call_gen(ws, &PREDICT, in, 5, out, 4) != 0) return LEONAV_STATUS_FAILED;
+    if (!all_finite(ws->x_tmp, NX) || !all_finite(ws->P_tmp, NMAT)) return LEONAV_STATUS_FAILED;
+    memcpy(x, ws->x_tmp, sizeof(double) * NX);
+    memcpy(P, ws->P_tmp, sizeof(double) * NMAT);
+    return LEONAV_STATUS_IMU;
+}
+
+int leonav_update_step(double *x, double *P, int kind, double z, double R, const double *aux,
+                       const double *p, double gate_nis, double *y_S_nis, void *work)
+{
+    workspace *ws = get_ws(work);
+    if (!ws) return LEONAV_ERR_WORK;
+    if (kind < 0 || kind >= LEONAV_N_MEAS) return LEONAV_ERR_KIND;
+    double ysn[3] = {NAN, NAN, NAN};
+    int status = LEONAV_STATUS_FAILED;
+    if (isfinite(z) && isfinite(R) && R >= 0.0 && all_finite(aux, LEONAV_NAUX)) {
+        const double *in[6] = {x, P, &z, &R, aux, p};
+        double *out[5] = {ws->x_tmp, ws->P_tmp, &ysn[0], &ysn[1], &ysn[2]};
+        int rc = call_gen(ws, &MEAS[kind].update, in, 6, out, 5);
+        if (rc != 0 || !(ysn[1] > 0.0) || !isfinite(ysn[1]) || !isfinite(ysn[2]) ||
+            !all_finite(ws->x_tmp, NX) || !all_finite(ws->P_tmp, NMAT))
+            status = LEONAV_STATUS_FAILED;
+        else if (gate_nis > 0.0 && ysn[2] > gate_nis)
+            status = LEONAV_STATUS_GATED;
+        else
+            status = LEONAV_STATUS_APPLIED;
+    }
+    if (status == LEONAV_STATUS_APPLIED) {
+        memcpy(x, ws->x_tmp, sizeof(double) * NX);
+        memcpy(P, ws->P_tmp, sizeof(double) * NMAT);
+    }
+    if (y_S_nis) memcpy(y_S_nis, ysn, sizeof ysn);
+    return status;
+}
+
+int leonav_h_step(int kind, const double *x, const double *aux, const double *p, double *h,
+                  double *H, void *work)
+{
+    workspace *ws = get_ws(work);
+    if (!ws) return LEONAV_ERR_WORK;
+    if (kind < 0 || kind >= LEONAV_N_MEAS) return LEONAV_ERR_KIND;
+    const double *in[3] = {x, aux, p};
+    double *out[2] = {h, H};
+    if (call_gen(ws, &MEAS[kind].h, in, 3, out, 2) != 0) return LEONAV_STATUS_FAILED;
+    if ((h && !isfinite(*h)) || (H && !all_finite(H, NDX))) return LEONAV_STATUS_FAILED;
+    return 0;
+}
+
+/* ---- whole runs ------------------------------------------------------------------ */
+
+static void diag(const double *M, double *d)
+{
+    for (int i = 0; i < NDX; ++i) d[i] = M[i + i * NDX];
+}
+
+int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, long n,
+               const double *gate_nis, leonav_run_out *out, void *work)
+{
+    if (!x || !P || !p || !out || (n > 0 && !rec) || n < 0) return LEONAV_ERR_ARG;
+    out->n_done = 0;
+    out->n_imu = out->n_applied = out->n_gated = out->n_failed = 0;
+    if (!get_ws(work)) return LEONAV_ERR_WORK;
+    for (long i = 0; i < n; ++i) {
+        const leonav_record *r = &rec[i];
+        double ysn[3] = {NAN, NAN, NAN};
+        int status;
+        if (r->kind == LEONAV_KIND_IMU) {
+            status = leonav_predict_step(x, P, r->u, r->dt, p, NULL, NULL, work);
+            if (status == LEONAV_STATUS_IMU) out->n_imu++;
+        } else if (r->kind >= 0 && r->kind < LEONAV_N_MEAS) {
+            double gate = gate_nis ? gate_nis[r->kind] : 0.0;
+            status = leonav_update_step(x, P, r->kind, r->z, r->R, r->aux, p, gate, ysn, work);
+            if (status == LEONAV_STATUS_APPLIED) out->n_applied++;
+            if (status == LEONAV_STATUS_GATED) out->n_gated++;
+        } else {
+            return LEONAV_ERR_KIND;
+        }
+        if (status == LEONAV_STATUS_FAILED) out->n_failed++;
+        if (out->x) memcpy(out->x + i * NX, x, sizeof(double) * NX);
+        if (out->P_diag) diag(P, out->P_diag + i * NDX);
+        if (out->P) memcpy(out->P + i * NMAT, P, sizeof(double) * NMAT);
+        if (out->y) out->y[i] = ysn[0];
+        if (out->S) out->S[i] = ysn[1];
+        if (out->nis) out->nis[i] = ysn[2];
+        if (out->status) out->status[i] = status;
+        out->n_done = i + 1;
+    }
+    return LEONAV_OK;
+}
+
+int leonav_pcrb_run(double *B, const double *p, const leonav_record *rec, long n,
+                    const double *x_lin, double *B_diag, double *B_nav, double *B_full,
+                    long *n_done, void *work)
+{
+    long done_dummy = 0;
+    if (!n_done) n_done = &done_dummy;
+    *n_done = 0;
+    if (!B || !p || n < 0 || (n > 0 && (!rec || !x_lin))) return LEONAV_ERR_ARG;
+    workspace *ws = get_ws(work);
+    if (!ws) return LEONAV_ERR_WORK;
+    for (long i = 0; i < n; ++i) {
+        const leonav_record *r = &rec[i];
+        const double *xi = x_lin + i * NX;
+        if (r->kind == LEONAV_KIND_IMU) {
+            /* predict with P = B gives exactly F B F^T + Qd; the state output is discarded */
+            double x_copy[NX];
+            memcpy(x_copy, xi, sizeof x_copy);
+            if (leonav_predict_step(x_copy, B, r->u, r->dt, p, NULL, NULL, work) != LEONAV_STATUS_IMU)
+                return LEONAV_ERR_NUMERIC;
+        } else if (r->kind >= 0 && r->kind < LEONAV_N_MEAS) {
+            double h, H[NDX];
+            if (leonav_h_step(r->kind, xi, r->aux, p, &h, H, work) != 0) return LEONAV_ERR_NUMERIC;
+            double *BHt = ws->vec, S = r->R;
+            for (int a = 0; a < NDX; ++a) {
+                double s = 0.0;
+                for (int b = 0; b < NDX; ++b) s += B[a + b * NDX] * H[b];
+                BHt[a] = s;
+                S += H[a] * s;
+            }
+            if (!(S > 0.0) || !isfinite(S) || !(r->R > 0.0)) return LEONAV_ERR_NUMERIC;
+            for (int b = 0; b < NDX; ++b)
+                for (int a = 0; a < NDX; ++a) B[a + b * NDX] -= BHt[a] * BHt[b] / S;
+        } else {
+            return LEONAV_ERR_KIND;
+        }
+        if (B_diag) diag(B, B_diag + i * NDX);
+        if (B_nav)
+            for (int b = 0; b < 9; ++b)
+                for (int a = 0; a < 9; ++a) B_nav[i * 81 + a + b * 9] = B[a + b * NDX];
+        if (B_full) memcpy(B_full + i * NMAT, B, sizeof(double) * NMAT);
+        *n_done = i + 1;
+    }
+    return LEONAV_OK;
+}
