@@ -1,0 +1,22 @@
+"""Measurement models h(x, aux, p), one module per observable (see models.state.MEASUREMENTS).
+
+`MODELS` maps the observable's function suffix to its h; it is filled by `models()` so that
+importing this package has no side effects beyond importing the modules.
+"""
+from __future__ import annotations
+
+
+def models() -> dict:
+    """{suffix: h(x, aux, p) -> scalar SX} for every observable, in models.state.MEASUREMENTS order."""
+    from models.measurements import doppler, doppler_rate, gnss_fix, gnss_pseudorange, ofdm_range_difference
+    from models.state import MEASUREMENTS
+
+    table = {
+        "pseudorange": gnss_pseudorange.h,
+        "pos_e": gnss_fix.h_pos_e, "pos_n": gnss_fix.h_pos_n, "pos_u": gnss_fix.h_pos_u,
+        "vel_e": gnss_fix.h_vel_e, "vel_n": gnss_fix.h_vel_n, "vel_u": gnss_fix.h_vel_u,
+        "doppler_rate": doppler_rate.h,
+        "doppler": doppler.h,
+        "ofdm_range_diff": ofdm_range_difference.h,
+    }
+    return {suffix: table[suffix] for _, suffix, _ in MEASUREMENTS}

@@ -1,0 +1,109 @@
+"""The casadi.Functions that are generated to C, with named inputs and outputs.
+
+Names and signatures are the contract of docs/design.md. Every output is dense
+(densified) and every matrix is stored column-major in the generated C.
+"""
+from __future__ import annotations
+
+import casadi as ca
+
+from models import ekf, frames, kinematics
+from models.measurements import models as measurement_models
+from models.measurements.geometry import receiver_ecef
+from models.state import NAUX, NDX, NP, NU, NX
+
+FUNCTION_OPTS = {"cse": True}
+
+
+def _fn(name: str, inputs: dict, outputs: dict, doc: str) -> ca.Function:
+    fn = ca.Function(
+        name,
+        list(inputs.values()),
+        [ca.densify(v) for v in outputs.values()],
+        list(inputs.keys()),
+        list(outputs.keys()),
+        FUNCTION_OPTS,
+    )
+    fn.doc = doc  # kept for the manifest (casadi ignores it)
+    return fn
+
+
+def _syms():
+    return {
+        "x": ca.SX.sym("x", NX),
+        "P": ca.SX.sym("P", NDX, NDX),
+        "u": ca.SX.sym("u", NU),
+        "dt": ca.SX.sym("dt"),
+        "p": ca.SX.sym("p", NP),
+        "aux": ca.SX.sym("aux", NAUX),
+        "z": ca.SX.sym("z"),
+        "R": ca.SX.sym("R"),
+    }
+
+
+def build_functions() -> list[ca.Function]:
+    """All generated functions, in a fixed order (the order of the generated C).
+
+    The model parts (mechanization, F, Qd, h, H) are SX functions with the Jacobians
+    expanded; the covariance algebra around them is MX, so the 18 x 18 matrix products are
+    emitted as loops (casadi_mtimes) rather than unrolled, which keeps the C small.
+    """
+    s = _syms()
+    x, P, u, dt, p, aux, z, R = (s[k] for k in ("x", "P", "u", "dt", "p", "aux", "z", "R"))
+    out: list[ca.Function] = []
+
+    out.append(_fn("leonav_mech", {"x": x, "u": u, "dt": dt, "p": p},
+                   {"x_next": kinematics.mech(x, u, dt, p)},
+                   "nominal strapdown mechanization over one IMU interval"))
+    x_next, F, Qd = ekf.nav_transition(x, u, dt, p)
+    transition = _fn("leonav_transition", {"x": x, "u": u, "dt": dt, "p": p},
+                     {"x_next": x_next, "F": F, "Qd": Qd}, "x_next, F, Qd")
+    xm, Pm, um, dtm, pm = (ca.MX.sym(n, *v.shape) for n, v in (("x", x), ("P", P), ("u", u), ("dt", dt), ("p", p)))
+    auxm, zm, Rm, Jm = ca.MX.sym("aux", NAUX), ca.MX.sym("z"), ca.MX.sym("R"), ca.MX.sym("J", NDX, NDX)
+    xn, Fm, Qdm = transition(xm, um, dtm, pm)
+    out.append(_fn("leonav_predict", {"x": xm, "P": Pm, "u": um, "dt": dtm, "p": pm},
+                   {"x_next": xn, "P_next": ekf.covariance_predict(Pm, Fm, Qdm), "F": Fm, "Qd": Qdm},
+                   "error-state EKF predict: P_next = F P F^T + Qd"))
+
+    dx_sx = ca.SX.sym("dx", NDX)
+    boxplus_sx = ca.Function("leonav_boxplus_core", [x, dx_sx], [frames.boxplus(x, dx_sx)], FUNCTION_OPTS)
+    for suffix, h in measurement_models().items():
+        h_pred, H = ekf.nav_h(h, x, aux, p)
+        hfn = _fn(f"leonav_h_{suffix}", {"x": x, "aux": aux, "p": p}, {"h": h_pred, "H": H},
+                  f"{suffix}: prediction and 1 x NDX Jacobian w.r.t. dx at 0")
+        out.append(hfn)
+        hm, Hm = hfn(xm, auxm, pm)
+        x_post, P_post, y, S, nis = ekf.scalar_update(xm, Pm, zm, Rm, hm, Hm, lambda a, b: boxplus_sx(a, b))
+        out.append(_fn(f"leonav_update_{suffix}",
+                       {"x": xm, "P": Pm, "z": zm, "R": Rm, "aux": auxm, "p": pm},
+                       {"x_post": x_post, "P_post": P_post, "y": y, "S": S, "nis": nis},
+                       f"{suffix}: scalar Joseph-form update"))
+        out.append(_fn(f"leonav_pcrb_info_{suffix}", {"J": Jm, "x": xm, "aux": auxm, "p": pm, "R": Rm},
+                       {"J_next": ekf.information_add(Jm, Hm, Rm)},
+                       f"{suffix}: Fisher information add J + H^T H / R"))
+
+    dx = ca.SX.sym("dx", NDX)
+    x0 = ca.SX.sym("x0", NX)
+    out.append(_fn("leonav_boxplus", {"x": x, "dx": dx}, {"x_out": frames.boxplus(x, dx)},
+                   "retraction x [+] dx (attitude: q (x) exp(dtheta/2))"))
+    out.append(_fn("leonav_boxminus", {"x1": x, "x0": x0}, {"dx": frames.boxminus(x, x0)},
+                   "error x1 [-] x0 (attitude: body-frame rotation vector)"))
+    rpy = ca.SX.sym("rpy", 3)
+    q = ca.SX.sym("q", 4)
+    out.append(_fn("leonav_q_from_euler", {"rpy": rpy}, {"q": frames.quat_from_euler(rpy)},
+                   "q_nb from roll, pitch, yaw (rad), C_b_n = Rz(yaw) Ry(pitch) Rx(roll)"))
+    out.append(_fn("leonav_euler_from_q", {"q": q}, {"rpy": frames.euler_from_quat(q)},
+                   "roll, pitch, yaw (rad) of q_nb"))
+
+    p_enu = ca.SX.sym("p_enu", 3)
+    f_b = ca.SX.sym("f_b", 3)
+    out.append(_fn("leonav_gravity_enu", {"p_enu": p_enu, "p": p}, {"g_enu": kinematics.gravity_enu(p_enu, p)},
+                   "normal gravity vector (m/s^2) at p_enu, origin ENU axes"))
+    out.append(_fn("leonav_earth_rate_enu", {"p": p}, {"w_ie_enu": kinematics.earth_rate_enu(p)},
+                   "Earth rotation rate (rad/s) in the origin ENU axes"))
+    out.append(_fn("leonav_accel_enu", {"x": x, "f_b": f_b, "p": p}, {"a_enu": kinematics.accel_enu(x, f_b, p)},
+                   "Earth-relative acceleration d v_enu/dt (m/s^2) for specific force f_b (body)"))
+    r_U, v_U = receiver_ecef(x, p)
+    out.append(_fn("leonav_receiver_ecef", {"x": x, "p": p}, {"r_ecef": r_U, "v_ecef": v_U},
+                   "receiver ECEF position (m) and Earth-relative velocity (m/s)"))
+    return out

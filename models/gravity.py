@@ -1,0 +1,19 @@
+"""WGS84 normal gravity (Somigliana with the second-order height term)."""
+from __future__ import annotations
+
+import casadi as ca
+
+from models import constants as K
+
+
+def normal_gravity(lat, h):
+    """Magnitude of normal gravity (m/s^2) at geodetic latitude `lat` (rad), height `h` (m).
+
+    Somigliana's closed formula on the ellipsoid, times the height series
+    1 - 2/a (1 + f + m - 2 f sin^2 lat) h + 3 h^2 / a^2 (WGS84, TR8350.2 eq. 4-3).
+    Normal gravity includes the centrifugal acceleration of the Earth's rotation.
+    """
+    s2 = ca.sin(lat) ** 2
+    g0 = K.GAMMA_E_MPS2 * (1 + K.SOMIGLIANA_K * s2) / ca.sqrt(1 - K.WGS84_E2 * s2)
+    a = K.WGS84_A_M
+    return g0 * (1 - 2 / a * (1 + K.WGS84_F + K.GRAVITY_M - 2 * K.WGS84_F * s2) * h + 3 * h * h / (a * a))

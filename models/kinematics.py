@@ -1,0 +1,108 @@
+"""Strapdown mechanization in the local ENU frame of a fixed origin (CasADi SX).
+
+Frame: ENU axes at the origin r0 (lat0, lon0, h0 in the parameters), fixed to the Earth,
+so it rotates with the Earth at w_ie. Position p_enu, velocity v_enu = d p_enu/dt
+(velocity w.r.t. the Earth), attitude q_nb (body -> this ENU frame). Equations:
+
+    dv_enu/dt = C_b_n (f_b - b_a) + g_enu(p) - 2 w_ie^n x v_enu
+    dC_b_n/dt = C_b_n [(w_b - b_g) x] - [w_ie^n x] C_b_n
+
+Because the frame is fixed to the Earth there is no transport rate; the curvature of
+the Earth enters only through gravity, evaluated at the current point: its magnitude
+(Somigliana + height) and its direction (the ellipsoid normal there, expressed in the
+origin's ENU axes). That direction change with horizontal position is what produces
+the Schuler oscillation; the height dependence is what makes the unaided vertical
+channel unstable. Valid within ~10 km of the origin (the ENU-plane formulation itself
+is exact; the model ignores only the deflection of the vertical and tidal terms, and
+numerics are checked in that region).
+
+Integration over one IMU interval dt from increments u = [dtheta_b, dvel_b]:
+- attitude: exact for constant rates, q+ = exp(-w_ie^n dt) (x) q (x) exp(dtheta_b - b_g dt),
+  then normalized;
+- specific force: dvel_b - b_a dt rotated with the mid-interval attitude (this includes
+  the first-order velocity-rotation correction 1/2 dtheta x dvel);
+- gravity and Coriolis: trapezoid (Heun): evaluated at the start and at an Euler
+  predicted end point, averaged; position by the trapezoid of the velocities.
+"""
+from __future__ import annotations
+
+import casadi as ca
+
+from models import constants as K
+from models import frames
+from models.gravity import normal_gravity
+from models.state import AUX, P, U, X
+
+
+def origin(p):
+    """(lat0, lon0, h0, r0_ecef, C_n_e) of the ENU origin from the parameter vector."""
+    lat0, lon0, h0 = p[P["lat0_rad"].offset], p[P["lon0_rad"].offset], p[P["h0_m"].offset]
+    return lat0, lon0, h0, frames.ecef_from_geodetic(lat0, lon0, h0), frames.C_n_e(lat0, lon0)
+
+
+def earth_rate_enu(p):
+    """Earth rotation rate resolved in the origin's ENU axes (rad/s)."""
+    lat0 = p[P["lat0_rad"].offset]
+    return K.OMEGA_IE_RADPS * ca.vertcat(0, ca.cos(lat0), ca.sin(lat0))
+
+
+def position_ecef(p_enu, p):
+    """Receiver ECEF position (m): r0 + C_n_e p_enu."""
+    _, _, _, r0, C = origin(p)
+    return r0 + C @ p_enu
+
+
+def gravity_enu(p_enu, p):
+    """Normal gravity vector (m/s^2) at position p_enu, in the origin's ENU axes.
+
+    Magnitude from Somigliana at the point's own geodetic latitude and height; direction
+    minus the ellipsoid normal at that point (so it tilts by ~distance/R away from the origin).
+    """
+    _, _, _, r0, C = origin(p)
+    lat, lon, h = frames.geodetic_from_ecef(r0 + C @ p_enu)
+    up_ecef = ca.vertcat(ca.cos(lat) * ca.cos(lon), ca.cos(lat) * ca.sin(lon), ca.sin(lat))
+    return -normal_gravity(lat, h) * (C.T @ up_ecef)
+
+
+def accel_enu(x, f_b, p):
+    """Earth-relative acceleration d v_enu/dt (m/s^2) for specific force f_b (body, m/s^2)."""
+    C_b_n = frames.rot_from_quat(x[X["q_nb"].slice])
+    v = x[X["v_enu"].slice]
+    w_ie = earth_rate_enu(p)
+    return C_b_n @ (f_b - x[X["b_a"].slice]) + gravity_enu(x[X["p_enu"].slice], p) - 2 * ca.cross(w_ie, v)
+
+
+def mech(x, u, dt, p):
+    """Nominal state after one IMU interval `dt` (s) with increments u = [dtheta_b (rad), dvel_b (m/s)].
+
+    Biases, clock and LO offset follow their noise-free dynamics (constant biases,
+    c_dt += c_ddt dt). See the module docstring for the integration scheme.
+    """
+    pos, vel, q = x[X["p_enu"].slice], x[X["v_enu"].slice], x[X["q_nb"].slice]
+    b_a, b_g = x[X["b_a"].slice], x[X["b_g"].slice]
+    dtheta_b, dvel_b = u[U["dtheta_b"].slice], u[U["dvel_b"].slice]
+    w_ie = earth_rate_enu(p)
+
+    phi = dtheta_b - b_g * dt
+    q_next = frames.quat_mul(frames.quat_exp(-w_ie * dt), frames.quat_mul(q, frames.quat_exp(phi)))
+    q_next = q_next / ca.norm_2(q_next)
+    q_mid = frames.quat_mul(frames.quat_exp(-w_ie * dt / 2), frames.quat_mul(q, frames.quat_exp(phi / 2)))
+    dv_sf = frames.rot_from_quat(q_mid) @ (dvel_b - b_a * dt)
+
+    def a_gc(pos_, vel_):  # gravity + Coriolis
+        return gravity_enu(pos_, p) - 2 * ca.cross(w_ie, vel_)
+
+    a0 = a_gc(pos, vel)
+    vel_pred = vel + dv_sf + a0 * dt
+    pos_pred = pos + (vel + vel_pred) * dt / 2
+    vel_next = vel + dv_sf + (a0 + a_gc(pos_pred, vel_pred)) * dt / 2
+    pos_next = pos + (vel + vel_next) * dt / 2
+
+    c_dt, c_ddt = x[X["c_dt"].offset], x[X["c_ddt"].offset]
+    return ca.vertcat(pos_next, vel_next, q_next, b_a, b_g, c_dt + c_ddt * dt, c_ddt, x[X["b_lo"].offset])
+
+
+def receiver_accel_ecef(x, aux, p):
+    """Receiver Earth-relative acceleration in ECEF axes (m/s^2) from the state and aux f_b."""
+    _, _, _, _, C = origin(p)
+    return C @ accel_enu(x, aux[AUX["f_b"].slice], p)

@@ -1,0 +1,20 @@
+"""Starlink beacon Doppler (Hz): f_D = -(f_c/c) rho_dot + b_lo (beyond the paper).
+
+b_lo is the common frequency offset of the beacon front end (LNB LO + SDR ppm) at
+baseband; it is large and unknown, hence a state.
+"""
+from __future__ import annotations
+
+import casadi as ca
+
+from models.constants import C_LIGHT_MPS
+from models.measurements.geometry import receiver_ecef
+from models.state import AUX, P, X
+
+
+def h(x, aux, p):
+    """Predicted Doppler (Hz)."""
+    r_U, v_U = receiver_ecef(x, p)
+    r = aux[AUX["r_S_ecef"].slice] - r_U
+    rho_dot = ca.dot(r / ca.norm_2(r), aux[AUX["v_S_ecef"].slice] - v_U)
+    return -(p[P["f_c_hz"].offset] / C_LIGHT_MPS) * rho_dot + x[X["b_lo"].offset]

@@ -1,0 +1,119 @@
+"""The one definition of the state, error state, parameters, aux input and observables.
+
+Pure Python (no casadi): `codegen` emits these as `leonav_runtime/gen/state_layout.h`
+and its Python twin `state_layout.py`. Layouts follow docs/design.md.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Block:
+    """A named slice of a vector: `offset`, `size`, unit and meaning."""
+
+    name: str
+    offset: int
+    size: int
+    unit: str
+    doc: str
+
+    @property
+    def slice(self) -> slice:
+        return slice(self.offset, self.offset + self.size)
+
+
+def _blocks(spec: list[tuple[str, int, str, str]]) -> tuple[Block, ...]:
+    out, offset = [], 0
+    for name, size, unit, doc in spec:
+        out.append(Block(name, offset, size, unit, doc))
+        offset += size
+    return tuple(out)
+
+
+# Nominal state x
+X_BLOCKS = _blocks([
+    ("p_enu", 3, "m", "position in the local ENU frame at the origin r0"),
+    ("v_enu", 3, "m/s", "velocity w.r.t. Earth, ENU axes"),
+    ("q_nb", 4, "-", "attitude quaternion body->ENU [w x y z]"),
+    ("b_a", 3, "m/s^2", "accelerometer bias, body"),
+    ("b_g", 3, "rad/s", "gyro bias, body"),
+    ("c_dt", 1, "m", "receiver clock bias times c"),
+    ("c_ddt", 1, "m/s", "receiver clock drift times c"),
+    ("b_lo", 1, "Hz", "beacon front-end frequency offset at baseband"),
+])
+# Error state dx (attitude as a body-frame rotation vector)
+DX_BLOCKS = _blocks([
+    ("dp", 3, "m", "position error, ENU"),
+    ("dv", 3, "m/s", "velocity error, ENU"),
+    ("dtheta", 3, "rad", "attitude error, body frame: q_true = q_nom (x) exp(dtheta/2)"),
+    ("db_a", 3, "m/s^2", "accelerometer bias error"),
+    ("db_g", 3, "rad/s", "gyro bias error"),
+    ("dc_dt", 1, "m", "clock bias error"),
+    ("dc_ddt", 1, "m/s", "clock drift error"),
+    ("db_lo", 1, "Hz", "LO offset error"),
+])
+# Parameters p
+P_NAMES = (
+    ("lat0_rad", "rad", "ENU origin geodetic latitude (WGS84)"),
+    ("lon0_rad", "rad", "ENU origin longitude"),
+    ("h0_m", "m", "ENU origin ellipsoidal height"),
+    ("vrw", "m/s/sqrt(s)", "velocity random walk (accelerometer white noise)"),
+    ("arw", "rad/sqrt(s)", "angle random walk (gyro white noise)"),
+    ("acc_bias_rw", "m/s^2/sqrt(s)", "accelerometer bias random walk"),
+    ("gyro_bias_rw", "rad/s/sqrt(s)", "gyro bias random walk"),
+    ("q_cdt", "m^2/s", "clock white-frequency PSD (drives c_dt)"),
+    ("q_cddt", "m^2/s^3", "clock random-walk-frequency PSD (drives c_ddt)"),
+    ("q_blo", "Hz^2/s", "LO offset random-walk PSD"),
+    ("f_c_hz", "Hz", "beacon carrier frequency"),
+)
+P_BLOCKS = _blocks([(n, 1, u, d) for n, u, d in P_NAMES])
+# Auxiliary measurement input
+AUX_BLOCKS = _blocks([
+    ("r_S_ecef", 3, "m", "satellite position, ECEF (pseudorange: at transmit time, ECEF of transmit epoch)"),
+    ("v_S_ecef", 3, "m/s", "satellite velocity, ECEF (Earth-relative)"),
+    ("a_S_ecef", 3, "m/s^2", "satellite acceleration, ECEF (Earth-relative)"),
+    ("r_ref_ecef", 3, "m", "reference satellite position, ECEF (OFDM differenced range)"),
+    ("v_ref_ecef", 3, "m/s", "reference satellite velocity, ECEF"),
+    ("a_ref_ecef", 3, "m/s^2", "reference satellite acceleration, ECEF"),
+    ("f_b", 3, "m/s^2", "latest specific force, body (receiver acceleration)"),
+])
+# IMU input u
+U_BLOCKS = _blocks([
+    ("dtheta_b", 3, "rad", "gyro angle increment over dt, body FLU"),
+    ("dvel_b", 3, "m/s", "accelerometer velocity increment over dt, body FLU"),
+])
+# Observables: (id name, function suffix, unit)
+MEASUREMENTS = (
+    ("PSEUDORANGE", "pseudorange", "m"),
+    ("POS_E", "pos_e", "m"),
+    ("POS_N", "pos_n", "m"),
+    ("POS_U", "pos_u", "m"),
+    ("VEL_E", "vel_e", "m/s"),
+    ("VEL_N", "vel_n", "m/s"),
+    ("VEL_U", "vel_u", "m/s"),
+    ("DOPPLER_RATE", "doppler_rate", "Hz/s"),
+    ("DOPPLER", "doppler", "Hz"),
+    ("OFDM_RANGE_DIFF", "ofdm_range_diff", "m"),
+)
+
+
+def _total(blocks: tuple[Block, ...]) -> int:
+    return blocks[-1].offset + blocks[-1].size
+
+
+NX = _total(X_BLOCKS)
+NDX = _total(DX_BLOCKS)
+NP = _total(P_BLOCKS)
+NAUX = _total(AUX_BLOCKS)
+NU = _total(U_BLOCKS)
+NMEAS = len(MEASUREMENTS)
+
+X = {b.name: b for b in X_BLOCKS}
+DX = {b.name: b for b in DX_BLOCKS}
+P = {b.name: b for b in P_BLOCKS}
+AUX = {b.name: b for b in AUX_BLOCKS}
+U = {b.name: b for b in U_BLOCKS}
+MEAS_ID = {name: i for i, (name, _, _) in enumerate(MEASUREMENTS)}
+
+assert (NX, NDX, NP, NAUX, NU) == (19, 18, 11, 21, 6), "layout drifted from docs/design.md"
