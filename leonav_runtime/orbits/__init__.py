@@ -28,3 +28,10 @@ __all__ = [
     "ElementSet", "RejectedEntry", "RejectedElementsWarning", "load_elements", "parse_elements_text",
     "SatStates", "StaleElementsWarning", "propagate_ecef", "propagate_teme", "gravity_ecef_mps2",
 ]
+from leonav_runtime.orbits.constellations import (  # noqa: E402
+    default_elements,
+    gps_walker_tle,
+    starlink_walker_tle,
+)
+
+__all__ += ["default_elements", "gps_walker_tle", "starlink_walker_tle"]

@@ -46,16 +46,16 @@ def teme_to_ecef(
     xp_rad: float = 0.0,
     yp_rad: float = 0.0,
     scale: float = 1.0,
+    out: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Rotate TEME states (..., nt, 3) with one GMST per time (nt,) into ECEF.
 
     `scale` multiplies the result (1000 turns SGP4's km into m at no extra cost).
-    Returns new arrays r_ecef, v_ecef of the input shape.
+    Returns r_ecef, v_ecef of the input shape (written into `out` when given).
     """
     c = np.cos(gmst_rad) * scale
     s = np.sin(gmst_rad) * scale
-    r_ecef = np.empty_like(r_teme)
-    v_ecef = np.empty_like(v_teme)
+    r_ecef, v_ecef = out if out is not None else (np.empty_like(r_teme), np.empty_like(v_teme))
     x, y = r_teme[..., 0], r_teme[..., 1]
     xe = r_ecef[..., 0]
     ye = r_ecef[..., 1]
@@ -76,7 +76,7 @@ def teme_to_ecef(
     vye -= OMEGA_EARTH_RADPS * xe
     np.multiply(v_teme[..., 2], scale, out=v_ecef[..., 2])
     if xp_rad or yp_rad:
-        pm_t = polar_motion_matrix(xp_rad, yp_rad).T
-        r_ecef = r_ecef @ pm_t.T
-        v_ecef = v_ecef @ pm_t.T
+        pm = polar_motion_matrix(xp_rad, yp_rad)
+        r_ecef[...] = r_ecef @ pm  # row vectors: (PM^T r)^T = r^T PM
+        v_ecef[...] = v_ecef @ pm
     return r_ecef, v_ecef
