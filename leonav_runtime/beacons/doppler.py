@@ -84,6 +84,12 @@ def ridge_measurements(ridge: Ridge, rf_center_hz: float, tone_rf_hz: float, int
             continue
         sel = np.abs(t - tk) <= half_window_s
         rows.append((tk, *fit, float(np.median(ridge.snr_db[sel]))))
+    if not rows and t.size >= 8:
+        # ridge shorter than one window: a single epoch at its middle, fitted over all of it
+        tk = float(0.5 * (t[0] + t[-1]))
+        fit = local_poly_fit(t, fd, tk, 0.5 * (t[-1] - t[0]) + 1e-9)
+        if fit is not None:
+            rows.append((tk, *fit, float(np.median(ridge.snr_db))))
     a = np.asarray(rows, float).reshape(-1, 7)
     return RidgeMeasurements(ridge.ridge_id, a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4],
                              a[:, 5].astype(int), a[:, 6])

@@ -132,14 +132,13 @@ def predict_visible(elements, site: Site, start_utc: _dt.datetime, duration_s: f
     t_vis = np.linspace(0.0, max(duration_s, 0.0), 3)
     coarse = propagate_ecef(elements, start_utc, t_vis, acceleration=False)
     _, el, _ = az_el_range(coarse.r_ecef_m, r_rx, site.lat_rad, site.lon_rad)
-    ok = np.asarray(coarse.ok).reshape(el.shape) if np.ndim(coarse.ok) == 2 else np.asarray(coarse.ok)[:, None]
-    vis = np.nonzero(((el >= np.radians(mask_deg)) & ok).any(axis=1))[0]
+    ok = np.asarray(coarse.ok, bool)
+    vis = np.nonzero((el >= np.radians(mask_deg)).any(axis=1) & ok)[0]
     names, ids = _element_meta(elements, vis)
     if vis.size == 0:
         empty = np.zeros((0, t.size))
         return Predictions(start_utc, t, [], ids, empty, empty, empty, vis)
-    sub = elements.subset(vis) if hasattr(elements, "subset") else elements[vis]
-    st = propagate_ecef(sub, start_utc, t, acceleration=True)
+    st = propagate_ecef(elements.select(vis), start_utc, t, acceleration=True)
     _, el_fine, _ = az_el_range(st.r_ecef_m, r_rx, site.lat_rad, site.lon_rad)
     p = model_params(site.lat_rad, site.lon_rad, site.h_m, tone_rf_hz)
     d, r = evaluate_model(st.r_ecef_m, st.v_ecef_mps, st.a_ecef_mps2, p)

@@ -40,6 +40,10 @@ class TrackerConfig:
     exclusion_bins: int = 6      # a weaker peak this close to a stronger one is a side lobe
     join_gap_s: float = 3.0      # largest gap bridged when joining fragments
     join_tol_hz: float = 150.0   # largest extrapolation miss when joining
+    confirm_points: int = 8      # a ridge with fewer points must be seen in consecutive slices
+    young_max_gap_slices: float = 2.5  # ... i.e. at most this many hops since its last point
+    min_fill: float = 0.5        # kept ridges are seen in at least this fraction of their slices
+    max_jitter_bins: float = 0.5  # median |second difference| of f, in bins (noise tracks wander)
 
 
 @dataclasses.dataclass
@@ -61,15 +65,24 @@ class TrackStats:
     slices: int = 0
     births: int = 0
     discarded_short: int = 0
+    discarded_noise: int = 0     # too sparse or too jittery to be a tone
     joined: int = 0
 
 
 class _Track:
-    __slots__ = ("t", "f", "snr", "rate", "n_fit")
+    __slots__ = ("t", "f", "snr", "rate", "n_fit", "snr_avg")
 
     def __init__(self, t: float, f: float, snr: float):
         self.t, self.f, self.snr = [t], [f], [snr]
-        self.rate, self.n_fit = 0.0, 0
+        self.rate, self.n_fit, self.snr_avg = 0.0, 0, snr
+
+    def add(self, t: float, f: float, snr: float, span_s: float) -> None:
+        self.t.append(t)
+        self.f.append(f)
+        self.snr.append(snr)
+        self.snr_avg += 0.2 * (snr - self.snr_avg)
+        if len(self.t) < 16 or len(self.t) % 4 == 0:  # the rate changes slowly: refit every 4th point
+            self.refit_rate(span_s)
 
     def refit_rate(self, span_s: float) -> None:
         t = np.asarray(self.t[-64:])
@@ -95,8 +108,9 @@ def interpolate_peak(power_row: np.ndarray, k: int) -> float:
 class RidgeTracker:
     """Streaming multi-ridge tracker; feed `SpectrumBlock`s, then call `finish()`."""
 
-    def __init__(self, f_hz: np.ndarray, cfg: TrackerConfig | None = None):
+    def __init__(self, f_hz: np.ndarray, cfg: TrackerConfig | None = None, hop_s: float | None = None):
         self.cfg = cfg or TrackerConfig()
+        self.hop_s = hop_s  # slice spacing; set from the first block when None
         self.f_hz = f_hz
         self.df = float(f_hz[1] - f_hz[0])
         self.active: list[_Track] = []
@@ -113,6 +127,8 @@ class RidgeTracker:
         rows, cols = np.nonzero(is_max)
         cols = cols + 1
         starts = np.searchsorted(rows, np.arange(p.shape[0] + 1))
+        if self.hop_s is None and blk.t_s.size > 1:
+            self.hop_s = float(blk.t_s[1] - blk.t_s[0])
         for s in range(p.shape[0]):
             c = cols[starts[s]: starts[s + 1]]
             self._slice(float(blk.t_s[s]), p[s], c, float(thr_det[s]), float(blk.noise_mean[s]))
@@ -122,7 +138,7 @@ class RidgeTracker:
         cfg, df = self.cfg, self.df
         taken = np.zeros(peaks.size, bool)
         # strongest ridges pick first so a weak ridge cannot steal a strong tone
-        order = sorted(self.active, key=lambda tr: -np.mean(tr.snr[-8:]))
+        order = sorted(self.active, key=lambda tr: -tr.snr_avg)
         f0 = self.f_hz[0]
         for tr in order:
             gap = t - tr.t[-1]
@@ -138,10 +154,7 @@ class RidgeTracker:
             best = cand[np.argmax(row[peaks[cand]])]
             k = int(peaks[best])
             f = f0 + (k + interpolate_peak(row, k)) * df
-            tr.t.append(t)
-            tr.f.append(f)
-            tr.snr.append(10 * np.log10(row[k] / noise_mean))
-            tr.refit_rate(cfg.rate_fit_s)
+            tr.add(t, f, 10 * np.log10(row[k] / noise_mean), cfg.rate_fit_s)
             near = np.abs(peaks - k) <= cfg.exclusion_bins
             taken |= near
         # births: strong peaks not explained by a ridge, strongest first, side lobes skipped
@@ -156,8 +169,15 @@ class RidgeTracker:
             taken |= np.abs(peaks - k) <= cfg.exclusion_bins
         # end ridges not seen for too long
         still = []
+        young_gap = cfg.young_max_gap_slices * (self.hop_s or 0.0)
         for tr in self.active:
-            (still if t - tr.t[-1] <= cfg.max_gap_s else self.done).append(tr)
+            gap = t - tr.t[-1]
+            if len(tr.t) < cfg.confirm_points and gap > young_gap:
+                self.stats.discarded_short += 1  # a noise peak that never became a ridge
+            elif gap > cfg.max_gap_s:
+                self.done.append(tr)
+            else:
+                still.append(tr)
         self.active = still
 
     def finish(self) -> list[Ridge]:
@@ -169,9 +189,21 @@ class RidgeTracker:
         ridges = self._join(sorted(ridges, key=lambda r: r.t_s[0]))
         keep = [r for r in ridges if r.duration_s >= self.cfg.min_duration_s]
         self.stats.discarded_short += len(ridges) - len(keep)
+        tones = [r for r in keep if self._looks_like_tone(r)]
+        self.stats.discarded_noise += len(keep) - len(tones)
+        keep = tones
         for i, r in enumerate(keep):
             r.ridge_id = i
         return keep
+
+    def _looks_like_tone(self, r: Ridge) -> bool:
+        """A tone is seen in most slices of its span and moves smoothly (sub-bin jitter)."""
+        if self.hop_s:
+            fill = r.t_s.size / (1 + r.duration_s / self.hop_s)
+            if fill < self.cfg.min_fill:
+                return False
+        jitter = np.median(np.abs(np.diff(r.f_hz, 2))) / self.df if r.t_s.size > 3 else np.inf
+        return bool(jitter <= self.cfg.max_jitter_bins)
 
     def _join(self, ridges: list[Ridge]) -> list[Ridge]:
         cfg = self.cfg

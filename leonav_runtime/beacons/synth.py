@@ -135,7 +135,9 @@ def iter_synthetic_iq(truth: SynthTruth, cfg: SynthConfig, chunk_samples: int = 
                 c = base + off * t + phase0[i, j]
                 c -= np.floor(c)
                 ph = (2 * np.pi * c).astype(np.float32)
-                x += amp * (np.cos(ph) + 1j * np.sin(ph))
+                xr, xi = x.real, x.imag  # views: add in place, no complex temporaries
+                xr += amp * np.cos(ph)
+                xi += amp * np.sin(ph)
         x += dc
         yield x
 

@@ -1,0 +1,238 @@
+"""Capture -> waterfall -> ridges -> Doppler / Doppler-rate -> satellite association -> files.
+
+`process_capture` streams the capture once (bounded memory), tracks the ridges, fits the
+Doppler-rate measurements, predicts every visible satellite with the symbolic model and
+associates. `write_outputs` writes associations.csv, doppler_rate_measurements.csv (the
+filter's input), waterfall.png and summary.json.
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import math
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from leonav_runtime.beacons import capture_io
+from leonav_runtime.beacons.associate import Association, AssociationConfig, associate
+from leonav_runtime.beacons.doppler import RidgeMeasurements, ridge_measurements
+from leonav_runtime.beacons.predict import DEFAULT_MASK_DEG, TONE_RF_HZ, Predictions, Site, predict_visible
+from leonav_runtime.beacons.ridges import Ridge, TrackerConfig, TrackStats, RidgeTracker
+from leonav_runtime.beacons.waterfall import StftConfig, WaterfallImage, band_bins, iter_spectra
+
+PAPER_RESIDUALS_HZ_S = {"median": 0.8, "mean": 1.46, "max": 3.4}  # paper, five matched beacons
+
+MEASUREMENT_COLUMNS = [
+    ("t_s", "s", "measurement epoch, seconds since the capture start (epoch_utc)"),
+    ("epoch_utc", "ISO-8601", "the same epoch as UTC time"),
+    ("norad_id", "-", "NORAD catalogue number of the associated satellite"),
+    ("name", "-", "satellite name from the element set"),
+    ("doppler_rate_hz_s", "Hz/s", "measured Doppler rate (local quadratic fit)"),
+    ("sigma_hz_s", "Hz/s", "1-sigma of the rate from the fit residuals"),
+    ("doppler_hz", "Hz", "measured Doppler incl. the LNB LO offset (f_baseband + rf_center - f_tone)"),
+    ("sigma_doppler_hz", "Hz", "1-sigma of the Doppler fit"),
+    ("lo_offset_hz", "Hz", "constant offset fitted for this ridge (measured - predicted Doppler)"),
+    ("predicted_rate_hz_s", "Hz/s", "symbolic-model prediction for the satellite (static receiver at the site)"),
+    ("rate_residual_hz_s", "Hz/s", "doppler_rate_hz_s - predicted_rate_hz_s"),
+    ("snr_db", "dB", "median per-bin SNR of the ridge in the fit window"),
+    ("ridge_id", "-", "ridge number in associations.csv / waterfall.png"),
+    ("f_c_hz", "Hz", "nominal RF tone frequency the Doppler refers to"),
+]
+
+
+@dataclasses.dataclass
+class PipelineConfig:
+    tone_rf_hz: float = TONE_RF_HZ
+    band_hz: float | None = 1.2e6        # tones region kept around the centre (Doppler + LO offset)
+    fft_size: int | None = None          # default: 2^k closest to fs * 16 ms (waterfall.default_fft_size)
+    overlap: float = 0.5
+    dc_notch_hz: float = 0.0
+    meas_interval_s: float = 1.0
+    fit_half_window_s: float = 1.0
+    mask_deg: float = DEFAULT_MASK_DEG
+    chunk_samples: int = 1 << 20
+    tracker: TrackerConfig = dataclasses.field(default_factory=TrackerConfig)
+    association: AssociationConfig = dataclasses.field(default_factory=AssociationConfig)
+
+
+@dataclasses.dataclass
+class PipelineResult:
+    info: capture_io.CaptureInfo
+    stft: StftConfig
+    ridges: list[Ridge]
+    track_stats: TrackStats
+    measurements: list[RidgeMeasurements]
+    predictions: Predictions | None
+    associations: list[Association]
+    waterfall: tuple[np.ndarray, np.ndarray, np.ndarray]
+    reason: str = ""   # why the result is empty, if it is
+
+    def by_ridge(self) -> dict[int, tuple[Ridge, RidgeMeasurements, Association]]:
+        return {r.ridge_id: (r, m, a) for r, m, a in zip(self.ridges, self.measurements, self.associations)}
+
+
+def extract_ridges(info: capture_io.CaptureInfo, cfg: PipelineConfig,
+                   progress: Callable[[int], None] | None = None):
+    """Stream the capture through the STFT and the tracker: (ridges, stats, stft cfg, waterfall image)."""
+    stft = StftConfig.for_rate(info.sample_rate_hz, cfg.band_hz, cfg.fft_size, cfg.overlap, cfg.dc_notch_hz)
+    _, f_hz = band_bins(stft, info.sample_rate_hz)
+    tracker = RidgeTracker(f_hz, cfg.tracker)
+    image = WaterfallImage(f_hz)
+
+    def blocks():
+        for b in capture_io.iter_chunks(info, cfg.chunk_samples):
+            yield b
+            if progress:
+                progress(b.size)
+
+    for blk in iter_spectra(blocks(), stft, info.sample_rate_hz):
+        tracker.add_block(blk)
+        image.add(blk)
+    ridges = tracker.finish()
+    return ridges, tracker.stats, stft, image.image()
+
+
+def process_capture(info: capture_io.CaptureInfo, elements, site: Site, cfg: PipelineConfig | None = None,
+                    progress: Callable[[int], None] | None = None) -> PipelineResult:
+    """Run the whole pipeline on one capture (see module docstring)."""
+    cfg = cfg or PipelineConfig()
+    stft = StftConfig.for_rate(info.sample_rate_hz, cfg.band_hz, cfg.fft_size, cfg.overlap, cfg.dc_notch_hz)
+    empty_img = (np.zeros(0), np.zeros(0), np.zeros((0, 0)))
+    if info.n_samples < stft.fft_size:
+        return PipelineResult(info, stft, [], TrackStats(), [], None, [], empty_img,
+                              f"capture holds {info.n_samples} samples, fewer than one FFT of {stft.fft_size}")
+    ridges, stats, stft, image = extract_ridges(info, cfg, progress)
+    meas = [ridge_measurements(r, info.rf_center_hz, cfg.tone_rf_hz, cfg.meas_interval_s, cfg.fit_half_window_s)
+            for r in ridges]
+    if not ridges:
+        return PipelineResult(info, stft, [], stats, [], None, [], image,
+                              f"no tone ridge found: {stats.births} candidate peaks above the detection "
+                              f"threshold, none lasting {cfg.tracker.min_duration_s:g} s")
+    if info.start_utc is None:
+        raise ValueError("capture start time unknown: association needs it (give --start)")
+    pred = predict_visible(elements, site, info.start_utc, info.duration_s, mask_deg=cfg.mask_deg,
+                           tone_rf_hz=cfg.tone_rf_hz)
+    assoc = associate(meas, pred, cfg.association)
+    return PipelineResult(info, stft, ridges, stats, meas, pred, assoc, image)
+
+
+def _stats(values: np.ndarray) -> dict:
+    v = np.abs(np.asarray(values, float))
+    if v.size == 0:
+        return {"n": 0, "median": None, "mean": None, "max": None}
+    return {"n": int(v.size), "median": float(np.median(v)), "mean": float(np.mean(v)), "max": float(np.max(v))}
+
+
+def summary(res: PipelineResult) -> dict:
+    """Counts and residual statistics (|delta alpha| over associated measurement epochs)."""
+    counts = {"ridges": len(res.ridges)}
+    for status in ("associated", "ambiguous", "unassociated"):
+        counts[status] = sum(a.status == status for a in res.associations)
+    assoc = [a for a in res.associations if a.status == "associated"]
+    per_epoch = np.concatenate([a.rate_residual_hz_s for a in assoc]) if assoc else np.zeros(0)
+    per_ridge = np.asarray([np.median(np.abs(a.rate_residual_hz_s)) for a in assoc])
+    info = res.info
+    fs = info.sample_rate_hz
+    return {
+        "capture": info.describe(),
+        "stft": {"fft_size": res.stft.fft_size, "hop": res.stft.hop, "bin_hz": fs / res.stft.fft_size,
+                 "slice_s": res.stft.fft_size / fs, "band_hz": res.stft.band_hz},
+        "counts": counts,
+        "tracking": dataclasses.asdict(res.track_stats),
+        "candidates_above_mask": 0 if res.predictions is None else len(res.predictions.names),
+        "rate_residual_abs_hz_s": _stats(per_epoch),
+        "rate_residual_abs_per_ridge_median_hz_s": _stats(per_ridge),
+        "paper_rate_residual_abs_hz_s": PAPER_RESIDUALS_HZ_S,
+        "reason_empty": res.reason or None,
+        "associations": [{"ridge_id": a.ridge_id, "status": a.status, "reason": a.reason, "norad_id": a.norad_id,
+                          "name": a.name, "cost": a.cost, "ambiguity_ratio": a.ambiguity_ratio,
+                          "lo_offset_hz": a.lo_offset_hz} for a in res.associations],
+    }
+
+
+def _iso(start: _dt.datetime | None, t: float) -> str:
+    if start is None:
+        return ""
+    return (start + _dt.timedelta(seconds=float(t))).isoformat().replace("+00:00", "Z")
+
+
+def write_outputs(res: PipelineResult, out_dir: Path) -> dict[str, Path]:
+    """associations.csv, doppler_rate_measurements.csv (+ .columns.txt), waterfall.png, summary.json."""
+    from leonav_runtime.output import write_csv, write_json
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    start = res.info.start_utc
+    pred = res.predictions
+    rows_a, rows_m = [], []
+    for ridge, m, a in zip(res.ridges, res.measurements, res.associations):
+        pr = None
+        if pred is not None and a.sat_row >= 0 and m.t_s.size:
+            _, pr = pred.at(m.t_s)
+            pr = pr[a.sat_row]
+        for k in range(m.t_s.size):
+            resid = m.rate_hz_s[k] - pr[k] if pr is not None else math.nan
+            rows_a.append([m.t_s[k], _iso(start, m.t_s[k]), ridge.ridge_id, a.status, a.name, a.norad_id,
+                           m.doppler_hz[k], m.rate_hz_s[k], m.sigma_rate_hz_s[k], resid,
+                           a.lo_offset_hz, a.cost, a.ambiguity_ratio, a.second_name, a.second_norad_id, a.reason])
+            if a.status == "associated":
+                rows_m.append([m.t_s[k], _iso(start, m.t_s[k]), a.norad_id, a.name, m.rate_hz_s[k],
+                               m.sigma_rate_hz_s[k], m.doppler_hz[k], m.sigma_doppler_hz[k], a.lo_offset_hz,
+                               pr[k], resid, m.snr_db[k], ridge.ridge_id, TONE_RF_HZ])
+        if m.t_s.size == 0:
+            rows_a.append([math.nan, "", ridge.ridge_id, a.status, a.name, a.norad_id, math.nan, math.nan,
+                           math.nan, math.nan, a.lo_offset_hz, a.cost, a.ambiguity_ratio, a.second_name,
+                           a.second_norad_id, a.reason])
+    rows_m.sort(key=lambda r: (r[0], r[2]))
+    paths = {
+        "associations": write_csv(out_dir / "associations.csv",
+                                  ["t_s", "epoch_utc", "ridge_id", "status", "name", "norad_id", "doppler_hz",
+                                   "doppler_rate_hz_s", "sigma_hz_s", "rate_residual_hz_s", "lo_offset_hz",
+                                   "cost", "ambiguity_ratio", "second_name", "second_norad_id", "reason"], rows_a),
+        "measurements": write_csv(out_dir / "doppler_rate_measurements.csv",
+                                  [c[0] for c in MEASUREMENT_COLUMNS], rows_m),
+    }
+    cols = out_dir / "doppler_rate_measurements.columns.txt"
+    cols.write_text("".join(f"{n} [{u}]: {d}\n" for n, u, d in MEASUREMENT_COLUMNS))
+    paths["columns"] = cols
+    paths["waterfall"] = plot_waterfall(res, out_dir / "waterfall.png")
+    paths["summary"] = write_json(out_dir / "summary.json", summary(res))
+    return paths
+
+
+def plot_waterfall(res: PipelineResult, path: Path) -> Path:
+    """Waterfall (dB above the noise floor) with ridges and satellite labels."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t, f, img = res.waterfall
+    fig, ax = plt.subplots(figsize=(11, 6.5))
+    if img.size:
+        vmax = float(np.percentile(img, 99.9))
+        ax.imshow(img, aspect="auto", origin="lower", cmap="viridis", vmin=0, vmax=max(vmax, 6),
+                  extent=[f[0] / 1e3, f[-1] / 1e3, t[0], t[-1]], interpolation="nearest")
+    colors = {"associated": "white", "ambiguous": "orange", "unassociated": "red"}
+    for ridge, a in zip(res.ridges, res.associations):
+        col = colors.get(a.status, "red")
+        ax.plot(ridge.f_hz / 1e3, ridge.t_s, color=col, lw=0.8, alpha=0.9)
+        label = f"#{ridge.ridge_id} " + (f"{a.name} ({a.norad_id})" if a.status != "unassociated" else "?")
+        if a.status == "ambiguous":
+            label += f" / {a.second_name}?"
+        ax.annotate(label, (ridge.f_hz[-1] / 1e3, ridge.t_s[-1]), color=col, fontsize=7,
+                    xytext=(3, -10), textcoords="offset points")
+    info = res.info
+    ax.set_xlabel(f"baseband frequency (kHz), 0 = {info.rf_center_hz / 1e9:.6f} GHz RF "
+                  f"({info.center_freq_hz / 1e6:.3f} MHz IF)")
+    ax.set_ylabel("time since capture start (s)")
+    start = info.start_utc.isoformat() if info.start_utc else "unknown start"
+    c = summary(res)["counts"]
+    ax.set_title(f"{info.path.name}  {start}\nridges {c['ridges']}: associated {c['associated']}, "
+                 f"ambiguous {c['ambiguous']}, unassociated {c['unassociated']}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
