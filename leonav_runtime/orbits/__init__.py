@@ -35,3 +35,6 @@ from leonav_runtime.orbits.constellations import (  # noqa: E402
 )
 
 __all__ += ["default_elements", "gps_walker_tle", "starlink_walker_tle"]
+from leonav_runtime.orbits.fetch import FetchError, fetch_group  # noqa: E402
+
+__all__ += ["FetchError", "fetch_group"]

@@ -161,11 +161,15 @@ def julian_date_split(epoch_utc: _dt.datetime) -> tuple[float, float]:
 # --------------------------------------------------------------------------- parsing
 
 
-def _parse_tle_text(text: str, source: str) -> tuple[list[tuple], list[RejectedEntry]]:
+def _parse_tle_text(text: str, source: str, strict_checksum: bool = True
+                    ) -> tuple[list[tuple], list[RejectedEntry]]:
     """TLE (2-line) and 3LE (name + 2 lines) text -> entries and rejections.
 
     Each corrupted entry yields exactly one RejectedEntry, at the line where it broke.
+    With strict_checksum=False, entries whose only fault is the checksum load, and their
+    line numbers are logged as a warning.
     """
+    checksum_only: list[int] = []
     entries: list[tuple] = []
     rejected: list[RejectedEntry] = []
     name, name_line = "", 0
@@ -208,7 +212,9 @@ def _parse_tle_text(text: str, source: str) -> tuple[list[tuple], list[RejectedE
             l1_no, l1 = pending
             pending = None
             try:
-                fields = _tle.parse_fields(l1, line)
+                fields = _tle.parse_fields(l1, line, verify_checksum=strict_checksum)
+                if not strict_checksum and (_tle.checksum(l1) != int(l1[68]) or _tle.checksum(line) != int(line[68])):
+                    checksum_only.append(l1_no)
             except _tle.TLEFieldError as exc:
                 reject(line_no if exc.which_line == 2 else l1_no, str(exc))
             else:
@@ -227,6 +233,11 @@ def _parse_tle_text(text: str, source: str) -> tuple[list[tuple], list[RejectedE
         reject(pending[0], "line 1 is not followed by line 2 (end of file)")
     elif name_waiting:
         reject(name_line, "name line is not followed by element lines (end of file)")
+    if checksum_only:
+        message = (f"{source}: {len(checksum_only)} entries loaded despite a bad checksum "
+                   f"(strict_checksum=False), lines {', '.join(map(str, checksum_only))}")
+        log.warning(message)
+        warnings.warn(message, RejectedElementsWarning, stacklevel=4)
     return entries, rejected
 
 
@@ -254,18 +265,21 @@ def parse_elements_text(
     *,
     stale_after_days: float = DEFAULT_STALE_AFTER_DAYS,
     constellation: str | None = None,
+    strict_checksum: bool = True,
 ) -> ElementSet:
     """Parse TLE / 3LE / OMM (XML, JSON, CSV) text, auto-detected.
 
     Good entries load; bad ones are listed in `.rejected` and announced with a warning.
     Raises UserInputError (naming `source`) when the text is empty or nothing is valid.
-    `constellation` overrides the guess from the names.
+    `constellation` overrides the guess from the names. `strict_checksum=False` loads TLE
+    entries whose checksum is wrong but are otherwise valid (hand-edited test sets such as
+    Vallado's SGP4-VER.TLE), with a warning listing their lines.
     """
     if not text.strip():
         raise UserInputError(f"{source}: empty element file (expected TLE/3LE lines or an OMM XML/JSON/CSV file)")
     fmt = _omm.detect_omm_format(text)
     if fmt is None:
-        entries, rejected = _parse_tle_text(text, source)
+        entries, rejected = _parse_tle_text(text, source, strict_checksum)
         kind = "TLE/3LE"
     else:
         entries, rejected = _parse_omm_text(text, fmt, source)
@@ -300,6 +314,7 @@ def load_elements(
     *,
     stale_after_days: float = DEFAULT_STALE_AFTER_DAYS,
     constellation: str | None = None,
+    strict_checksum: bool = True,
 ) -> ElementSet:
     """Load a TLE / 3LE / OMM (XML, JSON, CSV) file; see `parse_elements_text`."""
     path = Path(path)
@@ -309,4 +324,5 @@ def load_elements(
         raise UserInputError(f"{path}: element file not found") from None
     except IsADirectoryError:
         raise UserInputError(f"{path}: is a directory, expected a TLE/3LE/OMM file") from None
-    return parse_elements_text(text, str(path), stale_after_days=stale_after_days, constellation=constellation)
+    return parse_elements_text(text, str(path), stale_after_days=stale_after_days, constellation=constellation,
+                               strict_checksum=strict_checksum)

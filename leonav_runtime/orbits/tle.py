@@ -138,16 +138,16 @@ def _implied_exponent(line: str, first: int, last: int, name: str) -> float:
     return -value if sign == "-" else value
 
 
-def check_line(line: str, expected_number: int) -> str:
+def check_line(line: str, expected_number: int, *, verify_checksum: bool = True) -> str:
     """Return the 69 significant columns of an element line or raise TLEFieldError."""
     try:
-        return _check_line(line, expected_number)
+        return _check_line(line, expected_number, verify_checksum)
     except TLEFieldError as exc:
         exc.which_line = expected_number
         raise
 
 
-def _check_line(line: str, expected_number: int) -> str:
+def _check_line(line: str, expected_number: int, verify_checksum: bool) -> str:
     if len(line) < TLE_LINE_LENGTH:
         raise TLEFieldError(
             f"truncated line {expected_number}: {len(line)} characters, expected {TLE_LINE_LENGTH}"
@@ -162,7 +162,7 @@ def _check_line(line: str, expected_number: int) -> str:
     if not line[TLE_LINE_LENGTH - 1].isdigit():
         raise TLEFieldError(f"line {expected_number} column 69 (checksum) is {line[-1]!r}, not a digit")
     computed = checksum(line)
-    if computed != int(line[-1]):
+    if verify_checksum and computed != int(line[-1]):
         raise TLEFieldError(
             f"bad checksum on line {expected_number}: column 69 says {line[-1]}, the mod-10 sum of "
             f"columns 1-68 is {computed}"
@@ -181,10 +181,10 @@ def parse_epoch(line1: str) -> _dt.datetime:
     return start + _dt.timedelta(days=day - 1.0)
 
 
-def parse_fields(line1: str, line2: str) -> TLEFields:
+def parse_fields(line1: str, line2: str, *, verify_checksum: bool = True) -> TLEFields:
     """Check both lines and decode every field. Raises TLEFieldError naming the problem."""
-    line1 = check_line(line1, 1)
-    line2 = check_line(line2, 2)
+    line1 = check_line(line1, 1, verify_checksum=verify_checksum)
+    line2 = check_line(line2, 2, verify_checksum=verify_checksum)
     try:
         norad1 = decode_catalog_number(_field(line1, 3, 7))
         line1_values = dict(
