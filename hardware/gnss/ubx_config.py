@@ -1,7 +1,7 @@
 """UBX configuration for u-blox generation 9/10 receivers (NEO-M10) via CFG-VALSET.
 
-CFG-VALSET (class 0x06, id 0x8A) payload: version U1 (0), layers X1 (bit0 RAM, bit1 BBR,
-bit2 Flash), 2 reserved bytes, then key/value pairs: key U4 (little endian) followed by
+CFG-VALSET (class 0x06, id 0x8A) payload: version U1 (0, or 1 with transactions), layers X1
+(bit0 RAM, bit1 BBR, bit2 Flash), transaction X1 (version 1 only), a reserved byte, then key/value pairs: key U4 (little endian) followed by
 the value, whose size is coded in bits 28-30 of the key (1: one bit stored in a byte,
 2: 1 byte, 3: 2 bytes, 4: 4 bytes, 5: 8 bytes). The receiver answers ACK-ACK or ACK-NAK
 carrying (0x06, 0x8A).
@@ -49,9 +49,14 @@ def encode_item(key: int, value: int) -> bytes:
     return struct.pack("<I", key) + struct.pack(fmt, value)
 
 
-def valset(items: dict[str | int, int], layers: int = LAYER_RAM | LAYER_BBR) -> bytes:
-    """A complete CFG-VALSET frame for `items` (key name from KEYS or numeric ID -> value)."""
-    payload = bytearray(struct.pack("<BBH", 0, layers, 0))
+def valset(items: dict[str | int, int], layers: int = LAYER_RAM | LAYER_BBR,
+           version: int = 0, transaction: int = 0) -> bytes:
+    """A complete CFG-VALSET frame for `items` (key name from KEYS or numeric ID -> value).
+
+    version 0: applied at once; version 1 with `transaction` 1 (begin), 2 (continue),
+    3 (end/apply) spreads a large set over several frames.
+    """
+    payload = bytearray(struct.pack("<BBBB", version, layers, transaction if version else 0, 0))
     for key, value in items.items():
         key_id = KEYS[key] if isinstance(key, str) else int(key)
         payload += encode_item(key_id, int(value))
