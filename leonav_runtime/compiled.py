@@ -7,7 +7,7 @@ version; the shared library is keyed by its objects. A changed driver therefore 
 recompile the (large) generated file. Files are written under a temporary name and
 renamed, so parallel processes can build into the same cache safely.
 
-Cache folder: `$LEONAV_BUILD_DIR`, else `$XDG_CACHE_HOME/leonav/build`, else
+Generated folder: `$LEONAV_GEN_DIR` if set. Cache folder: `$LEONAV_BUILD_DIR`, else `$XDG_CACHE_HOME/leonav/build`, else
 `~/.cache/leonav/build`. Compiler: `$CC`, else `cc`. Flags: `CFLAGS` below (portable, no
 `-march=native`, so results match the Raspberry Pi build) plus `$LEONAV_CFLAGS`.
 
@@ -33,7 +33,8 @@ from types import ModuleType
 import numpy as np
 
 PACKAGE_DIR = Path(__file__).resolve().parent
-GEN_DIR = PACKAGE_DIR / "gen"
+# $LEONAV_GEN_DIR points the loader at regenerated code elsewhere (tests, Pi build checks)
+GEN_DIR = Path(os.environ.get("LEONAV_GEN_DIR") or PACKAGE_DIR / "gen")
 CSRC_DIR = PACKAGE_DIR / "csrc"
 
 CFLAGS: tuple[str, ...] = ("-O2", "-std=c99", "-fPIC")
@@ -206,11 +207,8 @@ def load_layout(gen_dir: Path = GEN_DIR) -> ModuleType:
 
 
 def measurement_ids(layout: ModuleType) -> dict[str, int]:
-    """Observable name (lower case, e.g. 'pseudorange') -> LEONAV_MEAS_* id."""
-    if hasattr(layout, "MEAS"):
-        return {str(k).lower(): int(v) for k, v in dict(layout.MEAS).items()}
-    return {name[len("MEAS_"):].lower(): int(getattr(layout, name))
-            for name in dir(layout) if name.startswith("MEAS_") and isinstance(getattr(layout, name), int)}
+    """Observable function suffix (e.g. 'pseudorange') -> LEONAV_MEAS_* id."""
+    return {str(name): i for i, name in enumerate(layout.MEAS_SUFFIXES)}
 
 
 def expected_shapes(layout: ModuleType) -> dict[str, tuple[list[tuple[int, int]], list[tuple[int, int]]]]:

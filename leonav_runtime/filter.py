@@ -224,3 +224,37 @@ def pcrb(recs: np.ndarray, x_lin: np.ndarray, B0, params, library: compiled.Libr
     if rc != 0:
         raise RuntimeError(f"leonav_pcrb_run returned {compiled.ERROR_NAMES.get(rc, rc)} at record {done.value}")
     return PcrbResult(recs["t"].copy(), B_diag, B_nav.transpose(0, 2, 1), B)
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    w1, v1, w2, v2 = a[0], a[1:], b[0], b[1:]
+    return np.r_[w1 * w2 - v1 @ v2, w1 * v2 + w2 * v1 + np.cross(v1, v2)]
+
+
+def stationary_imu(x, dt: float, params, library: compiled.Library | None = None) -> np.ndarray:
+    """IMU increments u (6,) that keep the nominal state x at rest over an interval dt (s).
+
+    Solved by Newton iterations on the generated mechanization itself (velocity change
+    and body-frame attitude change both zero), so a simulated static receiver is
+    exactly static for the filter's model (gravity, Earth rate, Coriolis included).
+    """
+    lib = library if library is not None else compiled.load()
+    x = np.array(x, dtype=np.float64)
+    p = np.ascontiguousarray(params, dtype=np.float64)
+    work = lib.new_workspace()
+    v_sl, q_sl = slice(3, 6), slice(6, 10)
+
+    def residual(u: np.ndarray) -> np.ndarray:
+        x1 = x.copy()
+        if lib.lib.leonav_mech_step(_ptr(x1), _ptr(u), float(dt), _ptr(p), work.ctypes.data) != 0:
+            raise RuntimeError("leonav_mech_step failed while solving for stationary IMU increments")
+        dq = _quat_mul(x[q_sl] * np.r_[1.0, -1.0, -1.0, -1.0], x1[q_sl])  # q^-1 (x) q_next, body frame
+        return np.r_[x1[v_sl] - x[v_sl], 2.0 * np.sign(dq[0]) * dq[1:]]
+
+    u = np.zeros(6)
+    step = 1e-6
+    for _ in range(4):
+        r0 = residual(u)
+        J = np.column_stack([(residual(u + step * e) - r0) / step for e in np.eye(6)])
+        u = u - np.linalg.solve(J, r0)
+    return u

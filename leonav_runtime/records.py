@@ -131,5 +131,5 @@ def check_records(rec: np.ndarray, n_meas: int) -> None:
     back = np.flatnonzero(np.diff(t) < 0)
     if back.size:
         i = int(back[0]) + 1
-        raise ValueError(f"record {i}: t={t[i]!r} s is earlier than the previous record; merge_records() orders a stream")
+        raise ValueError(f"record {i}: t={float(t[i])!r} s is earlier than the previous record; merge_records() orders a stream")
 

@@ -39,7 +39,7 @@ typedef struct {
 
 /* Measurement id -> generated functions. Adding an observable = one line here. */
 #define MEAS_ENTRY(id, k) [id] = {GEN_FN(leonav_h_##k), GEN_FN(leonav_update_##k)}
-static const meas_fns MEAS[LEONAV_N_MEAS] = {
+static const meas_fns MEAS[LEONAV_NMEAS] = {
     MEAS_ENTRY(LEONAV_MEAS_PSEUDORANGE, pseudorange),
     MEAS_ENTRY(LEONAV_MEAS_POS_E, pos_e),
     MEAS_ENTRY(LEONAV_MEAS_POS_N, pos_n),
@@ -87,7 +87,7 @@ static work_sizes all_sizes(void)
     work_sizes m = {MAX_IN, MAX_OUT, 0, 0};
     max_sizes(&MECH, &m);
     max_sizes(&PREDICT, &m);
-    for (int k = 0; k < LEONAV_N_MEAS; ++k) {
+    for (int k = 0; k < LEONAV_NMEAS; ++k) {
         max_sizes(&MEAS[k].h, &m);
         max_sizes(&MEAS[k].update, &m);
     }
@@ -117,7 +117,7 @@ int leonav_work_init(void *work, size_t nbytes)
 {
     if (!work || nbytes < leonav_work_size()) return LEONAV_ERR_WORK;
     if (!outputs_fit(&MECH) || !outputs_fit(&PREDICT)) return LEONAV_ERR_LAYOUT;
-    for (int k = 0; k < LEONAV_N_MEAS; ++k)
+    for (int k = 0; k < LEONAV_NMEAS; ++k)
         if (!outputs_fit(&MEAS[k].h) || !outputs_fit(&MEAS[k].update)) return LEONAV_ERR_LAYOUT;
     work_sizes m = all_sizes();
     char *base = (char *)work;
@@ -210,14 +210,14 @@ int leonav_update_step(double *x, double *P, int kind, double z, double R, const
 {
     workspace *ws = get_ws(work);
     if (!ws) return LEONAV_ERR_WORK;
-    if (kind < 0 || kind >= LEONAV_N_MEAS) return LEONAV_ERR_KIND;
+    if (kind < 0 || kind >= LEONAV_NMEAS) return LEONAV_ERR_KIND;
     double ysn[3] = {NAN, NAN, NAN};
     int status = LEONAV_STATUS_FAILED;
-    if (isfinite(z) && isfinite(R) && R >= 0.0 && all_finite(aux, LEONAV_NAUX)) {
+    if (isfinite(z) && isfinite(R) && all_finite(aux, LEONAV_NAUX)) {
         const double *in[6] = {x, P, &z, &R, aux, p};
         double *out[5] = {ws->x_tmp, ws->P_tmp, &ysn[0], &ysn[1], &ysn[2]};
         int rc = call_gen(ws, &MEAS[kind].update, in, 6, out, 5);
-        if (rc != 0 || !(ysn[1] > 0.0) || !isfinite(ysn[1]) || !isfinite(ysn[2]) ||
+        if (rc != 0 || R < 0.0 || !(ysn[1] > 0.0) || !isfinite(ysn[1]) || !isfinite(ysn[2]) ||
             !all_finite(ws->x_tmp, NX) || !all_finite(ws->P_tmp, NMAT))
             status = LEONAV_STATUS_FAILED;
         else if (gate_nis > 0.0 && ysn[2] > gate_nis)
@@ -238,7 +238,7 @@ int leonav_h_step(int kind, const double *x, const double *aux, const double *p,
 {
     workspace *ws = get_ws(work);
     if (!ws) return LEONAV_ERR_WORK;
-    if (kind < 0 || kind >= LEONAV_N_MEAS) return LEONAV_ERR_KIND;
+    if (kind < 0 || kind >= LEONAV_NMEAS) return LEONAV_ERR_KIND;
     const double *in[3] = {x, aux, p};
     double *out[2] = {h, H};
     if (call_gen(ws, &MEAS[kind].h, in, 3, out, 2) != 0) return LEONAV_STATUS_FAILED;
@@ -267,7 +267,7 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
         if (r->kind == LEONAV_KIND_IMU) {
             status = leonav_predict_step(x, P, r->u, r->dt, p, NULL, NULL, work);
             if (status == LEONAV_STATUS_IMU) out->n_imu++;
-        } else if (r->kind >= 0 && r->kind < LEONAV_N_MEAS) {
+        } else if (r->kind >= 0 && r->kind < LEONAV_NMEAS) {
             double gate = gate_nis ? gate_nis[r->kind] : 0.0;
             status = leonav_update_step(x, P, r->kind, r->z, r->R, r->aux, p, gate, ysn, work);
             if (status == LEONAV_STATUS_APPLIED) out->n_applied++;
@@ -307,7 +307,7 @@ int leonav_pcrb_run(double *B, const double *p, const leonav_record *rec, long n
             memcpy(x_copy, xi, sizeof x_copy);
             if (leonav_predict_step(x_copy, B, r->u, r->dt, p, NULL, NULL, work) != LEONAV_STATUS_IMU)
                 return LEONAV_ERR_NUMERIC;
-        } else if (r->kind >= 0 && r->kind < LEONAV_N_MEAS) {
+        } else if (r->kind >= 0 && r->kind < LEONAV_NMEAS) {
             double h, H[NDX];
             if (leonav_h_step(r->kind, xi, r->aux, p, &h, H, work) != 0) return LEONAV_ERR_NUMERIC;
             double *BHt = ws->vec, S = r->R;

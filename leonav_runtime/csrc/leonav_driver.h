@@ -100,7 +100,7 @@ int leonav_h_step(int kind, const double *x, const double *aux, const double *p,
                   double *H, void *work);
 
 /* Run the filter over n time-ordered records, updating x and P in place (final state).
- * gate_nis: LEONAV_N_MEAS thresholds indexed by kind (<= 0 disables), or NULL for no
+ * gate_nis: LEONAV_NMEAS thresholds indexed by kind (<= 0 disables), or NULL for no
  * gating. Measurement failures are discarded and counted; the loop continues. An IMU
  * failure skips that predict (status 2) and the loop continues. Returns LEONAV_OK, or
  * LEONAV_ERR_KIND / _ERR_ARG / _ERR_WORK with out->n_done = index of the bad record. */
