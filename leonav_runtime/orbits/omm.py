@@ -42,8 +42,8 @@ class OMMRecord:
 def detect_omm_format(text: str) -> str | None:
     """'xml', 'json', 'csv' or None (not OMM: treat as TLE text)."""
     head = text.lstrip("\ufeff \t\r\n")[:4096]
-    if head.startswith("<"):
-        return "xml"
+    if head.startswith("<") and ("<omm" in head.lower() or "<ndm" in head.lower()):
+        return "xml"  # other markup (an HTML error page) falls through to TLE and is rejected
     if head.startswith("[") or head.startswith("{"):
         return "json"
     first_line = head.splitlines()[0] if head else ""
