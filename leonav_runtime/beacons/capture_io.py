@@ -136,8 +136,11 @@ def open_capture(path: str | Path, sample_format: str | None = None, *,
     if isinstance(start_utc, str):
         start_utc = parse_utc(start_utc, "--start")
     name = path.name
+    sibling_meta = path.with_suffix(".sigmf-meta")
     if name.endswith(".sigmf-meta") or name.endswith(".sigmf-data") or sample_format == "sigmf":
         info = _open_sigmf(path)
+    elif sibling_meta.is_file() and sample_format is None:
+        info = _open_sigmf(sibling_meta, data_path=path)  # e.g. `leonav record`: x.cu8 + x.sigmf-meta
     else:
         info = _open_raw(path, sample_format)
     if sample_rate_hz is not None:
@@ -185,14 +188,27 @@ def _open_raw(path: Path, sample_format: str | None) -> CaptureInfo:
     return CaptureInfo(path, fmt, sr, fc, lnb, t0, n, trailing, 0, source)
 
 
-def _open_sigmf(path: Path) -> CaptureInfo:
+def _sigmf_data_path(base: str, meta_path: Path, glob: dict) -> Path:
+    """The samples of a recording: `<base>.sigmf-data`, else core:dataset, else `<base>.cu8|ci8|cf32`."""
+    candidates = [Path(base + ".sigmf-data")]
+    if glob.get("core:dataset"):
+        candidates.append(meta_path.parent / str(glob["core:dataset"]))
+    candidates += [Path(base + s) for s in (".cu8", ".ci8", ".cf32")]
+    for c in candidates:
+        if c.is_file():
+            return c
+    raise UserInputError(f"{meta_path}: SigMF data file not found (looked for "
+                         f"{', '.join(c.name for c in candidates)})")
+
+
+def _open_sigmf(path: Path, data_path: Path | None = None) -> CaptureInfo:
     import sigmf  # local import: only SigMF users pay for it
 
     base = str(path)
     for suffix in (".sigmf-meta", ".sigmf-data"):
         if base.endswith(suffix):
             base = base[: -len(suffix)]
-    meta_path, data_path = Path(base + ".sigmf-meta"), Path(base + ".sigmf-data")
+    meta_path = Path(base + ".sigmf-meta")
     if not meta_path.is_file():
         raise UserInputError(f"{meta_path}: SigMF metadata file not found")
     try:
@@ -231,6 +247,7 @@ def _open_sigmf(path: Path) -> CaptureInfo:
         _check_rf_consistency(fc, lnb, _finite(rf, f"{where} leonav:rf_center_hz"), where)
     fmt = _SIGMF_DATATYPES[dtype]
     header = int(cap.get("core:header_bytes", 0))
+    data_path = data_path or _sigmf_data_path(base, meta_path, glob)
     n, trailing = _sizes(data_path, fmt, header)
     return CaptureInfo(data_path, fmt, sr, fc, lnb, t0, n, trailing, header, str(meta_path))
 

@@ -11,7 +11,8 @@ Doppler rate two ways:
   reference and comparison;
 - local quadratic fit f(t) = c0 + c1 (t - t_k) + c2 (t - t_k)^2 over a window centred on
   each measurement epoch t_k: alpha = c1, with sigma from the fit residuals
-  (sigma^2 = SSR/(n-3), cov = sigma^2 (A^T A)^-1). The quadratic term absorbs the change of
+  (sigma^2 = SSR/(n-3), cov = sigma^2 (A^T A)^-1), after one pass dropping points beyond
+  4 robust sigmas (noise peaks taken while the tone faded). The quadratic term absorbs the change of
   rate within the window (up to ~100 Hz/s^2 near zenith), so the rate is unbiased at t_k.
 """
 from __future__ import annotations
@@ -55,10 +56,17 @@ def local_poly_fit(t_s: np.ndarray, f_hz: np.ndarray, t_k: float, half_window_s:
     n = int(sel.sum())
     if n < degree + 4:
         return None
-    tau = t_s[sel] - t_k
+    tau, f = t_s[sel] - t_k, f_hz[sel]
     A = np.vander(tau, degree + 1, increasing=True)
-    coef, *_ = np.linalg.lstsq(A, f_hz[sel], rcond=None)
-    res = f_hz[sel] - A @ coef
+    coef, *_ = np.linalg.lstsq(A, f, rcond=None)
+    res = f - A @ coef
+    # one pass of outlier rejection: a noise peak taken inside the gate when the tone faded
+    robust_sigma = 1.4826 * np.median(np.abs(res))
+    good = np.abs(res) <= max(4.0 * robust_sigma, 1e-9)
+    if (~good).any() and good.sum() >= degree + 4:
+        tau, f, A, n = tau[good], f[good], A[good], int(good.sum())
+        coef, *_ = np.linalg.lstsq(A, f, rcond=None)
+        res = f - A @ coef
     s2 = float(res @ res) / (n - degree - 1)
     cov = s2 * np.linalg.inv(A.T @ A)
     return float(coef[0]), float(np.sqrt(cov[0, 0])), float(coef[1]), float(np.sqrt(cov[1, 1])), n

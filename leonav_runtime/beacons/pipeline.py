@@ -16,6 +16,7 @@ from typing import Callable
 import numpy as np
 
 from leonav_runtime.beacons import capture_io
+from leonav_runtime.errors import UserInputError
 from leonav_runtime.beacons.associate import Association, AssociationConfig, associate
 from leonav_runtime.beacons.doppler import RidgeMeasurements, ridge_measurements
 from leonav_runtime.beacons.predict import DEFAULT_MASK_DEG, TONE_RF_HZ, Predictions, Site, predict_visible
@@ -111,7 +112,7 @@ def process_capture(info: capture_io.CaptureInfo, elements, site: Site, cfg: Pip
                               f"no tone ridge found: {stats.births} candidate peaks above the detection "
                               f"threshold, none lasting {cfg.tracker.min_duration_s:g} s")
     if info.start_utc is None:
-        raise ValueError("capture start time unknown: association needs it (give --start)")
+        raise UserInputError(f"{info.path}: capture start time unknown: association needs it (give --start)")
     pred = predict_visible(elements, site, info.start_utc, info.duration_s, mask_deg=cfg.mask_deg,
                            tone_rf_hz=cfg.tone_rf_hz)
     assoc = associate(meas, pred, cfg.association)

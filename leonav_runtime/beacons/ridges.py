@@ -4,8 +4,9 @@ Detection: per slice, a bin is a tone candidate when its power exceeds the slice
 floor `median + k*MAD` and is a local maximum. For noise-only bins (exponential power of
 mean mu) the threshold is mu*(ln 2 + k ln(phi)) = mu*(0.693 + 0.481 k): k_detect = 25 gives
 12.7 mu, a per-bin false-alarm probability of 3e-6 (about 0.05 false peaks per slice of
-16k bins), used to start ridges; k_track = 12 (6.5 mu, 1.5e-3) is used inside the gate of
-an existing ridge, where a false alarm is unlikely and a weak tone is worth keeping.
+16k bins), used to start ridges; k_track is used inside the gate of
+an existing ridge, where a false alarm is unlikely and a weak tone is worth keeping;
+k_track = 10 (5.5 mu, 4e-3 per bin, ~3% per 7-bin gate and slice).
 
 Tracking: each ridge predicts its next frequency with its current rate (straight-line
 fit over its recent points) and looks for the strongest local maximum within a gate of
@@ -30,7 +31,7 @@ from leonav_runtime.beacons.waterfall import SpectrumBlock
 @dataclasses.dataclass
 class TrackerConfig:
     k_detect: float = 25.0       # start threshold, MADs above the median
-    k_track: float = 12.0        # continuation threshold inside a gate
+    k_track: float = 10.0        # continuation threshold inside a gate
     gate_bins: float = 3.0       # gate half-width (bins) before the rate term
     rate_sigma_young_hz_s: float = 5000.0  # rate uncertainty of a ridge with few points
     rate_sigma_hz_s: float = 300.0         # rate uncertainty once the rate is fitted
@@ -43,7 +44,7 @@ class TrackerConfig:
     confirm_points: int = 8      # a ridge with fewer points must be seen in consecutive slices
     young_max_gap_slices: float = 2.5  # ... i.e. at most this many hops since its last point
     min_fill: float = 0.5        # kept ridges are seen in at least this fraction of their slices
-    max_jitter_bins: float = 0.5  # median |second difference| of f, in bins (noise tracks wander)
+    max_jitter_bins: float = 0.3  # median |residual| from a smooth fit, in bins (noise tracks hop)
 
 
 @dataclasses.dataclass
@@ -197,12 +198,25 @@ class RidgeTracker:
         return keep
 
     def _looks_like_tone(self, r: Ridge) -> bool:
-        """A tone is seen in most slices of its span and moves smoothly (sub-bin jitter)."""
+        """A tone is seen in most slices of its span and follows a smooth curve.
+
+        Smoothness: median absolute residual of cubic fits over 5 s pieces, in bins. A real
+        tone stays within a fraction of a bin of such a fit; a noise track hops by bins.
+        """
         if self.hop_s:
             fill = r.t_s.size / (1 + r.duration_s / self.hop_s)
             if fill < self.cfg.min_fill:
                 return False
-        jitter = np.median(np.abs(np.diff(r.f_hz, 2))) / self.df if r.t_s.size > 3 else np.inf
+        if r.t_s.size < 8:
+            return False
+        pieces = np.floor((r.t_s - r.t_s[0]) / 5.0)
+        res = []
+        for k in np.unique(pieces):
+            sel = pieces == k
+            if sel.sum() >= 8:
+                tau = r.t_s[sel] - r.t_s[sel].mean()
+                res.append(r.f_hz[sel] - np.polyval(np.polyfit(tau, r.f_hz[sel], 3), tau))
+        jitter = np.median(np.abs(np.concatenate(res))) / self.df if res else np.inf
         return bool(jitter <= self.cfg.max_jitter_bins)
 
     def _join(self, ridges: list[Ridge]) -> list[Ridge]:
