@@ -152,26 +152,30 @@ class WitMotionParser:
 class SampleGrouper:
     """Groups packets of one output cycle into an ImuSample (acc + gyro + angle required).
 
-    The sensor sends each cycle's packets back to back in a fixed order (e.g. 0x50 0x51
-    0x52 0x53 0x54). A cycle ends when a packet type already in the current group comes
-    again; once one full cycle has been seen, its set of types is known and a cycle is
-    emitted as soon as that set is complete (no waiting for the next cycle).
-    Cycles missing acc, gyro or angle are counted in `incomplete` and dropped.
+    The sensor sends each cycle's packets back to back in ascending type order (0x50 0x51
+    0x52 0x53 0x54 ...). A new cycle starts when a packet's type is not above the previous
+    one's, so a lost packet never merges two cycles. Once a cycle has been closed that
+    way, the set of types per cycle is known and later cycles are emitted as soon as that
+    set is complete (no waiting for the next cycle); an incomplete one is emitted when the
+    next cycle starts. Cycles missing acc, gyro or angle are counted in `incomplete` and
+    dropped; a missing mag/quaternion/time packet only leaves that field None.
     """
 
     REQUIRED = (ACC, GYRO, ANGLE)
 
     def __init__(self) -> None:
         self._group: dict[int, WitPacket] = {}
+        self._last_kind = -1
         self._cycle_types: frozenset[int] | None = None
         self.incomplete = 0
 
     def push(self, packet: WitPacket) -> list[ImuSample]:
         out: list[ImuSample] = []
-        if packet.kind in self._group:
-            self._cycle_types = frozenset(self._group)
+        if self._group and packet.kind <= self._last_kind:
+            self._cycle_types = frozenset(self._group) | (self._cycle_types or frozenset())
             out.extend(self._close())
         self._group[packet.kind] = packet
+        self._last_kind = packet.kind
         if self._cycle_types is not None and self._cycle_types <= self._group.keys():
             out.extend(self._close())
         return out
