@@ -217,14 +217,17 @@ def plot_waterfall(res: PipelineResult, path: Path) -> Path:
         ax.imshow(img, aspect="auto", origin="lower", cmap="viridis", vmin=0, vmax=max(vmax, 6),
                   extent=[f[0] / 1e3, f[-1] / 1e3, t[0], t[-1]], interpolation="nearest")
     colors = {"associated": "white", "ambiguous": "orange", "unassociated": "red"}
-    for ridge, a in zip(res.ridges, res.associations):
+    for n, (ridge, a) in enumerate(zip(res.ridges, res.associations)):
         col = colors.get(a.status, "red")
-        ax.plot(ridge.f_hz / 1e3, ridge.t_s, color=col, lw=0.8, alpha=0.9)
+        ax.plot(ridge.f_hz / 1e3, ridge.t_s, color=col, lw=0.6, alpha=0.6, ls="--")
         label = f"#{ridge.ridge_id} " + (f"{a.name} ({a.norad_id})" if a.status != "unassociated" else "?")
         if a.status == "ambiguous":
             label += f" / {a.second_name}?"
-        ax.annotate(label, (ridge.f_hz[-1] / 1e3, ridge.t_s[-1]), color=col, fontsize=7,
-                    xytext=(3, -10), textcoords="offset points")
+        # labels at staggered heights so neighbouring ridges (satellite trains) stay readable
+        k = int(np.clip(ridge.t_s.size - 1 - (n % 6) * ridge.t_s.size // 7, 0, ridge.t_s.size - 1))
+        ax.annotate(label, (ridge.f_hz[k] / 1e3, ridge.t_s[k]), color=col, fontsize=7, xytext=(4, 0),
+                    textcoords="offset points", bbox={"boxstyle": "round,pad=0.15", "fc": "black", "alpha": 0.5,
+                                                      "lw": 0})
     info = res.info
     ax.set_xlabel(f"baseband frequency (kHz), 0 = {info.rf_center_hz / 1e9:.6f} GHz RF "
                   f"({info.center_freq_hz / 1e6:.3f} MHz IF)")
