@@ -17,8 +17,9 @@ own truncation; in tests this stays below 1e-4 m/s^2 for LEO and GPS orbits, aga
 
 Failed satellites: SGP4 error codes are turned into words. A satellite with an error at
 any epoch has `ok = False`, is listed once in `failures` (name, NORAD id, reason with the
-first failing time), and its rows are NaN at the failing epochs (rows at good epochs are
-kept). Shapes stay (nsat, nt, 3) so indices match `elements`.
+first failing time), and its rows are NaN at the failing epochs and at every later one
+(SGP4 can return numbers again after a decay, but they mean nothing); rows before the
+first failure are kept. Shapes stay (nsat, nt, 3) so indices match `elements`.
 """
 from __future__ import annotations
 
@@ -198,12 +199,14 @@ def propagate_ecef(
     failures: list[tuple[str, int, str]] = []
     if not ok.all():
         for i in np.flatnonzero(~ok):
-            j = int(np.argmax(bad[i]))
+            j = int(np.argmin(np.where(bad[i], t_s, np.inf)))  # earliest failing time
             code = int(err[i, j])
             words = SGP4_ERROR_WORDS.get(code, SGP4_ERRORS.get(code, f"SGP4 error {code}"))
             failures.append((elements.names[i], int(elements.norad_ids[i]),
                              f"SGP4 error {code}: {words}; first at t = {t_s[j]:g} s "
                              f"({int(bad[i].sum())} of {nt} epochs)"))
+            # a decayed/degenerated orbit does not come back: blank everything after it too
+            bad[i] |= t_s >= t_s[j]
         r_ecef_m[bad] = np.nan
         v_ecef_mps[bad] = np.nan
         if a_ecef is not None:
