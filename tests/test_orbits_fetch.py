@@ -1,0 +1,118 @@
+"""CelesTrak fetch against a local HTTP server (no internet), and the `leonav tle` CLI."""
+from __future__ import annotations
+
+import http.server
+import json
+import socket
+import threading
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+from leonav_runtime.cli import main as leonav_main
+from leonav_runtime.errors import UserInputError
+from leonav_runtime.orbits import FetchError, fetch_group, load_elements
+from tests.conftest import shared_file
+
+
+@contextmanager
+def serve(routes: dict[str, tuple[int, bytes]]):
+    """HTTP server on 127.0.0.1 in a thread; routes map '/path?query' to (status, body)."""
+    requests: list[str] = []
+
+    class Handler(http.server.BaseHTTPRequestHandler):
+        def do_GET(self):  # noqa: N802 (http.server API)
+            requests.append(self.path)
+            status, body = routes.get(self.path, (404, b"not found"))
+            self.send_response(status)
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *args):  # keep pytest output clean
+            pass
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+    thread = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}/gp.php", requests
+    finally:
+        server.shutdown()
+        server.server_close()
+        thread.join(timeout=5)
+
+
+def _closed_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]  # closed again when the block ends
+
+
+def test_fetch_writes_cache_and_sidecar(tmp_path):
+    body = shared_file("tle/gps-ops_2026-03-09.txt").read_bytes()
+    with serve({"/gp.php?GROUP=gps-ops&FORMAT=tle": (200, body)}) as (url, requests):
+        path = fetch_group("gps-ops", cache_dir=tmp_path / "cache", url_base=url, timeout_s=5)
+    assert requests == ["/gp.php?GROUP=gps-ops&FORMAT=tle"]
+    assert path == tmp_path / "cache" / "gps-ops.tle" and path.read_bytes() == body
+    meta = json.loads(path.with_suffix(".json").read_text())
+    assert meta["count"] == 32 and meta["url"] == f"{url}?GROUP=gps-ops&FORMAT=tle"
+    assert meta["downloaded_utc"].endswith("+00:00") and meta["epoch_min_utc"].startswith("2026-03-03")
+    assert len(load_elements(path)) == 32
+
+
+def test_default_cache_follows_xdg(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    body = shared_file("tle/gps-ops_2026-03-09.txt").read_bytes()
+    with serve({"/gp.php?GROUP=gps-ops&FORMAT=tle": (200, body)}) as (url, _):
+        path = fetch_group("gps-ops", url_base=url, timeout_s=5)
+    assert path == tmp_path / "xdg" / "leonav" / "tle" / "gps-ops.tle"
+
+
+def test_fetch_errors_are_clear_and_leave_no_file(tmp_path):
+    cache = tmp_path / "cache"
+    with serve({"/gp.php?GROUP=starlink&FORMAT=tle": (200, b"<html><body>Too many requests</body></html>")}) as (url, _):
+        with pytest.raises(FetchError, match=r"reply is not element data \(first line '<html>"):
+            fetch_group("starlink", cache_dir=cache, url_base=url, timeout_s=5)
+        with pytest.raises(FetchError, match=r"HTTP 404"):
+            fetch_group("no-such-group", cache_dir=cache, url_base=url, timeout_s=5)
+    assert not (cache / "starlink.tle").exists()
+    offline = f"http://127.0.0.1:{_closed_port()}/gp.php"
+    with pytest.raises(FetchError, match=r"cannot download .*are you offline") as info:
+        fetch_group("starlink", cache_dir=cache, url_base=offline, timeout_s=2)
+    assert isinstance(info.value, UserInputError) and offline in str(info.value)
+    with pytest.raises(UserInputError, match="expected a CelesTrak group name"):
+        fetch_group("../etc", cache_dir=cache)
+
+
+def test_cli_fetch_and_info(tmp_path, capsys):
+    body = shared_file("tle/starlink_2026-02-23.txt").read_bytes()
+    with serve({"/gp.php?GROUP=starlink&FORMAT=tle": (200, body)}) as (url, _):
+        rc = leonav_main(["tle", "fetch", "starlink", "--cache", str(tmp_path / "c"), "--url-base", url])
+    assert rc == 0 and "9543 element sets of group 'starlink'" in capsys.readouterr().out
+    bad = tmp_path / "mixed.txt"
+    lines = shared_file("tle/gps-ops_2026-03-09.txt").read_text().splitlines()
+    lines[4] = lines[4][:40]  # truncate line 1 of the second entry
+    bad.write_text("\n".join(lines) + "\n")
+    rc = leonav_main(["tle", "info", str(bad), "--epoch", "2026-03-09T12:00:00Z", "--out", str(tmp_path / "o")])
+    assert rc == 0
+    info = json.loads((tmp_path / "o" / "tle_info.json").read_text())
+    assert info["count"] == 31 and info["constellation"] == "gps" and info["rejected_count"] == 1
+    assert info["rejected"][0]["line"] == 5 and "truncated line 1" in info["rejected"][0]["reason"]
+    assert info["epoch_max_utc"].startswith("2026-03-09") and info["stale_count"] == 2
+    offline = f"http://127.0.0.1:{_closed_port()}/gp.php"
+    assert leonav_main(["tle", "fetch", "gps-ops", "--cache", str(tmp_path / "c"), "--url-base", offline,
+                        "--timeout", "2"]) == 2
+    assert "are you offline" in capsys.readouterr().err
+    empty = tmp_path / "empty.tle"
+    empty.write_text("")
+    assert leonav_main(["tle", "info", str(empty), "--out", str(tmp_path / "o2")]) == 2
+    assert "empty.tle: empty element file" in capsys.readouterr().err
+
+
+def test_cli_builtin_writes_parseable_text(tmp_path):
+    rc = leonav_main(["tle", "builtin", "gps", "--epoch", "2026-03-01T00:00:00Z", "--out", str(tmp_path)])
+    assert rc == 0
+    elements = load_elements(Path(tmp_path) / "gps_walker.tle")
+    assert len(elements) == 31 and elements.constellation == "gps"
