@@ -1,0 +1,111 @@
+"""Waterfall, peak interpolation, ridge tracking and Doppler-rate fits against known signals."""
+from __future__ import annotations
+
+import numpy as np
+
+from leonav_runtime.beacons import capture_io, doppler, pipeline
+from leonav_runtime.beacons.ridges import Ridge, interpolate_peak
+from leonav_runtime.beacons.waterfall import StftConfig, band_bins, default_fft_size, iter_spectra
+
+FS = 250e3
+
+
+def test_default_fft_size_matches_rate_smear_tradeoff():
+    # slice ~ 1/sqrt(4 kHz/s) = 16 ms: 2^15 at 2.4 MS/s (13.7 ms), 2^12 at 250 kS/s (16.4 ms)
+    assert default_fft_size(2.4e6) == 2**15
+    assert default_fft_size(250e3) == 2**12
+
+
+def test_sub_bin_interpolation_error_is_small():
+    n = 4096
+    cfg = StftConfig(n, n, FS)
+    idx, f = band_bins(cfg, FS)
+    df = FS / n
+    for frac in np.linspace(-0.5, 0.5, 11):
+        f0 = 1000.3 * df / 10 + frac * df + 123 * df
+        t = np.arange(n) / FS
+        x = np.exp(2j * np.pi * f0 * t).astype(np.complex64)
+        blk = next(iter_spectra([x], cfg, FS, slices_per_block=1))
+        k = int(np.argmax(blk.power[0]))
+        est = f[k] + interpolate_peak(blk.power[0], k) * df
+        assert abs(est - f0) < 0.1 * df  # Gaussian interpolation of a Hann peak: bias < 0.1 bin
+
+
+def _chirps(duration_s, tracks, cn0_dbhz, seed=0):
+    """Noise plus linear chirps f(t) = f0 + a t, C/N0 per tone (dB-Hz), unit noise power."""
+    rng = np.random.default_rng(seed)
+    n = int(duration_s * FS)
+    t = np.arange(n) / FS
+    x = (rng.standard_normal(n) + 1j * rng.standard_normal(n)) / np.sqrt(2)
+    amp = np.sqrt(10 ** (cn0_dbhz / 10) / FS)
+    for f0, a in tracks:
+        x += amp * np.exp(2j * np.pi * (f0 * t + 0.5 * a * t**2))
+    return x.astype(np.complex64)
+
+
+def _write(tmp_path, x, name="c.cf32"):
+    path = tmp_path / name
+    path.write_bytes(x.tobytes())
+    return capture_io.open_capture(path, sample_rate_hz=FS, center_freq_hz=1.575e9)
+
+
+def test_tracker_follows_crossing_ridges(tmp_path):
+    tracks = [(-20e3, 3000.0), (10e3, -3000.0), (50e3, -200.0)]  # the first two cross at t = 5 s
+    info = _write(tmp_path, _chirps(8.0, tracks, 40.0))
+    cfg = pipeline.PipelineConfig(band_hz=FS)
+    ridges, stats, stft, _ = pipeline.extract_ridges(info, cfg)
+    assert len(ridges) == 3, stats
+    df = FS / stft.fft_size
+    for f0, a in tracks:
+        # the ridge that starts on this chirp must stay on it through the crossing
+        r = min(ridges, key=lambda r: abs(r.f_hz[0] - f0))
+        assert r.duration_s > 7.5
+        err = np.abs(r.f_hz - (f0 + a * r.t_s))
+        assert np.median(err) < 0.15 * df
+        assert np.mean(err > 2 * df) < 0.02  # only slices where the two tones merge into one peak
+        assert np.all(err[r.t_s > r.t_s[-1] - 1.0] < 0.5 * df)  # and it ends on its own chirp
+
+
+def test_noise_only_capture_gives_empty_result_with_reason(tmp_path):
+    info = _write(tmp_path, _chirps(4.0, [], 0.0, seed=3))
+    res = pipeline.process_capture(info, elements=None, site=None, cfg=pipeline.PipelineConfig(band_hz=FS))
+    assert res.ridges == [] and res.associations == []
+    assert "no tone ridge" in res.reason
+
+
+def test_capture_shorter_than_one_fft(tmp_path):
+    info = _write(tmp_path, _chirps(0.001, [], 0.0))
+    res = pipeline.process_capture(info, elements=None, site=None)
+    assert "fewer than one FFT" in res.reason
+
+
+def test_finite_difference_is_paper_eq5():
+    t = np.linspace(0, 2, 21)
+    f = 100 - 2500 * t + 40 * t**2
+    tm, rate = doppler.finite_difference_rate(t, f)
+    np.testing.assert_allclose(rate, -2500 + 80 * tm, atol=1e-9)
+
+
+def test_local_fit_rate_and_its_sigma_are_calibrated():
+    """Over many noise draws the fitted rate is unbiased and its sigma matches the spread."""
+    rng = np.random.default_rng(7)
+    t = np.arange(0, 2.0, 0.01)
+    truth = lambda tt: 1e3 - 1800 * tt + 35 * tt**2  # noqa: E731  rate 1800 - 70 t at t=1: -1730
+    est, sig = [], []
+    for _ in range(300):
+        f = truth(t) + rng.normal(0, 3.0, t.size)
+        _, _, a, s, _ = doppler.local_poly_fit(t, f, 1.0, 1.0)
+        est.append(a)
+        sig.append(s)
+    est, sig = np.asarray(est), np.asarray(sig)
+    assert abs(est.mean() - (-1730.0)) < 3 * est.std() / np.sqrt(est.size)
+    assert 0.85 < est.std() / sig.mean() < 1.15
+
+
+def test_measurements_refer_doppler_to_the_tone():
+    t = np.arange(0, 6.005, 0.01)
+    r = Ridge(t, 5e3 - 1000 * t, np.full(t.size, 20.0), 0)
+    m = doppler.ridge_measurements(r, rf_center_hz=11.325e9 + 2e3, tone_rf_hz=11.325e9, interval_s=1.0)
+    np.testing.assert_allclose(m.t_s, [1, 2, 3, 4, 5])
+    np.testing.assert_allclose(m.doppler_hz, 7e3 - 1000 * m.t_s, atol=1e-6)
+    np.testing.assert_allclose(m.rate_hz_s, -1000, atol=1e-6)
