@@ -34,14 +34,14 @@ def parse_sentence(line: bytes, t_mono_s: float) -> NmeaSentence | str:
     if star < 0 or len(text) - star != 3:
         return NO_CHECKSUM
     try:
-        expected = int(text[star + 1:], 16)
+        int(text[star + 1:], 16)
     except ValueError:
         return NO_CHECKSUM
-    if nmea_checksum(text[1:star]) != expected:
-        return BAD_CHECKSUM
     try:
         decoded = text.decode("ascii")
-        msg = pynmea2.parse(decoded, check=True)
+        msg = pynmea2.parse(decoded, check=True)   # verifies the checksum (XOR, see above)
+    except pynmea2.ChecksumError:
+        return BAD_CHECKSUM
     except (pynmea2.ParseError, UnicodeDecodeError, ValueError, TypeError, AttributeError):
         return PARSE_ERROR
     talker = getattr(msg, "talker", "") or ""
@@ -85,16 +85,21 @@ class NmeaFixBuilder:
     def time_tag(self, s: NmeaSentence) -> GnssTimeTag | None:
         """UTC tag from RMC (date+time) or ZDA; updates the date used for GGA."""
         msg = s.msg
+        kind = s.sentence_type
+        if kind != "RMC" and kind != "ZDA":
+            return None
         try:
-            if s.sentence_type == "RMC" and msg.datestamp and msg.timestamp:
-                self._set_date(msg.datestamp, msg.timestamp)
-                utc = _dt.datetime.combine(msg.datestamp, msg.timestamp).replace(tzinfo=_dt.timezone.utc)
-                return GnssTimeTag(s.t_mono_s, utc, "RMC")
-            if s.sentence_type == "ZDA" and msg.timestamp and msg.day and msg.month and msg.year:
+            tod = msg.timestamp          # pynmea2 parses on each access: read once
+            if kind == "RMC":
+                date = msg.datestamp
+            elif msg.day and msg.month and msg.year:
                 date = _dt.date(int(msg.year), int(msg.month), int(msg.day))
-                self._set_date(date, msg.timestamp)
-                utc = _dt.datetime.combine(date, msg.timestamp).replace(tzinfo=_dt.timezone.utc)
-                return GnssTimeTag(s.t_mono_s, utc, "ZDA")
+            else:
+                date = None
+            if date and tod:
+                self._set_date(date, tod)
+                utc = _dt.datetime.combine(date, tod).replace(tzinfo=_dt.timezone.utc)
+                return GnssTimeTag(s.t_mono_s, utc, kind)
         except (ValueError, TypeError, AttributeError):
             return None
         return None
@@ -106,6 +111,8 @@ class NmeaFixBuilder:
         msg = s.msg
         try:
             quality = int(msg.gps_qual or 0)
+            if quality == 0:
+                return None
             lat = _nmea_angle_deg(msg.lat, msg.lat_dir)
             lon = _nmea_angle_deg(msg.lon, msg.lon_dir)
         except (ValueError, TypeError):
@@ -115,8 +122,8 @@ class NmeaFixBuilder:
         hmsl = _to_float(msg.altitude)
         sep = _to_float(msg.geo_sep)
         utc = None
-        if self._date is not None and msg.timestamp is not None:
-            tod = msg.timestamp
+        tod = msg.timestamp
+        if self._date is not None and tod is not None:
             date = self._date
             if self._date_tod_s - (tod.hour * 3600 + tod.minute * 60 + tod.second) > 43200:
                 date = date + _dt.timedelta(days=1)

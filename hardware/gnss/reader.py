@@ -20,6 +20,7 @@ from hardware.records import GnssFix, GnssTimeTag, NavPvt, NavTimeGps, NmeaSente
 MAX_NMEA_BYTES = 200      # NMEA says 82; u-blox proprietary and NMEA 4.1 lines stay far below 200
 MAX_UBX_PAYLOAD = 8192    # largest u-blox output (RAWX with ~100 signals) is ~3.2 kB
 _START = re.compile(rb"[$\xb5]")
+_INTERRUPT = re.compile(rb"\$|\xb5\x62")
 
 REJECT_REASONS = {
     "junk_bytes": "bytes outside any NMEA sentence or UBX frame (noise, other protocols, log comments)",
@@ -72,7 +73,7 @@ class GnssSplitter:
                     break  # wait for the rest of the line
                 line = bytes(buf[i:end + 1])
                 i = end + 1
-                if max(line) >= 0x80:
+                if not line.isascii():
                     self.rejected["nmea_non_ascii"] += 1
                     continue
                 out.append(("nmea", line, t_mono_s))
@@ -113,10 +114,8 @@ class GnssSplitter:
     @staticmethod
     def _interruption(buf: bytearray, start: int, stop: int) -> int:
         """Index of a new '$' or UBX sync inside the sentence [start+1, stop), else -1."""
-        dollar = buf.find(b"$", start + 1, stop)
-        sync = buf.find(ubx.SYNC, start + 1, stop)
-        hits = [h for h in (dollar, sync) if h >= 0]
-        return min(hits) if hits else -1
+        match = _INTERRUPT.search(buf, start + 1, stop)
+        return match.start() if match else -1
 
     def close(self) -> None:
         """End of stream: count what is left as an unfinished frame."""
