@@ -153,6 +153,7 @@ class BuildInfo:
     compiler_version: str
     cflags: list[str]
     ldflags: list[str]
+    objects: list[Path] = field(default_factory=list)
     compiled_objects: list[str] = field(default_factory=list)
     compile_time_s: float = 0.0
     linked: bool = False
@@ -188,7 +189,7 @@ def build(gen_dir: Path = GEN_DIR, csrc_dir: Path = CSRC_DIR, out_dir: Path | No
         _atomic_output(library, lambda tmp: _run_compiler(
             shlex.split(cc) + list(LDFLAGS) + flags + [str(o) for o in objects] + ["-o", str(tmp)] + list(LIBS)))
         info.linked = True
-    info.library, info.key = library, key
+    info.library, info.key, info.objects = library, key, objects
     info.compile_time_s = time.perf_counter() - start if (missing or info.linked) else 0.0
     return info
 

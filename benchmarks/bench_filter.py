@@ -1,0 +1,268 @@
+"""Filter speed, side by side: C loop vs CasADi-from-Python vs NumPy vs bare generated C.
+
+Scenario: receiver at rest, 100 Hz IMU, 10 Hz GPS epochs of 8 pseudoranges, 1 Hz
+Starlink epochs of 10 Doppler-rates, over `--seconds` (default 20 s). The figure of merit
+is wall time per IMU step: the whole stream's time divided by the number of IMU records,
+so each IMU step carries its share of the update epochs.
+
+  (a) C loop:  leonav_run over the whole stream (one ctypes call, outputs per record)
+  (b) CasADi:  the same casadi.Functions (codegen.functions.build_functions) called per
+               record from Python, gating in Python
+  (c) NumPy:   benchmarks/numpy_ekf.py, the same filter in plain NumPy
+  (d) bare C:  benchmarks/bench_bare_loop.c, the generated functions in a minimal C
+               loop without the driver, compiled here with the same flags
+
+Run: `leonav bench [--out DIR]` or `python benchmarks/bench_filter.py [--out DIR]`.
+"""
+from __future__ import annotations
+
+import math
+import shlex
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+BENCH_DIR = Path(__file__).resolve().parent
+sys.path.insert(0, str(BENCH_DIR))
+
+from numpy_ekf import NumpyEKF, ecef_from_geodetic, enu_axes  # noqa: E402
+
+from leonav_runtime import compiled, records  # noqa: E402
+from leonav_runtime import filter as lf  # noqa: E402
+from leonav_runtime.output import results_dir, write_json  # noqa: E402
+from models import constants as K  # noqa: E402
+from models.params import build_params  # noqa: E402
+
+LAT, LON, H = math.radians(40.0), math.radians(-83.0), 200.0
+IMU_HZ, GPS_HZ, LEO_HZ = 100.0, 10.0, 1.0
+N_GPS, N_LEO = 8, 10
+PR_SIGMA_M, DR_SIGMA_HZPS = 3.0, 0.5
+
+
+def _sky(n: int, range_m: float, el_min_deg: float, seed: int) -> list[np.ndarray]:
+    """Line-of-sight unit vectors (ENU) spread in azimuth, elevations el_min..80 deg."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        az = 2 * math.pi * (i + rng.uniform(0, 0.5)) / n
+        el = math.radians(rng.uniform(el_min_deg, 80.0))
+        out.append(range_m * np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)]))
+    return out
+
+
+def build_stream(lib: compiled.Library, seconds: float, seed: int = 1):
+    """(records, x_true, x0, P0, params) of the benchmark scenario."""
+    rng = np.random.default_rng(seed)
+    params = np.array(build_params(LAT, LON, H))
+    x_true = np.zeros(19)
+    x_true[6] = 1.0
+    dt = 1.0 / IMU_HZ
+    u0 = lf.stationary_imu(x_true, dt, params, lib)
+    n = int(round(seconds * IMU_HZ))
+    t = np.arange(1, n + 1) * dt
+    parts = [records.imu_records(t, u0[:3] + rng.normal(0, params[4] * math.sqrt(dt), (n, 3)),
+                                 u0[3:] + rng.normal(0, params[3] * math.sqrt(dt), (n, 3)))]
+    r0, C = ecef_from_geodetic(LAT, LON, H), enu_axes(LAT, LON)
+    truth = lf.EKF(x_true, np.eye(18), params, library=lib)
+    t_gps = np.arange(1, int(seconds * GPS_HZ) + 1) / GPS_HZ
+    for sat, los in enumerate(_sky(N_GPS, 2.2e7, 10.0, seed)):
+        aux = np.zeros(records.NAUX)
+        aux[0:3] = r0 + C @ los
+        z = truth.h("pseudorange", aux)[0] + rng.normal(0, PR_SIGMA_M, t_gps.size)
+        parts.append(records.measurement_records(t_gps, lib.kind_id("pseudorange"), z, PR_SIGMA_M**2, aux, sat))
+    t_leo = np.arange(1, int(seconds * LEO_HZ) + 1) / LEO_HZ
+    for sat, los in enumerate(_sky(N_LEO, 1.0e6, 25.0, seed + 1)):
+        aux = np.zeros(records.NAUX)
+        r_S = r0 + C @ los
+        along = np.cross(r_S, [0.0, 0.0, 1.0]) + 0.3 * np.cross(r_S, C[:, 0])
+        aux[0:3] = r_S
+        aux[3:6] = 7.6e3 * along / np.linalg.norm(along)
+        aux[6:9] = -K.WGS84_GM_M3PS2 * r_S / np.linalg.norm(r_S) ** 3
+        aux[18:21] = u0[3:] / dt  # specific force of the receiver at rest, body
+        z = truth.h("doppler_rate", aux)[0] + rng.normal(0, DR_SIGMA_HZPS, t_leo.size)
+        parts.append(records.measurement_records(t_leo, lib.kind_id("doppler_rate"), z, DR_SIGMA_HZPS**2, aux,
+                                                 100 + sat))
+    P0 = np.diag(np.r_[np.full(3, 10.0**2), np.full(3, 0.5**2), np.full(3, 0.01**2), np.full(3, 0.05**2),
+                       np.full(3, 1e-4**2), 100.0**2, 1.0**2, 10.0**2])
+    x0 = x_true.copy()
+    x0[0:3] = [3.0, -2.0, 1.0]
+    return records.merge_records(*parts), x_true, x0, P0, params
+
+
+def _best(fn, repeats: int) -> tuple[float, list[float]]:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return min(times), times
+
+
+def time_c_loop(lib, recs, x0, P0, params, repeats):
+    final = {}
+
+    def once():
+        ekf = lf.EKF(x0, P0, params, library=lib)
+        final["res"] = ekf.run(recs)
+        final["x"] = ekf.x
+    best, times = _best(once, repeats)
+    return best, times, final
+
+
+def time_casadi(recs, x0, P0, params, gate, kinds: dict[str, int], repeats):
+    import casadi as ca
+    from codegen.functions import build_functions
+
+    fns = {f.name(): f for f in build_functions()}
+    kind_fn = {k: fns[f"leonav_update_{name}"] for name, k in kinds.items()}
+    predict = fns["leonav_predict"]
+    final = {}
+
+    def once():
+        x, P, p = ca.DM(x0), ca.DM(P0), ca.DM(params)
+        for r in recs:
+            if r["kind"] == records.KIND_IMU:
+                x, P, _, _ = predict(x, P, r["u"], r["dt"], p)
+            else:
+                x_post, P_post, _, S, nis = kind_fn[int(r["kind"])](x, P, r["z"], r["R"], r["aux"], p)
+                if float(S) > 0 and not float(nis) > gate:
+                    x, P = x_post, P_post
+        final["x"] = np.array(x).ravel()
+    best, times = _best(once, repeats)
+    return best, times, final
+
+
+def time_numpy(recs, x0, P0, params, gate, suffix_of, repeats):
+    final = {}
+
+    def once():
+        ekf = NumpyEKF(x0, P0, params, gate)
+        for r in recs:
+            if r["kind"] == records.KIND_IMU:
+                ekf.predict(r["u"], float(r["dt"]))
+            else:
+                ekf.update(suffix_of[int(r["kind"])], float(r["z"]), float(r["R"]), r["aux"])
+        final["x"] = ekf.x
+    best, times = _best(once, repeats)
+    return best, times, final
+
+
+def time_bare_c(build: compiled.BuildInfo, recs, x0, P0, params, gate, repeats, tmp: Path):
+    src = BENCH_DIR / "bench_bare_loop.c"
+    exe = tmp / "bench_bare_loop"
+    gen_objects = [o for o in build.objects if o.name.startswith("leonav_gen")]
+    argv = (shlex.split(build.compiler) + build.cflags + [f"-I{compiled.GEN_DIR}", f"-I{compiled.CSRC_DIR}",
+            str(src)] + [str(o) for o in gen_objects] + ["-o", str(exe), "-lm"])
+    subprocess.run(argv, check=True, capture_output=True, text=True)
+    (tmp / "records.bin").write_bytes(np.ascontiguousarray(recs).tobytes())
+    (tmp / "init.bin").write_bytes(np.concatenate([x0, np.asfortranarray(P0).ravel(order="F"), params]).tobytes())
+    out = subprocess.run([str(exe), str(tmp / "records.bin"), str(tmp / "init.bin"), str(repeats), repr(gate)],
+                         check=True, capture_output=True, text=True).stdout
+    lines = dict(line.split(" ", 1) for line in out.strip().splitlines())
+    return float(lines["best_s"]), np.array([float(v) for v in lines["x"].split()])
+
+
+def code_size(paths: list[Path]) -> dict:
+    return {p.name: {"bytes": p.stat().st_size, "lines": p.read_text().count("\n")} for p in paths}
+
+
+def run_benchmark(seconds: float = 20.0, repeats: int = 20, py_repeats: int = 2, out: str | None = None) -> dict:
+    """Run all four variants, print the table, write bench.json into the results folder."""
+    folder = results_dir(out, "bench")
+    lib = compiled.load()
+    kinds = {name: lib.kind_id(name) for name in ("pseudorange", "doppler_rate")}
+    recs, x_true, x0, P0, params = build_stream(lib, seconds)
+    n_imu = int(np.count_nonzero(recs["kind"] == records.KIND_IMU))
+    gate = lf.CHI2_1DOF_999
+    print(f"stream: {seconds:g} s, {recs.size} records: {n_imu} IMU ({IMU_HZ:g} Hz), "
+          f"{np.count_nonzero(recs['kind'] == lib.kind_id('pseudorange'))} pseudoranges ({N_GPS} @ {GPS_HZ:g} Hz), "
+          f"{np.count_nonzero(recs['kind'] == lib.kind_id('doppler_rate'))} Doppler-rates ({N_LEO} @ {LEO_HZ:g} Hz)")
+
+    with tempfile.TemporaryDirectory(prefix="leonav-bench-") as tmp:
+        print("compiling generated C + driver from scratch (cold build, for the compile time) ...", flush=True)
+        cold = compiled.build(out_dir=Path(tmp) / "cold")
+        a_s = d_s = math.inf
+        a_all: list[float] = []
+        for round_ in (1, 2):  # alternate (a) and (d) so machine load hits both alike
+            print(f"(a) C loop, (d) bare generated functions in a C loop: round {round_}/2 ...", flush=True)
+            best, times, a_fin = time_c_loop(lib, recs, x0, P0, params, repeats)
+            a_s, a_all = min(a_s, best), a_all + times
+            best, d_x = time_bare_c(lib.build, recs, x0, P0, params, gate, repeats, Path(tmp))
+            d_s = min(d_s, best)
+    print("(b) CasADi Functions called from Python ...", flush=True)
+    b_s, b_all, b_fin = time_casadi(recs, x0, P0, params, gate, kinds, py_repeats)
+    print("(c) plain NumPy filter ...", flush=True)
+    suffix_of = {v: k for k, v in kinds.items()}
+    c_s, c_all, c_fin = time_numpy(recs, x0, P0, params, gate, suffix_of, py_repeats)
+
+    per = {k: v / n_imu * 1e6 for k, v in (("a", a_s), ("b", b_s), ("c", c_s), ("d", d_s))}
+    x_a = a_fin["x"]
+    res = a_fin["res"]
+    gen_files = sorted(compiled.GEN_DIR.glob("leonav_gen.[ch]"))
+    driver_files = sorted(compiled.CSRC_DIR.glob("*.[ch]"))
+    result = {
+        "scenario": {"seconds": seconds, "records": int(recs.size), "imu_steps": n_imu, "imu_hz": IMU_HZ,
+                     "gps_hz": GPS_HZ, "pseudoranges_per_epoch": N_GPS, "starlink_hz": LEO_HZ,
+                     "doppler_rates_per_epoch": N_LEO, "gate_nis": gate},
+        "us_per_imu_step": {"a_c_loop": per["a"], "b_casadi_python": per["b"], "c_numpy": per["c"],
+                            "d_bare_c_loop": per["d"]},
+        "ratios": {"b_over_a": per["b"] / per["a"], "c_over_a": per["c"] / per["a"], "a_over_d": per["a"] / per["d"]},
+        "goals": {"a_50x_faster_than_b_and_c": per["b"] / per["a"] >= 50 and per["c"] / per["a"] >= 50,
+                  "a_within_1p5x_of_d": per["a"] / per["d"] <= 1.5},
+        "repeats": {"c_paths": repeats, "python_paths": py_repeats,
+                    "a_median_us_per_imu_step": statistics.median(a_all) / n_imu * 1e6},
+        "agreement_final_state": {
+            "b_minus_a_pos_m": float(np.max(np.abs(b_fin["x"][:3] - x_a[:3]))),
+            "c_minus_a_pos_m": float(np.max(np.abs(c_fin["x"][:3] - x_a[:3]))),
+            "d_minus_a_pos_m": float(np.max(np.abs(d_x[:3] - x_a[:3]))),
+            "a_pos_error_m": float(np.linalg.norm(x_a[:3] - x_true[:3])),
+            "a_counts": {"applied": res.n_applied, "gated": res.n_gated, "failed": res.n_failed},
+        },
+        "code": {"generated": code_size(gen_files), "driver": code_size(driver_files),
+                 "library_bytes": lib.build.library.stat().st_size},
+        "build": {"compiler": cold.compiler, "compiler_version": cold.compiler_version, "cflags": cold.cflags,
+                  "ldflags": cold.ldflags, "cold_compile_s": cold.compile_time_s},
+    }
+    _print_table(result)
+    path = write_json(folder / "bench.json", result)
+    print(f"wrote {path}")
+    return result
+
+
+def _print_table(r: dict) -> None:
+    us, ra, ag = r["us_per_imu_step"], r["ratios"], r["agreement_final_state"]
+    print()
+    print("time per IMU step (predict + its share of 0.8 pseudorange and 0.1 Doppler-rate updates):")
+    print(f"  (a) C loop (leonav_run)           {us['a_c_loop']:10.2f} us   1.0x")
+    print(f"  (b) CasADi Functions from Python  {us['b_casadi_python']:10.2f} us   {ra['b_over_a']:.0f}x slower than (a)")
+    print(f"  (c) plain NumPy filter            {us['c_numpy']:10.2f} us   {ra['c_over_a']:.0f}x slower than (a)")
+    print(f"  (d) bare generated C loop         {us['d_bare_c_loop']:10.2f} us   (a)/(d) = {ra['a_over_d']:.2f}")
+    print(f"goals: (a) >= 50x faster than (b) and (c): {r['goals']['a_50x_faster_than_b_and_c']}; "
+          f"(a) within 1.5x of (d): {r['goals']['a_within_1p5x_of_d']}")
+    print(f"final position vs (a): (b) {ag['b_minus_a_pos_m']:.1e} m, (c) {ag['c_minus_a_pos_m']:.1e} m, "
+          f"(d) {ag['d_minus_a_pos_m']:.1e} m; (a) error vs truth {ag['a_pos_error_m']:.2f} m, "
+          f"updates applied/gated/failed {ag['a_counts']['applied']}/{ag['a_counts']['gated']}/{ag['a_counts']['failed']}")
+    gen = r["code"]["generated"]
+    total_b = sum(v["bytes"] for v in gen.values())
+    total_l = sum(v["lines"] for v in gen.values())
+    drv_l = sum(v["lines"] for v in r["code"]["driver"].values())
+    b = r["build"]
+    print(f"generated code: {total_b} bytes, {total_l} lines (leonav_gen.c/.h); driver {drv_l} lines; "
+          f"library {r['code']['library_bytes']} bytes")
+    print(f"cold compile: {b['cold_compile_s']:.1f} s with {b['compiler_version']} {' '.join(b['cflags'])}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Same options as `leonav bench` (defined once, in leonav_runtime/commands/bench.py)."""
+    from leonav_runtime.cli import main as cli_main
+
+    return cli_main(["bench"] + list(sys.argv[1:] if argv is None else argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
