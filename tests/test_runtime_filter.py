@@ -104,8 +104,10 @@ def test_step_by_step_equals_c_loop(lib, params):
     recs["z"][np.flatnonzero(recs["kind"] == 0)[5]] += 1000.0  # one gated record on both paths
     x0 = x_rest() + np.r_[3.0, -2.0, 1.0, np.zeros(16)]
     a, b = lf.EKF(x0, P0(), params, library=lib), lf.EKF(x0, P0(), params, library=lib)
-    res = a.run(recs)
+    res = a.run(recs, full_P=True)
     xs, pd, st = step_through(b, recs)
+    np.testing.assert_array_equal(res.P[-1], a.P)
+    np.testing.assert_array_equal(np.diagonal(res.P, axis1=1, axis2=2), res.P_diag)
     assert res.n_gated == 1 and np.count_nonzero(st == 1) == 1
     np.testing.assert_array_equal(res.status, st)
     assert np.max(np.abs(res.x - xs)) <= 1e-12

@@ -1,0 +1,42 @@
+"""The benchmark's four variants compute the same filter (agreement, not speed)."""
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from leonav_runtime import compiled
+from leonav_runtime import filter as lf
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_filter.py"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    spec = importlib.util.spec_from_file_location("bench_filter_under_test", BENCH)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_bench_variants_agree_on_a_short_stream(bench, tmp_path):
+    lib = compiled.load()
+    recs, x_true, x0, P0, params = bench.build_stream(lib, 1.0)
+    gate = lf.CHI2_1DOF_999
+    kinds = {name: lib.kind_id(name) for name in ("pseudorange", "doppler_rate")}
+    _, _, a = bench.time_c_loop(lib, recs, x0, P0, params, 1)
+    assert a["res"].n_applied == np.count_nonzero(recs["kind"] >= 0) - a["res"].n_gated
+    _, d_x = bench.time_bare_c(lib.build, recs, x0, P0, params, gate, 1, tmp_path)
+    np.testing.assert_allclose(d_x, a["x"], rtol=0, atol=1e-9)
+    _, _, b = bench.time_casadi(recs, x0, P0, params, gate, kinds, 1)
+    ekf = lf.EKF(x0, P0, params, library=lib)
+    ekf.run(recs)
+    np.testing.assert_allclose(b["x"], ekf.x, rtol=0, atol=1e-9)
+    # the NumPy reference (finite-difference Jacobians) follows the same filter closely
+    _, _, c = bench.time_numpy(recs, x0, P0, params, gate, {v: k for k, v in kinds.items()}, 1)
+    assert np.max(np.abs(c["x"][:3] - a["x"][:3])) < 0.05
+    assert np.max(np.abs(c["x"][3:6] - a["x"][3:6])) < 0.01
+    assert np.linalg.norm(a["x"][:3] - x_true[:3]) < np.linalg.norm(x0[:3] - x_true[:3])
