@@ -330,10 +330,25 @@ _loaded: dict[str, Library] = {}
 _lock = threading.Lock()
 
 
+_stat_memo: dict[tuple, str] = {}
+
+
+def _stat_signature(gen_dir: Path, csrc_dir: Path, out_dir: Path | None) -> tuple:
+    """Cheap identity of the inputs (paths, sizes, mtimes, flags, $CC) to skip re-hashing."""
+    files = sorted(p for d in (gen_dir, csrc_dir) for p in Path(d).glob("*.[ch]"))
+    stats = tuple((str(p), p.stat().st_size, p.stat().st_mtime_ns) for p in files)
+    return stats, tuple(cflags()), os.environ.get("CC", "cc"), str(out_dir or build_dir())
+
+
 def load(gen_dir: Path = GEN_DIR, csrc_dir: Path = CSRC_DIR, out_dir: Path | None = None) -> Library:
     """Build if needed and load the library; cached per process by build key."""
     with _lock:
+        signature = _stat_signature(gen_dir, csrc_dir, out_dir)
+        known = _stat_memo.get(signature)
+        if known in _loaded and _loaded[known].build.library.exists():
+            return _loaded[known]
         info = build(gen_dir, csrc_dir, out_dir)
+        _stat_memo[signature] = info.key
         if info.key in _loaded:
             return _loaded[info.key]
         lib = ctypes.CDLL(str(info.library))
@@ -349,3 +364,4 @@ def clear_process_cache() -> None:
     """Forget loaded libraries (the next load() goes through the on-disk cache again)."""
     with _lock:
         _loaded.clear()
+        _stat_memo.clear()

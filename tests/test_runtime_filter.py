@@ -216,3 +216,15 @@ def test_pcrb_equals_ekf_covariance_linearised_at_truth(lib, params):
             np.testing.assert_allclose(pc.B_diag[i], np.diag(ekf.P), rtol=1e-8)
     np.testing.assert_allclose(pc.B, ekf.P, rtol=1e-7, atol=1e-12)
     np.testing.assert_allclose(pc.B_nav[-1], ekf.P[:9, :9], rtol=1e-7, atol=1e-12)
+
+
+def test_stationary_imu_keeps_the_mechanization_at_rest(lib, params):
+    x = x_rest()
+    x[6:10] = [math.cos(0.3), 0.0, 0.0, math.sin(0.3)]  # yawed 0.6 rad
+    u = lf.stationary_imu(x, IMU_DT, params, lib)
+    assert np.linalg.norm(u[3:]) / IMU_DT == pytest.approx(9.80, abs=0.01)  # gravity magnitude at 40 deg N
+    assert np.linalg.norm(u[:3]) / IMU_DT == pytest.approx(K.OMEGA_IE_RADPS, rel=1e-6)  # Earth rate
+    work, xx = lib.new_workspace(), x.copy()
+    for _ in range(1000):  # 10 s
+        assert lib.lib.leonav_mech_step(lf._ptr(xx), lf._ptr(u), IMU_DT, lf._ptr(params), work.ctypes.data) == 0
+    assert np.max(np.abs(xx[:6])) < 1e-6 and np.max(np.abs(xx[6:10] - x[6:10])) < 1e-9
