@@ -66,6 +66,13 @@ def test_two_line_files_without_names_and_ages():
     assert ages[0] == pytest.approx(86400.0, abs=1e-4)
 
 
+def test_space_track_3le_name_lines_with_zero_prefix():
+    lines = _lines(shared_file("tle/gps-ops_2026-03-09.txt"))[:6]
+    text = "\n".join("0 " + l.strip() if i % 3 == 0 else l for i, l in enumerate(lines))
+    es = parse_elements_text(text, "spacetrack.3le")
+    assert es.names == ["GPS BIIR-2  (PRN 13)", "GPS BIIR-5  (PRN 22)"] and es.rejected == []
+
+
 def test_select_and_concat():
     es = load_elements(shared_file("tle/gps-ops_2026-03-09.txt"))
     sub = es.select(np.arange(len(es)) % 2 == 0)

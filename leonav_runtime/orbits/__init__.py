@@ -7,8 +7,9 @@ Public API::
         gps_walker_tle, default_elements, fetch_group)
 
 Units SI (m, m/s, m/s^2, s); frames in names (TEME from SGP4, ECEF = ITRF); times are
-seconds since a UTC scenario epoch.
+seconds since a UTC scenario epoch. Element sets use SGP4's WGS-72 constants, opsmode 'i'.
 """
+from leonav_runtime.orbits.constellations import default_elements, gps_walker_tle, starlink_walker_tle
 from leonav_runtime.orbits.elements import (
     ElementSet,
     RejectedElementsWarning,
@@ -16,9 +17,11 @@ from leonav_runtime.orbits.elements import (
     load_elements,
     parse_elements_text,
 )
+from leonav_runtime.orbits.fetch import FetchError, fetch_group
 from leonav_runtime.orbits.propagate import (
     SatStates,
     StaleElementsWarning,
+    acceleration_ecef_mps2,
     gravity_ecef_mps2,
     propagate_ecef,
     propagate_teme,
@@ -27,14 +30,6 @@ from leonav_runtime.orbits.propagate import (
 __all__ = [
     "ElementSet", "RejectedEntry", "RejectedElementsWarning", "load_elements", "parse_elements_text",
     "SatStates", "StaleElementsWarning", "propagate_ecef", "propagate_teme", "gravity_ecef_mps2",
+    "acceleration_ecef_mps2", "default_elements", "gps_walker_tle", "starlink_walker_tle",
+    "FetchError", "fetch_group",
 ]
-from leonav_runtime.orbits.constellations import (  # noqa: E402
-    default_elements,
-    gps_walker_tle,
-    starlink_walker_tle,
-)
-
-__all__ += ["default_elements", "gps_walker_tle", "starlink_walker_tle"]
-from leonav_runtime.orbits.fetch import FetchError, fetch_group  # noqa: E402
-
-__all__ += ["FetchError", "fetch_group"]

@@ -213,13 +213,16 @@ def _parse_tle_text(text: str, source: str, strict_checksum: bool = True
             pending = None
             try:
                 fields = _tle.parse_fields(l1, line, verify_checksum=strict_checksum)
-                if not strict_checksum and (_tle.checksum(l1) != int(l1[68]) or _tle.checksum(line) != int(line[68])):
-                    checksum_only.append(l1_no)
+                satrec = Satrec.twoline2rv(l1[:69], line[:69], WGS72)
             except _tle.TLEFieldError as exc:
                 reject(line_no if exc.which_line == 2 else l1_no, str(exc))
+            except ValueError as exc:  # sgp4's own reader disagreed with ours
+                reject(l1_no, f"SGP4 could not read the element lines: {exc}")
             else:
-                entries.append((name or str(fields.norad_id), fields.norad_id, fields.epoch_utc,
-                                Satrec.twoline2rv(l1[:69], line[:69], WGS72), f"{source}:{l1_no}"))
+                if not strict_checksum and (_tle.checksum(l1) != int(l1[68]) or _tle.checksum(line) != int(line[68])):
+                    checksum_only.append(l1_no)
+                entries.append((name or str(fields.norad_id), fields.norad_id, fields.epoch_utc, satrec,
+                                f"{source}:{l1_no}"))
             name = ""
         else:
             if pending is not None:

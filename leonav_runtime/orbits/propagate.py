@@ -144,7 +144,7 @@ def warn_if_stale(elements: ElementSet, epoch_utc: _dt.datetime, t_s: np.ndarray
 def propagate_teme(
     elements: ElementSet, epoch_utc: _dt.datetime, t_s: np.ndarray | float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """SGP4 TEME states (km, km/s as SGP4 gives them) and error codes (nsat, nt)."""
+    """(err (nsat, nt) SGP4 error codes, r_teme_km (nsat, nt, 3), v_teme_kmps): raw SGP4 TEME output."""
     t_s = np.atleast_1d(np.asarray(t_s, dtype=float))
     jd_whole, jd_frac = julian_date_split(epoch_utc)
     jd = np.full(t_s.shape, jd_whole)

@@ -18,9 +18,10 @@ from dataclasses import dataclass
 
 TLE_LINE_LENGTH = 69
 
-# A line that starts "<digit> <5 catalog characters>" is an element line; anything else
-# that is not blank or a '#' comment is a name line (the first line of a 3LE entry).
-_ELEMENT_LINE = re.compile(r"^[0-9] [ 0-9A-Z]{5}")
+# A line that starts "<digit 1-9> <5 catalog characters>" is an element line; anything
+# else that is not blank or a '#' comment is a name line (the first line of a 3LE entry;
+# Space-Track writes it as "0 NAME").
+_ELEMENT_LINE = re.compile(r"^[1-9] [ 0-9A-Z]{5}")
 
 _ALPHA5_LETTERS = "ABCDEFGHJKLMNPQRSTUVWXYZ"  # I and O are not used (look like 1 and 0)
 
