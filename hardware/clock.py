@@ -25,6 +25,7 @@ from hardware.records import GnssTimeTag
 
 # Preferred source of time tags: one per navigation epoch, best time quality first.
 SOURCE_PRIORITY = ("NAV-PVT", "TIMEGPS", "RAWX", "RMC", "ZDA")
+OUTLIER_FLOOR_S = 0.05
 
 
 def utc_unix(t: _dt.datetime) -> float:
@@ -40,7 +41,7 @@ class TimeMap:
 
     `offset_s` (and `drift`, 0 unless fitted with `drift=True`) map t_mono to UTC POSIX
     seconds; `residual_*` describe `utc - map(t_mono)` over the tags used;
-    `n_outliers` tags further than 5 robust sigmas (or 1 s) from the median were left out.
+    `n_outliers` tags further than max(5 robust sigmas, 50 ms), or 1 s, from the median were left out.
     """
 
     source: str = ""
@@ -87,8 +88,11 @@ class TimeMap:
         d = u - t
         med = np.median(d)
         mad = np.median(np.abs(d - med))
-        keep = np.abs(d - med) <= max(5 * 1.4826 * mad, 1e-3) if mad > 0 else np.ones(d.size, bool)
-        keep &= np.abs(d - med) < 1.0   # a tag a second off is a misparse or a stale message
+        # Outliers: beyond 5 robust sigmas, but never closer than OUTLIER_FLOOR_S (host
+        # scheduling jitter is real spread, not an outlier), and always beyond 1 s (a stale
+        # or misparsed tag).
+        keep = np.abs(d - med) <= max(5 * 1.4826 * mad, OUTLIER_FLOOR_S)
+        keep &= np.abs(d - med) < 1.0
         t_ref = float(np.median(t[keep]))
         slope = 0.0
         if drift and keep.sum() >= 3 and np.ptp(t[keep]) > 0:

@@ -45,14 +45,15 @@ class PtyDevice:
 
     def _feed(self) -> None:
         try:
-            for chunk in self.chunks:
+            t0 = time.monotonic()
+            for k, chunk in enumerate(self.chunks):
                 view = memoryview(chunk)
                 while view:                           # a tty write may be partial
                     n = os.write(self.master, view)
                     view = view[n:]
                     self.bytes_written += n
-                if self.delay_s:
-                    time.sleep(self.delay_s)
+                if self.delay_s:                      # absolute schedule: no accumulated lag
+                    time.sleep(max(0.0, t0 + (k + 1) * self.delay_s - time.monotonic()))
             self.done.set()
             if self.close_after_s is not None:
                 time.sleep(self.close_after_s)

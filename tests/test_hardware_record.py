@@ -149,13 +149,14 @@ def test_record_end_to_end_with_a_device_that_disappears(tmp_path):
     assert (tmp_path / "sdr.cu8").stat().st_size == 2 * dev["sdr"]["n_samples"]
     assert json.loads((tmp_path / "sdr.sigmf-meta").read_text())["global"]["core:sha512"]
 
-    # time map from RMC at 10 Hz: sub-20 ms spread on this machine (sentence-end stamps)
+    # time map from RMC at 10 Hz: a few ms of spread (sentence-end stamps); the bounds
+    # leave room for the feeder thread's scheduling on a loaded 2-core machine
     tm = info["time_map"]
-    assert tm["source"] == "RMC" and tm["n_tags"] >= 18
-    assert tm["residual_std_s"] < 0.02
+    assert tm["source"] == "RMC" and tm["n_tags"] + tm["n_outliers"] == 20 and tm["n_tags"] >= 15
+    assert tm["residual_std_s"] < 0.03
     # UTC of the fixes through the map agrees with the receiver's own fix time
     for row in fixes[5:]:
-        assert float(row["t_utc_mapped_s"]) == pytest.approx(float(row["fix_utc_s"]), abs=0.06)
+        assert float(row["t_utc_mapped_s"]) == pytest.approx(float(row["fix_utc_s"]), abs=0.1)
 
     # decode_session reproduces the live decoding from the raw logs and chunk stamps
     dec = decode_session(tmp_path)
