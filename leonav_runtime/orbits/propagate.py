@@ -161,17 +161,21 @@ def propagate_ecef(
     xp_rad: float = 0.0,
     yp_rad: float = 0.0,
     acceleration: bool = True,
+    warn_stale: bool = True,
 ) -> SatStates:
     """ECEF position, velocity and (optionally) acceleration of every satellite at every time.
 
     epoch_utc: scenario epoch (UTC; naive datetimes are taken as UTC); t_s: (nt,) seconds
     since it. ut1_utc_s: UT1-UTC for GMST (s); xp_rad, yp_rad: polar motion (rad).
-    Warns (StaleElementsWarning) about element sets older than `elements.stale_after_days`.
+    Warns (StaleElementsWarning) about element sets older than `elements.stale_after_days`;
+    callers that propagate one set in chunks pass warn_stale=False and call
+    `warn_if_stale(elements, epoch_utc, t_s)` once themselves.
     """
     epoch_utc = as_utc(epoch_utc)
     t_s = np.atleast_1d(np.asarray(t_s, dtype=float))
     nsat, nt = len(elements), len(t_s)
-    warn_if_stale(elements, epoch_utc, t_s)
+    if warn_stale:
+        warn_if_stale(elements, epoch_utc, t_s)
     if nsat == 0:
         empty = np.empty((0, nt, 3))
         return SatStates(empty, empty.copy(), empty.copy() if acceleration else None, t_s, epoch_utc,
