@@ -10,9 +10,11 @@ and candidate satellite s (predicted D_s(t_k), alpha_s(t_k)):
   set error, LO drift): J <= 1 means "fits as well as the model can tell".
 Assignment: ridges x satellites, solved jointly (scipy linear_sum_assignment) so two ridges
 never take one satellite; costs above `max_cost` are forbidden.
-Per ridge, the ambiguity ratio is J_second / J_best over all other candidates (the raw
-ratio is reported); a ridge is *ambiguous* when J_second < ambiguity_ratio * max(J_best, 1),
-i.e. another satellite fits nearly as well or also within the model's own error. Such a
+Per ridge, the ambiguity ratio is J_second / max(J_best, 1) over all other candidates (both
+costs are reported): the best cost is floored at 1 because below that the fit is limited
+by the model's own error, not by the measurement. A ridge is *ambiguous* when the ratio is
+below `ambiguity_ratio` (1.5): another satellite fits nearly as well, or also within the
+model's error (satellites of one launch flying in a train). Such a
 ridge keeps its best candidate in the report but is not passed to the filter. A ridge
 whose best cost exceeds `max_cost` is *unassociated*, with the reason.
 """
@@ -113,8 +115,8 @@ def associate(measurements: list[RidgeMeasurements], pred: Predictions,
             others = np.delete(np.arange(nsat), j)
             k = int(others[np.argmin(c[others])]) if others.size else -1
             c2 = float(c[k]) if k >= 0 else float("inf")
-            ratio = c2 / c[j] if c[j] > 0 else float("inf")
-            ambiguous = c2 < cfg.ambiguity_ratio * max(c[j], 1.0)
+            ratio = c2 / max(c[j], 1.0)
+            ambiguous = ratio < cfg.ambiguity_ratio
             status = "ambiguous" if ambiguous else "associated"
             reason = (f"{pred.names[k]} ({pred.norad_ids[k]}) fits nearly as well: cost {c2:.2f} vs {c[j]:.2f}"
                       if ambiguous else "")

@@ -9,8 +9,10 @@ an existing ridge, where a false alarm is unlikely and a weak tone is worth keep
 k_track = 10 (5.5 mu, 4e-3 per bin, ~3% per 7-bin gate and slice).
 
 Tracking: each ridge predicts its next frequency with its current rate (straight-line
-fit over its recent points) and looks for the strongest local maximum within a gate of
-`gate_bins` bins plus the rate uncertainty times the time since its last point. Peaks are
+fit over its last second) and looks for a local maximum within a gate of `gate_bins` bins
+plus the rate uncertainty times the time since its last point: the strongest while the
+ridge is young, the one nearest the prediction once its rate is fitted (narrower gate),
+so two tones crossing at different rates keep their identities. Peaks are
 shared out strongest ridge first; a ridge missing for `max_gap_s` ends. Ridges shorter
 than `min_duration_s` are discarded (counted) as noise. Fragments of one tone broken by a
 crossing or fade are joined when one extrapolates onto the other.
@@ -32,10 +34,11 @@ from leonav_runtime.beacons.waterfall import SpectrumBlock
 class TrackerConfig:
     k_detect: float = 25.0       # start threshold, MADs above the median
     k_track: float = 10.0        # continuation threshold inside a gate
-    gate_bins: float = 3.0       # gate half-width (bins) before the rate term
+    gate_bins: float = 3.0       # gate half-width (bins) before the rate term, young ridge
+    gate_bins_confirmed: float = 1.5  # ... once its rate is fitted (prediction good to ~0.1 bin)
     rate_sigma_young_hz_s: float = 5000.0  # rate uncertainty of a ridge with few points
     rate_sigma_hz_s: float = 300.0         # rate uncertainty once the rate is fitted
-    rate_fit_s: float = 0.3      # recent span used for the running rate
+    rate_fit_s: float = 1.0      # recent span used for the running rate
     max_gap_s: float = 0.5       # a ridge unseen this long ends
     min_duration_s: float = 1.0  # shorter ridges are discarded as noise
     exclusion_bins: int = 6      # a weaker peak this close to a stronger one is a side lobe
@@ -86,10 +89,10 @@ class _Track:
             self.refit_rate(span_s)
 
     def refit_rate(self, span_s: float) -> None:
-        t = np.asarray(self.t[-64:])
+        t = np.asarray(self.t[-256:])
         keep = t >= t[-1] - span_s
         if keep.sum() >= 5:
-            tt, ff = t[keep], np.asarray(self.f[-64:])[keep]
+            tt, ff = t[keep], np.asarray(self.f[-256:])[keep]
             tt = tt - tt.mean()
             self.rate = float(np.dot(tt, ff - ff.mean()) / np.dot(tt, tt))
             self.n_fit = int(keep.sum())
@@ -144,15 +147,19 @@ class RidgeTracker:
         for tr in order:
             gap = t - tr.t[-1]
             f_pred = tr.f[-1] + tr.rate * gap
-            rate_sig = cfg.rate_sigma_hz_s if tr.n_fit >= 5 else cfg.rate_sigma_young_hz_s
-            half = cfg.gate_bins * df + rate_sig * gap
+            confirmed = tr.n_fit >= cfg.confirm_points
+            rate_sig = cfg.rate_sigma_hz_s if confirmed else cfg.rate_sigma_young_hz_s
+            half = (cfg.gate_bins_confirmed if confirmed else cfg.gate_bins) * df + rate_sig * gap
             if peaks.size == 0:
                 continue
             pf = f0 + peaks * df
             cand = np.nonzero(~taken & (np.abs(pf - f_pred) <= half))[0]
             if cand.size == 0:
                 continue
-            best = cand[np.argmax(row[peaks[cand]])]
+            if confirmed:  # rate known: the peak nearest the prediction (keeps crossing tones apart)
+                best = cand[np.argmin(np.abs(pf[cand] - f_pred))]
+            else:          # rate unknown yet: the strongest peak in the wide gate
+                best = cand[np.argmax(row[peaks[cand]])]
             k = int(peaks[best])
             f = f0 + (k + interpolate_peak(row, k)) * df
             tr.add(t, f, 10 * np.log10(row[k] / noise_mean), cfg.rate_fit_s)

@@ -112,8 +112,12 @@ def build_truth(elements, site: Site, start_utc: _dt.datetime, cfg: SynthConfig,
                       cn0, t, pred.doppler_hz[rows], pred.rate_hz_s[rows], lo, bb)
 
 
-def iter_synthetic_iq(truth: SynthTruth, cfg: SynthConfig, chunk_samples: int = 1 << 20) -> Iterator[np.ndarray]:
-    """Complex baseband samples (units of ADC full scale) in chunks, before quantization."""
+def iter_synthetic_iq(truth: SynthTruth, cfg: SynthConfig) -> Iterator[np.ndarray]:
+    """Complex baseband samples (units of ADC full scale), one block per truth-grid interval.
+
+    Each block lies inside one piece of the phase spline, so the phase is that piece's
+    polynomial evaluated by Horner's rule (no per-sample interval search).
+    """
     rng = np.random.default_rng(cfg.seed + 1)
     fs = cfg.sample_rate_hz
     sigma = cfg.noise_rms_codes / 127.5          # per component, full-scale units
@@ -124,22 +128,27 @@ def iter_synthetic_iq(truth: SynthTruth, cfg: SynthConfig, chunk_samples: int = 
     phase0 = rng.uniform(0, 1, (len(amps), offsets.size))
     dc = cfg.dc_offset_codes / 127.5 * (1 + 1j)
     n_total = int(round(cfg.duration_s * fs))
-    for k0 in range(0, n_total, chunk_samples):
-        n = min(chunk_samples, n_total - k0)
-        t = (k0 + np.arange(n)) / fs
+    k0 = 0
+    while k0 < n_total:
+        t_first = k0 / fs
+        piece = int(np.clip(np.searchsorted(truth.t_grid_s, t_first, side="right") - 1, 0, truth.t_grid_s.size - 2))
+        t_end = truth.t_grid_s[piece + 1]
+        n = int(min(n_total - k0, max(1, np.ceil((t_end - t_first) * fs))))
+        tau = (k0 + np.arange(n)) / fs - truth.t_grid_s[piece]
         x = (rng.standard_normal(n, np.float32) + 1j * rng.standard_normal(n, np.float32)).astype(np.complex64)
         x *= sigma
+        xr, xi = x.real, x.imag  # views: add in place, no complex temporaries
         for i, amp in enumerate(amps):
-            base = cycles[i](t)
+            base = np.polyval(cycles[i].c[:, piece], tau)
             for j, off in enumerate(offsets):
-                c = base + off * t + phase0[i, j]
+                c = base + (off * (tau + truth.t_grid_s[piece]) + phase0[i, j])
                 c -= np.floor(c)
                 ph = (2 * np.pi * c).astype(np.float32)
-                xr, xi = x.real, x.imag  # views: add in place, no complex temporaries
                 xr += amp * np.cos(ph)
                 xi += amp * np.sin(ph)
         x += dc
         yield x
+        k0 += n
 
 
 def write_synthetic_capture(path: str | Path, elements, site: Site, start_utc: _dt.datetime,
