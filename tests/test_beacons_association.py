@@ -120,12 +120,12 @@ def test_train_mates_are_flagged_ambiguous_not_silently_picked(elements, tmp_pat
 
 
 def test_longer_window_resolves_a_train(elements):
-    """Measurement-level: mates 0.15 deg apart (~2.4 s in time) are ambiguous over 2 s, resolved over 20 s."""
+    """Measurement-level: mates 0.01 deg apart (~1.2 km, 0.16 s) are ambiguous over 2 s, resolved over 20 s."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         pred0 = predict.predict_visible(elements, SITE, START, 20.0)
         target = int(pred0.sat_index[np.argmax(pred0.elevation_rad[:, 0])])
-        both = elements.select([target]).concat(_twin(elements, target, 0.15))
+        both = elements.select([target]).concat(_twin(elements, target, 0.01))
         pred = predict.predict_visible(both, SITE, START, 20.0)
     rng = np.random.default_rng(1)
     status = {}
