@@ -1,0 +1,373 @@
+"""Truth and sensor simulation for a scenario, through the generated models.
+
+`prepare(scn)` does the work shared by every trial, once per scenario:
+- truth: the intended motion (trajectory.py) is turned into ideal IMU increments by
+  inverting the *generated* mechanization step by step (Newton on `leonav_mech`), and
+  the truth state is the mechanization's own output, so the filter and the truth share
+  one model;
+- satellites: SGP4 states of GPS and Starlink at every measurement epoch, visibility and
+  the satellite-selection rule, aux blocks, and the noise-free measurements evaluated
+  with the generated `h` functions at the true state (clock and LO states at zero).
+
+`trial_records(setup, mode, count, rng)` then draws one trial: IMU biases (random walks
+from the profile) and white noise, receiver clock and LO offset (random walks from the
+filter's own process model), measurement noise, GPS outages, and an initial estimate
+drawn from the prior. Clock and LO enter the measurements through the generated Jacobian
+H (the models are linear in those states), so no per-trial model evaluation is needed.
+
+Time stamping: IMU samples at k/rate_hz; GPS and Starlink epochs fall on IMU sample
+times (as a receiver that tags measurements with its own clock), an IMU record carries
+the increments over (t - dt, t].
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from leonav_runtime import geometry, navfuncs, records
+from leonav_runtime.errors import UserInputError
+from leonav_runtime.orbits import ElementSet, default_elements, load_elements, propagate_ecef
+from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
+from leonav_runtime.trajectory import motion
+from models.imu import PROFILES as IMU_PROFILES
+from models.params import build_params
+
+C_LIGHT_MPS = 299_792_458.0
+
+# Prior of the filter's clock and LO states (not in the scenario file: they only set
+# how fast the filter locks; stated in the docs). Truth is drawn from the same prior.
+CLOCK_BIAS_SIGMA_M = 300.0      # 1 us
+CLOCK_DRIFT_SIGMA_MPS = 1.0
+LO_OFFSET_SIGMA_HZ = 50e3       # LNB LO tolerance class (tens of kHz)
+LO_RANDOM_WALK_HZ2_S = 1e-2     # LO drift PSD used by filter and truth
+
+
+@dataclass
+class SatSeries:
+    """Measurements of one observable over the run (one row per measurement).
+
+    t_s, sat_id (NORAD id), aux (n, NAUX), z_true (noise-free, clock/LO states at zero),
+    H (n, NDX) at the truth, rank (elevation rank at its epoch, 0 = highest).
+    """
+
+    kind: int
+    t_s: np.ndarray
+    sat_id: np.ndarray
+    aux: np.ndarray
+    z_true: np.ndarray
+    H: np.ndarray
+    rank: np.ndarray
+
+
+@dataclass
+class Setup:
+    """Everything shared by the trials of one scenario."""
+
+    scn: Scenario
+    params: np.ndarray
+    t_imu: np.ndarray           # (n+1,) s, sample times; interval k is (t[k], t[k+1]]
+    x_true: np.ndarray          # (n+1, NX) truth (biases, clock and LO at zero)
+    u_true: np.ndarray          # (n, 6) ideal increments of interval k
+    series: dict[str, SatSeries]
+    visible_min: dict[str, int]  # fewest satellites above the mask over the run
+    P0: np.ndarray              # filter prior covariance (NDX, NDX)
+    imu_profile: object
+    notes: list[str] = field(default_factory=list)
+
+
+# ---- truth ----------------------------------------------------------------------------
+
+def _truth(scn: Scenario, params: np.ndarray, nav: navfuncs.NavFunctions):
+    dt = 1.0 / scn.imu_rate_hz
+    n = int(round(scn.duration_s * scn.imu_rate_hz))
+    t = np.arange(n + 1) * dt
+    m = motion(scn, t)
+    L = nav.layout
+    x_target = np.zeros((n + 1, L.NX))
+    x_target[:, L.X_P_ENU:L.X_P_ENU + 3] = m.p_enu_m
+    x_target[:, L.X_V_ENU:L.X_V_ENU + 3] = m.v_enu_mps
+    x_target[:, L.X_Q_NB:L.X_Q_NB + 4] = nav.quat_from_euler(m.euler_rad)
+    x_true = np.empty_like(x_target)
+    x_true[0] = x_target[0]
+    u_true = np.zeros((n, 6))
+    u = None
+    for k in range(n):
+        u = nav.imu_increments(x_true[k], x_target[k + 1], dt, guess=u)
+        u_true[k] = u
+        x_true[k + 1] = nav.mech(x_true[k], u, dt)
+    return t, x_true, u_true
+
+
+# ---- satellites -------------------------------------------------------------------------
+
+def scenario_elements(scn: Scenario) -> dict[str, ElementSet]:
+    """Element sets of the scenario: built-in Walker constellations at its epoch, or its files."""
+    if scn.element_source == "builtin":
+        return default_elements(scn.epoch_utc)
+    sets: dict[str, list[ElementSet]] = {}
+    for path in scn.element_files:
+        es = load_elements(path)
+        sets.setdefault(es.constellation, []).append(es)
+    out = {}
+    for name, group in sets.items():
+        es = group[0]
+        for other in group[1:]:
+            es = es.concat(other)
+        out[name] = es
+    for need in ("gps", "starlink"):
+        if need not in out:
+            raise UserInputError(
+                f"{scn.source}: [elements] files give no {need} element sets "
+                f"(found: {', '.join(sorted(out)) or 'none'})"
+            )
+    return out
+
+
+def _epochs(scn: Scenario, rate_hz: float, t_imu: np.ndarray) -> np.ndarray:
+    """Measurement epochs on IMU sample times, from the first sample after 0."""
+    step = int(round(scn.imu_rate_hz / rate_hz))
+    if step < 1 or abs(scn.imu_rate_hz / rate_hz - step) > 1e-9:
+        raise UserInputError(
+            f"{scn.source}: measurement rate {rate_hz} Hz must divide the IMU rate "
+            f"{scn.imu_rate_hz} Hz (measurements are tagged on IMU sample times)"
+        )
+    return np.arange(step, t_imu.size, step)
+
+
+def _receiver_ecef(scn: Scenario, p_enu: np.ndarray) -> np.ndarray:
+    r0 = geometry.geodetic_to_ecef(scn.lat_rad, scn.lon_rad, scn.alt_m)
+    return geometry.enu_to_ecef(p_enu, r0, scn.lat_rad, scn.lon_rad)
+
+
+def _visible_ranked(scn, es, t_s, p_enu, mask_rad, acceleration=True):
+    """States of `es` at t_s and, per epoch, visible satellites sorted by elevation."""
+    states = propagate_ecef(es, scn.epoch_utc, t_s, acceleration=acceleration)
+    r_rx = _receiver_ecef(scn, p_enu)                         # (nt, 3)
+    _, el, rho = geometry.az_el_range(states.r_ecef_m, r_rx[None, :, :], scn.lat_rad, scn.lon_rad)
+    el = np.where(np.isfinite(el), el, -np.inf)
+    ranked = []
+    for j in range(t_s.size):
+        vis = np.flatnonzero(el[:, j] >= mask_rad)
+        ranked.append(vis[np.argsort(-el[vis, j], kind="stable")])
+    return states, ranked, rho
+
+
+def _aux(nav, r, v, a, f_b, r_ref=None, v_ref=None, a_ref=None) -> np.ndarray:
+    L = nav.layout
+    aux = np.zeros(L.NAUX)
+    aux[L.AUX_R_S_ECEF:L.AUX_R_S_ECEF + 3] = r
+    aux[L.AUX_V_S_ECEF:L.AUX_V_S_ECEF + 3] = v
+    aux[L.AUX_A_S_ECEF:L.AUX_A_S_ECEF + 3] = a
+    if r_ref is not None:
+        aux[L.AUX_R_REF_ECEF:L.AUX_R_REF_ECEF + 3] = r_ref
+        aux[L.AUX_V_REF_ECEF:L.AUX_V_REF_ECEF + 3] = v_ref
+        aux[L.AUX_A_REF_ECEF:L.AUX_A_REF_ECEF + 3] = a_ref
+    aux[L.AUX_F_B:L.AUX_F_B + 3] = f_b
+    return aux
+
+
+def _series(nav, kind_name, rows, x_true) -> SatSeries:
+    kind = nav.kind_id(kind_name)
+    n = len(rows)
+    aux = np.array([r[3] for r in rows]).reshape(n, nav.layout.NAUX)
+    z, H = np.empty(n), np.empty((n, nav.layout.NDX))
+    for i, (k, _, _, a, _) in enumerate(rows):
+        z[i], H[i] = nav.h(kind, x_true[k], a)
+    return SatSeries(kind, np.array([r[1] for r in rows], float), np.array([r[2] for r in rows], np.int32),
+                     aux, z, H, np.array([r[4] for r in rows], np.int32))
+
+
+def _gps_rows(scn, nav, es, t_imu, x_true, f_b):
+    idx = _epochs(scn, scn.gps["rate_hz"], t_imu)
+    t = t_imu[idx]
+    p_enu = x_true[idx, nav.layout.X_P_ENU:nav.layout.X_P_ENU + 3]
+    states, ranked, rho = _visible_ranked(scn, es, t, p_enu, scn.gps["elevation_mask_rad"])
+    rows = []
+    for j, k in enumerate(idx):
+        use = ranked[j][: scn.gps["max_satellites"]]
+        for rank, s in enumerate(use):
+            # Satellite at transmit time t - tau (tau = range / c), by its ECEF Taylor
+            # expansion over ~70 ms (error far below a millimetre), in the ECEF frame of
+            # the transmit epoch, as the pseudorange model (with Sagnac) expects.
+            r, v, a = states.r_ecef_m[s, j], states.v_ecef_mps[s, j], states.a_ecef_mps2[s, j]
+            tau = rho[s, j] / C_LIGHT_MPS
+            for _ in range(2):
+                r_tx = r - v * tau + 0.5 * a * tau**2
+                tau = np.linalg.norm(r_tx - _receiver_ecef(scn, p_enu[j])) / C_LIGHT_MPS
+            rows.append((k, t[j], int(es.norad_ids[s]), _aux(nav, r_tx, v - a * tau, a, f_b[k]), rank))
+    vis = [len(r) for r in ranked]
+    return rows, min(vis) if vis else 0
+
+
+def _starlink_rows(scn, nav, es, t_imu, x_true, f_b):
+    idx = _epochs(scn, scn.starlink["rate_hz"], t_imu)
+    t = t_imu[idx]
+    p_enu = x_true[idx, nav.layout.X_P_ENU:nav.layout.X_P_ENU + 3]
+    # Only satellites that can be above the mask need states: pre-filter on the first epoch
+    # would miss risers over long runs, so propagate all (vectorized SGP4 is cheap).
+    states, ranked, _ = _visible_ranked(scn, es, t, p_enu, scn.starlink["elevation_mask_rad"])
+    n_max = max(scn.starlink["counts"])
+    alpha, dopp, ofdm = [], [], []
+    for j, k in enumerate(idx):
+        use = ranked[j][:n_max]
+        if use.size == 0:
+            continue
+        ref = use[0]
+        rr, vr, ar = states.r_ecef_m[ref, j], states.v_ecef_mps[ref, j], states.a_ecef_mps2[ref, j]
+        for rank, s in enumerate(use):
+            r, v, a = states.r_ecef_m[s, j], states.v_ecef_mps[s, j], states.a_ecef_mps2[s, j]
+            sid = int(es.norad_ids[s])
+            aux = _aux(nav, r, v, a, f_b[k], rr, vr, ar)
+            alpha.append((k, t[j], sid, aux, rank))
+            dopp.append((k, t[j], sid, aux, rank))
+            if rank > 0:  # differenced against the highest satellite (rank 0)
+                ofdm.append((k, t[j], sid, aux, rank))
+    vis = [len(r) for r in ranked]
+    return alpha, dopp, ofdm, min(vis) if vis else 0
+
+
+def prior_covariance(scn: Scenario, profile, layout) -> np.ndarray:
+    """Filter prior P0 (NDX, NDX), diagonal: scenario sigmas, IMU profile bias sigmas,
+    clock and LO priors (module constants)."""
+    L = layout
+    sig = np.zeros(L.NDX)
+    sig[L.DX_DP:L.DX_DP + 3] = scn.filter["initial_position_sigma_m"]
+    sig[L.DX_DV:L.DX_DV + 3] = scn.filter["initial_velocity_sigma_mps"]
+    sig[L.DX_DTHETA:L.DX_DTHETA + 3] = scn.filter["initial_attitude_sigma_rad"]
+    sig[L.DX_DB_A:L.DX_DB_A + 3] = profile.acc_bias_sigma
+    sig[L.DX_DB_G:L.DX_DB_G + 3] = profile.gyro_bias_sigma
+    sig[L.DX_DC_DT] = CLOCK_BIAS_SIGMA_M
+    sig[L.DX_DC_DDT] = CLOCK_DRIFT_SIGMA_MPS
+    sig[L.DX_DB_LO] = LO_OFFSET_SIGMA_HZ
+    return np.diag(sig**2)
+
+
+def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
+    """Truth, satellite geometry and noise-free measurements shared by all trials."""
+    nav = nav or navfuncs.NavFunctions()
+    profile = IMU_PROFILES["wt901" if scn.imu_profile == "consumer-wt901" else scn.imu_profile]
+    params = np.array(build_params(scn.lat_rad, scn.lon_rad, scn.alt_m, imu=profile,
+                                   q_blo=LO_RANDOM_WALK_HZ2_S, f_c_hz=scn.starlink["carrier_hz"]))
+    nav.params = params
+    t_imu, x_true, u_true = _truth(scn, params, nav)
+    dt = 1.0 / scn.imu_rate_hz
+    # specific force of the latest IMU interval at each sample (sample 0: first interval)
+    f_b = np.vstack([u_true[:1, 3:], u_true[:, 3:]]) / dt
+
+    elements = scenario_elements(scn)
+    gps_rows, gps_min = _gps_rows(scn, nav, elements["gps"], t_imu, x_true, f_b)
+    alpha, dopp, ofdm, sl_min = _starlink_rows(scn, nav, elements["starlink"], t_imu, x_true, f_b)
+    n_max = max(scn.starlink["counts"])
+    if sl_min < n_max:
+        raise UserInputError(
+            f"{scn.source}: [starlink] counts asks for up to {n_max} satellites but only "
+            f"{sl_min} are above the {math.degrees(scn.starlink['elevation_mask_rad']):.0f} deg "
+            f"mask at some Starlink epoch of this scenario; lower the counts or the mask"
+        )
+    if gps_min < 4 and any("gps" in m for m in scn.modes):
+        raise UserInputError(
+            f"{scn.source}: only {gps_min} GPS satellites above the mask at some epoch (need >= 4)"
+        )
+    series = {
+        "pseudorange": _series(nav, "pseudorange", gps_rows, x_true),
+        "doppler_rate": _series(nav, "doppler_rate", alpha, x_true),
+        "doppler": _series(nav, "doppler", dopp, x_true),
+        "ofdm_range_diff": _series(nav, "ofdm_range_diff", ofdm, x_true),
+    }
+    return Setup(scn, params, t_imu, x_true, u_true, series, {"gps": gps_min, "starlink": sl_min},
+                 prior_covariance(scn, profile, nav.layout), profile)
+
+
+# ---- one trial ----------------------------------------------------------------------------
+
+def _noise_sigma(scn: Scenario, kind_name: str) -> float:
+    return {
+        "pseudorange": scn.gps["pseudorange_sigma_m"],
+        "doppler_rate": scn.starlink["doppler_rate_sigma_hz_s"],
+        "doppler": scn.starlink["doppler_sigma_hz"],
+        "ofdm_range_diff": scn.starlink["ofdm_sigma_m"],
+    }[kind_name]
+
+
+def _selected(setup: Setup, kind_name: str, count: int) -> np.ndarray:
+    """Rows of a series used by a mode with `count` Starlink satellites (GPS: all, minus outages)."""
+    s = setup.series[kind_name]
+    if kind_name == "pseudorange":
+        keep = np.ones(s.t_s.size, bool)
+        for a, b in setup.scn.gps["outages"]:
+            keep &= ~((s.t_s >= a) & (s.t_s < b))
+        return np.flatnonzero(keep)
+    return np.flatnonzero(s.rank < count)
+
+
+@dataclass
+class Trial:
+    """One trial's inputs: the record stream, the filter's initial state, the truth state."""
+
+    records: np.ndarray
+    x0: np.ndarray
+    x_true: np.ndarray   # (n+1, NX) truth including this trial's biases, clock and LO
+
+
+def _random_walk(rng, n, dt, x0, q):
+    steps = rng.standard_normal((n,) + np.shape(x0)) * math.sqrt(q * dt)
+    return np.concatenate([[x0], x0 + np.cumsum(steps, axis=0)])
+
+
+def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
+                  nav: navfuncs.NavFunctions | None = None, noise_free: bool = False) -> Trial:
+    """Draw one trial of `mode` with `count` Starlink satellites.
+
+    The random draws are made in a fixed order for every mode and count, so trials with
+    the same seed share IMU, clock and noise realisations (common random numbers).
+    noise_free: no sensor noise, no biases, filter starts at the truth (used for the PCRB
+    and for checks).
+    """
+    nav = nav or navfuncs.NavFunctions(params=setup.params)
+    scn, L, prof = setup.scn, nav.layout, setup.imu_profile
+    n = setup.u_true.shape[0]
+    dt = 1.0 / scn.imu_rate_hz
+    x_true = setup.x_true.copy()
+    g = 0.0 if noise_free else 1.0
+
+    b_a = _random_walk(rng, n, dt, g * prof.acc_bias_sigma * rng.standard_normal(3), g * prof.acc_bias_rw**2)
+    b_g = _random_walk(rng, n, dt, g * prof.gyro_bias_sigma * rng.standard_normal(3), g * prof.gyro_bias_rw**2)
+    q_cdt, q_cddt = setup.params[L.P_Q_CDT], setup.params[L.P_Q_CDDT]
+    c_ddt = _random_walk(rng, n, dt, scn.gps["clock_drift_mps"], g * q_cddt)
+    c_dt = scn.gps["clock_bias_m"] + np.concatenate([[0.0], np.cumsum(c_ddt[:-1] * dt)]) \
+        + _random_walk(rng, n, dt, 0.0, g * q_cdt)
+    b_lo = _random_walk(rng, n, dt, scn.starlink["lo_offset_hz"], g * setup.params[L.P_Q_BLO])
+    x_true[:, L.X_B_A:L.X_B_A + 3] = b_a
+    x_true[:, L.X_B_G:L.X_B_G + 3] = b_g
+    x_true[:, L.X_C_DT], x_true[:, L.X_C_DDT], x_true[:, L.X_B_LO] = c_dt, c_ddt, b_lo
+
+    # IMU: increments measured over interval k carry the bias at its start plus white noise
+    u = setup.u_true.copy()
+    u[:, :3] += b_g[:-1] * dt + g * prof.arw * math.sqrt(dt) * rng.standard_normal((n, 3))
+    u[:, 3:] += b_a[:-1] * dt + g * prof.vrw * math.sqrt(dt) * rng.standard_normal((n, 3))
+    parts = [records.imu_records(setup.t_imu[1:], u[:, :3], u[:, 3:], dt_s=dt)]
+
+    delta = np.zeros(L.NX)
+    for kind_name in ("pseudorange", "doppler_rate", "doppler", "ofdm_range_diff"):
+        s = setup.series[kind_name]
+        sigma = _noise_sigma(scn, kind_name)
+        noise = rng.standard_normal(s.t_s.size)  # drawn for every series: common numbers
+        if kind_name not in MODE_OBSERVABLES[mode]:
+            continue
+        rows = _selected(setup, kind_name, count)
+        k = np.rint(s.t_s[rows] * scn.imu_rate_hz).astype(int)
+        # clock and LO states enter linearly: z = h(truth at zero) + H . (their true values)
+        z = s.z_true[rows].copy()
+        for off, dx_off in ((L.X_C_DT, L.DX_DC_DT), (L.X_C_DDT, L.DX_DC_DDT), (L.X_B_LO, L.DX_DB_LO)):
+            z += s.H[rows, dx_off] * x_true[k, off]
+        z += g * sigma * noise[rows]
+        aux = s.aux[rows].copy()
+        aux[:, L.AUX_F_B:L.AUX_F_B + 3] = u[np.maximum(k - 1, 0), 3:] / dt  # measured f_b
+        parts.append(records.measurement_records(s.t_s[rows], s.kind, z, sigma**2, aux, s.sat_id[rows]))
+    del delta
+
+    dx0 = np.zeros(L.NDX) if noise_free else rng.multivariate_normal(np.zeros(L.NDX), setup.P0)
+    x0 = nav.boxplus(x_true[0], dx0)
+    return Trial(records.merge_records(*parts), x0, x_true)
