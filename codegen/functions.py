@@ -56,14 +56,11 @@ def build_functions() -> list[ca.Function]:
                    {"x_next": kinematics.mech(x, u, dt, p)},
                    "nominal strapdown mechanization over one IMU interval"))
     x_next, F, Qd = ekf.nav_transition(x, u, dt, p)
-    transition = _fn("leonav_transition", {"x": x, "u": u, "dt": dt, "p": p},
-                     {"x_next": x_next, "F": F, "Qd": Qd}, "x_next, F, Qd")
-    xm, Pm, um, dtm, pm = (ca.MX.sym(n, *v.shape) for n, v in (("x", x), ("P", P), ("u", u), ("dt", dt), ("p", p)))
-    auxm, zm, Rm, Jm = ca.MX.sym("aux", NAUX), ca.MX.sym("z"), ca.MX.sym("R"), ca.MX.sym("J", NDX, NDX)
-    xn, Fm, Qdm = transition(xm, um, dtm, pm)
-    out.append(_fn("leonav_predict", {"x": xm, "P": Pm, "u": um, "dt": dtm, "p": pm},
-                   {"x_next": xn, "P_next": ekf.covariance_predict(Pm, Fm, Qdm), "F": Fm, "Qd": Qdm},
+    out.append(_fn("leonav_predict", {"x": x, "P": P, "u": u, "dt": dt, "p": p},
+                   {"x_next": x_next, "P_next": ekf.covariance_predict(P, F, Qd), "F": F, "Qd": Qd},
                    "error-state EKF predict: P_next = F P F^T + Qd"))
+    xm, Pm, pm = (ca.MX.sym(n, *v.shape) for n, v in (("x", x), ("P", P), ("p", p)))
+    auxm, zm, Rm, Jm = ca.MX.sym("aux", NAUX), ca.MX.sym("z"), ca.MX.sym("R"), ca.MX.sym("J", NDX, NDX)
 
     dx_sx = ca.SX.sym("dx", NDX)
     boxplus_sx = ca.Function("leonav_boxplus_core", [x, dx_sx], [frames.boxplus(x, dx_sx)], FUNCTION_OPTS)

@@ -51,9 +51,37 @@ def symmetrize(A):
     return (A + A.T) / 2
 
 
+def symmetric_from_upper(rows: int, entry: Callable):
+    """Symmetric SX matrix whose (i, j) = (j, i) entry is `entry(i, j)` for i <= j (each built once)."""
+    M = ca.SX(rows, rows)
+    for j in range(rows):
+        for i in range(j + 1):
+            v = entry(i, j)
+            if v.nnz() and not v.is_zero():  # keep structural zeros (of Qd, say) out of the pattern
+                M[i, j] = v
+                M[j, i] = v
+    return M
+
+
+def congruence(A, S):
+    """A S A^T for a symmetric SX S, built on the structural non-zeros of A, upper triangle mirrored.
+
+    B = A S costs nnz(A) x n products (rows of A that are unit vectors cost nothing);
+    then only the n (n + 1) / 2 entries B[i, :] A[j, :]^T with i <= j are formed.
+    """
+    B = ca.mtimes(A, S)
+    return symmetric_from_upper(A.shape[0], lambda i, j: ca.dot(B[i, :], A[j, :]))
+
+
 def covariance_predict(P_, F, Qd):
-    """F P F^T + Qd (symmetrized). Works on SX and MX."""
-    return symmetrize(ca.mtimes([F, P_, F.T]) + Qd)
+    """F P F^T + Qd, symmetric by construction, for SX F, P and a symmetric Qd (upper triangle used).
+
+    P is symmetrized first ((P + P^T) / 2: F P F^T + Qd symmetrized equals F P_sym F^T + Qd
+    for any P), so only the upper triangle is computed, over F's structural non-zeros.
+    """
+    S = symmetric_from_upper(P_.shape[0], lambda i, j: P_[i, i] if i == j else (P_[i, j] + P_[j, i]) / 2)
+    FPFt = congruence(F, S)
+    return symmetric_from_upper(P_.shape[0], lambda i, j: FPFt[i, j] + Qd[i, j])
 
 
 def scalar_update(x, P_, z, R, h_pred, H, boxplus: Callable):
@@ -82,23 +110,23 @@ def information_add(J, H, R):
 
 # --- navigation instance ---------------------------------------------------------------
 
-def nav_process_noise(x, u, dt, p):
+def nav_process_noise(G, dt, p):
     """Discrete process noise Qd (NDX x NDX) of the navigation error state over dt.
 
     IMU white noise enters through the increments: Cov(dtheta_b) = arw^2 dt I,
-    Cov(dvel_b) = vrw^2 dt I, mapped by G = d(mech [-] mech)/du (obtained by
+    Cov(dvel_b) = vrw^2 dt I, mapped by G = d(mech [-] mech)/du (NDX x NU, obtained by
     differentiation), so Qd_imu = G diag(...) G^T (first order, noise injected at
     the increment). Bias random walks: acc_bias_rw^2 dt, gyro_bias_rw^2 dt on their
     blocks (first order). Clock: exact two-state discretization; LO offset: q_blo dt.
     """
-    G = input_jacobian(lambda uu: kinematics.mech(x, uu, dt, p), u, frames.boxminus)
     def par(name):
         return p[P[name].offset]
     var_u = ca.vertcat(
         ca.repmat(par("arw") ** 2 * dt, U["dtheta_b"].size, 1),
         ca.repmat(par("vrw") ** 2 * dt, U["dvel_b"].size, 1),
     )
-    Qd = G @ ca.diag(var_u) @ G.T
+    GV = G @ ca.diag(var_u)
+    Qd = symmetric_from_upper(NDX, lambda i, j: ca.dot(GV[i, :], G[j, :]))
     diag_extra = ca.SX.zeros(NDX)
     diag_extra[DX["db_a"].slice] = par("acc_bias_rw") ** 2 * dt
     diag_extra[DX["db_g"].slice] = par("gyro_bias_rw") ** 2 * dt
@@ -110,14 +138,29 @@ def nav_process_noise(x, u, dt, p):
     Qd[i, j] += q12
     Qd[j, i] += q12
     Qd[j, j] += q22
-    return symmetrize(Qd)
+    return Qd
 
 
 def nav_transition(x, u, dt, p):
-    """(x_next, F, Qd) of the navigation model over one IMU interval (SX)."""
-    x_next = kinematics.mech(x, u, dt, p)
-    F = error_jacobian(lambda xx: kinematics.mech(xx, u, dt, p), x, frames.boxplus, frames.boxminus, NDX)
-    return x_next, F, nav_process_noise(x, u, dt, p)
+    """(x_next, F, Qd) of the navigation model over one IMU interval (SX).
+
+    mech(x, u) = core(x, w(x, u)) with w the bias-corrected increments, and the biases reach
+    the core only through w. So by the chain rule
+        F = d core/d dx |_w + (d core/d w) (d w/d dx),   G = (d core/d w) (d w/d du):
+    the bias columns of F come from the 6-column input Jacobian that Qd needs anyway,
+    instead of 6 more directions differentiated through the whole mechanization.
+    """
+    w = kinematics.corrected_increments(x, u, dt)
+    def core(xx, ww):
+        return kinematics.mech_corrected(xx, ww, dt, p)
+    x_next = core(x, w)
+    F_x = error_jacobian(lambda xx: core(xx, w), x, frames.boxplus, frames.boxminus, NDX)
+    G_w = input_jacobian(lambda ww: core(x, ww), w, frames.boxminus)
+    dw_dx = measurement_jacobian(lambda xx: kinematics.corrected_increments(xx, u, dt), x, frames.boxplus, NDX)
+    dw_du = ca.jacobian(kinematics.corrected_increments(x, u, dt), u)
+    F = F_x + G_w @ dw_dx
+    G = G_w @ dw_du
+    return x_next, F, nav_process_noise(G, dt, p)
 
 
 def nav_predict(x, P_, u, dt, p):

@@ -72,22 +72,39 @@ def accel_enu(x, f_b, p):
     return C_b_n @ (f_b - x[X["b_a"].slice]) + gravity_enu(x[X["p_enu"].slice], p) - 2 * ca.cross(w_ie, v)
 
 
+def corrected_increments(x, u, dt):
+    """Bias-corrected increments w = [dtheta_b - b_g dt, dvel_b - b_a dt] (rad, m/s).
+
+    The biases enter the mechanization only through these, which the EKF uses to get the
+    bias columns of F from the input Jacobian by the chain rule (models.ekf.nav_transition).
+    """
+    dtheta_b, dvel_b = u[U["dtheta_b"].slice], u[U["dvel_b"].slice]
+    return ca.vertcat(dtheta_b - x[X["b_g"].slice] * dt, dvel_b - x[X["b_a"].slice] * dt)
+
+
 def mech(x, u, dt, p):
     """Nominal state after one IMU interval `dt` (s) with increments u = [dtheta_b (rad), dvel_b (m/s)].
 
     Biases, clock and LO offset follow their noise-free dynamics (constant biases,
     c_dt += c_ddt dt). See the module docstring for the integration scheme.
     """
+    return mech_corrected(x, corrected_increments(x, u, dt), dt, p)
+
+
+def mech_corrected(x, w, dt, p):
+    """`mech` given the bias-corrected increments w = [phi (rad), dv (m/s)] (see corrected_increments).
+
+    The biases in x only pass through to the next state here.
+    """
     pos, vel, q = x[X["p_enu"].slice], x[X["v_enu"].slice], x[X["q_nb"].slice]
     b_a, b_g = x[X["b_a"].slice], x[X["b_g"].slice]
-    dtheta_b, dvel_b = u[U["dtheta_b"].slice], u[U["dvel_b"].slice]
+    phi, dv_b = w[0:3], w[3:6]
     w_ie = earth_rate_enu(p)
 
-    phi = dtheta_b - b_g * dt
     q_next = frames.quat_mul(frames.quat_exp(-w_ie * dt), frames.quat_mul(q, frames.quat_exp(phi)))
     q_next = q_next / ca.norm_2(q_next)
     q_mid = frames.quat_mul(frames.quat_exp(-w_ie * dt / 2), frames.quat_mul(q, frames.quat_exp(phi / 2)))
-    dv_sf = frames.rot_from_quat(q_mid) @ (dvel_b - b_a * dt)
+    dv_sf = frames.rot_from_quat(q_mid) @ dv_b
 
     def a_gc(pos_, vel_):  # gravity + Coriolis
         return gravity_enu(pos_, p) - 2 * ca.cross(w_ie, vel_)

@@ -51,10 +51,10 @@ const casadi_int* leonav_predict_sparsity_in(casadi_int i);
 const casadi_int* leonav_predict_sparsity_out(casadi_int i);
 int leonav_predict_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int leonav_predict_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_predict_SZ_ARG 9
-#define leonav_predict_SZ_RES 7
+#define leonav_predict_SZ_ARG 5
+#define leonav_predict_SZ_RES 4
 #define leonav_predict_SZ_IW 0
-#define leonav_predict_SZ_W 1822
+#define leonav_predict_SZ_W 0
 int leonav_h_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_h_pseudorange_checkout(void);
 void leonav_h_pseudorange_release(int mem);
