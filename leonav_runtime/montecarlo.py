@@ -56,10 +56,15 @@ def trial_rng(seed: int, index: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
 
 
+def eval_grid(t_imu: np.ndarray, imu_rate_hz: float, rate_hz: float = EVAL_RATE_HZ) -> np.ndarray:
+    """IMU sample indices of the output grid (every 1/rate_hz s after the start)."""
+    step = max(1, int(round(imu_rate_hz / rate_hz)))
+    return np.arange(step, t_imu.size, step)
+
+
 def eval_rows(recs: np.ndarray, t_imu: np.ndarray, rate_hz: float, imu_rate_hz: float):
     """Indices of the last record at each output time, and the truth sample of that time."""
-    step = max(1, int(round(imu_rate_hz / rate_hz)))
-    k = np.arange(step, t_imu.size, step)
+    k = eval_grid(t_imu, imu_rate_hz, rate_hz)
     t = t_imu[k]
     last = np.searchsorted(recs["t"], t + 1e-9, side="left") - 1
     return last, k

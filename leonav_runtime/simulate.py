@@ -282,7 +282,7 @@ def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
 
 # ---- one trial ----------------------------------------------------------------------------
 
-def _noise_sigma(scn: Scenario, kind_name: str) -> float:
+def noise_sigma(scn: Scenario, kind_name: str) -> float:
     return {
         "pseudorange": scn.gps["pseudorange_sigma_m"],
         "doppler_rate": scn.starlink["doppler_rate_sigma_hz_s"],
@@ -291,7 +291,7 @@ def _noise_sigma(scn: Scenario, kind_name: str) -> float:
     }[kind_name]
 
 
-def _selected(setup: Setup, kind_name: str, count: int) -> np.ndarray:
+def selected_rows(setup: Setup, kind_name: str, count: int) -> np.ndarray:
     """Rows of a series used by a mode with `count` Starlink satellites (GPS: all, minus outages)."""
     s = setup.series[kind_name]
     if kind_name == "pseudorange":
@@ -352,11 +352,11 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     delta = np.zeros(L.NX)
     for kind_name in ("pseudorange", "doppler_rate", "doppler", "ofdm_range_diff"):
         s = setup.series[kind_name]
-        sigma = _noise_sigma(scn, kind_name)
+        sigma = noise_sigma(scn, kind_name)
         noise = rng.standard_normal(s.t_s.size)  # drawn for every series: common numbers
         if kind_name not in MODE_OBSERVABLES[mode]:
             continue
-        rows = _selected(setup, kind_name, count)
+        rows = selected_rows(setup, kind_name, count)
         k = np.rint(s.t_s[rows] * scn.imu_rate_hz).astype(int)
         # clock and LO states enter linearly: z = h(truth at zero) + H . (their true values)
         z = s.z_true[rows].copy()
