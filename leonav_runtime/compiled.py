@@ -268,6 +268,7 @@ def _declare(lib: ctypes.CDLL) -> None:
         "leonav_work_size": (ctypes.c_size_t, []),
         "leonav_work_init": (i, [vp, ctypes.c_size_t]),
         "leonav_mech_step": (i, [dp, dp, d, dp, vp]),
+        "leonav_boxminus_many": (i, [lng, dp, dp, dp, vp]),
         "leonav_predict_step": (i, [dp, dp, dp, d, dp, dp, dp, vp]),
         "leonav_update_step": (i, [dp, dp, i, d, d, dp, dp, d, dp, vp]),
         "leonav_h_step": (i, [i, dp, dp, dp, dp, dp, vp]),

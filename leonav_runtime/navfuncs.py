@@ -43,10 +43,14 @@ class GeneratedFunction:
         self.n_in, self.n_out = n_in(), n_out()
         self.in_shapes = [self._shape(lib, f"{name}_sparsity_in", i) for i in range(self.n_in)]
         self.out_shapes = [self._shape(lib, f"{name}_sparsity_out", i) for i in range(self.n_out)]
-        self._arg = (_dp * max(n_arg, self.n_in))()
-        self._res = (_dp * max(n_res, self.n_out))()
+        # Buffers and pointer tables are made once: a call only copies values in and out.
+        self._in = [np.zeros(r * c) for r, c in self.in_shapes]
+        self._out = [np.zeros(r * c) for r, c in self.out_shapes]
+        self._arg = (_dp * max(n_arg, self.n_in))(*(b.ctypes.data_as(_dp) for b in self._in))
+        self._res = (_dp * max(n_res, self.n_out))(*(b.ctypes.data_as(_dp) for b in self._out))
         self._iw = np.zeros(max(n_iw, 1), dtype=np.intc)
         self._w = np.zeros(max(n_w, 1))
+        self._iw_p, self._w_p = self._iw.ctypes.data_as(_ip), self._w.ctypes.data_as(_dp)
 
     @staticmethod
     def _shape(lib, fname: str, i: int) -> tuple[int, int]:
@@ -59,21 +63,16 @@ class GeneratedFunction:
     def __call__(self, *inputs: Sequence[float] | float) -> list[np.ndarray]:
         if len(inputs) != self.n_in:
             raise TypeError(f"{self.name}: expected {self.n_in} inputs, got {len(inputs)}")
-        keep = []
-        for i, (value, (r, c)) in enumerate(zip(inputs, self.in_shapes)):
-            arr = np.asarray(value, dtype=np.float64).reshape(-1, order="F")
-            if arr.size != r * c:
+        for i, (value, buf) in enumerate(zip(inputs, self._in)):
+            arr = np.asarray(value, dtype=np.float64)
+            if arr.size != buf.size:
+                r, c = self.in_shapes[i]
                 raise ValueError(f"{self.name}: input {i} has {arr.size} values, expected {r}x{c}")
-            arr = np.ascontiguousarray(arr)
-            keep.append(arr)
-            self._arg[i] = arr.ctypes.data_as(_dp)
-        outs = [np.zeros(r * c) for r, c in self.out_shapes]
-        for i, arr in enumerate(outs):
-            self._res[i] = arr.ctypes.data_as(_dp)
-        rc = self._f(self._arg, self._res, self._iw.ctypes.data_as(_ip), self._w.ctypes.data_as(_dp), 0)
+            buf[:] = arr.ravel(order="F")
+        rc = self._f(self._arg, self._res, self._iw_p, self._w_p, 0)
         if rc != 0:
             raise RuntimeError(f"{self.name} returned {rc}")
-        return [o.reshape((r, c), order="F") for o, (r, c) in zip(outs, self.out_shapes)]
+        return [o.reshape((r, c), order="F").copy() for o, (r, c) in zip(self._out, self.out_shapes)]
 
 
 class NavFunctions:
@@ -88,6 +87,7 @@ class NavFunctions:
         self._mech = GeneratedFunction(lib, "leonav_mech")
         self._boxplus = GeneratedFunction(lib, "leonav_boxplus")
         self._boxminus = GeneratedFunction(lib, "leonav_boxminus")
+        self._work = None
         self._q_from_euler = GeneratedFunction(lib, "leonav_q_from_euler")
         self._euler_from_q = GeneratedFunction(lib, "leonav_euler_from_q")
         self._h = {kid: GeneratedFunction(lib, f"leonav_h_{name}")
@@ -110,10 +110,21 @@ class NavFunctions:
         return self._boxplus(x, dx)[0][:, 0]
 
     def boxminus(self, x1: np.ndarray, x0: np.ndarray) -> np.ndarray:
-        """x1 [-] x0, row-wise for (n, NX) arrays; returns (n, NDX) or (NDX,)."""
-        x1, x0 = np.atleast_2d(x1), np.atleast_2d(x0)
-        out = np.array([self._boxminus(a, b)[0][:, 0] for a, b in zip(x1, x0)])
-        return out if out.shape[0] > 1 or x1.ndim > 1 else out[0]
+        """x1 [-] x0 for (NX,) states -> (NDX,), or row-wise for (n, NX) arrays -> (n, NDX)
+        (one call into the driver's loop over the generated boxminus)."""
+        single = np.ndim(x1) == 1
+        a = np.ascontiguousarray(np.atleast_2d(x1), dtype=np.float64)
+        b = np.ascontiguousarray(np.atleast_2d(x0), dtype=np.float64)
+        if a.shape != b.shape or a.shape[1] != self.layout.NX:
+            raise ValueError(f"boxminus: expected two (n, {self.layout.NX}) arrays, got {a.shape} and {b.shape}")
+        out = np.empty((a.shape[0], self.layout.NDX))
+        if self._work is None:
+            self._work = self.library.new_workspace()
+        rc = self.library.lib.leonav_boxminus_many(a.shape[0], a.ctypes.data_as(_dp), b.ctypes.data_as(_dp),
+                                                  out.ctypes.data_as(_dp), self._work.ctypes.data)
+        if rc != 0:
+            raise RuntimeError(f"leonav_boxminus_many returned {compiled.ERROR_NAMES.get(rc, rc)}")
+        return out[0] if single else out
 
     def quat_from_euler(self, rpy: np.ndarray) -> np.ndarray:
         """q_nb [w x y z] from roll, pitch, yaw (rad), row-wise for (n, 3)."""
@@ -126,11 +137,15 @@ class NavFunctions:
         return np.array([self._euler_from_q(v)[0][:, 0] for v in q])
 
     def imu_increments(self, x: np.ndarray, x_target: np.ndarray, dt: float,
-                       guess: np.ndarray | None = None, tol: float = 1e-13) -> np.ndarray:
+                       guess: np.ndarray | None = None, jacobian: np.ndarray | None = None,
+                       tol: float = 1e-13) -> tuple[np.ndarray, np.ndarray]:
         """IMU increments u (6,) that take x to the velocity and attitude of x_target in dt.
 
-        Newton iterations on the generated mechanization (finite-difference Jacobian), with
-        the residual measured by the generated boxminus (velocity and attitude blocks).
+        Newton iterations on the generated mechanization, the residual measured by the
+        generated boxminus (velocity and attitude blocks). The finite-difference Jacobian is
+        returned and can be passed back for the next interval (it changes slowly along a
+        trajectory): it is only recomputed when the iteration does not converge with it.
+        Returns (u, jacobian).
         """
         L = self.layout
         sel = np.r_[L.DX_DV:L.DX_DV + 3, L.DX_DTHETA:L.DX_DTHETA + 3]
@@ -138,12 +153,19 @@ class NavFunctions:
         def residual(u):
             return self._boxminus(self.mech(x, u, dt), x_target)[0][sel, 0]
 
+        def fd_jacobian(u, r0, step=1e-7):
+            return np.column_stack([(residual(u + step * e) - r0) / step for e in np.eye(6)])
+
         u = np.zeros(6) if guess is None else np.array(guess, dtype=float)
-        step = 1e-7
-        for _ in range(6):
-            r0 = residual(u)
-            if np.max(np.abs(r0)) < tol:
-                break
-            J = np.column_stack([(residual(u + step * e) - r0) / step for e in np.eye(6)])
-            u = u - np.linalg.solve(J, r0)
-        return u
+        J = jacobian
+        r = residual(u)
+        for iteration in range(12):
+            if np.max(np.abs(r)) < tol:
+                return u, J
+            if J is None or iteration in (3, 7):  # chord iterations stalled: refresh the Jacobian
+                J = fd_jacobian(u, r)
+            u = u - np.linalg.solve(J, r)
+            r = residual(u)
+        if np.max(np.abs(r)) > 1e-9:
+            raise RuntimeError(f"imu_increments did not converge (residual {np.max(np.abs(r)):.2e})")
+        return u, J

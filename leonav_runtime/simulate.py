@@ -32,6 +32,7 @@ from leonav_runtime.orbits import ElementSet, default_elements, load_elements, p
 from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
 from leonav_runtime.trajectory import motion
 from models.imu import PROFILES as IMU_PROFILES
+from models.input_noise import doppler_rate_variance
 from models.params import build_params
 
 C_LIGHT_MPS = 299_792_458.0
@@ -42,6 +43,10 @@ CLOCK_BIAS_SIGMA_M = 300.0      # 1 us
 CLOCK_DRIFT_SIGMA_MPS = 1.0
 LO_OFFSET_SIGMA_HZ = 50e3       # LNB LO tolerance class (tens of kHz)
 LO_RANDOM_WALK_HZ2_S = 1e-2     # LO drift PSD used by filter and truth
+# The Doppler-rate model needs the receiver acceleration; the filter takes it from the
+# accelerometer averaged over this window (one sample's white noise, shared by every
+# satellite of an epoch, would otherwise be a correlated error the filter cannot see).
+F_B_AVERAGE_S = 0.1
 
 
 @dataclass
@@ -92,9 +97,9 @@ def _truth(scn: Scenario, params: np.ndarray, nav: navfuncs.NavFunctions):
     x_true = np.empty_like(x_target)
     x_true[0] = x_target[0]
     u_true = np.zeros((n, 6))
-    u = None
+    u = J = None
     for k in range(n):
-        u = nav.imu_increments(x_true[k], x_target[k + 1], dt, guess=u)
+        u, J = nav.imu_increments(x_true[k], x_target[k + 1], dt, guess=u, jacobian=J)
         u_true[k] = u
         x_true[k + 1] = nav.mech(x_true[k], u, dt)
     return t, x_true, u_true
@@ -184,6 +189,7 @@ def _gps_rows(scn, nav, es, t_imu, x_true, f_b):
     t = t_imu[idx]
     p_enu = x_true[idx, nav.layout.X_P_ENU:nav.layout.X_P_ENU + 3]
     states, ranked, rho = _visible_ranked(scn, es, t, p_enu, scn.gps["elevation_mask_rad"])
+    r_rx = _receiver_ecef(scn, p_enu)
     rows = []
     for j, k in enumerate(idx):
         use = ranked[j][: scn.gps["max_satellites"]]
@@ -195,7 +201,7 @@ def _gps_rows(scn, nav, es, t_imu, x_true, f_b):
             tau = rho[s, j] / C_LIGHT_MPS
             for _ in range(2):
                 r_tx = r - v * tau + 0.5 * a * tau**2
-                tau = np.linalg.norm(r_tx - _receiver_ecef(scn, p_enu[j])) / C_LIGHT_MPS
+                tau = np.linalg.norm(r_tx - r_rx[j]) / C_LIGHT_MPS
             rows.append((k, t[j], int(es.norad_ids[s]), _aux(nav, r_tx, v - a * tau, a, f_b[k]), rank))
     vis = [len(r) for r in ranked]
     return rows, min(vis) if vis else 0
@@ -348,8 +354,13 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     u[:, :3] += b_g[:-1] * dt + g * prof.arw * math.sqrt(dt) * rng.standard_normal((n, 3))
     u[:, 3:] += b_a[:-1] * dt + g * prof.vrw * math.sqrt(dt) * rng.standard_normal((n, 3))
     parts = [records.imu_records(setup.t_imu[1:], u[:, :3], u[:, 3:], dt_s=dt)]
+    # specific force averaged over the last F_B_AVERAGE_S at every sample k (from sample 1)
+    n_avg = max(1, int(round(F_B_AVERAGE_S * scn.imu_rate_hz)))
+    csum = np.vstack([np.zeros(3), np.cumsum(u[:, 3:], axis=0)])
+    k_end = np.maximum(np.arange(n + 1), 1)          # sample 0 uses the first interval
+    k_start = np.maximum(k_end - n_avg, 0)
+    f_b_avg = (csum[k_end] - csum[k_start]) / ((k_end - k_start)[:, None] * dt)
 
-    delta = np.zeros(L.NX)
     for kind_name in ("pseudorange", "doppler_rate", "doppler", "ofdm_range_diff"):
         s = setup.series[kind_name]
         sigma = noise_sigma(scn, kind_name)
@@ -364,9 +375,11 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
             z += s.H[rows, dx_off] * x_true[k, off]
         z += g * sigma * noise[rows]
         aux = s.aux[rows].copy()
-        aux[:, L.AUX_F_B:L.AUX_F_B + 3] = u[np.maximum(k - 1, 0), 3:] / dt  # measured f_b
-        parts.append(records.measurement_records(s.t_s[rows], s.kind, z, sigma**2, aux, s.sat_id[rows]))
-    del delta
+        aux[:, L.AUX_F_B:L.AUX_F_B + 3] = f_b_avg[k]  # measured, averaged specific force
+        R = sigma**2
+        if kind_name == "doppler_rate":  # its model uses the measured specific force
+            R = doppler_rate_variance(sigma, setup.params[L.P_F_C_HZ], prof.vrw, n_avg * dt)
+        parts.append(records.measurement_records(s.t_s[rows], s.kind, z, R, aux, s.sat_id[rows]))
 
     dx0 = np.zeros(L.NDX) if noise_free else rng.multivariate_normal(np.zeros(L.NDX), setup.P0)
     x0 = nav.boxplus(x_true[0], dx0)

@@ -53,6 +53,7 @@ static const meas_fns MEAS[LEONAV_NMEAS] = {
 };
 static const gen_fn MECH = GEN_FN(leonav_mech);
 static const gen_fn PREDICT = GEN_FN(leonav_predict);
+static const gen_fn BOXMINUS = GEN_FN(leonav_boxminus);
 
 /* ---- workspace ------------------------------------------------------------------- */
 
@@ -87,6 +88,7 @@ static work_sizes all_sizes(void)
     work_sizes m = {MAX_IN, MAX_OUT, 0, 0};
     max_sizes(&MECH, &m);
     max_sizes(&PREDICT, &m);
+    max_sizes(&BOXMINUS, &m);
     for (int k = 0; k < LEONAV_NMEAS; ++k) {
         max_sizes(&MEAS[k].h, &m);
         max_sizes(&MEAS[k].update, &m);
@@ -188,6 +190,19 @@ int leonav_mech_step(double *x, const double *u, double dt, const double *p, voi
     if (call_gen(ws, &MECH, in, 4, out, 1) != 0 || !all_finite(ws->x_tmp, NX)) return LEONAV_STATUS_FAILED;
     memcpy(x, ws->x_tmp, sizeof(double) * NX);
     return 0;
+}
+
+int leonav_boxminus_many(long n, const double *x1, const double *x0, double *dx, void *work)
+{
+    workspace *ws = get_ws(work);
+    if (!ws) return LEONAV_ERR_WORK;
+    if (n < 0 || !x1 || !x0 || !dx) return LEONAV_ERR_ARG;
+    for (long i = 0; i < n; ++i) {
+        const double *in[2] = {x1 + i * NX, x0 + i * NX};
+        double *out[1] = {dx + i * NDX};
+        if (call_gen(ws, &BOXMINUS, in, 2, out, 1) != 0) return LEONAV_ERR_NUMERIC;
+    }
+    return LEONAV_OK;
 }
 
 int leonav_predict_step(double *x, double *P, const double *u, double dt, const double *p,

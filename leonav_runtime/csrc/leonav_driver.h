@@ -85,6 +85,10 @@ int leonav_mech_step(double *x, const double *u, double dt, const double *p, voi
 /* Predict x (NX) and P in place over one IMU interval. F and Qd (NDX*NDX, column-major)
  * are written when not NULL. Returns LEONAV_STATUS_IMU, or LEONAV_STATUS_FAILED with x
  * and P unchanged (non-finite u/dt/result, dt < 0). */
+/* dx[i] = x1[i] [-] x0[i] for i < n (rows of NX, results rows of NDX), with the generated
+ * boxminus (attitude: body-frame rotation vector). Used to score estimates against truth. */
+int leonav_boxminus_many(long n, const double *x1, const double *x0, double *dx, void *work);
+
 int leonav_predict_step(double *x, double *P, const double *u, double dt, const double *p,
                         double *F, double *Qd, void *work);
 
