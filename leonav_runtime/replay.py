@@ -54,6 +54,7 @@ DEFAULT_UERE_M = 1.5            # per-axis horizontal sigma per unit HDOP when n
 ALPHA_SIGMA_FLOOR_HZ_S = 0.5    # the fit sigma can be optimistic for short ridges
 TONE_RF_HZ = 11.325e9
 INIT_WINDOW_S = 1.0             # samples averaged for the initial roll/pitch
+INIT_FIX_WINDOW_S = 0.2         # a fix this much before the first IMU sample still initializes
 VEL_SIGMA0_MPS = 0.5
 ROLL_PITCH_SIGMA0_RAD = math.radians(0.5)
 YAW_SIGMA0_GIVEN_RAD = math.radians(2.0)
@@ -411,8 +412,8 @@ def _circular_mean(a: np.ndarray) -> float:
 
 
 def assemble(epoch_utc: _dt.datetime, origin, imu: ImuTable, fixes: FixTable, alpha: AlphaTable, elements,
-             options: ReplayOptions, profile, nav: navfuncs.NavFunctions, notes: list[str] | None = None,
-             p0_enu: np.ndarray | None = None) -> SessionInputs:
+             options: ReplayOptions, profile, nav: navfuncs.NavFunctions,
+             notes: list[str] | None = None) -> SessionInputs:
     """Records, initial state and covariance, parameters (shared by replay and the direct simulation)."""
     from models.params import build_params
 
@@ -425,8 +426,14 @@ def assemble(epoch_utc: _dt.datetime, origin, imu: ImuTable, fixes: FixTable, al
     t_end = float(imu.t[-1])
     rec_imu = records.imu_records(imu.t, imu.w_b * imu.dt[:, None], imu.f_b * imu.dt[:, None], imu.dt)
 
+    # The fix nearest the first IMU sample (up to INIT_FIX_WINDOW_S before it) initializes the
+    # state and is not applied again as a measurement (its error would count twice).
+    cand = np.flatnonzero(fixes.t >= -INIT_FIX_WINDOW_S)
+    init_fix = int(cand[0]) if cand.size else -1
     inside = (fixes.t >= 0) & (fixes.t <= t_end)
-    counts = {"fixes_outside_imu_span": int((~inside).sum())}
+    if init_fix >= 0:
+        inside[init_fix] = False
+    counts = {"fixes_outside_imu_span": int((~inside).sum()) - (init_fix >= 0)}
     fx = FixTable(fixes.t[inside], fixes.enu[inside], fixes.sigma[inside], fixes.vel_en[inside])
     parts = [records.measurement_records(fx.t, nav.kind_id(k), fx.enu[:, i], fx.sigma[:, i] ** 2)
              for i, k in enumerate(("pos_e", "pos_n", "pos_u"))] if fx.t.size else []
@@ -458,11 +465,11 @@ def assemble(epoch_utc: _dt.datetime, origin, imu: ImuTable, fixes: FixTable, al
     x0 = np.zeros(L.NX)
     sig0 = np.zeros(L.NDX)
     init: dict = {}
-    if fx.t.size:
-        x0[L.X_P_ENU:L.X_P_ENU + 3] = fx.enu[0] if p0_enu is None else p0_enu
-        sig0[L.DX_DP:L.DX_DP + 3] = fx.sigma[0]
-        init["position"] = f"first fix at t={fx.t[0]:.3f} s"
-        v = fx.vel_en[0]
+    if init_fix >= 0:
+        x0[L.X_P_ENU:L.X_P_ENU + 3] = fixes.enu[init_fix]
+        sig0[L.DX_DP:L.DX_DP + 3] = fixes.sigma[init_fix]
+        init["position"] = f"fix at t={fixes.t[init_fix]:.3f} s (not applied again as a measurement)"
+        v = fixes.vel_en[init_fix]
         if np.all(np.isfinite(v)):
             x0[L.X_V_ENU:L.X_V_ENU + 2] = v
             init["velocity"] = "first fix's RMC speed/course (NAV-PVT velocity), vertical 0"

@@ -415,3 +415,66 @@ def write_synthetic_session(folder: str | Path, cfg: SynthSessionConfig | None =
     })
     return SyntheticSession(folder, cfg, sim["params"], sim["t_imu"], sim["x_true"], sim["u_meas"], sim["ahrs_rpy"],
                             sim["fix_t"], sim["fix_enu"], sim["fix_vel_en"], sdr_truth, elements)
+
+
+# ------------------------------------------------------------------ the same run without the bytes
+
+
+def direct_inputs(synth: SyntheticSession, replayed, options=None, nav: navfuncs.NavFunctions | None = None):
+    """The replay's inputs rebuilt from the floats that went into the session (no bytes).
+
+    Same truth, same noise draws, same initialization rules and same Doppler-rate values
+    (the beacon pipeline's output of the replay, i.e. the same measurement errors), but:
+    exact sample and fix times (no stamps, no time map), unquantized IMU values (so the
+    filter's IMU noise is the plain WT901 profile), unrounded fixes and angles, and the
+    Doppler-rate epochs at their true times. The RMSE difference between the two runs is
+    what the byte formats and time tagging cost.
+    """
+    from leonav_runtime import replay
+
+    options = options or replay.ReplayOptions()
+    nav = nav or navfuncs.NavFunctions()
+    cfg = synth.cfg
+    dt = 1.0 / cfg.imu_rate_hz
+    lat0, lon0, h0 = synth.origin
+    r_site = geometry.geodetic_to_ecef(lat0, lon0, h0)
+    r_fix = geometry.enu_to_ecef(synth.fix_enu, r_site, lat0, lon0)
+    lat, lon, h = geometry.ecef_to_geodetic(r_fix[0])
+    origin = (float(lat), float(lon), float(h))
+    enu = geometry.ecef_to_enu(r_fix, geometry.geodetic_to_ecef(*origin), origin[0], origin[1])
+    n = synth.u_meas.shape[0]
+    imu = replay.ImuTable(synth.t_imu[1:], np.full(n, dt), synth.u_meas[:, :3] / dt, synth.u_meas[:, 3:] / dt,
+                          synth.ahrs_rpy)
+    sig = np.tile([cfg.fix_sigma_en_m, cfg.fix_sigma_en_m, cfg.fix_sigma_u_m], (synth.fix_t.size, 1))
+    fixes = replay.FixTable(synth.fix_t, enu, sig, synth.fix_vel_en)
+    a = replayed.alpha
+    alpha = replay.AlphaTable(a.t, a.norad, a.sat_index, a.z, a.sigma)
+    if a.t.size:
+        start = replayed.beacons["capture_start_utc"].timestamp()
+        alpha.t = cfg.sdr_start_s + (a.t + replayed.epoch_utc.timestamp() - start)   # capture seconds -> truth axis
+    inputs = replay.assemble(cfg.epoch_utc, origin, imu, fixes, alpha, synth.elements, options,
+                             replay.filter_profile(dt, quantized=False), nav)
+    inputs.skipped = dict(replayed.skipped)
+    return inputs
+
+
+def compare_replay_direct(synth: SyntheticSession, out_dir: str | Path, options=None, elements=None,
+                          nav: navfuncs.NavFunctions | None = None) -> dict:
+    """Replay the session (outputs in out_dir) and run the direct simulation; RMSE of both per mode."""
+    from leonav_runtime import replay
+
+    options = options or replay.ReplayOptions(gnss_latency_s=synth.cfg.gnss_latency_s)
+    nav = nav or navfuncs.NavFunctions()
+    out_dir = Path(out_dir)
+    metrics = replay.replay_session(synth.folder, out_dir, options, elements=elements or synth.elements, nav=nav)
+    replayed = replay.decode_inputs(synth.folder, options, elements or synth.elements, None, nav)
+    direct = direct_inputs(synth, replayed, options, nav)
+    runs = replay.run_modes(direct, options.modes, options.gate_nis, nav)
+    ref = replay.truth_reference(synth.folder / "truth.csv", direct.epoch_utc, direct.origin, nav)
+    direct_metrics = replay.mode_metrics(runs, replay.evaluate(direct, runs, ref, nav), nav)
+    keys = ("rmse_position_m", "rmse_velocity_mps", "rmse_attitude_deg")
+    table = {mode: {k: {"replay": metrics["modes"][mode][k], "direct": direct_metrics[mode][k]} for k in keys}
+             for mode in metrics["modes"] if mode in direct_metrics}
+    write_json(out_dir / "replay_vs_direct.json", {"note": direct_inputs.__doc__.strip(), "rmse": table,
+                                                  "direct": direct_metrics})
+    return {"replay": metrics, "direct": direct_metrics, "table": table}
