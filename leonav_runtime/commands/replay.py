@@ -1,0 +1,106 @@
+"""`leonav replay SESSION`: a recorded session through the filter in GPS+IMU, LEO(alpha)+IMU, GPS+LEO(alpha)+IMU."""
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from leonav_runtime import output
+from leonav_runtime.errors import UserInputError
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "replay",
+        help="replay a `leonav record` session through the filter (GPS+IMU, LEO(alpha)+IMU, GPS+LEO(alpha)+IMU)",
+        description=(
+            "Decode a session folder (gnss.raw, imu.raw with their chunk stamps, sdr.cu8 + sdr.sigmf-meta), put "
+            "every record on one time axis (host monotonic stamps -> UTC through the GNSS time map), build IMU "
+            "increments from the WitMotion samples, ENU fix records from the NMEA/UBX fixes, Doppler-rate records "
+            "from the beacon pipeline on the capture, and run the generated filter per mode. Writes metrics.json, "
+            "rmse_vs_time.csv/.png, trajectory.csv, trajectories.png and the beacon outputs (beacons/). "
+            "Reference: truth.csv if the session has one (synthetic sessions), else the GNSS fixes."),
+    )
+    p.add_argument("session", metavar="SESSION", help="session folder written by `leonav record` (or `leonav session synth`)")
+    p.add_argument("--tle", action="append", default=[], metavar="FILE",
+                   help="Starlink element sets (TLE/3LE/OMM) of the session's day, repeatable (default: the built-in "
+                        "Walker constellation, only right for synthetic sessions)")
+    p.add_argument("--modes", default=",".join(_modes()), metavar="LIST",
+                   help="comma-separated modes (default %(default)s)")
+    p.add_argument("--origin", nargs=3, type=float, default=None, metavar=("LAT", "LON", "H"),
+                   help="ENU origin and site: deg, deg, m above the ellipsoid (default: the first GNSS fix)")
+    p.add_argument("--yaw-deg", type=float, default=None, metavar="DEG",
+                   help="initial heading, deg from East towards North (default: the WitMotion yaw output)")
+    p.add_argument("--gnss-latency", type=float, default=0.0, metavar="S",
+                   help="receiver output latency to remove from the time map, s (measure it with a PPS; default 0)")
+    p.add_argument("--alpha-sigma-floor", type=float, default=0.5, metavar="HZ/S",
+                   help="lower bound of the Doppler-rate 1-sigma (default %(default)g)")
+    p.add_argument("--no-truth", action="store_true", help="ignore truth.csv; score against the GNSS fixes")
+    output.add_out_argument(p)
+    p.set_defaults(func=run)
+
+
+def _modes():
+    from leonav_runtime.replay import MODES
+
+    return MODES
+
+
+def _elements(paths: list[str]):
+    from leonav_runtime.orbits import load_elements
+
+    es = None
+    for path in paths:
+        if not Path(path).is_file():
+            raise UserInputError(f"--tle: {path}: no such file")
+        e = load_elements(path)
+        es = e if es is None else es.concat(e)
+    if paths and (es is None or len(es) == 0):
+        raise UserInputError(f"--tle: no usable element sets in {', '.join(paths)}")
+    return es
+
+
+def _fmt(v, scale=1.0, digits=2) -> str:
+    return "-" if v is None else f"{v * scale:.{digits}f}"
+
+
+def run(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from leonav_runtime import replay
+
+    modes = tuple(m.strip() for m in args.modes.split(",") if m.strip())
+    if not (math.isfinite(args.gnss_latency) and 0 <= args.gnss_latency < 1):
+        raise UserInputError(f"--gnss-latency: {args.gnss_latency!r}: expected seconds in [0, 1)")
+    if not (math.isfinite(args.alpha_sigma_floor) and args.alpha_sigma_floor >= 0):
+        raise UserInputError(f"--alpha-sigma-floor: {args.alpha_sigma_floor!r}: expected a number >= 0 (Hz/s)")
+    if args.yaw_deg is not None and not math.isfinite(args.yaw_deg):
+        raise UserInputError("--yaw-deg: expected a finite angle in degrees")
+    options = replay.ReplayOptions(modes=modes, origin_deg=tuple(args.origin) if args.origin else None,
+                                   yaw_deg=args.yaw_deg, alpha_sigma_floor_hz_s=args.alpha_sigma_floor,
+                                   use_truth=not args.no_truth, gnss_latency_s=args.gnss_latency)
+    if args.origin:
+        lat, lon, h = args.origin
+        if not (abs(lat) <= 90 and abs(lon) <= 360 and -11_000 <= h <= 1e5):
+            raise UserInputError(f"--origin: {args.origin}: expected LAT in [-90, 90] deg, LON deg, H in m")
+    elements = _elements(args.tle)
+    out = output.results_dir(args.out, "replay")
+    with tqdm(unit="S", unit_scale=True, desc="beacon capture", leave=False, disable=None) as bar:
+        metrics = replay.replay_session(args.session, out, options, elements=elements, progress=bar.update)
+    print(f"replay {args.session} -> {out}  (reference: {metrics['reference'] or 'none'})")
+    b = metrics["beacons"].get("counts")
+    if b:
+        print(f"  beacons: {b['ridges']} ridges, {b['associated']} associated, {b['ambiguous']} ambiguous, "
+              f"{b['unassociated']} unassociated; {metrics['counts'].get('alpha_records', 0)} Doppler-rate records")
+    elif metrics["beacons"].get("reason_empty"):
+        print(f"  beacons: none ({metrics['beacons']['reason_empty']})")
+    print(f"  {'mode':<20} {'pos RMSE m':>10} {'vel m/s':>8} {'att deg':>8} {'applied':>8} {'gated':>6} {'failed':>6}")
+    for mode, m in metrics["modes"].items():
+        r = m["records"]
+        print(f"  {mode:<20} {_fmt(m['rmse_position_m']):>10} {_fmt(m['rmse_velocity_mps']):>8} "
+              f"{_fmt(m['rmse_attitude_deg']):>8} {r['applied']:>8} {r['gated']:>6} {r['failed']:>6}")
+    for mode, reason in metrics["skipped_modes"].items():
+        print(f"  {mode:<20} skipped: {reason}")
+    for note in metrics["notes"]:
+        print(f"  note: {note}")
+    return 0 if metrics["modes"] else 1
