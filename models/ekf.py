@@ -79,28 +79,52 @@ def covariance_predict(P_, F, Qd):
     P is symmetrized first ((P + P^T) / 2: F P F^T + Qd symmetrized equals F P_sym F^T + Qd
     for any P), so only the upper triangle is computed, over F's structural non-zeros.
     """
-    S = symmetric_from_upper(P_.shape[0], lambda i, j: P_[i, i] if i == j else (P_[i, j] + P_[j, i]) / 2)
-    FPFt = congruence(F, S)
+    FPFt = congruence(F, symmetric_part(P_))
     return symmetric_from_upper(P_.shape[0], lambda i, j: FPFt[i, j] + Qd[i, j])
 
 
+def symmetric_part(P_):
+    """(P + P^T) / 2 as an SX matrix whose mirrored entries are the same expression."""
+    return symmetric_from_upper(P_.shape[0], lambda i, j: P_[i, i] if i == j else (P_[i, j] + P_[j, i]) / 2)
+
+
+def innovation(P_, z, R, h_pred, H):
+    """(y, b, S) of a scalar measurement: y = z - h_pred, b = P H^T, S = H b + R (SX).
+
+    b is formed from (P + P^T) / 2 over H's structural non-zero columns only.
+    """
+    b = ca.mtimes(symmetric_part(P_), H.T)
+    return z - h_pred, b, ca.mtimes(H, b) + R
+
+
+def joseph_update(x, P_, y, b, S, boxplus: Callable):
+    """(x_post, P_post) of a scalar update from its innovation y, b = P H^T and S (SX).
+
+    K = b / S, x_post = x [+] K y, and the Joseph form (I - K H) P (I - K H)^T + K R K^T
+    evaluated expanded, P - K b^T - b K^T + S K K^T = P - K c^T - c K^T with
+    c = b - S K / 2: an identity for any gain K (so it keeps the Joseph form's tolerance
+    of gain errors) that costs O(n^2), not O(n^3). P is symmetrized first ((P + P^T) / 2,
+    as the symmetrized result would be), so only the upper triangle is formed.
+    """
+    K = b / S
+    c = b - S * K / 2
+    P_sym = symmetric_part(P_)
+    P_post = symmetric_from_upper(P_.shape[0], lambda i, j: P_sym[i, j] - (K[i] * c[j] + c[i] * K[j]))
+    return boxplus(x, K * y), P_post
+
+
 def scalar_update(x, P_, z, R, h_pred, H, boxplus: Callable):
-    """One scalar measurement update, Joseph form, from the prediction h_pred and its H (1 x n).
+    """One scalar measurement update, Joseph form, from the prediction h_pred and its H (1 x n), SX.
 
     Returns (x_post, P_post, y, S, nis) with y = z - h_pred, S = H P H^T + R,
     K = P H^T / S, P_post = (I - K H) P (I - K H)^T + K R K^T (Joseph), x_post = x [+] K y,
-    nis = y^2 / S. The Joseph form is evaluated expanded, P - K b^T - b K^T + S K K^T with
-    b = P H^T, which equals the product form for any gain and costs O(n^2), not O(n^3).
+    nis = y^2 / S (see `innovation` and `joseph_update`).
     The attitude covariance is not rotated by the reset (the reset Jacobian
     I - [K y]_theta x / 2 differs from I by the size of the attitude correction).
-    Works on SX and MX (the generated functions use MX so the matrix products stay loops).
     """
-    y = z - h_pred
-    b = ca.mtimes(P_, H.T)
-    S = ca.mtimes(H, b) + R
-    K = b / S
-    P_post = symmetrize(P_ - ca.mtimes(K, b.T) - ca.mtimes(b, K.T) + S * ca.mtimes(K, K.T))
-    return boxplus(x, K * y), P_post, y, S, y * y / S
+    y, b, S = innovation(P_, z, R, h_pred, H)
+    x_post, P_post = joseph_update(x, P_, y, b, S, boxplus)
+    return x_post, P_post, y, S, y * y / S
 
 
 def information_add(J, H, R):

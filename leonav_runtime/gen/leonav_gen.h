@@ -87,10 +87,10 @@ const casadi_int* leonav_update_pseudorange_sparsity_in(casadi_int i);
 const casadi_int* leonav_update_pseudorange_sparsity_out(casadi_int i);
 int leonav_update_pseudorange_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int leonav_update_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_update_pseudorange_SZ_ARG 9
-#define leonav_update_pseudorange_SZ_RES 7
+#define leonav_update_pseudorange_SZ_ARG 12
+#define leonav_update_pseudorange_SZ_RES 8
 #define leonav_update_pseudorange_SZ_IW 0
-#define leonav_update_pseudorange_SZ_W 1067
+#define leonav_update_pseudorange_SZ_W 465
 int leonav_pcrb_info_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_pseudorange_checkout(void);
 void leonav_pcrb_info_pseudorange_release(int mem);
@@ -141,10 +141,10 @@ const casadi_int* leonav_update_pos_e_sparsity_in(casadi_int i);
 const casadi_int* leonav_update_pos_e_sparsity_out(casadi_int i);
 int leonav_update_pos_e_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int leonav_update_pos_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_update_pos_e_SZ_ARG 9
-#define leonav_update_pos_e_SZ_RES 7
+#define leonav_update_pos_e_SZ_ARG 12
+#define leonav_update_pos_e_SZ_RES 8
 #define leonav_update_pos_e_SZ_IW 0
-#define leonav_update_pos_e_SZ_W 1063
+#define leonav_update_pos_e_SZ_W 465
 int leonav_pcrb_info_pos_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_pos_e_checkout(void);
 void leonav_pcrb_info_pos_e_release(int mem);
@@ -195,10 +195,10 @@ const casadi_int* leonav_update_pos_n_sparsity_in(casadi_int i);
 const casadi_int* leonav_update_pos_n_sparsity_out(casadi_int i);
 int leonav_update_pos_n_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int leonav_update_pos_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_update_pos_n_SZ_ARG 9
-#define leonav_update_pos_n_SZ_RES 7
+#define leonav_update_pos_n_SZ_ARG 12
+#define leonav_update_pos_n_SZ_RES 8
 #define leonav_update_pos_n_SZ_IW 0
-#define leonav_update_pos_n_SZ_W 1063
+#define leonav_update_pos_n_SZ_W 465
 int leonav_pcrb_info_pos_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_pos_n_checkout(void);
 void leonav_pcrb_info_pos_n_release(int mem);
@@ -249,10 +249,10 @@ const casadi_int* leonav_update_pos_u_sparsity_in(casadi_int i);
 const casadi_int* leonav_update_pos_u_sparsity_out(casadi_int i);
 int leonav_update_pos_u_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int leonav_update_pos_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_update_pos_u_SZ_ARG 9
-#define leonav_update_pos_u_SZ_RES 7
+#define leonav_update_pos_u_SZ_ARG 12
+#define leonav_update_pos_u_SZ_RES 8
 #define leonav_update_pos_u_SZ_IW 0
-#define leonav_update_pos_u_SZ_W 1063
+#define leonav_update_pos_u_SZ_W 465
 int leonav_pcrb_info_pos_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_pos_u_checkout(void);
 void leonav_pcrb_info_pos_u_release(int mem);
@@ -303,10 +303,10 @@ const casadi_int* leonav_update_vel_e_sparsity_in(casadi_int i);
 const casadi_int* leonav_update_vel_e_sparsity_out(casadi_int i);
 int leonav_update_vel_e_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int leonav_update_vel_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_update_vel_e_SZ_ARG 9
-#define leonav_update_vel_e_SZ_RES 7
+#define leonav_update_vel_e_SZ_ARG 12
+#define leonav_update_vel_e_SZ_RES 8
 #define leonav_update_vel_e_SZ_IW 0
-#define leonav_update_vel_e_SZ_W 1063
+#define leonav_update_vel_e_SZ_W 465
 int leonav_pcrb_info_vel_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_vel_e_checkout(void);
 void leonav_pcrb_info_vel_e_release(int mem);
@@ -357,10 +357,10 @@ const casadi_int* leonav_update_vel_n_sparsity_in(casadi_int i);
 const casadi_int* leonav_update_vel_n_sparsity_out(casadi_int i);
 int leonav_update_vel_n_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int leonav_update_vel_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_update_vel_n_SZ_ARG 9
-#define leonav_update_vel_n_SZ_RES 7
+#define leonav_update_vel_n_SZ_ARG 12
+#define leonav_update_vel_n_SZ_RES 8
 #define leonav_update_vel_n_SZ_IW 0
-#define leonav_update_vel_n_SZ_W 1063
+#define leonav_update_vel_n_SZ_W 465
 int leonav_pcrb_info_vel_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_vel_n_checkout(void);
 void leonav_pcrb_info_vel_n_release(int mem);
@@ -411,10 +411,10 @@ const casadi_int* leonav_update_vel_u_sparsity_in(casadi_int i);
 const casadi_int* leonav_update_vel_u_sparsity_out(casadi_int i);
 int leonav_update_vel_u_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int leonav_update_vel_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_update_vel_u_SZ_ARG 9
-#define leonav_update_vel_u_SZ_RES 7
+#define leonav_update_vel_u_SZ_ARG 12
+#define leonav_update_vel_u_SZ_RES 8
 #define leonav_update_vel_u_SZ_IW 0
-#define leonav_update_vel_u_SZ_W 1063
+#define leonav_update_vel_u_SZ_W 465
 int leonav_pcrb_info_vel_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_vel_u_checkout(void);
 void leonav_pcrb_info_vel_u_release(int mem);
@@ -465,10 +465,10 @@ const casadi_int* leonav_update_doppler_rate_sparsity_in(casadi_int i);
 const casadi_int* leonav_update_doppler_rate_sparsity_out(casadi_int i);
 int leonav_update_doppler_rate_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int leonav_update_doppler_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_update_doppler_rate_SZ_ARG 9
-#define leonav_update_doppler_rate_SZ_RES 7
+#define leonav_update_doppler_rate_SZ_ARG 12
+#define leonav_update_doppler_rate_SZ_RES 8
 #define leonav_update_doppler_rate_SZ_IW 0
-#define leonav_update_doppler_rate_SZ_W 1132
+#define leonav_update_doppler_rate_SZ_W 465
 int leonav_pcrb_info_doppler_rate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_doppler_rate_checkout(void);
 void leonav_pcrb_info_doppler_rate_release(int mem);
@@ -519,10 +519,10 @@ const casadi_int* leonav_update_doppler_sparsity_in(casadi_int i);
 const casadi_int* leonav_update_doppler_sparsity_out(casadi_int i);
 int leonav_update_doppler_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int leonav_update_doppler_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_update_doppler_SZ_ARG 9
-#define leonav_update_doppler_SZ_RES 7
+#define leonav_update_doppler_SZ_ARG 12
+#define leonav_update_doppler_SZ_RES 8
 #define leonav_update_doppler_SZ_IW 0
-#define leonav_update_doppler_SZ_W 1069
+#define leonav_update_doppler_SZ_W 465
 int leonav_pcrb_info_doppler(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_doppler_checkout(void);
 void leonav_pcrb_info_doppler_release(int mem);
@@ -573,10 +573,10 @@ const casadi_int* leonav_update_ofdm_range_diff_sparsity_in(casadi_int i);
 const casadi_int* leonav_update_ofdm_range_diff_sparsity_out(casadi_int i);
 int leonav_update_ofdm_range_diff_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
 int leonav_update_ofdm_range_diff_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_update_ofdm_range_diff_SZ_ARG 9
-#define leonav_update_ofdm_range_diff_SZ_RES 7
+#define leonav_update_ofdm_range_diff_SZ_ARG 12
+#define leonav_update_ofdm_range_diff_SZ_RES 8
 #define leonav_update_ofdm_range_diff_SZ_IW 0
-#define leonav_update_ofdm_range_diff_SZ_W 1064
+#define leonav_update_ofdm_range_diff_SZ_W 465
 int leonav_pcrb_info_ofdm_range_diff(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_ofdm_range_diff_checkout(void);
 void leonav_pcrb_info_ofdm_range_diff_release(int mem);
