@@ -208,9 +208,14 @@ def mono_to_utc_function(dec, gnss_latency_s: float = 0.0) -> tuple[Callable[[np
 def regular_sample_times(t_mono: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     """Sample times of a regular sensor from jittered arrival stamps.
 
-    Returns (fitted stamps (n,), sample index (n,), number of missing samples). The index
-    steps by round(gap / period) (>= 1), the period is the median spacing refined by a
-    least-squares line through (index, stamp) after dropping stamps more than
+    Returns (fitted stamps (n,), sample index (n,), number of missing samples).
+    Stamps are arrival times, so they are only ever late. A host stall makes several
+    samples arrive together: within such a burst only the last one is close to on time.
+    The on-time samples are those not followed by another within half a period; between
+    two of them, the index advances by round(time span / period), at least by the number
+    of samples received (any missing ones are placed just before the later on-time one).
+    The period (median spacing) is then refined, with the offset, by a least-squares line
+    through (index, stamp) of the on-time samples after dropping stamps more than
     max(5 robust sigmas, 30 ms) off.
     """
     t = np.asarray(t_mono, float)
@@ -218,14 +223,19 @@ def regular_sample_times(t_mono: np.ndarray) -> tuple[np.ndarray, np.ndarray, in
         return t.copy(), np.arange(t.size), 0
     d = np.diff(t)
     period = float(np.median(d[d > 0])) if np.any(d > 0) else 0.1
-    steps = np.maximum(1, np.rint(d / period)).astype(int)
-    idx = np.concatenate([[0], np.cumsum(steps)])
-    keep = np.ones(t.size, bool)
+    on_time = np.append(d >= period / 2, True)
+    on_time[0] = True
+    anchors = np.flatnonzero(on_time)
+    idx = np.zeros(t.size, int)
+    for a, b in zip(anchors[:-1], anchors[1:]):
+        idx[a + 1:b] = idx[a] + np.arange(1, b - a)
+        idx[b] = idx[a] + max(b - a, int(round((t[b] - t[a]) / period)))
+    keep = on_time.copy()
     for _ in range(3):
         a, b = np.polyfit(idx[keep], t[keep], 1)
         res = t - (a * idx + b)
         mad = np.median(np.abs(res[keep] - np.median(res[keep])))
-        keep = np.abs(res) <= max(5 * 1.4826 * mad, 0.03)
+        keep = on_time & (np.abs(res) <= max(5 * 1.4826 * mad, 0.03))
     return a * idx + b, idx, int(idx[-1] + 1 - t.size)
 
 
@@ -779,7 +789,8 @@ def plot_rmse_vs_time(path: Path, scored: dict, metrics: dict) -> None:
                 ax.plot(s["t"], e, label=mode)
         ax.set_ylabel(f"{name} error ({unit})")
         ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize=8)
+    if axes[0].get_legend_handles_labels()[0]:
+        axes[0].legend(fontsize=8)
     axes[-1].set_xlabel("time since the first IMU sample (s)")
     ref = metrics.get("reference") or "none"
     fig.suptitle(f"Replay of {Path(metrics['session']).name}: error vs time (reference: {ref})", fontsize=10)
@@ -804,8 +815,8 @@ def plot_trajectories(path: Path, scored: dict, ref: Reference | None, inputs: S
             ax3.scatter(ref.p_enu[:, 0], ref.p_enu[:, 1], ref.p_enu[:, 2], s=4, color="0.5")
         else:
             sel = (ref.t >= inputs.imu.t[0] - 0.2) & (ref.t <= inputs.imu.t[-1] + 0.2)
-            ax2.plot(ref.p_enu[sel, 0], ref.p_enu[sel, 1], "*", ms=10, **style)
-            ax3.plot(ref.p_enu[sel, 0], ref.p_enu[sel, 1], ref.p_enu[sel, 2], "*", ms=8, color="k")
+            ax2.plot(ref.p_enu[sel, 0], ref.p_enu[sel, 1], "*-", ms=12, zorder=5, **style)
+            ax3.plot(ref.p_enu[sel, 0], ref.p_enu[sel, 1], ref.p_enu[sel, 2], "*-", ms=10, color="k", zorder=5)
     if inputs.fixes.t.size and (ref is None or ref.q_nb is not None):
         ax2.scatter(inputs.fixes.enu[:, 0], inputs.fixes.enu[:, 1], s=5, color="0.7", label="GNSS fixes")
     for mode, s in scored.items():
