@@ -158,7 +158,7 @@ def simulate_sensors(cfg: SynthSessionConfig, nav: navfuncs.NavFunctions | None 
                                    q_blo=simulate.LO_RANDOM_WALK_HZ2_S, f_c_hz=11.325e9))
     nav = nav or navfuncs.NavFunctions()
     nav.params = params
-    t, x_true, u_true = simulate._truth(scn, params, nav)
+    t, x_true, u_true = simulate.truth(scn, params, nav)
     L = nav.layout
     rng = np.random.default_rng(cfg.seed)
     n, dt = u_true.shape[0], 1.0 / cfg.imu_rate_hz

@@ -84,7 +84,13 @@ class Setup:
 
 # ---- truth ----------------------------------------------------------------------------
 
-def _truth(scn: Scenario, params: np.ndarray, nav: navfuncs.NavFunctions):
+def truth(scn: Scenario, params: np.ndarray, nav: navfuncs.NavFunctions):
+    """Truth of the scenario's motion through the generated mechanization.
+
+    Returns (t_imu (n+1,) s, x_true (n+1, NX), u_true (n, 6)): the ideal increments of each
+    IMU interval solve the mechanization for the intended velocity and attitude, and the
+    truth is the mechanization's own output (clock, LO and biases at zero).
+    """
     dt = 1.0 / scn.imu_rate_hz
     n = int(round(scn.duration_s * scn.imu_rate_hz))
     t = np.arange(n + 1) * dt
@@ -257,7 +263,7 @@ def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
     params = np.array(build_params(scn.lat_rad, scn.lon_rad, scn.alt_m, imu=profile,
                                    q_blo=LO_RANDOM_WALK_HZ2_S, f_c_hz=scn.starlink["carrier_hz"]))
     nav.params = params
-    t_imu, x_true, u_true = _truth(scn, params, nav)
+    t_imu, x_true, u_true = truth(scn, params, nav)
     dt = 1.0 / scn.imu_rate_hz
     # specific force of the latest IMU interval at each sample (sample 0: first interval)
     f_b = np.vstack([u_true[:1, 3:], u_true[:, 3:]]) / dt
