@@ -165,6 +165,34 @@ def nav_process_noise(G, dt, p):
     return Qd
 
 
+class FirstOrderReplay:
+    """A costly sub-model (gravity) replaced by its first-order expansion inside a Jacobian.
+
+    `record(v, p)` evaluates f(v) and df/dv at the nominal argument and stores them;
+    `replay()` returns a function that, on its k-th call, gives f_k + J_k (v - v_k). That
+    has the same value and first derivative as f at the recorded points, so a Jacobian
+    taken at the nominal point is unchanged, but f is differentiated once per evaluation
+    point (3 directions) instead of once per direction of the outer Jacobian.
+    """
+
+    def __init__(self, f: Callable):
+        self.f, self.points = f, []
+
+    def record(self, v, p):
+        s = ca.SX.sym("v", v.shape[0])
+        f_s = self.f(s, p)
+        f_v, J_v = ca.substitute([f_s, ca.jacobian(f_s, s)], [s], [v])
+        self.points.append((v, f_v, J_v))
+        return f_v
+
+    def replay(self) -> Callable:
+        calls = iter(self.points)
+        def first_order(v, p):
+            v_k, f_k, J_k = next(calls)
+            return f_k + J_k @ (v - v_k)
+        return first_order
+
+
 def nav_transition(x, u, dt, p):
     """(x_next, F, Qd) of the navigation model over one IMU interval (SX).
 
@@ -173,11 +201,13 @@ def nav_transition(x, u, dt, p):
         F = d core/d dx |_w + (d core/d w) (d w/d dx),   G = (d core/d w) (d w/d du):
     the bias columns of F come from the 6-column input Jacobian that Qd needs anyway,
     instead of 6 more directions differentiated through the whole mechanization.
+    Gravity enters the Jacobians through its recorded first-order expansion (FirstOrderReplay).
     """
     w = kinematics.corrected_increments(x, u, dt)
+    gravity = FirstOrderReplay(kinematics.gravity_enu)
+    x_next = kinematics.mech_corrected(x, w, dt, p, gravity.record)
     def core(xx, ww):
-        return kinematics.mech_corrected(xx, ww, dt, p)
-    x_next = core(x, w)
+        return kinematics.mech_corrected(xx, ww, dt, p, gravity.replay())
     F_x = error_jacobian(lambda xx: core(xx, w), x, frames.boxplus, frames.boxminus, NDX)
     G_w = input_jacobian(lambda ww: core(x, ww), w, frames.boxminus)
     dw_dx = measurement_jacobian(lambda xx: kinematics.corrected_increments(xx, u, dt), x, frames.boxplus, NDX)

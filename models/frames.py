@@ -105,6 +105,32 @@ def ecef_from_geodetic(lat, lon, h):
     )
 
 
+def _bowring(r_ecef):
+    """Bowring's one-step closed form without trigonometric calls.
+
+    Returns (num, den, rho, den_over_rho, hyp) with geodetic latitude lat = atan2(num, den),
+    sin(lat) = num / hyp, cos(lat) = den / hyp, rho = sqrt(x^2 + y^2) and den / rho kept
+    separately so that cos(lat) cos(lon) = x (den / rho) / hyp stays finite at rho = 0.
+    The parametric latitude theta = atan2(z a, rho b) enters only through its sine and
+    cosine, z a / D and rho b / D with D = hypot(z a, rho b).
+    """
+    x, y, z = r_ecef[0], r_ecef[1], r_ecef[2]
+    a, b = K.WGS84_A_M, K.WGS84_B_M
+    rho2 = x * x + y * y
+    D2 = (z * a) ** 2 + rho2 * b * b
+    D = ca.sqrt(D2)
+    D3 = D2 * D
+    num = z + K.WGS84_EP2 * b * (z * a) ** 3 / D3
+    den_over_rho = 1 - K.WGS84_E2 * a * b**3 * rho2 / D3
+    rho = ca.sqrt(rho2)
+    den = rho * den_over_rho
+    return num, den, rho, den_over_rho, ca.sqrt(num * num + den * den)
+
+
+def _height(r_ecef, sin_lat, cos_lat, rho):
+    return rho * cos_lat + r_ecef[2] * sin_lat - K.WGS84_A_M * ca.sqrt(1 - K.WGS84_E2 * sin_lat * sin_lat)
+
+
 def geodetic_from_ecef(r_ecef):
     """ECEF (m) -> WGS84 (lat rad, lon rad, h m) with Bowring's one-step closed form.
 
@@ -112,15 +138,22 @@ def geodetic_from_ecef(r_ecef):
     km of the Earth's surface, which covers the ENU frame's validity region. Closed form
     (no iteration), so it is differentiable and cheap inside the mechanization.
     """
-    x, y, z = r_ecef[0], r_ecef[1], r_ecef[2]
-    a, b = K.WGS84_A_M, K.WGS84_B_M
-    rho = ca.sqrt(x * x + y * y)
-    theta = ca.atan2(z * a, rho * b)
-    lat = ca.atan2(z + K.WGS84_EP2 * b * ca.sin(theta) ** 3, rho - K.WGS84_E2 * a * ca.cos(theta) ** 3)
-    lon = ca.atan2(y, x)
-    sl, cl = ca.sin(lat), ca.cos(lat)
-    h = rho * cl + z * sl - a * ca.sqrt(1 - K.WGS84_E2 * sl * sl)
-    return lat, lon, h
+    num, den, rho, _, hyp = _bowring(r_ecef)
+    h = _height(r_ecef, num / hyp, den / hyp, rho)
+    return ca.atan2(num, den), ca.atan2(r_ecef[1], r_ecef[0]), h
+
+
+def ellipsoid_normal_from_ecef(r_ecef):
+    """(up_ecef, sin_lat, h): unit ellipsoid normal (ECEF), sin(geodetic latitude) and height (m).
+
+    The same Bowring solution as `geodetic_from_ecef`, but only square roots and divisions
+    (up = [cos lat cos lon, cos lat sin lon, sin lat] from the ratios), which makes it and
+    its derivatives much cheaper in the mechanization, where gravity is evaluated.
+    """
+    num, den, rho, den_over_rho, hyp = _bowring(r_ecef)
+    sin_lat = num / hyp
+    up = ca.vertcat(r_ecef[0] * den_over_rho / hyp, r_ecef[1] * den_over_rho / hyp, sin_lat)
+    return up, sin_lat, _height(r_ecef, sin_lat, den / hyp, rho)
 
 
 def C_n_e(lat, lon):

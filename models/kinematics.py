@@ -18,7 +18,7 @@ numerics are checked in that region).
 
 Integration over one IMU interval dt from increments u = [dtheta_b, dvel_b]:
 - attitude: exact for constant rates, q+ = exp(-w_ie^n dt) (x) q (x) exp(dtheta_b - b_g dt),
-  then normalized;
+  then normalized (formed from the half-interval rotations that also give q_mid);
 - specific force: dvel_b - b_a dt rotated with the mid-interval attitude (this includes
   the first-order velocity-rotation correction 1/2 dtheta x dvel);
 - gravity and Coriolis: trapezoid (Heun): evaluated at the start and at an Euler
@@ -30,7 +30,7 @@ import casadi as ca
 
 from models import constants as K
 from models import frames
-from models.gravity import normal_gravity
+from models.gravity import normal_gravity_sin
 from models.state import AUX, P, U, X
 
 
@@ -59,9 +59,8 @@ def gravity_enu(p_enu, p):
     minus the ellipsoid normal at that point (so it tilts by ~distance/R away from the origin).
     """
     _, _, _, r0, C = origin(p)
-    lat, lon, h = frames.geodetic_from_ecef(r0 + C @ p_enu)
-    up_ecef = ca.vertcat(ca.cos(lat) * ca.cos(lon), ca.cos(lat) * ca.sin(lon), ca.sin(lat))
-    return -normal_gravity(lat, h) * (C.T @ up_ecef)
+    up_ecef, sin_lat, h = frames.ellipsoid_normal_from_ecef(r0 + C @ p_enu)
+    return -normal_gravity_sin(sin_lat, h) * (C.T @ up_ecef)
 
 
 def accel_enu(x, f_b, p):
@@ -91,23 +90,27 @@ def mech(x, u, dt, p):
     return mech_corrected(x, corrected_increments(x, u, dt), dt, p)
 
 
-def mech_corrected(x, w, dt, p):
+def mech_corrected(x, w, dt, p, gravity=None):
     """`mech` given the bias-corrected increments w = [phi (rad), dv (m/s)] (see corrected_increments).
 
-    The biases in x only pass through to the next state here.
+    The biases in x only pass through to the next state here. `gravity(pos_enu, p)` replaces
+    `gravity_enu` (it is evaluated twice per step: at the start and at the predicted end).
     """
+    gravity = gravity or gravity_enu
     pos, vel, q = x[X["p_enu"].slice], x[X["v_enu"].slice], x[X["q_nb"].slice]
     b_a, b_g = x[X["b_a"].slice], x[X["b_g"].slice]
     phi, dv_b = w[0:3], w[3:6]
     w_ie = earth_rate_enu(p)
 
-    q_next = frames.quat_mul(frames.quat_exp(-w_ie * dt), frames.quat_mul(q, frames.quat_exp(phi)))
+    # half-interval rotations: q_mid = e_n (x) q (x) e_b, q_next = e_n (x) q_mid (x) e_b
+    e_n, e_b = frames.quat_exp(-w_ie * dt / 2), frames.quat_exp(phi / 2)
+    q_mid = frames.quat_mul(e_n, frames.quat_mul(q, e_b))
+    q_next = frames.quat_mul(e_n, frames.quat_mul(q_mid, e_b))
     q_next = q_next / ca.norm_2(q_next)
-    q_mid = frames.quat_mul(frames.quat_exp(-w_ie * dt / 2), frames.quat_mul(q, frames.quat_exp(phi / 2)))
     dv_sf = frames.rot_from_quat(q_mid) @ dv_b
 
     def a_gc(pos_, vel_):  # gravity + Coriolis
-        return gravity_enu(pos_, p) - 2 * ca.cross(w_ie, vel_)
+        return gravity(pos_, p) - 2 * ca.cross(w_ie, vel_)
 
     a0 = a_gc(pos, vel)
     vel_pred = vel + dv_sf + a0 * dt
