@@ -73,7 +73,7 @@ _REQUIRED = ...
 SCHEMA: dict[str, dict[str, Field]] = {
     "": {
         "name": Field(str, "-", default="scenario", doc="short name used in output folders"),
-        "description": Field(str, "-", default=""),
+        "description": Field(str, "-", default="", doc="one line shown in metrics.json"),
     },
     "site": {
         "lat_deg": Field(float, "deg", -90, 90, default=43.0848638, doc="WGS84 geodetic latitude"),
@@ -82,58 +82,64 @@ SCHEMA: dict[str, dict[str, Field]] = {
     },
     "time": {
         "epoch": Field(str, "UTC", default=_REQUIRED, doc="scenario start, ISO 8601 UTC"),
-        "duration_s": Field(float, "s", 1e-3, 86400, default=_REQUIRED),
+        "duration_s": Field(float, "s", 1e-3, 86400, default=_REQUIRED, doc="length of the run"),
     },
     "trajectory": {
-        "kind": Field(str, "-", default="static", choices=TRAJECTORY_KINDS),
+        "kind": Field(str, "-", default="static", choices=TRAJECTORY_KINDS,
+                      doc="static receiver, or a vessel driven by `maneuvers`"),
         "attitude_deg": Field(list, "deg", default=[0.0, 0.0, 90.0],
                               doc="initial roll, pitch, yaw; yaw from East towards North"),
         "speed_mps": Field(float, "m/s", 0, 400, default=0.0, doc="initial speed along heading"),
         # Each manoeuvre: [duration_s, acceleration_mps2, turn_rate_deg_s]
-        "maneuvers": Field(list, "mixed", default=[]),
+        "maneuvers": Field(list, "mixed", default=[],
+                           doc="[[duration_s, acceleration_mps2, turn_rate_deg_s], ...] in order"),
         "roll_amplitude_deg": Field(float, "deg", 0, 45, default=0.0, doc="wave-induced roll"),
         "pitch_amplitude_deg": Field(float, "deg", 0, 45, default=0.0, doc="wave-induced pitch"),
-        "wave_period_s": Field(float, "s", 0.5, 60, default=8.0),
+        "wave_period_s": Field(float, "s", 0.5, 60, default=8.0, doc="period of the roll/pitch motion"),
     },
     "imu": {
-        "profile": Field(str, "-", default="tactical", choices=IMU_PROFILES),
-        "rate_hz": Field(float, "Hz", 1, 2000, default=100.0),
+        "profile": Field(str, "-", default="tactical", choices=IMU_PROFILES,
+                         doc="noise figures: models/imu.py (sources cited there)"),
+        "rate_hz": Field(float, "Hz", 1, 2000, default=100.0, doc="IMU sample rate"),
     },
     "gps": {
-        "rate_hz": Field(float, "Hz", 0.01, 100, default=10.0),
-        "pseudorange_sigma_m": Field(float, "m", 1e-3, 1e3, default=3.0),
-        "elevation_mask_deg": Field(float, "deg", -5, 90, default=10.0),
-        "max_satellites": Field(int, "-", 4, 64, default=8),
+        "rate_hz": Field(float, "Hz", 0.01, 100, default=10.0, doc="pseudorange epoch rate"),
+        "pseudorange_sigma_m": Field(float, "m", 1e-3, 1e3, default=3.0, doc="1-sigma pseudorange noise"),
+        "elevation_mask_deg": Field(float, "deg", -5, 90, default=10.0, doc="GPS mask (paper: 10 deg)"),
+        "max_satellites": Field(int, "-", 4, 64, default=8, doc="highest GPS satellites used per epoch"),
         "clock_bias_m": Field(float, "m", -1e6, 1e6, default=100.0, doc="true initial c*dt"),
         "clock_drift_mps": Field(float, "m/s", -1e3, 1e3, default=0.1, doc="true initial c*ddt"),
         "outages_s": Field(list, "s", default=[], doc="[[start_s, end_s], ...] GPS denied"),
     },
     "starlink": {
-        "rate_hz": Field(float, "Hz", 0.01, 100, default=1.0),
-        "carrier_hz": Field(float, "Hz", 1e9, 3e10, default=11.325e9),
-        "elevation_mask_deg": Field(float, "deg", -5, 90, default=28.0),
-        "counts": Field(list, "-", default=[5, 10, 15, 20, 25, 30, 35, 40, 45]),
-        "selection": Field(str, "-", default="highest-elevation", choices=SELECTION_RULES),
+        "rate_hz": Field(float, "Hz", 0.01, 100, default=1.0, doc="Starlink measurement epoch rate"),
+        "carrier_hz": Field(float, "Hz", 1e9, 3e10, default=11.325e9, doc="beacon channel centre"),
+        "elevation_mask_deg": Field(float, "deg", -5, 90, default=28.0, doc="Starlink mask (paper: 28 deg)"),
+        "counts": Field(list, "-", default=[5, 10, 15, 20, 25, 30, 35, 40, 45],
+                        doc="Starlink satellite counts swept"),
+        "selection": Field(str, "-", default="highest-elevation", choices=SELECTION_RULES,
+                           doc="which N satellites are used (see the rules above)"),
         # Paper's five matched beacons: median |d alpha| 0.8 Hz/s -> sigma = 0.8/0.6745 = 1.19.
-        "doppler_rate_sigma_hz_s": Field(float, "Hz/s", 1e-4, 1e3, default=1.2),
-        "doppler_sigma_hz": Field(float, "Hz", 1e-3, 1e4, default=5.0),
+        "doppler_rate_sigma_hz_s": Field(float, "Hz/s", 1e-4, 1e3, default=1.2, doc="beacon Doppler-rate noise"),
+        "doppler_sigma_hz": Field(float, "Hz", 1e-3, 1e4, default=5.0, doc="beacon Doppler noise"),
         "lo_offset_hz": Field(float, "Hz", -5e6, 5e6, default=120e3, doc="true LNB LO offset"),
-        "ofdm_sigma_m": Field(float, "m", 1e-3, 1e4, default=3.0),
+        "ofdm_sigma_m": Field(float, "m", 1e-3, 1e4, default=3.0, doc="OFDM differenced-range noise"),
     },
     "elements": {
-        "source": Field(str, "-", default="builtin", choices=("builtin", "files")),
+        "source": Field(str, "-", default="builtin", choices=("builtin", "files"),
+                        doc="generated Walker constellations at the epoch, or `files`"),
         "files": Field(list, "-", default=[], doc="TLE/OMM paths, relative to the scenario file"),
     },
     "filter": {
-        "initial_position_sigma_m": Field(float, "m", 1e-3, 1e6, default=10.0),
-        "initial_velocity_sigma_mps": Field(float, "m/s", 1e-4, 1e3, default=0.5),
-        "initial_attitude_sigma_deg": Field(float, "deg", 1e-4, 180, default=1.0),
+        "initial_position_sigma_m": Field(float, "m", 1e-3, 1e6, default=10.0, doc="prior per ENU axis"),
+        "initial_velocity_sigma_mps": Field(float, "m/s", 1e-4, 1e3, default=0.5, doc="prior per ENU axis"),
+        "initial_attitude_sigma_deg": Field(float, "deg", 1e-4, 180, default=1.0, doc="prior per axis"),
         "gate_nis": Field(float, "-", 0, 1e6, default=10.83, doc="chi2(1) 99.9 %; 0 disables"),
     },
     "monte_carlo": {
-        "trials": Field(int, "-", 1, 100000, default=100),
-        "seed": Field(int, "-", 0, 2**63 - 1, default=1),
-        "modes": Field(list, "-", default=list(MODES)),
+        "trials": Field(int, "-", 1, 100000, default=100, doc="trials per (mode, count)"),
+        "seed": Field(int, "-", 0, 2**63 - 1, default=1, doc="master seed"),
+        "modes": Field(list, "-", default=list(MODES), doc=", ".join(MODES)),
     },
 }
 
@@ -345,3 +351,17 @@ def load_scenario(path: str | Path) -> Scenario:
 def builtin_scenarios() -> list[str]:
     """Names of the scenarios shipped with leonav."""
     return sorted(p.stem for p in BUILTIN_DIR.glob("*.toml"))
+
+
+def schema_markdown() -> str:
+    """The key reference of docs/scenarios.md, generated from SCHEMA (a test keeps them equal)."""
+    lines = []
+    for section, fields in SCHEMA.items():
+        lines += [f"### {'top level' if not section else '[' + section + ']'}", "",
+                  "| key | unit | range / choices | default | meaning |", "|---|---|---|---|---|"]
+        for key, f in fields.items():
+            rng = ", ".join(f.choices) if f.choices else (f"{f.lo:g} .. {f.hi:g}" if f.lo is not None else "")
+            default = "required" if f.default is _REQUIRED else repr(f.default)
+            lines.append(f"| `{key}` | {f.unit} | {rng} | {default} | {f.doc} |")
+        lines.append("")
+    return "\n".join(lines)

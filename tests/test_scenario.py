@@ -71,3 +71,10 @@ def test_missing_required_and_bad_epoch(tmp_path):
         load_scenario(path)
     with pytest.raises(UserInputError, match="built-in scenarios: .*paper"):
         load_scenario(tmp_path / "nope.toml")
+
+
+def test_scenario_reference_doc_matches_the_schema():
+    from leonav_runtime.scenario import schema_markdown
+
+    doc = (BUILTIN_DIR.parents[1] / "docs" / "scenarios.md").read_text()
+    assert schema_markdown() in doc, "docs/scenarios.md is stale: paste scenario.schema_markdown() under '## Keys'"
