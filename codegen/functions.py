@@ -56,9 +56,9 @@ def build_functions() -> list[ca.Function]:
     out.append(_fn("leonav_mech", {"x": x, "u": u, "dt": dt, "p": p},
                    {"x_next": kinematics.mech(x, u, dt, p)},
                    "nominal strapdown mechanization over one IMU interval"))
-    x_next, F, Qd = ekf.nav_transition(x, u, dt, p)
+    x_next, P_next, F, Qd = ekf.nav_predict(x, P, u, dt, p)
     out.append(_fn("leonav_predict", {"x": x, "P": P, "u": u, "dt": dt, "p": p},
-                   {"x_next": x_next, "P_next": ekf.covariance_predict(P, F, Qd), "F": F, "Qd": Qd},
+                   {"x_next": x_next, "P_next": P_next, "F": F, "Qd": Qd},
                    "error-state EKF predict: P_next = F P F^T + Qd"))
     # update_k = innovation_k (h, H and b = P H^T on H's non-zeros, SX) followed by one
     # shared SX Joseph function: its O(n^2) code is compiled once, not once per observable

@@ -134,35 +134,51 @@ def information_add(J, H, R):
 
 # --- navigation instance ---------------------------------------------------------------
 
+def imu_noise_variance(dt, p):
+    """Variances (NU) of the IMU increments over dt: arw^2 dt (dtheta_b), vrw^2 dt (dvel_b)."""
+    return ca.vertcat(
+        ca.repmat(p[P["arw"].offset] ** 2 * dt, U["dtheta_b"].size, 1),
+        ca.repmat(p[P["vrw"].offset] ** 2 * dt, U["dvel_b"].size, 1),
+    )
+
+
+def imu_process_noise(G, dt, p):
+    """G diag(imu_noise_variance) G^T (symmetric by construction), G mapping the increments to a state."""
+    GV = G @ ca.diag(imu_noise_variance(dt, p))
+    return symmetric_from_upper(G.shape[0], lambda i, j: ca.dot(GV[i, :], G[j, :]))
+
+
+def random_walk_noise(dt, p):
+    """Discrete noise (NDX x NDX) of the bias random walks, the clock and the LO offset over dt.
+
+    Bias random walks: acc_bias_rw^2 dt, gyro_bias_rw^2 dt on their blocks (first order).
+    Clock: exact two-state discretization; LO offset: q_blo dt.
+    """
+    def par(name):
+        return p[P[name].offset]
+    diag_extra = ca.SX.zeros(NDX)
+    diag_extra[DX["db_a"].slice] = par("acc_bias_rw") ** 2 * dt
+    diag_extra[DX["db_g"].slice] = par("gyro_bias_rw") ** 2 * dt
+    diag_extra[DX["db_lo"].offset] = par("q_blo") * dt
+    Q = ca.diag(diag_extra)
+    q11, q12, q22 = clock_qd(par("q_cdt"), par("q_cddt"), dt)
+    i, j = DX["dc_dt"].offset, DX["dc_ddt"].offset
+    Q[i, i] += q11
+    Q[i, j] += q12
+    Q[j, i] += q12
+    Q[j, j] += q22
+    return Q
+
+
 def nav_process_noise(G, dt, p):
     """Discrete process noise Qd (NDX x NDX) of the navigation error state over dt.
 
     IMU white noise enters through the increments: Cov(dtheta_b) = arw^2 dt I,
     Cov(dvel_b) = vrw^2 dt I, mapped by G = d(mech [-] mech)/du (NDX x NU, obtained by
     differentiation), so Qd_imu = G diag(...) G^T (first order, noise injected at
-    the increment). Bias random walks: acc_bias_rw^2 dt, gyro_bias_rw^2 dt on their
-    blocks (first order). Clock: exact two-state discretization; LO offset: q_blo dt.
+    the increment), plus `random_walk_noise`.
     """
-    def par(name):
-        return p[P[name].offset]
-    var_u = ca.vertcat(
-        ca.repmat(par("arw") ** 2 * dt, U["dtheta_b"].size, 1),
-        ca.repmat(par("vrw") ** 2 * dt, U["dvel_b"].size, 1),
-    )
-    GV = G @ ca.diag(var_u)
-    Qd = symmetric_from_upper(NDX, lambda i, j: ca.dot(GV[i, :], G[j, :]))
-    diag_extra = ca.SX.zeros(NDX)
-    diag_extra[DX["db_a"].slice] = par("acc_bias_rw") ** 2 * dt
-    diag_extra[DX["db_g"].slice] = par("gyro_bias_rw") ** 2 * dt
-    diag_extra[DX["db_lo"].offset] = par("q_blo") * dt
-    Qd = Qd + ca.diag(diag_extra)
-    q11, q12, q22 = clock_qd(par("q_cdt"), par("q_cddt"), dt)
-    i, j = DX["dc_dt"].offset, DX["dc_ddt"].offset
-    Qd[i, i] += q11
-    Qd[i, j] += q12
-    Qd[j, i] += q12
-    Qd[j, j] += q22
-    return Qd
+    return imu_process_noise(G, dt, p) + random_walk_noise(dt, p)
 
 
 class FirstOrderReplay:
@@ -193,8 +209,8 @@ class FirstOrderReplay:
         return first_order
 
 
-def nav_transition(x, u, dt, p):
-    """(x_next, F, Qd) of the navigation model over one IMU interval (SX).
+def _nav_jacobians(x, u, dt, p):
+    """(x_next, F, G): nominal step, error-state transition and input Jacobians (SX).
 
     mech(x, u) = core(x, w(x, u)) with w the bias-corrected increments, and the biases reach
     the core only through w. So by the chain rule
@@ -212,15 +228,53 @@ def nav_transition(x, u, dt, p):
     G_w = input_jacobian(lambda ww: core(x, ww), w, frames.boxminus)
     dw_dx = measurement_jacobian(lambda xx: kinematics.corrected_increments(xx, u, dt), x, frames.boxplus, NDX)
     dw_du = ca.jacobian(kinematics.corrected_increments(x, u, dt), u)
-    F = F_x + G_w @ dw_dx
-    G = G_w @ dw_du
+    return x_next, F_x + G_w @ dw_dx, G_w @ dw_du
+
+
+def nav_transition(x, u, dt, p):
+    """(x_next, F, Qd) of the navigation model over one IMU interval (SX)."""
+    x_next, F, G = _nav_jacobians(x, u, dt, p)
     return x_next, F, nav_process_noise(G, dt, p)
 
 
+def trapezoid_factors(F, G, dt):
+    """(T, F_pre, G_pre) with F = T F_pre and G = T G_pre, from the position trapezoid.
+
+    The mechanization ends with p+ = p + (v + v+) dt / 2 (kinematics.trapezoid_position), so
+    the dp rows of F and G are combinations of the dv rows. The pre-state of that last step,
+    [dv+, dtheta+, dp, dv, db_a, db_g, dc_dt, dc_ddt, db_lo] (21, the dense rows first),
+    has the Jacobian F_pre (F's dv, dtheta and later rows, unit rows for dp and dv) and T
+    (its sparse, linear map to dx+) is the Jacobian of that step, so the expensive product
+    F_pre P F_pre^T has 3 fewer dense rows. tests/test_models_jacobians checks T F_pre = F.
+    """
+    dp, dv, dth = DX["dp"].slice, DX["dv"].slice, DX["dtheta"].slice
+    rest = slice(DX["db_a"].offset, NDX)
+    n_rest = NDX - rest.start
+    E = ca.SX.eye(NDX)
+    F_pre = ca.vertcat(F[dv, :], F[dth, :], E[dp, :], E[dv, :], F[rest, :])
+    G_pre = ca.vertcat(G[dv, :], G[dth, :], ca.SX(6, G.shape[1]), G[rest, :])
+    s = ca.SX.sym("s", 12 + n_rest)
+    v_next, th_next, pos, vel = s[0:3], s[3:6], s[6:9], s[9:12]
+    image = ca.vertcat(kinematics.trapezoid_position(pos, vel, v_next, dt), v_next, th_next, s[12:])
+    return ca.jacobian(image, s), F_pre, G_pre
+
+
 def nav_predict(x, P_, u, dt, p):
-    """(x_next, P_next, F, Qd) of the navigation filter over one IMU interval (SX)."""
-    x_next, F, Qd = nav_transition(x, u, dt, p)
-    return x_next, covariance_predict(P_, F, Qd), F, Qd
+    """(x_next, P_next, F, Qd) of the navigation filter over one IMU interval (SX).
+
+    P_next = F P F^T + Qd computed as T (F_pre P F_pre^T + G_pre V G_pre^T) T^T + Q_rw
+    (trapezoid_factors; V the IMU increment variances, Q_rw = random_walk_noise), upper
+    triangles only, on the structural non-zeros (`congruence`).
+    """
+    x_next, F, G = _nav_jacobians(x, u, dt, p)
+    T, F_pre, G_pre = trapezoid_factors(F, G, dt)
+    Q_pre = imu_process_noise(G_pre, dt, p)
+    Q_rw = random_walk_noise(dt, p)
+    B_pre = congruence(F_pre, symmetric_part(P_))
+    n = B_pre.shape[0]
+    P_next = congruence(T, symmetric_from_upper(n, lambda i, j: B_pre[i, j] + Q_pre[i, j]))
+    Qd = congruence(T, Q_pre) + Q_rw
+    return x_next, P_next + Q_rw, F, Qd
 
 
 def nav_h(h: Callable, x, aux, p):

@@ -47,8 +47,8 @@ def quat_exp(phi):
     a2 = ca.dot(phi, phi)
     a = ca.sqrt(ca.fmax(a2, _SMALL_ANGLE2))  # never 0: the unused branch stays finite
     w_exact, s_exact = ca.cos(a / 2), ca.sin(a / 2) / a
-    w_series = 1 - a2 / 8 + a2**2 / 384
-    s_series = 0.5 - a2 / 48 + a2**2 / 3840
+    w_series = 1 - a2 / 8 + a2**2 * (1 / 384)  # products with constants: no divisions in C
+    s_series = 0.5 - a2 * (1 / 48) + a2**2 * (1 / 3840)
     small = a2 < _SMALL_ANGLE2
     return ca.vertcat(ca.if_else(small, w_series, w_exact), ca.if_else(small, s_series, s_exact) * phi)
 
@@ -108,7 +108,7 @@ def ecef_from_geodetic(lat, lon, h):
 def _bowring(r_ecef):
     """Bowring's one-step closed form without trigonometric calls.
 
-    Returns (num, den, rho, den_over_rho, hyp) with geodetic latitude lat = atan2(num, den),
+    Returns (num, den, rho, den_over_rho, 1 / hyp) with geodetic latitude lat = atan2(num, den),
     sin(lat) = num / hyp, cos(lat) = den / hyp, rho = sqrt(x^2 + y^2) and den / rho kept
     separately so that cos(lat) cos(lon) = x (den / rho) / hyp stays finite at rho = 0.
     The parametric latitude theta = atan2(z a, rho b) enters only through its sine and
@@ -118,13 +118,15 @@ def _bowring(r_ecef):
     a, b = K.WGS84_A_M, K.WGS84_B_M
     rho2 = x * x + y * y
     D2 = (z * a) ** 2 + rho2 * b * b
-    D = ca.sqrt(D2)
-    D3 = D2 * D
-    num = z + K.WGS84_EP2 * b * (z * a) ** 3 / D3
-    den_over_rho = 1 - K.WGS84_E2 * a * b**3 * rho2 / D3
+    # reciprocals as sqrt(1 / x): one division each, and cheaper derivatives (casadi would
+    # fold a product with 1 / x back into a division)
+    inv_D2 = 1 / D2
+    inv_D3 = inv_D2 * ca.sqrt(inv_D2)
+    num = z + K.WGS84_EP2 * b * (z * a) ** 3 * inv_D3
+    den_over_rho = 1 - K.WGS84_E2 * a * b**3 * rho2 * inv_D3
     rho = ca.sqrt(rho2)
     den = rho * den_over_rho
-    return num, den, rho, den_over_rho, ca.sqrt(num * num + den * den)
+    return num, den, rho, den_over_rho, ca.sqrt(1 / (num * num + den * den))
 
 
 def _height(r_ecef, sin_lat, cos_lat, rho):
@@ -138,8 +140,8 @@ def geodetic_from_ecef(r_ecef):
     km of the Earth's surface, which covers the ENU frame's validity region. Closed form
     (no iteration), so it is differentiable and cheap inside the mechanization.
     """
-    num, den, rho, _, hyp = _bowring(r_ecef)
-    h = _height(r_ecef, num / hyp, den / hyp, rho)
+    num, den, rho, _, inv_hyp = _bowring(r_ecef)
+    h = _height(r_ecef, num * inv_hyp, den * inv_hyp, rho)
     return ca.atan2(num, den), ca.atan2(r_ecef[1], r_ecef[0]), h
 
 
@@ -150,10 +152,11 @@ def ellipsoid_normal_from_ecef(r_ecef):
     (up = [cos lat cos lon, cos lat sin lon, sin lat] from the ratios), which makes it and
     its derivatives much cheaper in the mechanization, where gravity is evaluated.
     """
-    num, den, rho, den_over_rho, hyp = _bowring(r_ecef)
-    sin_lat = num / hyp
-    up = ca.vertcat(r_ecef[0] * den_over_rho / hyp, r_ecef[1] * den_over_rho / hyp, sin_lat)
-    return up, sin_lat, _height(r_ecef, sin_lat, den / hyp, rho)
+    num, den, rho, den_over_rho, inv_hyp = _bowring(r_ecef)
+    sin_lat = num * inv_hyp
+    cos_over_rho = den_over_rho * inv_hyp
+    up = ca.vertcat(r_ecef[0] * cos_over_rho, r_ecef[1] * cos_over_rho, sin_lat)
+    return up, sin_lat, _height(r_ecef, sin_lat, den * inv_hyp, rho)
 
 
 def C_n_e(lat, lon):

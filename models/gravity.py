@@ -19,6 +19,6 @@ def normal_gravity(lat, h):
 def normal_gravity_sin(sin_lat, h):
     """`normal_gravity` from sin(lat) instead of lat (it depends on sin^2 lat only)."""
     s2 = sin_lat * sin_lat
-    g0 = K.GAMMA_E_MPS2 * (1 + K.SOMIGLIANA_K * s2) / ca.sqrt(1 - K.WGS84_E2 * s2)
+    g0 = K.GAMMA_E_MPS2 * (1 + K.SOMIGLIANA_K * s2) * ca.sqrt(1 / (1 - K.WGS84_E2 * s2))
     a = K.WGS84_A_M
-    return g0 * (1 - 2 / a * (1 + K.WGS84_F + K.GRAVITY_M - 2 * K.WGS84_F * s2) * h + 3 * h * h / (a * a))
+    return g0 * (1 - 2 / a * (1 + K.WGS84_F + K.GRAVITY_M - 2 * K.WGS84_F * s2) * h + 3 / (a * a) * h * h)

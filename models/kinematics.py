@@ -81,6 +81,14 @@ def corrected_increments(x, u, dt):
     return ca.vertcat(dtheta_b - x[X["b_g"].slice] * dt, dvel_b - x[X["b_a"].slice] * dt)
 
 
+def trapezoid_position(pos, vel, vel_next, dt):
+    """Position after dt (s) by the trapezoid of the velocities: pos + (vel + vel_next) dt / 2.
+
+    Linear, which models.ekf uses to factor F (see nav_predict).
+    """
+    return pos + (vel + vel_next) * dt / 2
+
+
 def mech(x, u, dt, p):
     """Nominal state after one IMU interval `dt` (s) with increments u = [dtheta_b (rad), dvel_b (m/s)].
 
@@ -106,7 +114,7 @@ def mech_corrected(x, w, dt, p, gravity=None):
     e_n, e_b = frames.quat_exp(-w_ie * dt / 2), frames.quat_exp(phi / 2)
     q_mid = frames.quat_mul(e_n, frames.quat_mul(q, e_b))
     q_next = frames.quat_mul(e_n, frames.quat_mul(q_mid, e_b))
-    q_next = q_next / ca.norm_2(q_next)
+    q_next = q_next * ca.sqrt(1 / ca.sumsqr(q_next))  # one division (see frames._bowring)
     dv_sf = frames.rot_from_quat(q_mid) @ dv_b
 
     def a_gc(pos_, vel_):  # gravity + Coriolis
@@ -114,9 +122,9 @@ def mech_corrected(x, w, dt, p, gravity=None):
 
     a0 = a_gc(pos, vel)
     vel_pred = vel + dv_sf + a0 * dt
-    pos_pred = pos + (vel + vel_pred) * dt / 2
+    pos_pred = trapezoid_position(pos, vel, vel_pred, dt)
     vel_next = vel + dv_sf + (a0 + a_gc(pos_pred, vel_pred)) * dt / 2
-    pos_next = pos + (vel + vel_next) * dt / 2
+    pos_next = trapezoid_position(pos, vel, vel_next, dt)
 
     c_dt, c_ddt = x[X["c_dt"].offset], x[X["c_ddt"].offset]
     return ca.vertcat(pos_next, vel_next, q_next, b_a, b_g, c_dt + c_ddt * dt, c_ddt, x[X["b_lo"].offset])

@@ -486,7 +486,7 @@ int leonav_pcrb_info_doppler_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_
 #define leonav_pcrb_info_doppler_rate_SZ_ARG 8
 #define leonav_pcrb_info_doppler_rate_SZ_RES 3
 #define leonav_pcrb_info_doppler_rate_SZ_IW 0
-#define leonav_pcrb_info_doppler_rate_SZ_W 772
+#define leonav_pcrb_info_doppler_rate_SZ_W 777
 int leonav_h_doppler(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_h_doppler_checkout(void);
 void leonav_h_doppler_release(int mem);
