@@ -99,3 +99,40 @@ def test_update_uses_H_and_Joseph_form():
         np.testing.assert_allclose(P_post, P_ref, rtol=1e-9, atol=1e-12 * np.abs(P_ref).max())
         dx = np.array(FNS["leonav_boxminus"](x_post, x)).ravel()
         np.testing.assert_allclose(dx, K.ravel() * 0.7, rtol=1e-8, atol=1e-14)
+
+
+def test_trapezoid_factorization_reproduces_F_and_G():
+    """predict propagates P through F = T F_pre, G = T G_pre: both products equal the Jacobians."""
+    import casadi as ca
+
+    from models import ekf
+    from models.state import NP, NU, NX
+
+    x, u, dt, p = ca.SX.sym("x", NX), ca.SX.sym("u", NU), ca.SX.sym("dt"), ca.SX.sym("p", NP)
+    _, F, G = ekf._nav_jacobians(x, u, dt, p)
+    T, F_pre, G_pre = ekf.trapezoid_factors(F, G, dt)
+    fn = ca.Function("f", [x, u, dt, p], [F, T @ F_pre, G, T @ G_pre])
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        xv = _state(rng)
+        uv = np.r_[rng.normal(size=3) * 0.02, rng.normal(size=3) * 0.3 + [0, 0, 0.098]]
+        dt_s = 0.01 + 0.1 * rng.random()
+        F_, TF, G_, TG = (np.array(v) for v in fn(xv, uv, dt_s, P_VEC))
+        assert abs(F_[0, 3] - dt_s) < 1e-6 and np.abs(G_[0:3]).max() > 1e-4  # the dp rows are not trivial
+        np.testing.assert_allclose(TF, F_, rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(TG, G_, rtol=1e-13, atol=1e-15)
+
+
+def test_predict_covariance_equals_F_P_Ft_plus_Qd():
+    """P_next = sym(F P F^T + Qd) from the predict's own F and Qd, also for a non-symmetric P."""
+    rng = np.random.default_rng(12)
+    x = _state(rng)
+    u = np.r_[rng.normal(size=3) * 0.02, rng.normal(size=3) * 0.3 + [0, 0, 0.098]]
+    A = rng.normal(size=(NDX, NDX))
+    for P in (A @ A.T + np.eye(NDX), A @ A.T + 1e-3 * A):
+        _, P_next, F, Qd = (np.array(v) for v in FNS["leonav_predict"](x, P, u, 0.02, P_VEC))
+        ref = F @ P @ F.T + Qd
+        ref = (ref + ref.T) / 2
+        np.testing.assert_allclose(P_next, ref, rtol=1e-12, atol=1e-13 * np.abs(ref).max())
+        assert np.array_equal(P_next, P_next.T)
+        np.testing.assert_array_equal(Qd, Qd.T)
