@@ -1,11 +1,14 @@
 """Generic error-state EKF pieces, built from a nominal model by differentiation (CasADi SX).
 
-Nothing here knows the navigation equations: `predict` and `scalar_update` take the
-nominal transition f(x, u), the retraction boxplus/boxminus and a measurement h(x), and
-derive every Jacobian symbolically:
+Nothing in the generic part knows the navigation equations: the Jacobians of the nominal
+transition f(x, u), the retraction boxplus/boxminus and a measurement h(x) are derived
+symbolically:
     F = d[f(x [+] dx, u) [-] f(x, u)]/d dx at dx = 0
     G = d[f(x, u + du) [-] f(x, u)]/d du at du = 0   (maps input noise to the error state)
     H = d[h(x [+] dx)]/d dx at dx = 0
+The covariance algebra is built on the structural non-zeros of F and H and on the symmetry
+of P (`congruence`, `innovation`, `joseph_update`): it becomes straight-line C with no
+work on zeros and each symmetric entry computed once.
 The navigation instance (state layout, IMU noise, clock) is `nav_predict` / `nav_update`.
 """
 from __future__ import annotations
@@ -17,9 +20,6 @@ import casadi as ca
 from models import frames, kinematics
 from models.clock import clock_qd
 from models.state import DX, NDX, NU, P, U
-
-Expr = ca.SX
-
 
 def _at_zero(expr, sym):
     return ca.substitute(expr, sym, ca.DM.zeros(sym.shape))
@@ -45,10 +45,6 @@ def measurement_jacobian(h: Callable, x, boxplus: Callable, ndx: int):
     """d h(x [+] dx)/d dx at dx = 0 (row vector)."""
     dx = _sym(ndx, "dx")
     return _at_zero(ca.jacobian(h(boxplus(x, dx)), dx), dx)
-
-
-def symmetrize(A):
-    return (A + A.T) / 2
 
 
 def symmetric_from_upper(rows: int, entry: Callable):
