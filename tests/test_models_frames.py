@@ -117,3 +117,25 @@ def test_noise_profiles_and_discrete_noise():
     np.testing.assert_allclose(Qd[15:17, 15:17], [[q1 * dt + q2 * dt**3 / 3, q2 * dt**2 / 2],
                                                   [q2 * dt**2 / 2, q2 * dt]], rtol=1e-12)
     assert Qd[17, 17] == pytest.approx(0.04 * dt)
+
+
+def test_ellipsoid_normal_matches_geodetic_and_is_finite_on_the_axis():
+    """The trig-free normal, sin(lat) and height equal those from geodetic_from_ecef (atan2 form)."""
+    from models.gravity import normal_gravity, normal_gravity_sin
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        lat, lon, h = rng.uniform(-1.5, 1.5), rng.uniform(-math.pi, math.pi), rng.uniform(-500, 9000)
+        r = _num(frames.ecef_from_geodetic, lat, lon, h)
+        up, sin_lat, h2 = _num(frames.ellipsoid_normal_from_ecef, r)
+        lat2, lon2, h3 = _num(frames.geodetic_from_ecef, r)
+        ref = [math.cos(lat2) * math.cos(lon2), math.cos(lat2) * math.sin(lon2), math.sin(lat2)]
+        np.testing.assert_allclose(up, ref, atol=1e-15)
+        assert abs(np.linalg.norm(up) - 1) < 1e-15 and abs(sin_lat - math.sin(lat)) < 1e-12
+        assert abs(h2 - h3) < 1e-8 and abs(h2 - h) < 1e-3
+        assert float(_num(normal_gravity_sin, sin_lat, h2)) == pytest.approx(float(_num(normal_gravity, lat2, h3)),
+                                                                             rel=1e-15)
+    # on the polar axis (rho = 0) the normal is finite: straight up, and the height is exact
+    up, sin_lat, h = _num(frames.ellipsoid_normal_from_ecef, np.array([0.0, 0.0, 6356752.3142 + 100.0]))
+    np.testing.assert_allclose(up, [0, 0, 1], atol=1e-15)
+    assert sin_lat == pytest.approx(1.0, abs=1e-15) and h == pytest.approx(100.0, abs=1e-3)
