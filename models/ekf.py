@@ -198,9 +198,13 @@ class FirstOrderReplay:
         return f_v
 
     def replay(self) -> Callable:
+        """A stand-in for f whose k-th call expands around the k-th recorded point (same call order)."""
         calls = iter(self.points)
         def first_order(v, p):
-            v_k, f_k, J_k = next(calls)
+            try:
+                v_k, f_k, J_k = next(calls)
+            except StopIteration:
+                raise RuntimeError("FirstOrderReplay: more calls than recorded points") from None
             return f_k + J_k @ (v - v_k)
         return first_order
 
