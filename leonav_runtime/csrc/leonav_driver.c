@@ -66,6 +66,8 @@ typedef struct {
     double nz[MAX_OUT][NMAT];   /* nonzeros of sparse outputs before scattering */
     double x_tmp[NX];
     double P_tmp[NMAT];
+    double x_run[NX];           /* leonav_run's second state buffer (swapped, not copied) */
+    double P_run[NMAT];
     double vec[NDX];            /* PCRB: B H^T */
 } workspace;
 
@@ -205,19 +207,57 @@ int leonav_boxminus_many(long n, const double *x1, const double *x0, double *dx,
     return LEONAV_OK;
 }
 
+/* A state is usable when x and the variances (diagonal of P) are finite. The diagonal is
+ * where a NaN or Inf anywhere in P ends up after one predict or update, and checking it
+ * instead of all NDX^2 entries keeps the check off the hot path's profile. */
+static int state_finite(const double *x, const double *P)
+{
+    if (!all_finite(x, NX)) return 0;
+    for (int i = 0; i < NDX; ++i)
+        if (!isfinite(P[i + i * NDX])) return 0;
+    return 1;
+}
+
+/* Predict (x, P) into (x_out, P_out); the inputs are left as they are. */
+static int predict_into(workspace *ws, const double *x, const double *P, const double *u, double dt,
+                        const double *p, double *x_out, double *P_out, double *F, double *Qd)
+{
+    if (!all_finite(u, 6) || !isfinite(dt) || dt < 0.0) return LEONAV_STATUS_FAILED;
+    const double *in[5] = {x, P, u, &dt, p};
+    double *out[4] = {x_out, P_out, F, Qd};
+    if (call_gen(ws, &PREDICT, in, 5, out, 4) != 0 || !state_finite(x_out, P_out)) return LEONAV_STATUS_FAILED;
+    return LEONAV_STATUS_IMU;
+}
+
+/* Scalar update of (x, P) into (x_out, P_out); returns APPLIED, GATED or FAILED and
+ * writes y, S, nis into ysn (NaN where not computed). */
+static int update_into(workspace *ws, const double *x, const double *P, int kind, double z, double R,
+                       const double *aux, const double *p, double gate_nis, double *ysn,
+                       double *x_out, double *P_out)
+{
+    ysn[0] = ysn[1] = ysn[2] = NAN;
+    if (!isfinite(z) || !isfinite(R) || !all_finite(aux, LEONAV_NAUX)) return LEONAV_STATUS_FAILED;
+    const double *in[6] = {x, P, &z, &R, aux, p};
+    double *out[5] = {x_out, P_out, &ysn[0], &ysn[1], &ysn[2]};
+    /* R < 0 is still evaluated so that its S is reported with the failure */
+    if (call_gen(ws, &MEAS[kind].update, in, 6, out, 5) != 0 || R < 0.0 || !(ysn[1] > 0.0) || !isfinite(ysn[1]) ||
+        !isfinite(ysn[2]) || !state_finite(x_out, P_out))
+        return LEONAV_STATUS_FAILED;
+    if (gate_nis > 0.0 && ysn[2] > gate_nis) return LEONAV_STATUS_GATED;
+    return LEONAV_STATUS_APPLIED;
+}
+
 int leonav_predict_step(double *x, double *P, const double *u, double dt, const double *p,
                         double *F, double *Qd, void *work)
 {
     workspace *ws = get_ws(work);
     if (!ws) return LEONAV_ERR_WORK;
-    if (!all_finite(u, 6) || !isfinite(dt) || dt < 0.0) return LEONAV_STATUS_FAILED;
-    const double *in[5] = {x, P, u, &dt, p};
-    double *out[4] = {ws->x_tmp, ws->P_tmp, F, Qd};
-    if (call_gen(ws, &PREDICT, in, 5, out, 4) != 0) return LEONAV_STATUS_FAILED;
-    if (!all_finite(ws->x_tmp, NX) || !all_finite(ws->P_tmp, NMAT)) return LEONAV_STATUS_FAILED;
-    memcpy(x, ws->x_tmp, sizeof(double) * NX);
-    memcpy(P, ws->P_tmp, sizeof(double) * NMAT);
-    return LEONAV_STATUS_IMU;
+    int status = predict_into(ws, x, P, u, dt, p, ws->x_tmp, ws->P_tmp, F, Qd);
+    if (status == LEONAV_STATUS_IMU) {
+        memcpy(x, ws->x_tmp, sizeof(double) * NX);
+        memcpy(P, ws->P_tmp, sizeof(double) * NMAT);
+    }
+    return status;
 }
 
 int leonav_update_step(double *x, double *P, int kind, double z, double R, const double *aux,
@@ -226,20 +266,8 @@ int leonav_update_step(double *x, double *P, int kind, double z, double R, const
     workspace *ws = get_ws(work);
     if (!ws) return LEONAV_ERR_WORK;
     if (kind < 0 || kind >= LEONAV_NMEAS) return LEONAV_ERR_KIND;
-    double ysn[3] = {NAN, NAN, NAN};
-    int status = LEONAV_STATUS_FAILED;
-    if (isfinite(z) && isfinite(R) && all_finite(aux, LEONAV_NAUX)) {
-        const double *in[6] = {x, P, &z, &R, aux, p};
-        double *out[5] = {ws->x_tmp, ws->P_tmp, &ysn[0], &ysn[1], &ysn[2]};
-        int rc = call_gen(ws, &MEAS[kind].update, in, 6, out, 5);
-        if (rc != 0 || R < 0.0 || !(ysn[1] > 0.0) || !isfinite(ysn[1]) || !isfinite(ysn[2]) ||
-            !all_finite(ws->x_tmp, NX) || !all_finite(ws->P_tmp, NMAT))
-            status = LEONAV_STATUS_FAILED;
-        else if (gate_nis > 0.0 && ysn[2] > gate_nis)
-            status = LEONAV_STATUS_GATED;
-        else
-            status = LEONAV_STATUS_APPLIED;
-    }
+    double ysn[3];
+    int status = update_into(ws, x, P, kind, z, R, aux, p, gate_nis, ysn, ws->x_tmp, ws->P_tmp);
     if (status == LEONAV_STATUS_APPLIED) {
         memcpy(x, ws->x_tmp, sizeof(double) * NX);
         memcpy(P, ws->P_tmp, sizeof(double) * NMAT);
@@ -274,33 +302,47 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
     if (!x || !P || !p || !out || (n > 0 && !rec) || n < 0) return LEONAV_ERR_ARG;
     out->n_done = 0;
     out->n_imu = out->n_applied = out->n_gated = out->n_failed = 0;
-    if (!get_ws(work)) return LEONAV_ERR_WORK;
+    workspace *ws = get_ws(work);
+    if (!ws) return LEONAV_ERR_WORK;
+    /* The state lives in one of two buffers (the caller's, the workspace's); a step writes
+     * the other one and they are swapped when it succeeds, so nothing is copied. */
+    double *xc = x, *Pc = P, *xn = ws->x_run, *Pn = ws->P_run;
+    int rc = LEONAV_OK;
     for (long i = 0; i < n; ++i) {
         const leonav_record *r = &rec[i];
         double ysn[3] = {NAN, NAN, NAN};
         int status;
         if (r->kind == LEONAV_KIND_IMU) {
-            status = leonav_predict_step(x, P, r->u, r->dt, p, NULL, NULL, work);
+            status = predict_into(ws, xc, Pc, r->u, r->dt, p, xn, Pn, NULL, NULL);
             if (status == LEONAV_STATUS_IMU) out->n_imu++;
         } else if (r->kind >= 0 && r->kind < LEONAV_NMEAS) {
             double gate = gate_nis ? gate_nis[r->kind] : 0.0;
-            status = leonav_update_step(x, P, r->kind, r->z, r->R, r->aux, p, gate, ysn, work);
+            status = update_into(ws, xc, Pc, r->kind, r->z, r->R, r->aux, p, gate, ysn, xn, Pn);
             if (status == LEONAV_STATUS_APPLIED) out->n_applied++;
             if (status == LEONAV_STATUS_GATED) out->n_gated++;
         } else {
-            return LEONAV_ERR_KIND;
+            rc = LEONAV_ERR_KIND;
+            break;
+        }
+        if (status == LEONAV_STATUS_IMU || status == LEONAV_STATUS_APPLIED) {
+            double *t = xc; xc = xn; xn = t;
+            t = Pc; Pc = Pn; Pn = t;
         }
         if (status == LEONAV_STATUS_FAILED) out->n_failed++;
-        if (out->x) memcpy(out->x + i * NX, x, sizeof(double) * NX);
-        if (out->P_diag) diag(P, out->P_diag + i * NDX);
-        if (out->P) memcpy(out->P + i * NMAT, P, sizeof(double) * NMAT);
+        if (out->x) memcpy(out->x + i * NX, xc, sizeof(double) * NX);
+        if (out->P_diag) diag(Pc, out->P_diag + i * NDX);
+        if (out->P) memcpy(out->P + i * NMAT, Pc, sizeof(double) * NMAT);
         if (out->y) out->y[i] = ysn[0];
         if (out->S) out->S[i] = ysn[1];
         if (out->nis) out->nis[i] = ysn[2];
         if (out->status) out->status[i] = status;
         out->n_done = i + 1;
     }
-    return LEONAV_OK;
+    if (xc != x) {  /* the state ends in the caller's buffers */
+        memcpy(x, xc, sizeof(double) * NX);
+        memcpy(P, Pc, sizeof(double) * NMAT);
+    }
+    return rc;
 }
 
 int leonav_pcrb_run(double *B, const double *p, const leonav_record *rec, long n,
