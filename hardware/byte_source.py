@@ -10,7 +10,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO, Iterator
+from typing import Any, BinaryIO, Callable, Iterator
 
 import serial
 
@@ -106,3 +106,39 @@ class ChunkSource:
                 return
             self.bytes_read += len(chunk)
             yield bytes(chunk), t_mono
+
+
+class SourceReader:
+    """Base of the device readers: owns a `ChunkSource` and exposes its controls.
+
+    Subclasses iterate `self.chunks()` (which hands every raw chunk to `on_bytes` first,
+    for raw logging) and decode what they need.
+    """
+
+    def __init__(self, port_or_stream: Any, baudrate: int,
+                 on_bytes: "Callable[[bytes, float], None] | None" = None) -> None:
+        self.source = ChunkSource(port_or_stream, baudrate)
+        self.on_bytes = on_bytes
+
+    def chunks(self) -> Iterator[tuple[bytes, float]]:
+        """`(chunk, t_mono_s)` from the source, after `on_bytes` has seen each one."""
+        for chunk, t_mono in self.source:
+            if self.on_bytes:
+                self.on_bytes(chunk, t_mono)
+            yield chunk, t_mono
+
+    def stop(self) -> None:
+        """Ask the iteration to end (noticed within one read timeout)."""
+        self.source.stop_event.set()
+
+    def write(self, data: bytes) -> None:
+        """Send bytes to the device (configuration commands)."""
+        self.source.write(data)
+
+    def close(self) -> None:
+        self.source.close()
+
+    @property
+    def end_reason(self) -> str:
+        """Why iteration ended: "eof", "stopped" or "device error: ..."."""
+        return self.source.end_reason

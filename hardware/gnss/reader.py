@@ -13,7 +13,7 @@ import re
 from collections import Counter
 from typing import Any, Callable, Iterator
 
-from hardware.byte_source import ChunkSource
+from hardware.byte_source import SourceReader
 from hardware.gnss import nmea, ubx
 from hardware.records import GnssFix, GnssTimeTag, NavPvt, NavTimeGps, NmeaSentence, RxmRawx, UbxFrame
 
@@ -197,7 +197,7 @@ class GnssDecoder:
         return {"accepted": dict(sorted(self.counts.items())), "rejected": dict(sorted(self.rejected.items()))}
 
 
-class GnssReader:
+class GnssReader(SourceReader):
     """Iterator of GNSS records from a serial port, pyserial URL, file, stream or bytes.
 
     `GnssReader("/dev/ttyAMA0", baudrate=38400)` or `GnssReader(serial_obj)` or
@@ -208,31 +208,15 @@ class GnssReader:
 
     def __init__(self, port_or_stream: Any, baudrate: int = 38400,
                  on_bytes: Callable[[bytes, float], None] | None = None) -> None:
-        self.source = ChunkSource(port_or_stream, baudrate)
+        super().__init__(port_or_stream, baudrate, on_bytes)
         self.decoder = GnssDecoder()
-        self.on_bytes = on_bytes
 
     def __iter__(self) -> Iterator:
         try:
-            for chunk, t_mono in self.source:
-                if self.on_bytes:
-                    self.on_bytes(chunk, t_mono)
+            for chunk, t_mono in self.chunks():
                 yield from self.decoder.decode(chunk, t_mono)
         finally:
             self.decoder.close()
-
-    def stop(self) -> None:
-        self.source.stop_event.set()
-
-    def write(self, data: bytes) -> None:
-        self.source.write(data)
-
-    def close(self) -> None:
-        self.source.close()
-
-    @property
-    def end_reason(self) -> str:
-        return self.source.end_reason
 
     def summary(self) -> dict:
         return self.decoder.summary() | {"bytes_read": self.source.bytes_read, "end_reason": self.end_reason}

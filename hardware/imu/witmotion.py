@@ -27,7 +27,7 @@ import struct
 from collections import Counter
 from typing import Any, Callable, Iterator
 
-from hardware.byte_source import ChunkSource
+from hardware.byte_source import SourceReader
 from hardware.records import ImuSample, WitPacket
 
 HEADER = 0x55
@@ -204,7 +204,7 @@ class SampleGrouper:
         )]
 
 
-class ImuReader:
+class ImuReader(SourceReader):
     """Iterator of ImuSample (or, with `packets=True`, WitPacket) from a WitMotion source.
 
     Source: serial port name/URL (opened at `baudrate`), a pyserial object, a file,
@@ -213,18 +213,15 @@ class ImuReader:
 
     def __init__(self, port_or_stream: Any, baudrate: int = 9600, packets: bool = False,
                  on_bytes: Callable[[bytes, float], None] | None = None, g_mps2: float = G_MPS2) -> None:
-        self.source = ChunkSource(port_or_stream, baudrate)
+        super().__init__(port_or_stream, baudrate, on_bytes)
         self.parser = WitMotionParser(g_mps2)
         self.grouper = SampleGrouper()
         self.packets = packets
-        self.on_bytes = on_bytes
         self.samples = 0
 
     def __iter__(self) -> Iterator:
         try:
-            for chunk, t_mono in self.source:
-                if self.on_bytes:
-                    self.on_bytes(chunk, t_mono)
+            for chunk, t_mono in self.chunks():
                 for packet in self.parser.feed(chunk, t_mono):
                     if self.packets:
                         yield packet
@@ -238,19 +235,6 @@ class ImuReader:
             for sample in self.grouper.flush():
                 self.samples += 1
                 yield sample
-
-    def stop(self) -> None:
-        self.source.stop_event.set()
-
-    def write(self, data: bytes) -> None:
-        self.source.write(data)
-
-    def close(self) -> None:
-        self.source.close()
-
-    @property
-    def end_reason(self) -> str:
-        return self.source.end_reason
 
     def summary(self) -> dict:
         rejected = dict(self.parser.rejected)

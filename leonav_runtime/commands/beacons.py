@@ -9,6 +9,7 @@ from pathlib import Path
 
 from leonav_runtime import output
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.orbits.elements import load_element_files
 
 ROCHESTER_DEG = (43.0848638, -77.6786127, 170.0)  # the paper's site
 
@@ -81,20 +82,6 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _load_elements(paths: list[str]):
-    from leonav_runtime.orbits import load_elements
-
-    es = None
-    for path in paths:
-        if not Path(path).is_file():
-            raise UserInputError(f"--tle: {path}: no such file")
-        e = load_elements(path)
-        es = e if es is None else es.concat(e)
-    if es is None or len(es) == 0:
-        raise UserInputError(f"--tle: no usable element sets in {', '.join(paths)}")
-    return es
-
-
 def _progress(total: int, desc: str):
     from tqdm import tqdm
 
@@ -112,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     start = capture_io.parse_utc(args.start, "--start") if args.start else None
     out_dir = output.results_dir(args.out, "beacons")
     if args.tle:
-        elements = _load_elements(args.tle)
+        elements = load_element_files(args.tle)
     elif args.simulate:
         from leonav_runtime.orbits import default_elements
 

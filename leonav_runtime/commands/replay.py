@@ -7,6 +7,7 @@ from pathlib import Path
 
 from leonav_runtime import output
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.orbits.elements import load_element_files
 
 
 def register(subparsers) -> None:
@@ -46,20 +47,6 @@ def _modes():
     return MODES
 
 
-def _elements(paths: list[str]):
-    from leonav_runtime.orbits import load_elements
-
-    es = None
-    for path in paths:
-        if not Path(path).is_file():
-            raise UserInputError(f"--tle: {path}: no such file")
-        e = load_elements(path)
-        es = e if es is None else es.concat(e)
-    if paths and (es is None or len(es) == 0):
-        raise UserInputError(f"--tle: no usable element sets in {', '.join(paths)}")
-    return es
-
-
 def _fmt(v, scale=1.0, digits=2) -> str:
     return "-" if v is None else f"{v * scale:.{digits}f}"
 
@@ -83,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
         lat, lon, h = args.origin
         if not (abs(lat) <= 90 and abs(lon) <= 360 and -11_000 <= h <= 1e5):
             raise UserInputError(f"--origin: {args.origin}: expected LAT in [-90, 90] deg, LON deg, H in m")
-    elements = _elements(args.tle)
+    elements = load_element_files(args.tle)
     out = output.results_dir(args.out, "replay")
     with tqdm(unit="S", unit_scale=True, desc="beacon capture", leave=False, disable=None) as bar:
         metrics = replay.replay_session(args.session, out, options, elements=elements, progress=bar.update)

@@ -329,3 +329,20 @@ def load_elements(
         raise UserInputError(f"{path}: is a directory, expected a TLE/3LE/OMM file") from None
     return parse_elements_text(text, str(path), stale_after_days=stale_after_days, constellation=constellation,
                                strict_checksum=strict_checksum)
+
+
+def load_element_files(paths: Sequence[str | Path], option: str = "--tle") -> ElementSet | None:
+    """Load and concatenate several element files (None for no paths).
+
+    `option` names the command-line option in errors (a missing file, or files that give
+    no usable element set).
+    """
+    es = None
+    for path in paths:
+        if not Path(path).is_file():
+            raise UserInputError(f"{option}: {path}: no such file")
+        loaded = load_elements(path)
+        es = loaded if es is None else es.concat(loaded)
+    if paths and (es is None or len(es) == 0):
+        raise UserInputError(f"{option}: no usable element sets in {', '.join(map(str, paths))}")
+    return es
