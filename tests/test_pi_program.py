@@ -1,0 +1,55 @@
+"""The standalone C program (hardware/pi, no Python) gives the same run as the Python runtime."""
+from __future__ import annotations
+
+import copy
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+PI_DIR = Path(__file__).resolve().parents[1] / "hardware" / "pi"
+
+
+@pytest.fixture(scope="module")
+def program(tmp_path_factory):
+    if shutil.which("make") is None or shutil.which("cc") is None:
+        pytest.skip("needs make and a C compiler")
+    out = tmp_path_factory.mktemp("pi-build")
+    subprocess.run(["make", "-C", str(PI_DIR), f"OUT={out}"], check=True, capture_output=True)
+    return out / "leonav_filter"
+
+
+def test_standalone_program_matches_the_python_runtime(program, tmp_path):
+    from leonav_runtime import montecarlo as mc, simulate
+    from leonav_runtime.filter import EKF
+    from leonav_runtime.scenario import load_scenario, scenario_from_dict
+
+    raw = copy.deepcopy(load_scenario("paper").raw)
+    raw["time"]["duration_s"] = 3.0
+    raw["starlink"]["counts"] = [10]
+    scn = scenario_from_dict(raw, source="<pi test>")
+    setup, nav = mc.setup_for(scn)
+    trial = simulate.trial_records(setup, "gps+leo-alpha+imu", 10, mc.trial_rng(1, 0), nav)
+    trial.records.tofile(tmp_path / "records.bin")
+    np.concatenate([trial.x0, setup.P0.ravel(order="F"), setup.params]).astype("<f8").tofile(tmp_path / "init.bin")
+    run = subprocess.run([str(program), str(tmp_path / "records.bin"), str(tmp_path / "init.bin"),
+                          str(tmp_path / "out.csv"), "10.83"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    got = np.genfromtxt(tmp_path / "out.csv", delimiter=",", names=True)
+    ref = EKF(trial.x0, setup.P0, setup.params, gate=10.83, library=nav.library).run(trial.records)
+    L = nav.layout
+    x_got = np.column_stack([got[f"x{i}"] for i in range(L.NX)])
+    assert got.size == ref.x.shape[0]
+    np.testing.assert_array_equal(got["status"].astype(int), ref.status)
+    np.testing.assert_allclose(x_got, ref.x, rtol=1e-12, atol=1e-9)
+    assert f"{trial.records.size} records" in run.stderr
+
+
+def test_standalone_program_rejects_bad_files(program, tmp_path):
+    (tmp_path / "r.bin").write_bytes(b"\x00" * 7)
+    (tmp_path / "i.bin").write_bytes(b"")
+    run = subprocess.run([str(program), str(tmp_path / "r.bin"), str(tmp_path / "i.bin"), str(tmp_path / "o.csv")],
+                         capture_output=True, text=True)
+    assert run.returncode == 2 and "not a whole number of" in run.stderr
