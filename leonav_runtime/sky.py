@@ -313,6 +313,10 @@ def summarize(view: SkyView) -> dict:
     return out
 
 
+# Tracks are drawn for the first part of the window only: past ~15 minutes the Starlink
+# tracks fill the whole sky above the mask and hide each other.
+PLOT_TRACK_SPAN_S = 900.0
+
 CONSTELLATION_COLOURS = {"starlink": "tab:blue", "gps": "tab:red", "unknown": "tab:green"}
 
 
@@ -332,21 +336,24 @@ def plot(view: SkyView, path) -> None:
     ax_sky = fig.add_subplot(1, 2, 1, projection="polar")
     ax_cnt = fig.add_subplot(1, 2, 2)
     ax_sky.set_theta_zero_location("N")
-    ax_sky.set_theta_direction(-1)  # azimuth clockwise from North, as seen looking up... on a map
+    ax_sky.set_theta_direction(-1)  # azimuth clockwise from North (map-style sky plot)
+    ax_sky.set_rlabel_position(112.5)  # elevation labels between E and SE, away from the tracks' labels
     ax_sky.set_rlim(0, 90)
     ax_sky.set_rticks([0, 30, 60, 90])
     ax_sky.set_yticklabels(["90°", "60°", "30°", "0°"], fontsize=8)
     ax_sky.set_thetagrids(range(0, 360, 45), ["N", "NE", "E", "SE", "S", "SW", "W", "NW"])
     nt = view.t_s.size
+    n_track = int(np.searchsorted(view.t_s, view.t_s[0] + PLOT_TRACK_SPAN_S, side="right"))
     theta_circle = np.linspace(0, 2 * np.pi, 361)
-    minutes = view.t_s / 60.0
-    use_minutes = view.t_s[-1] - view.t_s[0] >= 300
-    t_axis = minutes if use_minutes else view.t_s
+    span_s = view.t_s[-1] - view.t_s[0]
+    t_unit, t_scale = ("h", 3600.0) if span_s >= 3 * 3600 else ("min", 60.0) if span_s >= 300 else ("s", 1.0)
+    t_axis = view.t_s / t_scale
     for i, (name, c) in enumerate(view.constellations.items()):
         colour = _colour(name, i)
         mask_deg = math.degrees(c.mask_rad)
         ax_sky.plot(theta_circle, np.full_like(theta_circle, 90 - mask_deg), ls="--", lw=1.0, color=colour, alpha=0.8)
         sats, az, el, vis = c.dense(nt)
+        az, el = az[:, :n_track], el[:, :n_track]
         for row in range(sats.size):
             # Break the track where the satellite is hidden; unwrap azimuth so a track
             # crossing North is drawn across it instead of around the whole circle.
@@ -368,13 +375,17 @@ def plot(view: SkyView, path) -> None:
             color=colour,
             fontsize=9,
         )
+    track_span = view.t_s[n_track - 1] - view.t_s[0]
     ax_sky.set_title(
-        "Sky from site: tracks above mask (dashed circles), dots at start", fontsize=10, pad=18
+        f"Sky above the masks (dashed): tracks over the first {track_span / 60:.3g} min, dots at start\n"
+        "elevation 90° at the centre, 0° at the rim; azimuth clockwise from North",
+        fontsize=10,
+        pad=18,
     )
     ax_sky.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), fontsize=8, frameon=False)
     ax_cnt.axhline(4, color="grey", lw=0.8, ls=":")
     ax_cnt.text(t_axis[0], 4, " 4 needed for a fix", va="bottom", fontsize=8, color="grey")
-    ax_cnt.set_xlabel("time since start [min]" if use_minutes else "time since start [s]")
+    ax_cnt.set_xlabel(f"time since start [{t_unit}]")
     ax_cnt.set_ylabel("visible satellites")
     ax_cnt.set_ylim(bottom=0)
     ax_cnt.grid(alpha=0.3)
