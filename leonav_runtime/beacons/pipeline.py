@@ -1,8 +1,9 @@
 """Capture -> waterfall -> ridges -> Doppler / Doppler-rate -> satellite association -> files.
 
 `process_capture` streams the capture once (bounded memory), tracks the ridges, fits the
-Doppler-rate measurements, predicts every visible satellite with the symbolic model and
-associates. `write_outputs` writes associations.csv, doppler_rate_measurements.csv (the
+Doppler-rate measurements, predicts every visible satellite with the symbolic model, groups
+the ridges into per-satellite tone combs and associates them with one LO offset and drift
+for the whole capture (`associate.associate_capture`). `write_outputs` writes associations.csv, doppler_rate_measurements.csv (the
 filter's input), waterfall.png and summary.json.
 """
 from __future__ import annotations
@@ -17,7 +18,9 @@ import numpy as np
 
 from leonav_runtime.beacons import capture_io
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.beacons.associate import Association, AssociationConfig, associate
+from leonav_runtime.beacons.associate import Association, AssociationConfig, associate_capture
+from leonav_runtime.beacons.comb import Comb
+from leonav_runtime.beacons.lo_fit import LoEstimate
 from leonav_runtime.beacons.doppler import RidgeMeasurements, ridge_measurements
 from leonav_runtime.beacons.predict import DEFAULT_MASK_DEG, TONE_RF_HZ, Predictions, Site, predict_visible
 from leonav_runtime.beacons.ridges import Ridge, TrackerConfig, TrackStats, RidgeTracker
@@ -30,16 +33,24 @@ MEASUREMENT_COLUMNS = [
     ("epoch_utc", "ISO-8601", "the same epoch as UTC time"),
     ("norad_id", "-", "NORAD catalogue number of the associated satellite"),
     ("name", "-", "satellite name from the element set"),
-    ("doppler_rate_hz_s", "Hz/s", "measured Doppler rate (local quadratic fit)"),
-    ("sigma_hz_s", "Hz/s", "1-sigma of the rate from the fit residuals"),
-    ("doppler_hz", "Hz", "measured Doppler incl. the LNB LO offset (f_baseband + rf_center - f_tone)"),
+    ("doppler_rate_hz_s", "Hz/s", "measured Doppler rate (local quadratic fits, averaged over the comb's tones), "
+                                  "common LO drift removed when lo_drift_hz_s is nonzero"),
+    ("sigma_hz_s", "Hz/s", "1-sigma of the rate from the fit residuals (and of the removed drift)"),
+    ("doppler_hz", "Hz", "measured Doppler of the central tone incl. the LNB LO offset "
+                         "(f_baseband + rf_center - f_tone - tone_index * spacing)"),
     ("sigma_doppler_hz", "Hz", "1-sigma of the Doppler fit"),
-    ("lo_offset_hz", "Hz", "constant offset fitted for this ridge (measured - predicted Doppler)"),
+    ("lo_offset_hz", "Hz", "common LO offset of the capture at this epoch, b0 + b1 t (measured - predicted "
+                           "Doppler = minus the LNB LO error); modulo the tone spacing unless summary.json "
+                           "lo.pinned"),
     ("predicted_rate_hz_s", "Hz/s", "symbolic-model prediction for the satellite (static receiver at the site)"),
     ("rate_residual_hz_s", "Hz/s", "doppler_rate_hz_s - predicted_rate_hz_s"),
     ("snr_db", "dB", "median per-bin SNR of the ridge in the fit window"),
     ("ridge_id", "-", "ridge number in associations.csv / waterfall.png"),
     ("f_c_hz", "Hz", "nominal RF tone frequency the Doppler refers to"),
+    ("lo_drift_hz_s", "Hz/s", "common LO drift b1 removed from doppler_rate_hz_s (0 if not removed; "
+                              "summary.json lo says why)"),
+    ("comb_id", "-", "tone comb (ridges of one satellite) in associations.csv"),
+    ("n_tones", "-", "tones averaged at this epoch"),
 ]
 
 
@@ -69,6 +80,12 @@ class PipelineResult:
     associations: list[Association]
     waterfall: tuple[np.ndarray, np.ndarray, np.ndarray]
     reason: str = ""   # why the result is empty, if it is
+    # `measurements` are what goes to the filter: for an associated comb its carrier ridge holds
+    # the combined, drift-corrected measurement and its other tones hold none (empty);
+    # `ridge_measurements` are every ridge's own fits.
+    ridge_measurements: list[RidgeMeasurements] = dataclasses.field(default_factory=list)
+    combs: list[Comb] = dataclasses.field(default_factory=list)
+    lo: LoEstimate = dataclasses.field(default_factory=LoEstimate)
 
     def by_ridge(self) -> dict[int, tuple[Ridge, RidgeMeasurements, Association]]:
         return {r.ridge_id: (r, m, a) for r, m, a in zip(self.ridges, self.measurements, self.associations)}
@@ -115,8 +132,15 @@ def process_capture(info: capture_io.CaptureInfo, elements, site: Site, cfg: Pip
         raise UserInputError(f"{info.path}: capture start time unknown: association needs it (give --start)")
     pred = predict_visible(elements, site, info.start_utc, info.duration_s, mask_deg=cfg.mask_deg,
                            tone_rf_hz=cfg.tone_rf_hz)
-    assoc = associate(meas, pred, cfg.association)
-    return PipelineResult(info, stft, ridges, stats, meas, pred, assoc, image)
+    ca = associate_capture(meas, pred, cfg.association)
+    filt = [m if a.status != "associated" else ca.filter_measurements[m.ridge_id] if a.carrier else _empty(m)
+            for m, a in zip(meas, ca.associations)]
+    return PipelineResult(info, stft, ridges, stats, filt, pred, ca.associations, image, "", meas, ca.combs, ca.lo)
+
+
+def _empty(m: RidgeMeasurements) -> RidgeMeasurements:
+    z = np.zeros(0)
+    return RidgeMeasurements(m.ridge_id, z, z, z, z, z, np.zeros(0, int), z)
 
 
 def _stats(values: np.ndarray) -> dict:
@@ -131,7 +155,10 @@ def summary(res: PipelineResult) -> dict:
     counts = {"ridges": len(res.ridges)}
     for status in ("associated", "ambiguous", "unassociated"):
         counts[status] = sum(a.status == status for a in res.associations)
-    assoc = [a for a in res.associations if a.status == "associated"]
+    counts["combs"] = len(res.combs)
+    # one entry per associated comb: its combined measurement is what the filter gets
+    assoc = [a for a in res.associations if a.status == "associated" and a.carrier]
+    counts["satellites_associated"] = len(assoc)
     per_epoch = np.concatenate([a.rate_residual_hz_s for a in assoc]) if assoc else np.zeros(0)
     per_ridge = np.asarray([np.median(np.abs(a.rate_residual_hz_s)) for a in assoc])
     info = res.info
@@ -145,11 +172,16 @@ def summary(res: PipelineResult) -> dict:
         "candidates_above_mask": 0 if res.predictions is None else len(res.predictions.names),
         "rate_residual_abs_hz_s": _stats(per_epoch),
         "rate_residual_abs_per_ridge_median_hz_s": _stats(per_ridge),
+        "rate_residual_signed_mean_hz_s": float(np.mean(per_epoch)) if per_epoch.size else None,
+        "lo": res.lo.as_dict(),
+        "combs": [{"comb_id": c.comb_id, "ridge_ids": c.ridge_ids, "relative_tone_index": c.rel_index,
+                   "carrier_ridge_id": c.carrier_ridge_id, "tones": c.tones} for c in res.combs],
         "paper_rate_residual_abs_hz_s": PAPER_RESIDUALS_HZ_S,
         "reason_empty": res.reason or None,
         "associations": [{"ridge_id": a.ridge_id, "status": a.status, "reason": a.reason, "norad_id": a.norad_id,
                           "name": a.name, "cost": a.cost, "ambiguity_ratio": a.ambiguity_ratio,
-                          "lo_offset_hz": a.lo_offset_hz} for a in res.associations],
+                          "lo_offset_hz": a.lo_offset_hz, "comb_id": a.comb_id, "tone_index": a.tone_index,
+                          "carrier": a.carrier} for a in res.associations],
     }
 
 
@@ -168,30 +200,40 @@ def write_outputs(res: PipelineResult, out_dir: Path) -> dict[str, Path]:
     start = res.info.start_utc
     pred = res.predictions
     rows_a, rows_m = [], []
-    for ridge, m, a in zip(res.ridges, res.measurements, res.associations):
-        pr = None
-        if pred is not None and a.sat_row >= 0 and m.t_s.size:
-            _, pr = pred.at(m.t_s)
-            pr = pr[a.sat_row]
-        for k in range(m.t_s.size):
-            resid = m.rate_hz_s[k] - pr[k] if pr is not None else math.nan
-            rows_a.append([m.t_s[k], _iso(start, m.t_s[k]), ridge.ridge_id, a.status, a.name, a.norad_id,
-                           m.doppler_hz[k], m.rate_hz_s[k], m.sigma_rate_hz_s[k], resid,
-                           a.lo_offset_hz, a.cost, a.ambiguity_ratio, a.second_name, a.second_norad_id, a.reason])
-            if a.status == "associated":
+    lo = res.lo
+    drift = lo.drift_hz_s if lo.drift_removed else 0.0
+    n_tones = {c.carrier_ridge_id: c.n_tones for c in res.combs}
+    own = res.ridge_measurements or res.measurements
+    for ridge, m0, m, a in zip(res.ridges, own, res.measurements, res.associations):
+        tone = "" if a.tone_index is None else a.tone_index
+        tail = [a.lo_offset_hz, a.cost, a.ambiguity_ratio, a.second_name, a.second_norad_id, a.comb_id, tone,
+                a.comb_tones, int(a.carrier), a.reason]
+        pr0 = pr = None
+        if pred is not None and a.sat_row >= 0:
+            pr0 = pred.at(m0.t_s)[1][a.sat_row] if m0.t_s.size else None
+            pr = pred.at(m.t_s)[1][a.sat_row] if m.t_s.size else None
+        for k in range(m0.t_s.size):  # every ridge's own fit; rate residual with the drift that went out
+            resid = m0.rate_hz_s[k] - drift - pr0[k] if pr0 is not None else math.nan
+            rows_a.append([m0.t_s[k], _iso(start, m0.t_s[k]), ridge.ridge_id, a.status, a.name, a.norad_id,
+                           m0.doppler_hz[k], m0.rate_hz_s[k], m0.sigma_rate_hz_s[k], resid, *tail])
+        if a.status == "associated" and pr is not None:
+            lo_t = lo.at(m.t_s) if np.isfinite(lo.offset_hz) else np.full(m.t_s.size, a.lo_offset_hz)
+            nt = n_tones.get(ridge.ridge_id, np.ones(m.t_s.size, int))
+            for k in range(m.t_s.size):
                 rows_m.append([m.t_s[k], _iso(start, m.t_s[k]), a.norad_id, a.name, m.rate_hz_s[k],
-                               m.sigma_rate_hz_s[k], m.doppler_hz[k], m.sigma_doppler_hz[k], a.lo_offset_hz,
-                               pr[k], resid, m.snr_db[k], ridge.ridge_id, TONE_RF_HZ])
-        if m.t_s.size == 0:
+                               m.sigma_rate_hz_s[k], m.doppler_hz[k], m.sigma_doppler_hz[k], lo_t[k],
+                               pr[k], m.rate_hz_s[k] - pr[k], m.snr_db[k], ridge.ridge_id, TONE_RF_HZ,
+                               drift, a.comb_id, int(nt[k])])
+        if m0.t_s.size == 0:
             rows_a.append([math.nan, "", ridge.ridge_id, a.status, a.name, a.norad_id, math.nan, math.nan,
-                           math.nan, math.nan, a.lo_offset_hz, a.cost, a.ambiguity_ratio, a.second_name,
-                           a.second_norad_id, a.reason])
+                           math.nan, math.nan, *tail])
     rows_m.sort(key=lambda r: (r[0], r[2]))
     paths = {
         "associations": write_csv(out_dir / "associations.csv",
                                   ["t_s", "epoch_utc", "ridge_id", "status", "name", "norad_id", "doppler_hz",
                                    "doppler_rate_hz_s", "sigma_hz_s", "rate_residual_hz_s", "lo_offset_hz",
-                                   "cost", "ambiguity_ratio", "second_name", "second_norad_id", "reason"], rows_a),
+                                   "cost", "ambiguity_ratio", "second_name", "second_norad_id", "comb_id",
+                                   "tone_index", "comb_tones", "carrier", "reason"], rows_a),
         "measurements": write_csv(out_dir / "doppler_rate_measurements.csv",
                                   [c[0] for c in MEASUREMENT_COLUMNS], rows_m),
     }
