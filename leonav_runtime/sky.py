@@ -21,10 +21,10 @@ import numpy as np
 
 from leonav_runtime import geometry
 
-# Elements older (or newer) than this, relative to the window, are flagged stale: SGP4
-# errors for LEO grow by roughly a kilometre per day, and Starlink satellites manoeuvre,
-# so a week-old set is no longer a faithful sky.
-STALE_AGE_DAYS = 7.0
+# Elements older (or newer) than this, relative to the window, are flagged stale when the
+# element set does not carry its own threshold (orbits.ElementSet.stale_after_days): SGP4
+# errors for LEO grow by roughly a kilometre per day and Starlink satellites manoeuvre.
+STALE_AGE_DAYS = 3.0
 
 # Satellite-epoch positions propagated per chunk (x3 doubles, plus velocities): keeps the
 # peak memory near 100 MB whatever the number of satellites and epochs.
@@ -79,6 +79,7 @@ class ConstellationView:
     failures: list[tuple[str, int, str]] = field(default_factory=list)
     rejected: list[Any] = field(default_factory=list)
     ages_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    stale_after_days: float = STALE_AGE_DAYS
 
     @property
     def n_failed(self) -> int:
@@ -130,12 +131,13 @@ class SkyView:
         return geometry.dop(az.T, el.T, vis.T)
 
 
-def _propagate_default(*args, **kwargs):
+def _propagate_default(elements: Any, epoch_utc: _dt.datetime, t_s: np.ndarray):
     # Imported lazily so this module (and its tests with fake propagators) does not need
-    # the orbit code at import time.
+    # the orbit code at import time. Positions only (no acceleration: not needed for a sky
+    # view), and no per-chunk stale warning: the summary reports element ages once.
     from leonav_runtime.orbits import propagate_ecef
 
-    return propagate_ecef(*args, **kwargs)
+    return propagate_ecef(elements, epoch_utc, t_s, acceleration=False, warn_stale=False)
 
 
 def _chunks(n_sats: int, nt: int) -> list[np.ndarray]:
@@ -186,6 +188,7 @@ def _view_one(
         failures=failures,
         rejected=list(getattr(elements, "rejected", []) or []),
         ages_s=np.asarray(elements.ages_s(epoch_utc), dtype=float) if n else np.zeros(0),
+        stale_after_days=float(getattr(elements, "stale_after_days", STALE_AGE_DAYS)),
     )
 
 
@@ -244,14 +247,14 @@ def _stats(x: np.ndarray) -> dict:
 
 def _rejected_entry(entry: Any) -> dict:
     """One rejected element-set entry as {file, line, reason} whatever its container."""
+    if all(hasattr(entry, a) for a in ("source", "line", "reason")):  # orbits.RejectedEntry
+        return {"file": str(entry.source), "line": int(entry.line), "name": getattr(entry, "name", ""),
+                "reason": str(entry.reason)}
     if isinstance(entry, Mapping):
-        return {k: entry.get(k) for k in ("file", "line", "reason")}
-    for attrs in (("file", "line", "reason"), ("path", "line", "reason")):
-        if all(hasattr(entry, a) for a in attrs):
-            return {"file": str(getattr(entry, attrs[0])), "line": getattr(entry, "line"), "reason": getattr(entry, "reason")}
+        return {k: entry.get(k) for k in ("file", "line", "name", "reason")}
     if isinstance(entry, (tuple, list)) and len(entry) == 3:
-        return {"file": str(entry[0]), "line": entry[1], "reason": str(entry[2])}
-    return {"file": None, "line": None, "reason": str(entry)}
+        return {"file": str(entry[0]), "line": entry[1], "name": "", "reason": str(entry[2])}
+    return {"file": None, "line": None, "name": "", "reason": str(entry)}
 
 
 def summarize(view: SkyView) -> dict:
@@ -285,12 +288,19 @@ def summarize(view: SkyView) -> dict:
             "ever": int(np.unique(c.sat_index).size),
         }
         ages_days = c.ages_s / 86400.0
-        stale = int(np.sum(np.abs(ages_days) > STALE_AGE_DAYS))
-        out["element_age_days"][name] = {**_stats(ages_days), "n_stale": stale, "stale_threshold_days": STALE_AGE_DAYS}
+        # Age at both ends of the window counts: a set is stale if either end is too far.
+        span_days = float(t_s[-1] - t_s[0]) / 86400.0
+        worst_days = np.maximum(np.abs(ages_days), np.abs(ages_days + span_days))
+        stale = int(np.sum(worst_days > c.stale_after_days))
+        out["element_age_days"][name] = {
+            **_stats(ages_days),
+            "n_stale": stale,
+            "stale_threshold_days": c.stale_after_days,
+        }
         if stale:
             out["warnings"].append(
-                f"{name}: {stale} of {ages_days.size} element sets are more than {STALE_AGE_DAYS:g} days from the "
-                f"window (median age {np.median(ages_days):.1f} d); positions may be km off"
+                f"{name}: {stale} of {ages_days.size} element sets are more than {c.stale_after_days:g} days from "
+                f"the window (median age {np.median(ages_days):.2f} d); their positions may be km off"
             )
         out["satellites"][name] = {
             "loaded": c.n_loaded,

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from leonav_runtime import geometry, sky
+from leonav_runtime.orbits import RejectedEntry
 
 EPOCH = dt.datetime(2026, 2, 23, 12, 0, 0, tzinfo=dt.timezone.utc)
 SITE = sky.ROCHESTER
@@ -147,10 +148,10 @@ def test_chunked_propagation_gives_the_same_result(monkeypatch):
 
 def test_summary_fields_match_counts_and_gps_dop():
     gps_tracks = [fixed(0, 90, 20e6)] + [fixed(30 + 90 * k, 30.0, 22e6) for k in range(4)] + [fixed(0, 5.0)]
-    gps = FakeElements([f"G{i}" for i in range(6)], gps_tracks, "gps", age_days=3.0)
+    gps = FakeElements([f"G{i}" for i in range(6)], gps_tracks, "gps", age_days=2.0)
     starlink = FakeElements(
         ["A", "B", "C"], [fixed(0, 50), rising(0.5, 10.0), fixed(0, 80)], "starlink", fail={2},
-        rejected=[("starlink.txt", 17, "line 1 checksum mismatch")], age_days=9.0,
+        rejected=[RejectedEntry("starlink.txt", 17, "STARLINK-9", "line 1 checksum mismatch")], age_days=9.0,
     )
     view = sky.sky_view({"gps": gps, "starlink": starlink}, SITE, EPOCH, T_S, propagate=fake_propagate)
     s = sky.summarize(view)
@@ -168,11 +169,13 @@ def test_summary_fields_match_counts_and_gps_dop():
     assert s["dop_gps"]["hdop"]["median"] == pytest.approx(hdop)
     assert s["dop_gps"]["vdop"]["max"] == pytest.approx(vdop)
     assert s["dop_gps"]["epochs_without_dop"] == 0 and s["dop_gps"]["reason"] == ""
-    assert s["element_age_days"]["gps"]["median"] == pytest.approx(3.0) and s["element_age_days"]["gps"]["n_stale"] == 0
+    assert s["element_age_days"]["gps"]["median"] == pytest.approx(2.0) and s["element_age_days"]["gps"]["n_stale"] == 0
     assert s["element_age_days"]["starlink"]["n_stale"] == 3
     assert any("starlink" in w and "days" in w for w in s["warnings"])
     assert s["left_out"]["starlink"]["sgp4_failures"] == [{"name": "C", "norad": 1002, "reason": "sgp4 error 6: decayed"}]
-    assert s["left_out"]["starlink"]["rejected"] == [{"file": "starlink.txt", "line": 17, "reason": "line 1 checksum mismatch"}]
+    assert s["left_out"]["starlink"]["rejected"] == [
+        {"file": "starlink.txt", "line": 17, "name": "STARLINK-9", "reason": "line 1 checksum mismatch"}
+    ]
     assert s["satellites"]["starlink"] == {"loaded": 3, "sgp4_failed": 1, "rejected_entries": 1}
 
 
