@@ -76,10 +76,11 @@ def _key(t: np.ndarray) -> np.ndarray:
 
 def pair_offset(mi: RidgeMeasurements, mj: RidgeMeasurements, cfg: CombConfig) -> tuple[int, float] | None:
     """(k, |miss| in Hz) when ridge j looks like ridge i shifted by k tones, else None."""
-    common, ii, jj = np.intersect1d(_key(mi.t_s), _key(mj.t_s), return_indices=True)
-    if common.size == 0:
+    ii, jj, dt = _match_epochs(mi.t_s, mj.t_s)
+    if ii.size == 0:
         return None
-    dd = mj.doppler_hz[jj] - mi.doppler_hz[ii]
+    jerk = np.gradient(mj.rate_hz_s, mj.t_s) if mj.t_s.size > 1 else np.zeros(1)
+    dd = mj.doppler_hz[jj] + mj.rate_hz_s[jj] * dt + 0.5 * jerk[jj] * dt**2 - mi.doppler_hz[ii]
     k = int(np.round(np.median(dd) / cfg.spacing_hz))
     if not 1 <= abs(k) <= 2 * cfg.max_tones_per_side:
         return None
@@ -88,11 +89,27 @@ def pair_offset(mi: RidgeMeasurements, mj: RidgeMeasurements, cfg: CombConfig) -
     tol = cfg.tol_hz + cfg.tol_ppm * 1e-6 * abs(k) * cfg.spacing_hz
     if np.any(np.abs(miss) > tol + 4 * sig_d):
         return None
-    da = mj.rate_hz_s[jj] - mi.rate_hz_s[ii]
+    da = mj.rate_hz_s[jj] + jerk[jj] * dt - mi.rate_hz_s[ii]
     sig_a = np.sqrt(np.mean(mi.sigma_rate_hz_s[ii] ** 2 + mj.sigma_rate_hz_s[jj] ** 2) / da.size)
     if abs(float(np.mean(da))) > 4 * sig_a + cfg.rate_tol_hz_s:
         return None
     return k, float(np.median(np.abs(miss)))
+
+
+def _match_epochs(ti: np.ndarray, tj: np.ndarray, max_dt_s: float = 1.5):
+    """Indices (ii, jj) and t_i - t_j of each epoch of i paired with the nearest epoch of j.
+
+    Epochs on the common grid match exactly; a short ridge's single mid-span epoch is
+    compared with its neighbour's Doppler moved by rate * dt + jerk * dt^2 / 2 (jerk from
+    the neighbour's rates; a ridge of one epoch has none: then the error is jerk * dt^2 / 2,
+    up to ~30 Hz for dt = 1 s near zenith).
+    """
+    pos = np.clip(np.searchsorted(tj, ti), 1, max(tj.size - 1, 1)) if tj.size > 1 else np.zeros(ti.size, int)
+    if tj.size > 1:
+        pos = np.where(np.abs(tj[pos - 1] - ti) <= np.abs(tj[pos] - ti), pos - 1, pos)
+    dt = ti - tj[pos]
+    ok = np.abs(dt) <= max_dt_s
+    return np.nonzero(ok)[0], pos[ok], dt[ok]
 
 
 def _overlap(a: RidgeMeasurements, b: RidgeMeasurements) -> bool:

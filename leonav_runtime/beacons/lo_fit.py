@@ -31,9 +31,10 @@ def wrap(x: np.ndarray | float, period: float) -> np.ndarray | float:
 
 
 def robust_mean(values: np.ndarray, sigmas: np.ndarray, k: float = 2.0, iters: int = 8) -> tuple[float, float]:
-    """Huber-weighted mean of values with 1-sigma `sigmas`; (mean, sigma of the mean).
+    """Robust weighted mean of values with 1-sigma `sigmas`; (mean, sigma of the mean).
 
-    The sigma is the formal one, inflated by the normalized scatter when that exceeds 1.
+    Weighted median, Huber iterations, then the weighted mean of the values within 3 sigma
+    of it. The sigma is the formal one, inflated by the normalized scatter when that exceeds 1.
     """
     v, s = np.asarray(values, float), np.maximum(np.asarray(sigmas, float), 1e-12)
     w = 1.0 / s**2
@@ -44,10 +45,15 @@ def robust_mean(values: np.ndarray, sigmas: np.ndarray, k: float = 2.0, iters: i
         u = np.abs(v - m) / s
         h = np.minimum(1.0, k / np.maximum(u, 1e-12))
         m = float(np.sum(w * h * v) / np.sum(w * h))
-    wh = w * np.minimum(1.0, k / np.maximum(np.abs(v - m) / s, 1e-12))
-    sig = 1.0 / np.sqrt(np.sum(wh))
-    if v.size > 1:
-        chi2 = float(np.sum(wh * (v - m) ** 2)) / (v.size - 1)
+    # Huber still leans towards gross outliers: drop values beyond 3 sigma, plain weighted mean of the rest
+    inl = np.abs(v - m) <= 3 * s
+    if inl.any():
+        m = float(np.sum(w[inl] * v[inl]) / np.sum(w[inl]))
+    else:
+        inl = np.ones(v.size, bool)
+    sig = 1.0 / np.sqrt(np.sum(w[inl]))
+    if inl.sum() > 1:
+        chi2 = float(np.sum(w[inl] * (v[inl] - m) ** 2)) / (inl.sum() - 1)
         sig *= max(1.0, np.sqrt(chi2))
     return m, float(sig)
 

@@ -17,6 +17,9 @@ Hann window's 1.76 dB processing loss (e.g. 40 dB-Hz -> ~19.6 dB in 73 Hz bins).
 0..255, with the noise at ~10 codes rms (the AGC-off gain a user would set so the
 noise fills a few bits without clipping). An optional DC offset (codes) reproduces the
 RTL-SDR DC spike.
+
+Tones of the comb beyond `passband_fraction * fs / 2` are left out (block by block), as the
+SDR's anti-alias filter would, instead of aliasing back into the band.
 """
 from __future__ import annotations
 
@@ -31,7 +34,7 @@ from scipy.interpolate import CubicSpline
 from leonav_runtime.beacons import capture_io
 from leonav_runtime.beacons.predict import Predictions, Site, TONE_RF_HZ, predict_visible
 
-COMB_SPACING_HZ = 43949.5  # spacing of the ~9 beacon tones around a channel centre
+from leonav_runtime.beacons.comb import COMB_SPACING_HZ  # noqa: F401  (re-exported: spacing of the ~9 tones)
 
 
 @dataclasses.dataclass
@@ -50,6 +53,8 @@ class SynthConfig:
     dc_offset_codes: float = 0.0
     n_satellites: int = 5
     band_fraction: float = 0.8            # keep chosen tones within this fraction of the band
+    full_comb_in_band: bool = True        # False: only the central tone must stay in the band
+    passband_fraction: float = 0.9        # tones beyond this fraction of fs/2 are not generated
     seed: int = 0
 
 
@@ -78,7 +83,9 @@ def choose_satellites(pred: Predictions, cfg: SynthConfig, rf_center_hz: float,
     """Rows of `pred` whose tone stays in the band and above the mask all window long."""
     inside = (pred.t_s >= 0) & (pred.t_s <= cfg.duration_s)
     bb = pred.doppler_hz[:, inside] + cfg.tone_rf_hz - rf_center_hz - cfg.lo_offset_hz
-    half = cfg.band_fraction * cfg.sample_rate_hz / 2 - (cfg.tones_per_satellite // 2) * COMB_SPACING_HZ
+    half = cfg.band_fraction * cfg.sample_rate_hz / 2
+    if cfg.full_comb_in_band:
+        half -= (cfg.tones_per_satellite // 2) * COMB_SPACING_HZ
     ok = (np.abs(bb).max(axis=1) < half) & (pred.elevation_rad[:, inside].min(axis=1) > 0)
     rows = np.nonzero(ok)[0]
     if rows.size < cfg.n_satellites:
@@ -140,7 +147,10 @@ def iter_synthetic_iq(truth: SynthTruth, cfg: SynthConfig) -> Iterator[np.ndarra
         xr, xi = x.real, x.imag  # views: add in place, no complex temporaries
         for i, amp in enumerate(amps):
             base = np.polyval(cycles[i].c[:, piece], tau)
+            f_block = truth.baseband_hz[i, piece: piece + 2]
             for j, off in enumerate(offsets):
+                if np.max(np.abs(f_block + off)) > cfg.passband_fraction * fs / 2:
+                    continue  # outside the SDR's passband
                 c = base + (off * (tau + truth.t_grid_s[piece]) + phase0[i, j])
                 c -= np.floor(c)
                 ph = (2 * np.pi * c).astype(np.float32)
