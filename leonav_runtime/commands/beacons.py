@@ -22,8 +22,10 @@ def register(subparsers) -> None:
             "Read an IQ capture of the Starlink Ku-band beacon tones (RTL-SDR raw cu8, SigMF, or "
             "complex64), build a band-limited waterfall, track the tone ridges, estimate Doppler and "
             "Doppler-rate (local quadratic fit with sigma), predict every satellite above the elevation "
-            "mask from the element sets with the symbolic measurement model, and associate ridges to "
-            "satellites jointly (constant LO offset fitted per ridge). Writes associations.csv, "
+            "mask from the element sets with the symbolic measurement model, group the parallel tones of "
+            "each satellite (comb spaced 43.9495 kHz) and associate the combs to satellites jointly, with "
+            "one LO offset and drift for the whole capture (the drift is removed from the rates written "
+            "for the filter). Writes associations.csv, "
             "doppler_rate_measurements.csv (the filter's input; columns in "
             "doppler_rate_measurements.columns.txt), waterfall.png and summary.json. With --simulate, "
             "first writes a synthetic capture to CAPTURE from the element sets (or the built-in "
@@ -64,6 +66,9 @@ def register(subparsers) -> None:
                    help="ignore +/- this around 0 Hz (RTL-SDR DC spike); default off")
     p.add_argument("--interval", type=float, default=1.0, metavar="S",
                    help="spacing of the Doppler-rate measurement epochs, s (default %(default)g)")
+    p.add_argument("--keep-drift", action="store_true",
+                   help="do not remove the fitted common LO drift from the rates (it is still reported); "
+                        "e.g. for a moving receiver, whose motion the static-site prediction does not know")
     sim = p.add_argument_group("simulation (--simulate)")
     sim.add_argument("--simulate", action="store_true",
                      help="write a synthetic capture to CAPTURE first, then process it")
@@ -75,6 +80,9 @@ def register(subparsers) -> None:
     sim.add_argument("--n-sats", type=int, default=5, metavar="N", help="satellites (tones) to put in (default 5)")
     sim.add_argument("--lo-offset", type=float, default=35e3, metavar="HZ", help="LNB LO error at t=0, Hz")
     sim.add_argument("--lo-drift", type=float, default=0.3, metavar="HZ/S", help="LNB LO drift, Hz/s")
+    sim.add_argument("--tones", type=int, default=1, metavar="N",
+                     help="tones per satellite, centred on the channel, 43.9495 kHz apart (default 1; "
+                          "a real channel has 9); tones beyond the band are left out")
     sim.add_argument("--seed", type=int, default=0, help="random seed (satellite choice, noise)")
     sim.add_argument("--sim-format", choices=["cu8", "sigmf", "cf32"], default="cu8",
                      help="file format of the synthetic capture (default cu8 + CAPTURE.json)")
@@ -114,12 +122,15 @@ def run(args: argparse.Namespace) -> int:
         if start is None:
             newest = max(elements.epochs_utc)
             start = newest.replace(microsecond=0) + _dt.timedelta(seconds=1)
+        if not 1 <= args.tones <= 9:
+            raise UserInputError(f"--tones: expected 1..9 tones per satellite, got {args.tones}")
         for name, v in (("--duration", args.duration), ("--sim-rate", args.sim_rate)):
             if not (math.isfinite(v) and v > 0):
                 raise UserInputError(f"{name}: expected a positive number, got {v!r}")
         cfg = synth.SynthConfig(duration_s=args.duration, sample_rate_hz=args.sim_rate, cn0_dbhz=args.cn0,
                                 lo_offset_hz=args.lo_offset, lo_drift_hz_s=args.lo_drift,
-                                n_satellites=args.n_sats, seed=args.seed, tone_rf_hz=args.tone_freq)
+                                n_satellites=args.n_sats, seed=args.seed, tone_rf_hz=args.tone_freq,
+                                tones_per_satellite=args.tones, full_comb_in_band=False)
         bar, tick = _progress(int(cfg.duration_s * cfg.sample_rate_hz), "synthesizing")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # stale-element warnings are reported in summary.json
@@ -143,6 +154,7 @@ def run(args: argparse.Namespace) -> int:
                              "(or core:datetime / start_utc in the metadata)")
     cfg = pipeline.PipelineConfig(tone_rf_hz=args.tone_freq, band_hz=args.band, fft_size=args.fft_size,
                                   dc_notch_hz=args.dc_notch, meas_interval_s=args.interval, mask_deg=args.mask)
+    cfg.association.remove_drift = not args.keep_drift
     bar, tick = _progress(info.n_samples, "processing")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -158,12 +170,23 @@ def run(args: argparse.Namespace) -> int:
           f"{s['candidates_above_mask']} satellites above {args.mask:g} deg")
     if res.reason:
         print(f"no measurements: {res.reason}")
-    print(f"ridges {c['ridges']}: associated {c['associated']}, ambiguous {c['ambiguous']}, "
+    print(f"ridges {c['ridges']} in {c.get('combs', 0)} comb(s): associated {c['associated']} "
+          f"({c.get('satellites_associated', 0)} satellites), ambiguous {c['ambiguous']}, "
           f"unassociated {c['unassociated']}")
+    lo = res.lo
+    if lo.n_combs:
+        mod = "" if lo.pinned else f" (modulo {lo.ambiguity_hz / 1e3:g} kHz)"
+        print(f"common LO: offset {lo.offset_hz / 1e3:+.3f} kHz{mod}, drift {lo.drift_hz_s:+.3f} "
+              f"+/- {lo.sigma_drift_hz_s:.3f} Hz/s from {lo.n_combs} comb(s), "
+              f"{'removed from the rates' if lo.drift_removed else 'not removed'}"
+              f"{'; ' + lo.note if lo.note and not lo.drift_removed else ''}")
     for a in res.associations:
         tag = f"{a.name} ({a.norad_id})" if a.status != "unassociated" else "-"
         extra = (f" cost {a.cost:.2f}, ratio {a.ambiguity_ratio:.1f}, LO offset {a.lo_offset_hz / 1e3:+.3f} kHz, "
                  f"rms rate residual {a.rms_rate_hz_s:.2f} Hz/s") if a.status != "unassociated" else ""
+        if a.comb_tones > 1 or a.tone_index:
+            extra = f" comb {a.comb_id} tone {'?' if a.tone_index is None else f'{a.tone_index:+d}'}" + (
+                extra if a.carrier else "")
         print(f"  ridge {a.ridge_id}: {a.status:12s} {tag}{extra}{'; ' + a.reason if a.reason else ''}")
     if r["n"]:
         print(f"|delta alpha| over {r['n']} epochs: median {r['median']:.2f}, mean {r['mean']:.2f}, "
