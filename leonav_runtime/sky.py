@@ -358,22 +358,30 @@ def plot(view: SkyView, path) -> None:
     span_s = view.t_s[-1] - view.t_s[0]
     t_unit, t_scale = ("h", 3600.0) if span_s >= 3 * 3600 else ("min", 60.0) if span_s >= 300 else ("s", 1.0)
     t_axis = view.t_s / t_scale
-    for i, (name, c) in enumerate(view.constellations.items()):
+    # Largest constellation first, so the few GPS tracks are drawn over the Starlink ones.
+    order = sorted(view.constellations.items(), key=lambda item: -item[1].n_loaded)
+    for i, (name, c) in enumerate(order):
         colour = _colour(name, i)
         mask_deg = math.degrees(c.mask_rad)
+        z = 2 + 2 * i
         ax_sky.plot(theta_circle, np.full_like(theta_circle, 90 - mask_deg), ls="--", lw=1.0, color=colour, alpha=0.8)
         sats, az, el, vis = c.dense(nt)
         az, el = az[:, :n_track], el[:, :n_track]
+        # Unwrap azimuth so a track crossing North is drawn across it instead of around the
+        # whole circle; NaN (hidden, or the separator column) breaks the line. All tracks of
+        # a constellation go into one line: one artist per satellite is ~10x slower.
         for row in range(sats.size):
-            # Break the track where the satellite is hidden; unwrap azimuth so a track
-            # crossing North is drawn across it instead of around the whole circle.
-            a = az[row].copy()
-            finite = np.isfinite(a)
-            a[finite] = np.unwrap(a[finite])
-            ax_sky.plot(a, 90 - np.degrees(el[row]), lw=0.8, color=colour, alpha=0.55)
+            finite = np.isfinite(az[row])
+            az[row, finite] = np.unwrap(az[row, finite])
+        sep = np.full((sats.size, 1), np.nan)
+        ax_sky.plot(
+            np.hstack([az, sep]).ravel(), np.hstack([90 - np.degrees(el), sep]).ravel(),
+            lw=0.8 if c.n_loaded > 100 else 1.4, color=colour, alpha=0.55 if c.n_loaded > 100 else 0.9, zorder=z,
+        )
         now = c.t_index == 0
         label = f"{name} (mask {mask_deg:g}°, {int(c.count[0])} visible at start)"
-        ax_sky.scatter(c.az_rad[now], 90 - np.degrees(c.el_rad[now]), s=14, color=colour, zorder=3, label=label)
+        ax_sky.scatter(c.az_rad[now], 90 - np.degrees(c.el_rad[now]), s=16, color=colour, zorder=z + 1, label=label,
+                       edgecolors="white", linewidths=0.4)
         ax_cnt.step(t_axis, c.count, where="post", color=colour, lw=1.6, label=f"{name} (≥ {mask_deg:g}°)")
         k = int(np.argmin(c.count))
         ax_cnt.plot(t_axis[k], c.count[k], "v", color=colour, ms=9)
@@ -381,7 +389,7 @@ def plot(view: SkyView, path) -> None:
             f"min {int(c.count[k])}",
             (t_axis[k], c.count[k]),
             textcoords="offset points",
-            xytext=(6, -14),
+            xytext=(8, -4),
             color=colour,
             fontsize=9,
         )
@@ -394,7 +402,7 @@ def plot(view: SkyView, path) -> None:
     )
     ax_sky.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), fontsize=8, frameon=False)
     ax_cnt.axhline(4, color="grey", lw=0.8, ls=":")
-    ax_cnt.text(t_axis[0], 4, " 4 needed for a fix", va="bottom", fontsize=8, color="grey")
+    ax_cnt.text(t_axis[-1], 4, "4 needed for a fix ", va="bottom", ha="right", fontsize=8, color="grey")
     ax_cnt.set_xlabel(f"time since start [{t_unit}]")
     ax_cnt.set_ylabel("visible satellites")
     ax_cnt.set_ylim(bottom=0)
@@ -406,6 +414,6 @@ def plot(view: SkyView, path) -> None:
         f"from {view.epoch_utc:%Y-%m-%d %H:%M:%S} UTC",
         fontsize=10,
     )
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.04, right=0.98, top=0.86, bottom=0.13, wspace=0.18)  # fixed: tight_layout costs a draw
     fig.savefig(path, dpi=120)
     plt.close(fig)
