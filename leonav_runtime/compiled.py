@@ -285,6 +285,7 @@ class RunOut(ctypes.Structure):
 
     _fields_ = [
         ("x", _c_double_p), ("P_diag", _c_double_p), ("P", _c_double_p),
+        ("P_mask", ctypes.POINTER(ctypes.c_uint8)),
         ("y", _c_double_p), ("S", _c_double_p), ("nis", _c_double_p),
         ("status", ctypes.POINTER(ctypes.c_int32)),
         ("n_done", ctypes.c_long), ("n_imu", ctypes.c_long), ("n_applied", ctypes.c_long),

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from leonav_runtime import filter as lfilter
 from leonav_runtime import navfuncs, simulate
 
 FD_STEP_M = 1.0  # central-difference step; the models are smooth on this scale
@@ -55,9 +54,7 @@ def pcrb_static(setup: simulate.Setup, nav: navfuncs.NavFunctions, count: int, m
         params[off] = tiny_noise
     B0 = np.eye(L.NDX) * tight_var
     B0[L.DX_DP:L.DX_DP + 3, L.DX_DP:L.DX_DP + 3] = np.eye(3) * vague_position_var_m2
-    trial = simulate.trial_records(setup, mode, count, np.random.default_rng(0), nav, noise_free=True)
-    recs = trial.records
-    k_of = np.rint(recs["t"] * setup.scn.imu_rate_hz).astype(int)
-    k_lin = np.where(recs["kind"] < 0, k_of - 1, k_of)
-    res = lfilter.pcrb(recs, setup.x_true[k_lin], B0, params, library=nav.library)
+    from leonav_runtime.montecarlo import pcrb_on_truth
+
+    _, res = pcrb_on_truth(setup, nav, mode, count, B0=B0, params=params)
     return res.B_nav[-1][0:3, 0:3]

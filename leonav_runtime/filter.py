@@ -157,11 +157,14 @@ class EKF:
         return float(h[0]), H
 
     # -- whole streams ----------------------------------------------------------
-    def run(self, recs: np.ndarray, gate: GateSpec | str = "filter", full_P: bool = False) -> RunResult:
+    def run(self, recs: np.ndarray, gate: GateSpec | str = "filter", full_P: bool = False,
+            P_rows: np.ndarray | None = None) -> RunResult:
         """Run a time-ordered RECORD_DTYPE stream in the C loop; x and P end at its end.
 
         gate: "filter" uses this filter's gate, else a gate spec (see module doc).
         full_P: also return P after every record (n * NDX^2 doubles).
+        P_rows: record indices (increasing) after which to return P instead; `RunResult.P`
+        then has one block per index, in that order.
         """
         recs = np.ascontiguousarray(recs)
         records.check_records(recs, len(self.lib.meas_ids))
@@ -170,11 +173,22 @@ class EKF:
         gates = np.ascontiguousarray(gates, dtype=np.float64)
         x_hist = np.empty((n, self.nx))
         pd_hist = np.empty((n, self.ndx))
-        p_hist = np.empty((n, self.ndx, self.ndx)) if full_P else None
+        mask = None
+        if P_rows is not None:
+            rows = np.asarray(P_rows, dtype=np.int64)
+            if rows.size and (np.any(np.diff(rows) <= 0) or rows[0] < 0 or rows[-1] >= n):
+                raise ValueError(f"P_rows: expected increasing record indices in [0, {n})")
+            mask = np.zeros(n, dtype=np.uint8)
+            mask[rows] = 1
+            p_hist = np.empty((rows.size, self.ndx, self.ndx))
+        else:
+            p_hist = np.empty((n, self.ndx, self.ndx)) if full_P else None
         y, S, nis = np.empty(n), np.empty(n), np.empty(n)
         status = np.empty(n, dtype=np.int32)
         out = compiled.RunOut(
-            x=_ptr(x_hist), P_diag=_ptr(pd_hist), P=_ptr(p_hist), y=_ptr(y), S=_ptr(S), nis=_ptr(nis),
+            x=_ptr(x_hist), P_diag=_ptr(pd_hist), P=_ptr(p_hist),
+            P_mask=None if mask is None else mask.ctypes.data_as(ctypes.POINTER(ctypes.c_uint8)),
+            y=_ptr(y), S=_ptr(S), nis=_ptr(nis),
             status=status.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
         rc = self.lib.lib.leonav_run(_ptr(self.x), _ptr(self.P), _ptr(self.params), recs.ctypes.data, n,
                                      _ptr(gates), ctypes.byref(out), self._work.ctypes.data)
@@ -226,35 +240,16 @@ def pcrb(recs: np.ndarray, x_lin: np.ndarray, B0, params, library: compiled.Libr
     return PcrbResult(recs["t"].copy(), B_diag, B_nav.transpose(0, 2, 1), B)
 
 
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    w1, v1, w2, v2 = a[0], a[1:], b[0], b[1:]
-    return np.r_[w1 * w2 - v1 @ v2, w1 * v2 + w2 * v1 + np.cross(v1, v2)]
-
-
 def stationary_imu(x, dt: float, params, library: compiled.Library | None = None) -> np.ndarray:
     """IMU increments u (6,) that keep the nominal state x at rest over an interval dt (s).
 
-    Solved by Newton iterations on the generated mechanization itself (velocity change
-    and body-frame attitude change both zero), so a simulated static receiver is
-    exactly static for the filter's model (gravity, Earth rate, Coriolis included).
+    Solved on the generated mechanization itself (`NavFunctions.imu_increments` towards x:
+    velocity change and body-frame attitude change both zero), so a simulated static
+    receiver is exactly static for the filter's model (gravity, Earth rate, Coriolis).
     """
-    lib = library if library is not None else compiled.load()
-    x = np.array(x, dtype=np.float64)
-    p = np.ascontiguousarray(params, dtype=np.float64)
-    work = lib.new_workspace()
-    v_sl, q_sl = slice(3, 6), slice(6, 10)
+    from leonav_runtime.navfuncs import NavFunctions
 
-    def residual(u: np.ndarray) -> np.ndarray:
-        x1 = x.copy()
-        if lib.lib.leonav_mech_step(_ptr(x1), _ptr(u), float(dt), _ptr(p), work.ctypes.data) != 0:
-            raise RuntimeError("leonav_mech_step failed while solving for stationary IMU increments")
-        dq = _quat_mul(x[q_sl] * np.r_[1.0, -1.0, -1.0, -1.0], x1[q_sl])  # q^-1 (x) q_next, body frame
-        return np.r_[x1[v_sl] - x[v_sl], 2.0 * np.sign(dq[0]) * dq[1:]]
-
-    u = np.zeros(6)
-    step = 1e-6
-    for _ in range(4):
-        r0 = residual(u)
-        J = np.column_stack([(residual(u + step * e) - r0) / step for e in np.eye(6)])
-        u = u - np.linalg.solve(J, r0)
+    nav = NavFunctions(params=np.asarray(params, dtype=np.float64), library=library)
+    x = np.asarray(x, dtype=np.float64)
+    u, _ = nav.imu_increments(x, x, float(dt), tol=1e-16)
     return u

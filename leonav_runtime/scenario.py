@@ -6,11 +6,11 @@ below (type, unit, range, allowed values), rejects unknown keys (typos), and ret
 `Scenario` whose fields are SI (rad, m, s, Hz). Errors name the file, the field, the value
 and what was expected.
 
-Satellite-selection rule (`starlink.selection`): at each Starlink epoch the N satellites are
-chosen once, at the scenario start, among those above the mask for the whole window:
-`"highest-elevation"` takes the N with the highest elevation at the start (the default);
-`"random"` draws N at random per trial from the seed. Asking for more satellites than are
-visible is an error that names the count available, never a silent cap.
+Satellite-selection rule (`starlink.selection`, one rule today: `"highest-elevation"`): at
+every Starlink epoch the N satellites above the mask with the highest elevation are used,
+so over a long run the set follows the sky as satellites rise and set. Asking for more
+satellites than are above the mask at some epoch is an error that names the count
+available, never a silent cap.
 """
 from __future__ import annotations
 
@@ -27,6 +27,7 @@ else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
 from leonav_runtime.errors import UserInputError
+from models.imu import PROFILES as IMU_PROFILE_DATA
 
 BUILTIN_DIR = Path(__file__).with_name("scenarios")
 
@@ -49,9 +50,9 @@ MODE_OBSERVABLES: dict[str, tuple[str, ...]] = {
     "leo-doppler+alpha+imu": ("doppler", "doppler_rate"),
 }
 
-IMU_PROFILES = ("tactical", "consumer-wt901")
+IMU_PROFILES = tuple(IMU_PROFILE_DATA)  # names of models/imu.py PROFILES: tactical, wt901
 TRAJECTORY_KINDS = ("static", "maneuvers")
-SELECTION_RULES = ("highest-elevation", "random")
+SELECTION_RULES = ("highest-elevation",)
 
 
 @dataclass(frozen=True)
@@ -288,6 +289,7 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
         raise UserInputError(
             f"{source}: [starlink] counts = {counts!r}: expected a non-empty list of integers >= 1"
         )
+    star["counts"] = sorted(set(counts))  # ascending: min/max and curves read it in order
     star["elevation_mask_rad"] = math.radians(star.pop("elevation_mask_deg"))
 
     files = values["elements"]["files"]
@@ -305,6 +307,7 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
             f"{source}: [monte_carlo] modes contains {bad[0] if bad else modes!r}: expected a "
             f"non-empty list of {', '.join(MODES)}"
         )
+    modes = list(dict.fromkeys(modes))  # keep the given order, drop repeats
     filt = dict(values["filter"])
     filt["initial_attitude_sigma_rad"] = math.radians(filt.pop("initial_attitude_sigma_deg"))
 

@@ -132,7 +132,7 @@ def _scenario(cfg: SynthSessionConfig):
         "site": {"lat_deg": cfg.lat_deg, "lon_deg": cfg.lon_deg, "alt_m": cfg.alt_m},
         "time": {"epoch": cfg.epoch_utc.isoformat().replace("+00:00", "Z"), "duration_s": cfg.seconds},
         "trajectory": {"kind": "static", "attitude_deg": list(cfg.attitude_deg)},
-        "imu": {"profile": "consumer-wt901", "rate_hz": cfg.imu_rate_hz},
+        "imu": {"profile": "wt901", "rate_hz": cfg.imu_rate_hz},
         "gps": {"rate_hz": cfg.gnss_rate_hz},
     }, source="<synthetic session>")
 

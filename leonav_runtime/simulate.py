@@ -113,8 +113,18 @@ def truth(scn: Scenario, params: np.ndarray, nav: navfuncs.NavFunctions):
 
 # ---- satellites -------------------------------------------------------------------------
 
+def needed_constellations(scn: Scenario) -> tuple[str, ...]:
+    """Constellations the scenario's modes use (GPS for pseudoranges, Starlink for the rest)."""
+    used = {k for m in scn.modes for k in MODE_OBSERVABLES[m]}
+    return tuple(c for c, needed in (("gps", "pseudorange" in used), ("starlink", bool(used - {"pseudorange"})))
+                 if needed)
+
+
 def scenario_elements(scn: Scenario) -> dict[str, ElementSet]:
-    """Element sets of the scenario: built-in Walker constellations at its epoch, or its files."""
+    """Element sets of the scenario: built-in Walker constellations at its epoch, or its files.
+
+    Files must give every constellation the scenario's modes use (`needed_constellations`).
+    """
     if scn.element_source == "builtin":
         return default_elements(scn.epoch_utc)
     sets: dict[str, list[ElementSet]] = {}
@@ -127,7 +137,7 @@ def scenario_elements(scn: Scenario) -> dict[str, ElementSet]:
         for other in group[1:]:
             es = es.concat(other)
         out[name] = es
-    for need in ("gps", "starlink"):
+    for need in needed_constellations(scn):
         if need not in out:
             raise UserInputError(
                 f"{scn.source}: [elements] files give no {need} element sets "
@@ -152,9 +162,14 @@ def _receiver_ecef(scn: Scenario, p_enu: np.ndarray) -> np.ndarray:
     return geometry.enu_to_ecef(p_enu, r0, scn.lat_rad, scn.lon_rad)
 
 
-def _visible_ranked(scn, es, t_s, p_enu, mask_rad, acceleration=True):
-    """States of `es` at t_s and, per epoch, visible satellites sorted by elevation."""
+def _visible_ranked(scn, es, t_s, p_enu, mask_rad, notes: list[str], acceleration=True):
+    """States of `es` at t_s and, per epoch, visible satellites sorted by elevation.
+
+    Satellites SGP4 cannot propagate are left out (NaN) and named in `notes`.
+    """
     states = propagate_ecef(es, scn.epoch_utc, t_s, acceleration=acceleration)
+    for name, norad, reason in states.failures:
+        notes.append(f"{es.constellation} {name} ({norad}) left out: {reason}")
     r_rx = _receiver_ecef(scn, p_enu)                         # (nt, 3)
     _, el, rho = geometry.az_el_range(states.r_ecef_m, r_rx[None, :, :], scn.lat_rad, scn.lon_rad)
     el = np.where(np.isfinite(el), el, -np.inf)
@@ -190,11 +205,11 @@ def _series(nav, kind_name, rows, x_true) -> SatSeries:
                      aux, z, H, np.array([r[4] for r in rows], np.int32))
 
 
-def _gps_rows(scn, nav, es, t_imu, x_true, f_b):
+def _gps_rows(scn, nav, es, t_imu, x_true, f_b, notes):
     idx = _epochs(scn, scn.gps["rate_hz"], t_imu)
     t = t_imu[idx]
     p_enu = x_true[idx, nav.layout.X_P_ENU:nav.layout.X_P_ENU + 3]
-    states, ranked, rho = _visible_ranked(scn, es, t, p_enu, scn.gps["elevation_mask_rad"])
+    states, ranked, rho = _visible_ranked(scn, es, t, p_enu, scn.gps["elevation_mask_rad"], notes)
     r_rx = _receiver_ecef(scn, p_enu)
     rows = []
     for j, k in enumerate(idx):
@@ -213,13 +228,13 @@ def _gps_rows(scn, nav, es, t_imu, x_true, f_b):
     return rows, min(vis) if vis else 0
 
 
-def _starlink_rows(scn, nav, es, t_imu, x_true, f_b):
+def _starlink_rows(scn, nav, es, t_imu, x_true, f_b, notes):
     idx = _epochs(scn, scn.starlink["rate_hz"], t_imu)
     t = t_imu[idx]
     p_enu = x_true[idx, nav.layout.X_P_ENU:nav.layout.X_P_ENU + 3]
     # Only satellites that can be above the mask need states: pre-filter on the first epoch
     # would miss risers over long runs, so propagate all (vectorized SGP4 is cheap).
-    states, ranked, _ = _visible_ranked(scn, es, t, p_enu, scn.starlink["elevation_mask_rad"])
+    states, ranked, _ = _visible_ranked(scn, es, t, p_enu, scn.starlink["elevation_mask_rad"], notes)
     n_max = max(scn.starlink["counts"])
     alpha, dopp, ofdm = [], [], []
     for j, k in enumerate(idx):
@@ -240,26 +255,74 @@ def _starlink_rows(scn, nav, es, t_imu, x_true, f_b):
     return alpha, dopp, ofdm, min(vis) if vis else 0
 
 
-def prior_covariance(scn: Scenario, profile, layout) -> np.ndarray:
-    """Filter prior P0 (NDX, NDX), diagonal: scenario sigmas, IMU profile bias sigmas,
-    clock and LO priors (module constants)."""
+def prior_sigmas(layout, profile, position_m, velocity_mps, attitude_rad) -> np.ndarray:
+    """1-sigma of the filter prior per error state (NDX,): navigation sigmas as given
+    (scalars or 3-vectors; m, m/s, rad), IMU biases from the profile, clock and LO from the
+    module constants."""
     L = layout
     sig = np.zeros(L.NDX)
-    sig[L.DX_DP:L.DX_DP + 3] = scn.filter["initial_position_sigma_m"]
-    sig[L.DX_DV:L.DX_DV + 3] = scn.filter["initial_velocity_sigma_mps"]
-    sig[L.DX_DTHETA:L.DX_DTHETA + 3] = scn.filter["initial_attitude_sigma_rad"]
+    sig[L.DX_DP:L.DX_DP + 3] = position_m
+    sig[L.DX_DV:L.DX_DV + 3] = velocity_mps
+    sig[L.DX_DTHETA:L.DX_DTHETA + 3] = attitude_rad
     sig[L.DX_DB_A:L.DX_DB_A + 3] = profile.acc_bias_sigma
     sig[L.DX_DB_G:L.DX_DB_G + 3] = profile.gyro_bias_sigma
     sig[L.DX_DC_DT] = CLOCK_BIAS_SIGMA_M
     sig[L.DX_DC_DDT] = CLOCK_DRIFT_SIGMA_MPS
     sig[L.DX_DB_LO] = LO_OFFSET_SIGMA_HZ
-    return np.diag(sig**2)
+    return sig
+
+
+def prior_covariance(scn: Scenario, profile, layout) -> np.ndarray:
+    """Filter prior P0 (NDX, NDX), diagonal, from the scenario's [filter] sigmas."""
+    f = scn.filter
+    return np.diag(prior_sigmas(layout, profile, f["initial_position_sigma_m"], f["initial_velocity_sigma_mps"],
+                                f["initial_attitude_sigma_rad"]) ** 2)
+
+
+def bias_walks(rng: np.random.Generator, profile, n: int, dt: float, scale: float = 1.0):
+    """True accelerometer and gyro biases (n+1, 3) each at the IMU samples: an initial draw
+    from the profile's bias sigma, then its random walk (m/s^2, rad/s; body frame).
+    scale 0 gives zero biases (the draws are still made, to keep random streams aligned)."""
+    b_a = _random_walk(rng, n, dt, scale * profile.acc_bias_sigma * rng.standard_normal(3),
+                       scale * profile.acc_bias_rw**2)
+    b_g = _random_walk(rng, n, dt, scale * profile.gyro_bias_sigma * rng.standard_normal(3),
+                       scale * profile.gyro_bias_rw**2)
+    return b_a, b_g
+
+
+def measured_increments(rng: np.random.Generator, profile, u_true: np.ndarray, b_a: np.ndarray,
+                        b_g: np.ndarray, dt: float, scale: float = 1.0) -> np.ndarray:
+    """IMU increments as the sensor gives them: the ideal ones plus the bias at the start of
+    each interval and the white noise of the profile (ARW, VRW). (n, 6): rad, m/s."""
+    n = u_true.shape[0]
+    u = u_true.copy()
+    u[:, :3] += b_g[:-1] * dt + scale * profile.arw * math.sqrt(dt) * rng.standard_normal((n, 3))
+    u[:, 3:] += b_a[:-1] * dt + scale * profile.vrw * math.sqrt(dt) * rng.standard_normal((n, 3))
+    return u
+
+
+def averaged_specific_force(dvel_b: np.ndarray, dt_s: np.ndarray | float,
+                            window_s: float = F_B_AVERAGE_S) -> tuple[np.ndarray, float]:
+    """Specific force (m/s^2, body) averaged over the last `window_s` at every IMU sample.
+
+    dvel_b (n, 3): velocity increments of the n intervals; dt_s: their lengths (s). Returns
+    (f_b (n+1, 3) at samples 0..n, sample 0 taking the first interval; the averaging span
+    in s), the input of the Doppler-rate model's receiver acceleration and of its noise
+    (`models.input_noise.doppler_rate_variance`).
+    """
+    dt = np.broadcast_to(np.asarray(dt_s, dtype=float), (dvel_b.shape[0],))
+    n_avg = max(1, int(round(window_s / float(np.median(dt)))))
+    dv = np.vstack([np.zeros(3), np.cumsum(dvel_b, axis=0)])
+    tt = np.concatenate([[0.0], np.cumsum(dt)])
+    k_end = np.maximum(np.arange(dvel_b.shape[0] + 1), 1)
+    k_start = np.maximum(k_end - n_avg, 0)
+    return (dv[k_end] - dv[k_start]) / (tt[k_end] - tt[k_start])[:, None], n_avg * float(np.median(dt))
 
 
 def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
     """Truth, satellite geometry and noise-free measurements shared by all trials."""
     nav = nav or navfuncs.NavFunctions()
-    profile = IMU_PROFILES["wt901" if scn.imu_profile == "consumer-wt901" else scn.imu_profile]
+    profile = IMU_PROFILES[scn.imu_profile]
     params = np.array(build_params(scn.lat_rad, scn.lon_rad, scn.alt_m, imu=profile,
                                    q_blo=LO_RANDOM_WALK_HZ2_S, f_c_hz=scn.starlink["carrier_hz"]))
     nav.params = params
@@ -269,16 +332,20 @@ def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
     f_b = np.vstack([u_true[:1, 3:], u_true[:, 3:]]) / dt
 
     elements = scenario_elements(scn)
-    gps_rows, gps_min = _gps_rows(scn, nav, elements["gps"], t_imu, x_true, f_b)
-    alpha, dopp, ofdm, sl_min = _starlink_rows(scn, nav, elements["starlink"], t_imu, x_true, f_b)
+    needed = needed_constellations(scn)
+    notes: list[str] = []
+    gps_rows, gps_min = (_gps_rows(scn, nav, elements["gps"], t_imu, x_true, f_b, notes)
+                         if "gps" in needed else ([], 0))
+    alpha, dopp, ofdm, sl_min = (_starlink_rows(scn, nav, elements["starlink"], t_imu, x_true, f_b, notes)
+                                 if "starlink" in needed else ([], [], [], 0))
     n_max = max(scn.starlink["counts"])
-    if sl_min < n_max:
+    if "starlink" in needed and sl_min < n_max:
         raise UserInputError(
             f"{scn.source}: [starlink] counts asks for up to {n_max} satellites but only "
             f"{sl_min} are above the {math.degrees(scn.starlink['elevation_mask_rad']):.0f} deg "
             f"mask at some Starlink epoch of this scenario; lower the counts or the mask"
         )
-    if gps_min < 4 and any("gps" in m for m in scn.modes):
+    if "gps" in needed and gps_min < 4:
         raise UserInputError(
             f"{scn.source}: only {gps_min} GPS satellites above the mask at some epoch (need >= 4)"
         )
@@ -289,7 +356,7 @@ def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
         "ofdm_range_diff": _series(nav, "ofdm_range_diff", ofdm, x_true),
     }
     return Setup(scn, params, t_imu, x_true, u_true, series, {"gps": gps_min, "starlink": sl_min},
-                 prior_covariance(scn, profile, nav.layout), profile)
+                 prior_covariance(scn, profile, nav.layout), profile, notes)
 
 
 # ---- one trial ----------------------------------------------------------------------------
@@ -344,8 +411,7 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     x_true = setup.x_true.copy()
     g = 0.0 if noise_free else 1.0
 
-    b_a = _random_walk(rng, n, dt, g * prof.acc_bias_sigma * rng.standard_normal(3), g * prof.acc_bias_rw**2)
-    b_g = _random_walk(rng, n, dt, g * prof.gyro_bias_sigma * rng.standard_normal(3), g * prof.gyro_bias_rw**2)
+    b_a, b_g = bias_walks(rng, prof, n, dt, g)
     q_cdt, q_cddt = setup.params[L.P_Q_CDT], setup.params[L.P_Q_CDDT]
     c_ddt = _random_walk(rng, n, dt, scn.gps["clock_drift_mps"], g * q_cddt)
     c_dt = scn.gps["clock_bias_m"] + np.concatenate([[0.0], np.cumsum(c_ddt[:-1] * dt)]) \
@@ -355,17 +421,9 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     x_true[:, L.X_B_G:L.X_B_G + 3] = b_g
     x_true[:, L.X_C_DT], x_true[:, L.X_C_DDT], x_true[:, L.X_B_LO] = c_dt, c_ddt, b_lo
 
-    # IMU: increments measured over interval k carry the bias at its start plus white noise
-    u = setup.u_true.copy()
-    u[:, :3] += b_g[:-1] * dt + g * prof.arw * math.sqrt(dt) * rng.standard_normal((n, 3))
-    u[:, 3:] += b_a[:-1] * dt + g * prof.vrw * math.sqrt(dt) * rng.standard_normal((n, 3))
+    u = measured_increments(rng, prof, setup.u_true, b_a, b_g, dt, g)
     parts = [records.imu_records(setup.t_imu[1:], u[:, :3], u[:, 3:], dt_s=dt)]
-    # specific force averaged over the last F_B_AVERAGE_S at every sample k (from sample 1)
-    n_avg = max(1, int(round(F_B_AVERAGE_S * scn.imu_rate_hz)))
-    csum = np.vstack([np.zeros(3), np.cumsum(u[:, 3:], axis=0)])
-    k_end = np.maximum(np.arange(n + 1), 1)          # sample 0 uses the first interval
-    k_start = np.maximum(k_end - n_avg, 0)
-    f_b_avg = (csum[k_end] - csum[k_start]) / ((k_end - k_start)[:, None] * dt)
+    f_b_avg, f_b_span_s = averaged_specific_force(u[:, 3:], dt)
 
     for kind_name in ("pseudorange", "doppler_rate", "doppler", "ofdm_range_diff"):
         s = setup.series[kind_name]
@@ -384,7 +442,7 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
         aux[:, L.AUX_F_B:L.AUX_F_B + 3] = f_b_avg[k]  # measured, averaged specific force
         R = sigma**2
         if kind_name == "doppler_rate":  # its model uses the measured specific force
-            R = doppler_rate_variance(sigma, setup.params[L.P_F_C_HZ], prof.vrw, n_avg * dt)
+            R = doppler_rate_variance(sigma, setup.params[L.P_F_C_HZ], prof.vrw, f_b_span_s)
         parts.append(records.measurement_records(s.t_s[rows], s.kind, z, R, aux, s.sat_id[rows]))
 
     dx0 = np.zeros(L.NDX) if noise_free else rng.multivariate_normal(np.zeros(L.NDX), setup.P0)

@@ -15,6 +15,7 @@ and are reported at every count.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -48,6 +49,8 @@ class SweepResult:
     trajectories: dict[str, np.ndarray]
     truth_p_enu: np.ndarray
     t_eval: np.ndarray
+    scenario: Scenario
+    notes: list[str]
 
 
 def _tasks(scn: Scenario, trials: int) -> list[tuple]:
@@ -104,8 +107,7 @@ def check_findings(scn: Scenario, summaries: dict[tuple[str, int], dict], t_eval
         add("range-type OFDM beats alpha", all(o < a for o, a in pairs.values()),
             {c: f"OFDM {o:.2f} m vs alpha {a:.2f} m" for c, (o, a) in pairs.items()})
     if "leo-alpha+ofdm+imu" in scn.modes:
-        others = [m for m in leo if m not in ("leo-alpha+ofdm+imu",) and "pseudorange" not in MODE_OBSERVABLES[m]
-                  and m in ("leo-alpha+imu", "leo-ofdm+imu")]
+        others = [m for m in ("leo-alpha+imu", "leo-ofdm+imu") if m in scn.modes]
         best = pos("leo-alpha+ofdm+imu", hi_c)
         add("alpha+OFDM is the best LEO mode (paper's modes)",
             all(best <= pos(m, hi_c) for m in others),
@@ -128,7 +130,8 @@ def run_sweep(scn: Scenario, out_dir: Path, *, trials: int | None = None, worker
               dask_address: str | None = None, progress: bool = True, figures: bool = True) -> SweepResult:
     """Run every (mode, count) of `scn` and write the results folder (see module doc)."""
     trials = trials or scn.trials
-    scn.trials = trials
+    if trials != scn.trials:
+        scn = dataclasses.replace(scn, trials=trials)
     t_start = time.perf_counter()
     setup, nav = mc.setup_for(scn)  # validates visibility before any work is sent out
     t_setup = time.perf_counter() - t_start
@@ -137,7 +140,7 @@ def run_sweep(scn: Scenario, out_dir: Path, *, trials: int | None = None, worker
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(tasks) * 1, unit="task", desc=f"sweep {scn.name}", smoothing=0.05)
+        bar = tqdm(total=len(tasks), unit="task", desc=f"sweep {scn.name}", smoothing=0.05)
     t0 = time.perf_counter()
     with make_executor(workers, dask_address) as ex:
         blocks = map_in_order(ex, mc.run_block, tasks, on_done=(bar.update if bar else None))
@@ -175,7 +178,7 @@ def run_sweep(scn: Scenario, out_dir: Path, *, trials: int | None = None, worker
             trajectories[task[3]] = block.p_est_trial0
     k = mc.eval_grid(setup.t_imu, scn.imu_rate_hz)
     result = SweepResult(summaries, check_findings(scn, summaries, setup.t_imu[k]), timing, trajectories,
-                         setup.x_true[k, 0:3], setup.t_imu[k])
+                         setup.x_true[k, 0:3], setup.t_imu[k], scn, list(setup.notes))
     write_results(scn, out_dir, result, figures=figures)
     return result
 
@@ -194,6 +197,7 @@ def write_results(scn: Scenario, out_dir: Path, res: SweepResult, figures: bool 
                      "duration_s": scn.duration_s, "trials": scn.trials, "modes": scn.modes,
                      "counts": scn.starlink["counts"]},
         "findings": res.findings,
+        "notes": res.notes,  # e.g. satellites SGP4 could not propagate, left out by name
         "timing": res.timing,
         "results": [],
     }
@@ -224,6 +228,7 @@ def write_results(scn: Scenario, out_dir: Path, res: SweepResult, figures: bool 
 
 def summary_table(scn: Scenario, res: SweepResult) -> str:
     """Human summary: RMSE / sqrt(PCRB) per mode and count, then the paper's findings."""
+    scn = res.scenario  # as run (e.g. with --trials)
     counts = scn.starlink["counts"]
     lines = [f"position RMSE / sqrt(PCRB), m  ({scn.trials} trials per point)",
              f"{'mode':24s}" + "".join(f"{c:>14d}" for c in counts)]

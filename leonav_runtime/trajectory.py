@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
+from leonav_runtime.errors import UserInputError
 from leonav_runtime.scenario import Scenario
 
 _FINE = 20  # sub-steps per output sample for the position integral (keeps it << 1 mm)
@@ -67,7 +68,8 @@ def motion(scn: Scenario, t_s: np.ndarray) -> Motion:
     speed, heading = _speed_heading(fine, scn.trajectory["speed_mps"], yaw0,
                                     scn.trajectory["maneuvers"])
     if np.any(speed < 0):
-        raise ValueError(f"{scn.source}: [trajectory] maneuvers make the speed negative")
+        raise UserInputError(f"{scn.source}: [trajectory] maneuvers make the speed negative "
+                             f"(min {speed.min():.2f} m/s): expected accelerations that keep speed >= 0")
     v_fine = np.stack([speed * np.cos(heading), speed * np.sin(heading), np.zeros_like(speed)], 1)
     p_fine = cumulative_trapezoid(v_fine, fine, axis=0, initial=0.0)
     idx = np.arange(n) * _FINE if n > 1 else np.arange(n)

@@ -28,7 +28,8 @@ def test_bench_variants_agree_on_a_short_stream(bench, tmp_path):
     gate = lf.CHI2_1DOF_999
     kinds = {name: lib.kind_id(name) for name in ("pseudorange", "doppler_rate")}
     _, _, a = bench.time_c_loop(lib, recs, x0, P0, params, 1)
-    assert a["res"].n_applied == np.count_nonzero(recs["kind"] >= 0) - a["res"].n_gated
+    n_meas = np.count_nonzero(recs["kind"] >= 0)
+    assert a["res"].n_failed == 0 and a["res"].n_gated <= 0.01 * n_meas  # a sane stream: nearly all applied
     _, d_x = bench.time_bare_c(lib.build, recs, x0, P0, params, gate, 1, tmp_path)
     np.testing.assert_allclose(d_x, a["x"], rtol=0, atol=1e-9)
     _, _, b = bench.time_casadi(recs, x0, P0, params, gate, kinds, 1)

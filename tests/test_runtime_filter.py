@@ -228,3 +228,16 @@ def test_stationary_imu_keeps_the_mechanization_at_rest(lib, params):
     for _ in range(1000):  # 10 s
         assert lib.lib.leonav_mech_step(lf._ptr(xx), lf._ptr(u), IMU_DT, lf._ptr(params), work.ctypes.data) == 0
     assert np.max(np.abs(xx[:6])) < 1e-6 and np.max(np.abs(xx[6:10] - x[6:10])) < 1e-9
+
+
+def test_P_rows_returns_the_same_blocks_as_full_P(lib, params):
+    rng = np.random.default_rng(5)
+    recs = static_stream(lib, params, 1.0, rng, fix_sigma=2.0)
+    full = lf.EKF(x_rest(), P0(), params, library=lib).run(recs, full_P=True)
+    rows = np.array([0, 7, 50, recs.size - 1])
+    some = lf.EKF(x_rest(), P0(), params, library=lib).run(recs, P_rows=rows)
+    assert some.P.shape == (rows.size, P0().shape[0], P0().shape[0])
+    np.testing.assert_array_equal(some.P, full.P[rows])
+    np.testing.assert_array_equal(some.x, full.x)
+    with pytest.raises(ValueError, match="increasing record indices"):
+        lf.EKF(x_rest(), P0(), params, library=lib).run(recs, P_rows=[5, 3])

@@ -43,7 +43,7 @@ def _write(tmp_path, body):
         ("[site]\nlat_deg = 123.0\n", "[site] lat_deg = 123.0: expected deg in [-90, 90]"),
         ("[site]\nlat_deg = 'north'\n", "[site] lat_deg = 'north': expected a float in deg"),
         ("[site]\nlatitude = 43.0\n", "[site] unknown key 'latitude'"),
-        ("[imu]\nprofile = 'navigation'\n", "expected one of tactical, consumer-wt901"),
+        ("[imu]\nprofile = 'navigation'\n", "expected one of tactical, wt901"),
         ("[gps]\noutages_s = [[30.0, 10.0]]\n", "outages_s[0] = [30.0, 10.0]: expected 0 <= start < end"),
         ("[starlink]\ncounts = [5, 0]\n", "counts = [5, 0]: expected a non-empty list of integers >= 1"),
         ("[monte_carlo]\nmodes = ['gps+imu', 'magic']\n", "modes contains 'magic'"),

@@ -67,8 +67,14 @@ def test_pseudoranges_match_an_independent_range_with_light_time_and_sagnac(pape
 def test_starlink_selection_takes_the_highest_satellites_and_ofdm_uses_rank0_as_reference(paper_setup):
     scn, setup, nav = paper_setup
     a, o = setup.series["doppler_rate"], setup.series["ofdm_range_diff"]
-    t0 = a.t_s == a.t_s[0]
-    assert sorted(a.rank[t0]) == list(range(45))
+    L = nav.layout
+    r_rx = geometry.geodetic_to_ecef(scn.lat_rad, scn.lon_rad, scn.alt_m)
+    for t in np.unique(a.t_s):  # at every epoch: ranks 0..44 by decreasing elevation, all above the mask
+        at = a.t_s == t
+        assert sorted(a.rank[at]) == list(range(45))
+        _, el, _ = geometry.az_el_range(a.aux[at, L.AUX_R_S_ECEF:L.AUX_R_S_ECEF + 3], r_rx, scn.lat_rad, scn.lon_rad)
+        el_by_rank = el[np.argsort(a.rank[at])]
+        assert np.all(np.diff(el_by_rank) <= 0) and el_by_rank[-1] >= scn.starlink["elevation_mask_rad"]
     assert not np.any(o.rank == 0)
     rows5 = simulate.selected_rows(setup, "doppler_rate", 5)
     assert np.all(a.rank[rows5] < 5) and rows5.size == 5 * np.unique(a.t_s).size

@@ -66,7 +66,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "out of memory or bad workspace\n");
         return 2;
     }
-    leonav_run_out out = {xs, pd, NULL, y, S, nis, status, 0, 0, 0, 0, 0};
+    leonav_run_out out = {xs, pd, NULL, NULL, y, S, nis, status, 0, 0, 0, 0, 0};
     int rc = leonav_run(x, P, p, rec, n, gates, &out, work);
 
     FILE *f = fopen(argv[3], "w");

@@ -31,7 +31,9 @@ def register(subparsers) -> None:
     p.add_argument("--tle", action="append", default=[], metavar="FILE",
                    help="element-set file (repeatable); default: the scenario's elements")
     p.add_argument("--start", default=None, metavar="ISO-UTC", help="scenario epoch override")
-    p.add_argument("--observable", choices=OBSERVABLES, default="doppler_rate")
+    p.add_argument("--observable", choices=OBSERVABLES, default="doppler_rate",
+                   help="Starlink observable whose position information is bounded (default %(default)s; "
+                        "doppler is reported without the PCRB column because its LO offset is a nuisance state)")
     output.add_out_argument(p)
     p.set_defaults(func=run)
 

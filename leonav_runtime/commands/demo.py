@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+from pathlib import Path
 
 from leonav_runtime import output
 from leonav_runtime.scenario import load_scenario, scenario_from_dict
@@ -30,8 +31,7 @@ def run(args: argparse.Namespace) -> int:
     raw = copy.deepcopy(base.raw)
     raw.setdefault("starlink", {})["counts"] = [max(base.starlink["counts"])]
     raw.setdefault("monte_carlo", {})["trials"] = 1
-    scn = scenario_from_dict(raw, source=base.source, base_dir=base.element_files[0].parent
-                             if base.element_files else None)
+    scn = scenario_from_dict(raw, source=base.source, base_dir=Path(base.source).parent)
     out_dir = output.results_dir(args.out, f"demo-{scn.name}")
     res = run_sweep(scn, out_dir, trials=1, workers=1, progress=False)
     print(summary_table(scn, res))

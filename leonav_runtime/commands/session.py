@@ -46,7 +46,7 @@ def run_synth(args: argparse.Namespace) -> int:
 
     from leonav_runtime import session_synth as ss
     from leonav_runtime.beacons.capture_io import parse_utc
-    from leonav_runtime.commands.replay import _elements
+    from leonav_runtime.orbits import load_element_files
 
     if not (math.isfinite(args.seconds) and 2.0 <= args.seconds <= 3600):
         raise UserInputError(f"--seconds: {args.seconds!r}: expected 2 to 3600 s")
@@ -58,7 +58,7 @@ def run_synth(args: argparse.Namespace) -> int:
                                 n_satellites=args.n_sats, cn0_dbhz=args.cn0)
     if args.epoch:
         cfg.epoch_utc = parse_utc(args.epoch, "--epoch")
-    elements = _elements(args.tle)
+    elements = load_element_files(args.tle)
     total = int((cfg.seconds - cfg.sdr_start_s - 0.05) * cfg.sdr_rate_hz) if cfg.sdr else 0
     with tqdm(total=total, unit="S", unit_scale=True, desc="synthesizing IQ", leave=False, disable=None) as bar:
         synth = ss.write_synthetic_session(args.outdir, cfg, elements, overwrite=args.overwrite, progress=bar.update)

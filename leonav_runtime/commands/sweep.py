@@ -39,6 +39,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.trials is not None and args.trials < 1:
         raise UserInputError(f"--trials {args.trials}: expected an integer >= 1")
+    if args.workers is not None and args.workers < 1:
+        raise UserInputError(f"--workers {args.workers}: expected an integer >= 1")
     scn = load_scenario(args.scenario)
     out_dir = output.results_dir(args.out, f"sweep-{scn.name}")
     res = run_sweep(scn, out_dir, trials=args.trials, workers=args.workers, dask_address=args.dask,

@@ -307,6 +307,7 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
     /* The state lives in one of two buffers (the caller's, the workspace's); a step writes
      * the other one and they are swapped when it succeeds, so nothing is copied. */
     double *xc = x, *Pc = P, *xn = ws->x_run, *Pn = ws->P_run;
+    long n_P = 0;  /* full-P blocks written */
     int rc = LEONAV_OK;
     for (long i = 0; i < n; ++i) {
         const leonav_record *r = &rec[i];
@@ -331,7 +332,7 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
         if (status == LEONAV_STATUS_FAILED) out->n_failed++;
         if (out->x) memcpy(out->x + i * NX, xc, sizeof(double) * NX);
         if (out->P_diag) diag(Pc, out->P_diag + i * NDX);
-        if (out->P) memcpy(out->P + i * NMAT, Pc, sizeof(double) * NMAT);
+        if (out->P && (!out->P_mask || out->P_mask[i])) memcpy(out->P + (n_P++) * NMAT, Pc, sizeof(double) * NMAT);
         if (out->y) out->y[i] = ysn[0];
         if (out->S) out->S[i] = ysn[1];
         if (out->nis) out->nis[i] = ysn[2];

@@ -62,7 +62,9 @@ typedef struct leonav_record {
 typedef struct leonav_run_out {
     double *x;        /* n * NX   state after the record */
     double *P_diag;   /* n * NDX  diagonal of P after the record */
-    double *P;        /* n * NDX * NDX full P after the record (column-major) */
+    double *P;        /* full P after the record (column-major, NDX * NDX each): n blocks, or
+                         one block per set flag of P_mask, packed in record order */
+    const uint8_t *P_mask;  /* n flags or NULL (every record): which records write P */
     double *y;        /* n  innovation (NaN for IMU records and failures before it exists) */
     double *S;        /* n  innovation variance */
     double *nis;      /* n  normalised innovation squared y^2 / S */
