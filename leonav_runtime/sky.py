@@ -312,9 +312,15 @@ def summarize(view: SkyView) -> dict:
             "rejected": [_rejected_entry(e) for e in c.rejected],
         }
         if c.n_failed:
-            out["warnings"].append(f"{name}: {c.n_failed} satellites left out (SGP4 failure, see left_out)")
+            first = c.failures[0]
+            out["warnings"].append(
+                f"{name}: {c.n_failed} satellites left out by SGP4, first {first[0]} ({first[1]}): {first[2]} "
+                "(all in left_out)"
+            )
         if c.rejected:
-            out["warnings"].append(f"{name}: {len(c.rejected)} entries rejected while loading (see left_out)")
+            out["warnings"].append(
+                f"{name}: {len(c.rejected)} entries rejected while loading, first {c.rejected[0]} (all in left_out)"
+            )
     if "gps" in view.constellations:
         d = view.dop("gps")
         out["dop_gps"] = {key: _stats(d[key]) for key in geometry.DOP_KEYS}

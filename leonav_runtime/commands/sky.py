@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -101,12 +102,15 @@ def _check_args(args) -> None:
 
 
 def _load_files(paths: list[str]):
-    from leonav_runtime.orbits import load_elements
+    from leonav_runtime.orbits import RejectedElementsWarning, load_elements
 
     by_name: dict = {}
     sources: list[dict] = []
     for path in paths:
-        es = load_elements(path)
+        with warnings.catch_warnings():
+            # Rejected entries are reported once, in the summary and sky.json.
+            warnings.simplefilter("ignore", RejectedElementsWarning)
+            es = load_elements(path)
         name = (getattr(es, "constellation", None) or "unknown").lower()
         sources.append({"file": str(path), "constellation": name, "satellites": len(es),
                         "rejected_entries": len(getattr(es, "rejected", []) or [])})
