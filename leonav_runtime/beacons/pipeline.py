@@ -3,7 +3,8 @@
 `process_capture` streams the capture once (bounded memory), tracks the ridges, fits the
 Doppler-rate measurements, predicts every visible satellite with the symbolic model, groups
 the ridges into per-satellite tone combs and associates them with one LO offset and drift
-for the whole capture (`associate.associate_capture`). `write_outputs` writes associations.csv, doppler_rate_measurements.csv (the
+for the whole capture (`associate.associate_capture`). `write_outputs` writes associations.csv,
+doppler_rate_measurements.csv (the
 filter's input), waterfall.png and summary.json.
 """
 from __future__ import annotations
