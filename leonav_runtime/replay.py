@@ -13,19 +13,31 @@ Pipeline (`replay_session`):
    hardware/README.md). The filter's white noise adds the protocol's quantization
    (LSB^2/12 per sample: 4.79e-3 m/s^2, 1.07e-3 rad/s) to the WT901 profile.
 4. GNSS fixes (GGA or NAV-PVT) at the receiver's own UTC of the fix: lat/lon/ellipsoidal
-   height -> ENU at the origin (first fix, or `origin_deg`); POS_E/N/U records with R from
-   GST (lat/lon/alt sigmas) when present, else NAV-PVT hAcc/sqrt(2), vAcc, else
-   `DEFAULT_UERE_M * HDOP` per horizontal axis and twice that vertically.
+   height -> ENU at the origin (first usable fix, or `origin_deg`); POS_E/N/U records with R
+   from GST (lat/lon/alt sigmas) when present, else NAV-PVT hAcc/sqrt(2), vAcc, else
+   `DEFAULT_UERE_M * HDOP` per horizontal axis and twice that vertically. A fix without a
+   finite latitude, longitude and height (e.g. a GGA with an empty altitude field) is
+   neither the origin nor a measurement; such fixes are counted (`gnss_fixes_unusable`).
 5. Beacons: `beacons.pipeline.process_capture` on sdr.cu8 with the capture start from its
    monotonic stamp through the time map (the SigMF core:datetime is the host clock);
-   each associated epoch becomes a DOPPLER_RATE record (R = max(sigma_fit, floor)^2) with
-   aux = SGP4 ECEF state and acceleration of that satellite at that time and the latest
-   IMU specific force.
-6. Initial state: position = first fix (sigma from its R), velocity = RMC speed/course or
-   NAV-PVT velocity (0 when absent), roll/pitch = the sensor's angle output averaged
-   over the first second, yaw = `yaw_deg` if given, else the sensor's yaw (its own reference:
-   magnetic North in 9-axis mode, power-up heading in 6-axis mode, so give `yaw_deg`
-   from East towards North for real sessions), biases 0 with the profile's sigmas.
+   each associated epoch becomes a DOPPLER_RATE record. The carrier f_c (of the pipeline's
+   predictions and of the filter's model) is the capture's RF centre (SigMF
+   leonav:rf_center_hz = core:frequency + leonav:lnb_lo_hz: the recorder tunes the beacon
+   to baseband 0); without a readable Ku-band value, `STARLINK_BEACON_HZ` with a note.
+   aux = SGP4 ECEF state and acceleration of that satellite at that time and the specific
+   force averaged over the last `simulate.F_B_AVERAGE_S` up to the latest IMU sample; R =
+   max(sigma_fit, floor)^2 plus that average's accelerometer noise
+   (`models.input_noise.doppler_rate_variance`), as the simulator does.
+6. Initial state: position = the initializing fix (sigma from its R), velocity = RMC
+   speed/course or NAV-PVT velocity (0 when absent), roll/pitch = the sensor's angle output
+   averaged over the first second, yaw = `yaw_deg` if given, else the sensor's yaw (its own
+   reference: magnetic North in 9-axis mode, power-up heading in 6-axis mode, so give
+   `yaw_deg` from East towards North for real sessions), biases 0; P0 from
+   `simulate.prior_sigmas`. The initializing fix is the first usable one from
+   `INIT_FIX_WINDOW_S` before the first IMU sample on. If it comes more than
+   `INIT_FIX_MAX_DELAY_S` after the start of the first IMU interval, the filter starts at
+   the fix instead (a moving receiver is not given a late position): earlier IMU intervals
+   are dropped (counted, `imu_records_before_start`) and the one spanning the fix is cut at it.
 7. Reference: truth.csv when present (synthetic sessions), else the GNSS fixes (position
    only; then GPS+IMU is compared with its own input, which flatters it).
 """
@@ -47,14 +59,21 @@ from leonav_runtime import filter as lfilter
 from leonav_runtime import geometry, navfuncs, records, simulate
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.output import write_csv, write_json
+from models.input_noise import doppler_rate_variance
+from models.params import STARLINK_BEACON_HZ
 
 MODES = ("gps+imu", "leo-alpha+imu", "gps+leo-alpha+imu")
 MODE_USES = {"gps+imu": ("fix",), "leo-alpha+imu": ("alpha",), "gps+leo-alpha+imu": ("fix", "alpha")}
 DEFAULT_UERE_M = 1.5            # per-axis horizontal sigma per unit HDOP when no GST/NAV-PVT accuracy
 ALPHA_SIGMA_FLOOR_HZ_S = 0.5    # the fit sigma can be optimistic for short ridges
-TONE_RF_HZ = 11.325e9
+KU_DOWNLINK_HZ = (10.7e9, 12.75e9)   # a capture RF centre outside this is not a Starlink beacon carrier
 INIT_WINDOW_S = 1.0             # samples averaged for the initial roll/pitch
 INIT_FIX_WINDOW_S = 0.2         # a fix this much before the first IMU sample still initializes
+# A fix up to this long after the filter's start initializes it there (position error at most
+# this times the speed: 0.5 m at 10 m/s, below a consumer fix's noise); a later first fix
+# moves the start to the fix. Receivers at 1-10 Hz give their first fix within a second of a
+# warm start, so a real session loses at most that much IMU data.
+INIT_FIX_MAX_DELAY_S = 0.05
 VEL_SIGMA0_MPS = 0.5
 ROLL_PITCH_SIGMA0_RAD = math.radians(0.5)
 YAW_SIGMA0_GIVEN_RAD = math.radians(2.0)
@@ -128,6 +147,7 @@ class SessionInputs:
     P0: np.ndarray
     params: np.ndarray
     records: dict[str, np.ndarray]          # "imu", "fix", "alpha"
+    carrier_hz: float = STARLINK_BEACON_HZ  # beacon carrier f_c of the Doppler-rate model
     notes: list[str] = dataclasses.field(default_factory=list)
     skipped: dict[str, str] = dataclasses.field(default_factory=dict)   # mode -> reason
     counts: dict = dataclasses.field(default_factory=dict)
@@ -274,8 +294,29 @@ def _tod_key(t: _dt.time | _dt.datetime) -> int:
     return round((t.hour * 3600 + t.minute * 60 + t.second + t.microsecond * 1e-6) * 100)
 
 
+def fix_height_m(fix) -> float | None:
+    """Ellipsoidal height of a fix (m): its own, else its height above mean sea level (no geoid
+    separation sent), None when neither is a finite number (e.g. a GGA with an empty altitude)."""
+    for h in (fix.height_m, fix.hmsl_m):
+        if h is not None and math.isfinite(h):
+            return float(h)
+    return None
+
+
+def usable_fix(fix) -> bool:
+    """A fix with finite latitude, longitude and height: it can be the origin and a measurement."""
+    return (fix.lat_rad is not None and fix.lon_rad is not None and math.isfinite(fix.lat_rad)
+            and math.isfinite(fix.lon_rad) and fix_height_m(fix) is not None)
+
+
+def _positive_finite(v) -> bool:
+    return v is not None and math.isfinite(v) and v > 0
+
+
 def fix_table(gnss_records, to_utc, epoch: float, origin, notes: list[str]) -> tuple[FixTable, dict]:
-    """Fixes on the replay axis in ENU at `origin` (rad, rad, m) with their 1-sigma."""
+    """Fixes on the replay axis in ENU at `origin` (rad, rad, m) with their 1-sigma.
+
+    Fixes without a finite position (`usable_fix`) are left out and counted."""
     from hardware.records import GnssFix, NmeaSentence
 
     gst, rmc = {}, {}
@@ -292,7 +333,12 @@ def fix_table(gnss_records, to_utc, epoch: float, origin, notes: list[str]) -> t
             except (TypeError, ValueError):
                 continue          # an empty field: this epoch has no GST/RMC information
     fixes = [r for r in gnss_records if isinstance(r, GnssFix)]
-    counts = {"gnss_fixes": len(fixes), "fix_sigma_source": {}}
+    usable = [f for f in fixes if usable_fix(f)]
+    counts = {"gnss_fixes": len(fixes), "gnss_fixes_unusable": len(fixes) - len(usable), "fix_sigma_source": {}}
+    if len(usable) < len(fixes):
+        notes.append(f"GNSS: {len(fixes) - len(usable)} fix(es) without a finite latitude, longitude and height "
+                     "(e.g. an empty GGA altitude field) left out")
+    fixes = usable
     if not fixes:
         return FixTable.empty(), counts
     lat0, lon0, h0 = origin
@@ -301,21 +347,20 @@ def fix_table(gnss_records, to_utc, epoch: float, origin, notes: list[str]) -> t
     no_height = 0
     for f in fixes:
         t_utc = f.utc.timestamp() if f.utc is not None else float(to_utc(f.t_mono_s))
-        h = f.height_m
-        if h is None:
-            h, no_height = f.hmsl_m, no_height + 1
+        h = fix_height_m(f)
+        no_height += f.height_m is None or not math.isfinite(f.height_m)
         enu.append(geometry.ecef_to_enu(geometry.geodetic_to_ecef(f.lat_rad, f.lon_rad, h), r0, lat0, lon0))
         t.append(t_utc - epoch)
         key = _tod_key(f.utc) if f.utc is not None else None
         if key in gst and all(math.isfinite(v) and v > 0 for v in gst[key]):
             s_n, s_e, s_u = gst[key]
             src = "GST"
-        elif f.h_acc_m and f.v_acc_m:
+        elif _positive_finite(f.h_acc_m) and _positive_finite(f.v_acc_m):
             s_e = s_n = f.h_acc_m / math.sqrt(2.0)
             s_u = f.v_acc_m
             src = "NAV-PVT accuracy"
         else:
-            hdop = f.hdop if f.hdop and f.hdop > 0 else 1.0
+            hdop = f.hdop if _positive_finite(f.hdop) else 1.0
             s_e = s_n = DEFAULT_UERE_M * hdop
             s_u = 2.0 * s_e
             src = f"{DEFAULT_UERE_M:g} m x HDOP"
@@ -343,19 +388,46 @@ def _sigmf_mono_start(folder: Path) -> float | None:
     return float(v) if isinstance(v, (int, float)) else None
 
 
+def capture_carrier(info) -> tuple[float, str]:
+    """Beacon carrier f_c (Hz) of a capture and where it came from.
+
+    `leonav record` tunes the beacon to baseband 0, so f_c is the capture's RF centre
+    (`CaptureInfo.rf_center_hz`: SigMF leonav:rf_center_hz = core:frequency +
+    leonav:lnb_lo_hz). A value outside the Ku downlink band (`KU_DOWNLINK_HZ`, e.g. a
+    capture without an LNB LO) falls back to `STARLINK_BEACON_HZ`."""
+    rf = float(info.rf_center_hz)
+    if math.isfinite(rf) and KU_DOWNLINK_HZ[0] <= rf <= KU_DOWNLINK_HZ[1]:
+        return rf, f"capture metadata ({info.source or info.path}: RF centre = tuned frequency + LNB LO)"
+    return STARLINK_BEACON_HZ, (f"default {STARLINK_BEACON_HZ / 1e9:g} GHz: the capture's RF centre "
+                                f"{rf / 1e9:.6g} GHz (tuned {info.center_freq_hz / 1e9:.6g} GHz + LNB LO "
+                                f"{info.lnb_lo_hz / 1e9:.6g} GHz) is outside the Ku downlink band "
+                                f"{KU_DOWNLINK_HZ[0] / 1e9:g}-{KU_DOWNLINK_HZ[1] / 1e9:g} GHz")
+
+
+def _default_carrier(reason: str) -> dict:
+    return {"carrier_hz": STARLINK_BEACON_HZ,
+            "carrier_source": f"default {STARLINK_BEACON_HZ / 1e9:g} GHz: {reason}"}
+
+
 def beacon_table(folder: Path, out_dir: Path | None, to_utc, time_source_ok: bool, epoch: float, origin,
                  elements, notes: list[str], progress=None) -> tuple[AlphaTable, dict, object]:
-    """Run the beacon pipeline on the session's capture; returns (table, summary, elements)."""
+    """Run the beacon pipeline on the session's capture; returns (table, summary, elements).
+
+    summary["carrier_hz"], ["carrier_source"]: the carrier f_c (`capture_carrier`, else the default)."""
     from leonav_runtime.beacons import capture_io, pipeline
     from leonav_runtime.beacons.predict import Site
 
     data = folder / "sdr.cu8"
     if not data.exists():
-        return AlphaTable.empty(), {"reason_empty": "no sdr.cu8 in the session"}, elements
+        return AlphaTable.empty(), {"reason_empty": "no sdr.cu8 in the session"} | _default_carrier(
+            "no capture in the session"), elements
     try:
         info = capture_io.open_capture(data)
     except UserInputError as exc:
-        return AlphaTable.empty(), {"reason_empty": str(exc)}, elements
+        return AlphaTable.empty(), {"reason_empty": str(exc)} | _default_carrier(
+            f"capture metadata unreadable ({exc})"), elements
+    carrier_hz, carrier_src = capture_carrier(info)
+    carrier = {"carrier_hz": carrier_hz, "carrier_source": carrier_src}
     mono = _sigmf_mono_start(folder)
     if mono is not None and time_source_ok:
         info.start_utc = utc_of(float(to_utc(mono)))
@@ -364,7 +436,7 @@ def beacon_table(folder: Path, out_dir: Path | None, to_utc, time_source_ok: boo
         start_src = "SigMF core:datetime (host wall clock)"
         notes.append("beacons: capture start from the host wall clock (no monotonic stamp or no GNSS time map)")
     if info.start_utc is None:
-        return AlphaTable.empty(), {"reason_empty": f"{data}: capture start time unknown"}, elements
+        return AlphaTable.empty(), {"reason_empty": f"{data}: capture start time unknown"} | carrier, elements
     if elements is None:
         from leonav_runtime.session_synth import builtin_starlink
 
@@ -372,7 +444,7 @@ def beacon_table(folder: Path, out_dir: Path | None, to_utc, time_source_ok: boo
         notes.append("beacons: no --tle given: built-in Walker Starlink constellation at the UTC minute nearest the "
                      "capture start (right for synthetic sessions only; give real element sets for a real capture)")
     site = Site(*origin)
-    cfg = pipeline.PipelineConfig(band_hz=min(1.2e6, info.sample_rate_hz))
+    cfg = pipeline.PipelineConfig(tone_rf_hz=carrier_hz, band_hz=min(1.2e6, info.sample_rate_hz))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = pipeline.process_capture(info, elements, site, cfg, progress)
@@ -383,7 +455,7 @@ def beacon_table(folder: Path, out_dir: Path | None, to_utc, time_source_ok: boo
     summ = pipeline.summary(res)
     summary = {"capture_start_utc": info.start_utc, "capture_start_source": start_src,
                "counts": summ["counts"], "rate_residual_abs_hz_s": summ["rate_residual_abs_hz_s"],
-               "reason_empty": summ["reason_empty"],
+               "reason_empty": summ["reason_empty"], **carrier,
                "associations": [{k: a[k] for k in ("ridge_id", "status", "norad_id", "name", "reason")}
                                 for a in summ["associations"]]}
     t0 = info.start_utc.timestamp() - epoch
@@ -421,35 +493,76 @@ def _circular_mean(a: np.ndarray) -> float:
     return float(np.arctan2(np.mean(np.sin(a)), np.mean(np.cos(a))))
 
 
+def imu_from(imu: ImuTable, t_start: float) -> tuple[ImuTable, int]:
+    """The IMU table from `t_start` (s) on: intervals ending at or before it dropped (their number
+    is returned), the one spanning it cut at it (its mean rates kept, so its increments shrink)."""
+    keep = imu.t > t_start
+    out = ImuTable(imu.t[keep], imu.dt[keep].copy(), imu.w_b[keep], imu.f_b[keep], imu.rpy[keep])
+    if out.t.size:
+        out.dt[0] = min(out.dt[0], out.t[0] - t_start)
+    return out, int((~keep).sum())
+
+
+def _start_and_init_fix(imu: ImuTable, fixes: FixTable, notes: list[str]) -> tuple[float, int]:
+    """(filter start time s, index of the initializing fix or -1); module doc, step 6."""
+    t_first = float(imu.t[0] - imu.dt[0])
+    cand = np.flatnonzero(fixes.t >= t_first - INIT_FIX_WINDOW_S)
+    if cand.size == 0:
+        return t_first, -1
+    k = int(cand[0])
+    t_fix = float(fixes.t[k])
+    if t_fix <= t_first + INIT_FIX_MAX_DELAY_S:
+        return t_first, k
+    if t_fix >= imu.t[-1]:
+        notes.append(f"init: the first usable GNSS fix (t={t_fix:.3f} s) comes after the last IMU sample "
+                     f"(t={imu.t[-1]:.3f} s): the position starts at the origin")
+        return t_first, -1
+    notes.append(f"init: the first usable GNSS fix comes {t_fix - t_first:.3f} s after the first IMU interval's "
+                 f"start (more than {INIT_FIX_MAX_DELAY_S:g} s): the filter starts at that fix, earlier IMU data "
+                 "dropped")
+    return t_fix, k
+
+
 def assemble(epoch_utc: _dt.datetime, origin, imu: ImuTable, fixes: FixTable, alpha: AlphaTable, elements,
              options: ReplayOptions, profile, nav: navfuncs.NavFunctions,
-             notes: list[str] | None = None) -> SessionInputs:
-    """Records, initial state and covariance, parameters (shared by replay and the direct simulation)."""
+             notes: list[str] | None = None, carrier_hz: float = STARLINK_BEACON_HZ) -> SessionInputs:
+    """Records, initial state and covariance, parameters (shared by replay and the direct simulation).
+
+    Times in s since `epoch_utc`; origin (rad, rad, m); carrier_hz: beacon carrier f_c (Hz).
+    The filter starts at the start of the first IMU interval or, when the initializing fix
+    comes later than `INIT_FIX_MAX_DELAY_S` after it, at that fix (module doc, step 6).
+    """
     from models.params import build_params
 
     notes = list(notes or [])
     L = nav.layout
     lat0, lon0, h0 = origin
     params = np.array(build_params(lat0, lon0, h0, imu=profile, q_blo=simulate.LO_RANDOM_WALK_HZ2_S,
-                                   f_c_hz=TONE_RF_HZ))
+                                   f_c_hz=carrier_hz))
+    if not np.all(np.isfinite(params)):
+        raise UserInputError(f"replay: non-finite filter parameters from origin (lat, lon rad, h m) {origin}, "
+                             f"carrier {carrier_hz} Hz, IMU profile {profile.name}: expected finite numbers")
     nav.params = params
+
+    # The initializing fix sets the state and is not applied again as a measurement (its
+    # error would count twice).
+    t_first = float(imu.t[0] - imu.dt[0])
+    t_start, init_fix = _start_and_init_fix(imu, fixes, notes)
+    imu, n_before = imu_from(imu, t_start)
     t_end = float(imu.t[-1])
     rec_imu = records.imu_records(imu.t, imu.w_b * imu.dt[:, None], imu.f_b * imu.dt[:, None], imu.dt)
 
-    # The fix nearest the first IMU sample (up to INIT_FIX_WINDOW_S before it) initializes the
-    # state and is not applied again as a measurement (its error would count twice).
-    cand = np.flatnonzero(fixes.t >= -INIT_FIX_WINDOW_S)
-    init_fix = int(cand[0]) if cand.size else -1
-    inside = (fixes.t >= 0) & (fixes.t <= t_end)
+    inside = (fixes.t >= t_start) & (fixes.t <= t_end)
     if init_fix >= 0:
         inside[init_fix] = False
-    counts = {"fixes_outside_imu_span": int((~inside).sum()) - (init_fix >= 0)}
+    counts = {"imu_records_before_start": n_before,
+              "fixes_outside_imu_span": int((~inside).sum()) - (init_fix >= 0)}
     fx = FixTable(fixes.t[inside], fixes.enu[inside], fixes.sigma[inside], fixes.vel_en[inside])
     parts = [records.measurement_records(fx.t, nav.kind_id(k), fx.enu[:, i], fx.sigma[:, i] ** 2)
              for i, k in enumerate(("pos_e", "pos_n", "pos_u"))] if fx.t.size else []
     rec_fix = records.merge_records(*parts) if parts else np.zeros(0, records.RECORD_DTYPE)
 
-    inside = (alpha.t >= 0) & (alpha.t <= t_end)
+    inside = (alpha.t >= t_start) & (alpha.t <= t_end)
     counts["alpha_outside_imu_span"] = int((~inside).sum())
     al = AlphaTable(alpha.t[inside], alpha.norad[inside], alpha.sat_index[inside], alpha.z[inside],
                     alpha.sigma[inside])
@@ -466,30 +579,35 @@ def assemble(epoch_utc: _dt.datetime, origin, imu: ImuTable, fixes: FixTable, al
                 aux[sel, L.AUX_R_S_ECEF:L.AUX_R_S_ECEF + 3] = st.r_ecef_m[0]
                 aux[sel, L.AUX_V_S_ECEF:L.AUX_V_S_ECEF + 3] = st.v_ecef_mps[0]
                 aux[sel, L.AUX_A_S_ECEF:L.AUX_A_S_ECEF + 3] = st.a_ecef_mps2[0]
-        k = np.clip(np.searchsorted(imu.t, al.t + 1e-9) - 1, 0, imu.t.size - 1)   # latest IMU sample
-        aux[:, L.AUX_F_B:L.AUX_F_B + 3] = imu.f_b[k]
+        # Receiver acceleration input: the specific force averaged up to the latest IMU sample
+        # (row 0 = the start, row j+1 = sample imu.t[j]); R carries that average's noise.
+        f_b_avg, f_b_span_s = simulate.averaged_specific_force(imu.f_b * imu.dt[:, None], imu.dt)
+        k = np.clip(np.searchsorted(imu.t, al.t + 1e-9) - 1, -1, imu.t.size - 1)
+        aux[:, L.AUX_F_B:L.AUX_F_B + 3] = f_b_avg[k + 1]
         sigma = np.maximum(al.sigma, options.alpha_sigma_floor_hz_s)
-        rec_alpha = records.measurement_records(al.t, nav.kind_id("doppler_rate"), al.z, sigma**2, aux, al.norad)
+        R = doppler_rate_variance(sigma, carrier_hz, profile.vrw, f_b_span_s)
+        rec_alpha = records.measurement_records(al.t, nav.kind_id("doppler_rate"), al.z, R, aux, al.norad)
+        counts["alpha_f_b_average_s"] = f_b_span_s
 
     # initial state
     x0 = np.zeros(L.NX)
-    sig0 = np.zeros(L.NDX)
-    init: dict = {}
+    init: dict = {"start_s": t_start}
     if init_fix >= 0:
         x0[L.X_P_ENU:L.X_P_ENU + 3] = fixes.enu[init_fix]
-        sig0[L.DX_DP:L.DX_DP + 3] = fixes.sigma[init_fix]
+        pos_sigma = fixes.sigma[init_fix]
         init["position"] = f"fix at t={fixes.t[init_fix]:.3f} s (not applied again as a measurement)"
         v = fixes.vel_en[init_fix]
         if np.all(np.isfinite(v)):
             x0[L.X_V_ENU:L.X_V_ENU + 2] = v
-            init["velocity"] = "first fix's RMC speed/course (NAV-PVT velocity), vertical 0"
+            init["velocity"] = "initializing fix's RMC speed/course (NAV-PVT velocity), vertical 0"
         else:
-            init["velocity"] = "0 (no velocity in the first fix)"
+            init["velocity"] = "0 (no velocity in the initializing fix)"
     else:
-        sig0[L.DX_DP:L.DX_DP + 3] = 10.0
+        pos_sigma = np.full(3, 10.0)
         init["position"] = "origin (no fix)"
         init["velocity"] = "0"
-    sig0[L.DX_DV:L.DX_DV + 3] = VEL_SIGMA0_MPS
+    init["start"] = (f"the initializing fix ({n_before} IMU interval(s) before it dropped, the next one cut)"
+                     if t_start > t_first else "start of the first IMU interval")
     first = imu.t <= imu.t[0] + INIT_WINDOW_S
     roll, pitch = _circular_mean(imu.rpy[first, 0]), _circular_mean(imu.rpy[first, 1])
     f_mean = imu.f_b[first].mean(axis=0)
@@ -500,23 +618,20 @@ def assemble(epoch_utc: _dt.datetime, origin, imu: ImuTable, fixes: FixTable, al
         yaw, yaw_sig = _circular_mean(imu.rpy[first, 2]), YAW_SIGMA0_SENSOR_RAD
         yaw_src = "WitMotion angle output (the sensor's own yaw reference)"
     x0[L.X_Q_NB:L.X_Q_NB + 4] = nav.quat_from_euler(np.array([roll, pitch, yaw]))[0]
-    sig0[L.DX_DTHETA:L.DX_DTHETA + 2] = ROLL_PITCH_SIGMA0_RAD
-    sig0[L.DX_DTHETA + 2] = yaw_sig
-    sig0[L.DX_DB_A:L.DX_DB_A + 3] = profile.acc_bias_sigma
-    sig0[L.DX_DB_G:L.DX_DB_G + 3] = profile.gyro_bias_sigma
-    sig0[L.DX_DC_DT] = simulate.CLOCK_BIAS_SIGMA_M
-    sig0[L.DX_DC_DDT] = simulate.CLOCK_DRIFT_SIGMA_MPS
-    sig0[L.DX_DB_LO] = simulate.LO_OFFSET_SIGMA_HZ
+    sig0 = simulate.prior_sigmas(L, profile, pos_sigma, VEL_SIGMA0_MPS,
+                                 [ROLL_PITCH_SIGMA0_RAD, ROLL_PITCH_SIGMA0_RAD, yaw_sig])
     init |= {"roll_pitch": f"WitMotion angle output averaged over the first {INIT_WINDOW_S:g} s",
              "yaw": yaw_src, "rpy_deg": np.degrees([roll, pitch, yaw]),
              "accelerometer_leveling_roll_pitch_deg": np.degrees(level),
-             "sigma0": {"position_m": sig0[0:3], "velocity_mps": VEL_SIGMA0_MPS,
+             "sigma0": {"position_m": pos_sigma, "velocity_mps": VEL_SIGMA0_MPS,
                         "roll_pitch_deg": math.degrees(ROLL_PITCH_SIGMA0_RAD), "yaw_deg": math.degrees(yaw_sig)},
              "imu_profile": {"name": profile.name, "vrw": profile.vrw, "arw": profile.arw}}
     counts |= {"imu_records": int(rec_imu.size), "fix_epochs": int(fx.t.size), "alpha_records": int(rec_alpha.size),
                "alpha_satellites": int(np.unique(al.norad).size)}
-    return SessionInputs(epoch_utc, origin, imu, fx, al, x0, np.diag(sig0**2), params,
-                         {"imu": rec_imu, "fix": rec_fix, "alpha": rec_alpha}, notes, {}, counts, init)
+    return SessionInputs(epoch_utc=epoch_utc, origin=origin, imu=imu, fixes=fx, alpha=al, x0=x0,
+                         P0=np.diag(sig0**2), params=params,
+                         records={"imu": rec_imu, "fix": rec_fix, "alpha": rec_alpha}, carrier_hz=carrier_hz,
+                         notes=notes, counts=counts, init=init)
 
 
 def skip_reasons(inputs: SessionInputs, modes) -> dict[str, str]:
@@ -647,11 +762,22 @@ def mode_metrics(runs: dict, scored: dict, nav: navfuncs.NavFunctions) -> dict:
 # ------------------------------------------------------------------ whole replay
 
 
+def check_options(options: ReplayOptions) -> ReplayOptions:
+    """The options, or a UserInputError naming the bad one."""
+    bad = [m for m in options.modes if m not in MODES]
+    if bad:
+        raise UserInputError(f"--modes: {bad[0]!r}: expected some of {', '.join(MODES)}")
+    if options.origin_deg is not None and not all(math.isfinite(v) for v in options.origin_deg):
+        raise UserInputError(f"--origin: {options.origin_deg}: expected finite LAT LON H")
+    return options
+
+
 def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: Path | None = None,
                   nav: navfuncs.NavFunctions | None = None, progress=None) -> SessionInputs:
     """Decode a session folder into SessionInputs (see the module doc, steps 1-6)."""
     from hardware.session import decode_session
 
+    check_options(options)
     nav = nav or navfuncs.NavFunctions()
     folder = Path(folder)
     dec = decode_session(folder)
@@ -666,19 +792,17 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
         notes.append(f"time: {time_src}")
     imu, epoch, counts = imu_table(dec.imu_samples, to_utc, notes, _device_baud(dec, "imu"))
     epoch_utc = utc_of(epoch)
-    fix_origin = None
     from hardware.records import GnssFix
 
-    first_fix = next((r for r in dec.gnss_records if isinstance(r, GnssFix)), None)
+    any_fix = any(isinstance(r, GnssFix) for r in dec.gnss_records)
+    first_fix = next((r for r in dec.gnss_records if isinstance(r, GnssFix) and usable_fix(r)), None)
     if options.origin_deg is not None:
         lat, lon, h = options.origin_deg
         origin = (math.radians(lat), math.radians(lon), float(h))
         origin_src = "--origin"
     elif first_fix is not None:
-        h = first_fix.height_m if first_fix.height_m is not None else first_fix.hmsl_m
-        origin = (first_fix.lat_rad, first_fix.lon_rad, float(h))
-        origin_src = "first GNSS fix"
-        fix_origin = origin
+        origin = (first_fix.lat_rad, first_fix.lon_rad, fix_height_m(first_fix))
+        origin_src = "first GNSS fix with a finite latitude, longitude and height"
     else:
         origin = None
         origin_src = "none"
@@ -687,12 +811,16 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
     alpha, bsum, elements = (beacon_table(folder, out_dir, to_utc, dec.time_map.valid, epoch, origin, elements,
                                           notes, progress) if origin else
                              (AlphaTable.empty(), {"reason_empty": "no position to predict satellites from "
-                                                   "(no GNSS fix; give --origin)"}, elements))
+                                                   "(no GNSS fix; give --origin)"}
+                              | _default_carrier("no beacon processing"), elements))
+    if bsum["carrier_source"].startswith("default") and (folder / "sdr.cu8").exists():
+        notes.append(f"beacons: carrier f_c = {bsum['carrier_source']}")
     profile = filter_profile(counts["imu_period_s"], quantized=True)
     if origin is None:
         # nothing can run: keep a valid (empty) result with the reasons
         origin = (0.0, 0.0, 0.0)
-    inputs = assemble(epoch_utc, origin, imu, fixes, alpha, elements, options, profile, nav, notes)
+    inputs = assemble(epoch_utc, origin, imu, fixes, alpha, elements, options, profile, nav, notes,
+                      carrier_hz=bsum["carrier_hz"])
     inputs.counts |= counts | fcounts | {"gnss_decoder": dec.gnss_summary, "imu_decoder": dec.imu_summary}
     inputs.beacons = bsum
     inputs.init |= {"origin": origin_src, "origin_deg": [math.degrees(origin[0]), math.degrees(origin[1]), origin[2]],
@@ -701,8 +829,9 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
         inputs.init["origin_given"] = True
     for mode in options.modes:
         if "fix" in MODE_USES[mode] and fixes.t.size == 0:
-            inputs.skipped[mode] = "no GNSS fix in gnss.raw" if fix_origin is None and options.origin_deg is None \
-                else "no GNSS fix inside the IMU time span"
+            inputs.skipped[mode] = ("no GNSS fix in gnss.raw" if not any_fix else
+                                    "no GNSS fix with a finite latitude, longitude and height in gnss.raw"
+                                    if first_fix is None else "no GNSS fix inside the IMU time span")
         elif origin_src == "none":
             inputs.skipped[mode] = "no initial position: no GNSS fix (give --origin LAT LON H)"
     for mode, reason in skip_reasons(inputs, options.modes).items():
@@ -711,16 +840,20 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
 
 
 def replay_session(folder: str | Path, out_dir: str | Path, options: ReplayOptions | None = None, elements=None,
-                   progress=None, nav: navfuncs.NavFunctions | None = None) -> dict:
-    """Decode, run the modes, score against truth.csv or the fixes, write the outputs; returns metrics."""
-    options = options or ReplayOptions()
-    bad = [m for m in options.modes if m not in MODES]
-    if bad:
-        raise UserInputError(f"--modes: {bad[0]!r}: expected some of {', '.join(MODES)}")
+                   progress=None, nav: navfuncs.NavFunctions | None = None,
+                   inputs: SessionInputs | None = None) -> dict:
+    """Decode, run the modes, score against truth.csv or the fixes, write the outputs; returns metrics.
+
+    inputs: the session already decoded by `decode_inputs` with the same options and
+    out_dir (its beacon outputs are there), so a caller that needs them decodes only once."""
+    options = check_options(options or ReplayOptions())
     folder, out_dir = Path(folder), Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     nav = nav or navfuncs.NavFunctions()
-    inputs = decode_inputs(folder, options, elements, out_dir, nav, progress)
+    if inputs is None:
+        inputs = decode_inputs(folder, options, elements, out_dir, nav, progress)
+    else:
+        nav.params = inputs.params
     runs = run_modes(inputs, options.modes, options.gate_nis, nav)
     truth = folder / "truth.csv"
     ref = None
@@ -736,6 +869,7 @@ def replay_session(folder: str | Path, out_dir: str | Path, options: ReplayOptio
         "modes": mode_metrics(runs, scored, nav),
         "skipped_modes": inputs.skipped, "counts": inputs.counts, "initialization": inputs.init,
         "beacons": inputs.beacons, "notes": inputs.notes,
+        "carrier_hz": inputs.carrier_hz, "carrier_source": inputs.beacons.get("carrier_source"),
         "alpha_sigma_floor_hz_s": options.alpha_sigma_floor_hz_s, "gate_nis": options.gate_nis,
     }
     write_outputs(out_dir, inputs, scored, metrics, ref, nav)

@@ -10,22 +10,25 @@ What is simulated (times in s since `cfg.epoch_utc`, the truth's t = 0):
   truth is exactly the filter model's own trajectory. Static because the beacon capture
   synthesizer (`beacons.synth`) predicts the tones for a receiver at rest at the site.
 - IMU (WitMotion WT901C-TTL, `cfg.imu_rate_hz`, default 10 Hz as in the paper): the true
-  increments plus the WT901 profile's biases (random walks) and white noise, as
-  `simulate.trial_records` draws them. Sample k reports the mean rate and specific force
+  increments plus the WT901 profile's biases (random walks) and white noise, drawn by
+  `simulate.bias_walks` and `simulate.measured_increments` as the Monte Carlo trials do. Sample k reports the mean rate and specific force
   over (t_k - dt, t_k] in 0x51/0x52/0x53 packets (int16 counts: 4.79e-3 m/s^2,
   0.061 deg/s); the 0x53 angles are the true attitude plus a constant AHRS error
   (`ahrs_sigma_*`) plus 0.02 deg white noise.
 - GNSS (u-blox NEO-M10 NMEA, `cfg.gnss_rate_hz`): per epoch RMC, GGA and GST; positions are
   truth plus white noise (`fix_sigma_en_m` per horizontal axis, `fix_sigma_u_m` up), GST
-  reports those sigmas, RMC the speed/course of the true velocity plus noise.
+  reports those sigmas, RMC the speed/course of the true velocity plus noise. Degraded
+  starts for tests: no GNSS output before `gnss_start_s`, and GGA sentences with an empty
+  altitude field before `gga_no_altitude_s` (a receiver without a height yet).
 - Serial timing: each epoch's burst leaves the device `*_latency_s` after its epoch and
   is serialized at the port's baud (10 bits per byte); the host reads whatever has
   arrived at read times spaced by ~`host_read_s` (exponential, plus 0.5 ms), and stamps
   each chunk with its monotonic clock (`mono_at_epoch_s + t`). The chunk index files,
   the live CSVs (with the running time map, as the recorder fills them) and
   session.json follow from those stamps.
-- SDR: `beacons.synth` writes `sdr.cu8` with `cfg.n_satellites` Starlink tones (C/N0
-  `cn0_dbhz`, LNB LO error `lo_offset_hz`) starting at t = `sdr_start_s`; its SigMF
+- SDR: `beacons.synth` writes `sdr.cu8` with `cfg.n_satellites` Starlink tones at the
+  carrier `carrier_hz` (C/N0 `cn0_dbhz`, LNB LO `lnb_lo_hz` with error `lo_offset_hz`)
+  starting at t = `sdr_start_s`, the SDR tuned to carrier - LNB LO; its SigMF
   metadata is written by `hardware.sdr.capture.sigmf_metadata` like the recorder's, with
   `core:datetime` from the host's wall clock (off by `host_clock_error_s`) and the
   monotonic stamps of the first and last sample.
@@ -55,6 +58,7 @@ from hardware.session import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, S
 from leonav_runtime import geometry, navfuncs, simulate
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.output import write_csv, write_json
+from models.params import STARLINK_BEACON_HZ
 
 ROCHESTER = (43.0848638, -77.6786127, 170.0)   # the paper's site: deg, deg, m (ellipsoidal)
 PAPER_EPOCH = _dt.datetime(2026, 2, 23, 12, 0, tzinfo=_dt.timezone.utc)
@@ -87,6 +91,8 @@ class SynthSessionConfig:
     gnss_baud: int = 38400
     imu_baud: int = 9600
     gnss_latency_s: float = 0.035          # receiver output latency after the epoch
+    gnss_start_s: float = 0.0              # no GNSS output before this time (receiver still acquiring)
+    gga_no_altitude_s: float = 0.0         # GGA altitude field empty before this time (no height yet)
     imu_latency_s: float = 0.002
     host_read_s: float = 0.004             # mean spacing of the host's serial reads
     host_clock_error_s: float = 0.3        # host wall clock minus UTC (no NTP on the Pi)
@@ -94,6 +100,8 @@ class SynthSessionConfig:
     sdr: bool = True
     sdr_rate_hz: float = 400e3
     sdr_start_s: float = 0.05              # first IQ sample at this truth time
+    carrier_hz: float = STARLINK_BEACON_HZ # beacon tone RF frequency, also the recorder's RF centre
+    lnb_lo_hz: float = sdr_capture.DEFAULT_LNB_LO_HZ
     n_satellites: int = 5
     cn0_dbhz: float = 40.0
     lo_offset_hz: float = 20e3
@@ -110,8 +118,9 @@ class SyntheticSession:
     x_true: np.ndarray         # (n+1, NX) truth incl. biases (clock and LO states zero)
     u_meas: np.ndarray         # (n, 6) noisy increments of interval k = (t_k, t_k+1], before quantization
     ahrs_rpy: np.ndarray       # (n, 3) angles the sensor reports at samples 1..n, rad
-    fix_t: np.ndarray          # (m,) GNSS epochs, s
-    fix_enu: np.ndarray        # (m, 3) noisy fixes in the truth's ENU frame, m
+    fix_t: np.ndarray          # (m,) GNSS epochs written (from cfg.gnss_start_s on), s
+    fix_enu: np.ndarray        # (m, 3) noisy fixes in the truth's ENU frame, m (altitude not sent before
+                               # cfg.gga_no_altitude_s)
     fix_vel_en: np.ndarray     # (m, 2) noisy RMC velocity (E, N), m/s
     sdr_info: dict             # capture truth (satellites, LO) or {} without SDR
     elements: object = None    # the Starlink ElementSet used for the tones
@@ -137,11 +146,6 @@ def _scenario(cfg: SynthSessionConfig):
     }, source="<synthetic session>")
 
 
-def _random_walk(rng, n, dt, x0, q):
-    steps = rng.standard_normal((n,) + np.shape(x0)) * math.sqrt(q * dt)
-    return np.concatenate([[x0], x0 + np.cumsum(steps, axis=0)])
-
-
 def simulate_sensors(cfg: SynthSessionConfig, nav: navfuncs.NavFunctions | None = None) -> dict:
     """Truth and float sensor values (no bytes yet). Keys as in `SyntheticSession`."""
     from models.imu import WT901
@@ -155,21 +159,17 @@ def simulate_sensors(cfg: SynthSessionConfig, nav: navfuncs.NavFunctions | None 
                              f"{cfg.imu_rate_hz} Hz")
     scn = _scenario(cfg)
     params = np.array(build_params(scn.lat_rad, scn.lon_rad, scn.alt_m, imu=WT901,
-                                   q_blo=simulate.LO_RANDOM_WALK_HZ2_S, f_c_hz=11.325e9))
+                                   q_blo=simulate.LO_RANDOM_WALK_HZ2_S, f_c_hz=cfg.carrier_hz))
     nav = nav or navfuncs.NavFunctions()
     nav.params = params
     t, x_true, u_true = simulate.truth(scn, params, nav)
     L = nav.layout
     rng = np.random.default_rng(cfg.seed)
     n, dt = u_true.shape[0], 1.0 / cfg.imu_rate_hz
-    prof = WT901
-    b_a = _random_walk(rng, n, dt, prof.acc_bias_sigma * rng.standard_normal(3), prof.acc_bias_rw**2)
-    b_g = _random_walk(rng, n, dt, prof.gyro_bias_sigma * rng.standard_normal(3), prof.gyro_bias_rw**2)
+    b_a, b_g = simulate.bias_walks(rng, WT901, n, dt)
     x_true = x_true.copy()
     x_true[:, L.X_B_A:L.X_B_A + 3], x_true[:, L.X_B_G:L.X_B_G + 3] = b_a, b_g
-    u = u_true.copy()
-    u[:, :3] += b_g[:-1] * dt + prof.arw * math.sqrt(dt) * rng.standard_normal((n, 3))
-    u[:, 3:] += b_a[:-1] * dt + prof.vrw * math.sqrt(dt) * rng.standard_normal((n, 3))
+    u = simulate.measured_increments(rng, WT901, u_true, b_a, b_g, dt)
 
     euler = nav.euler_from_quat(x_true[1:, L.X_Q_NB:L.X_Q_NB + 4])
     ahrs_err = np.radians([cfg.ahrs_sigma_rp_deg, cfg.ahrs_sigma_rp_deg, cfg.ahrs_sigma_yaw_deg])
@@ -181,8 +181,9 @@ def simulate_sensors(cfg: SynthSessionConfig, nav: navfuncs.NavFunctions | None 
     sig = np.array([cfg.fix_sigma_en_m, cfg.fix_sigma_en_m, cfg.fix_sigma_u_m])
     fix_enu = p + sig * rng.standard_normal(p.shape)
     fix_vel = v[:, :2] + cfg.speed_sigma_mps * rng.standard_normal((k_fix.size, 2))
+    sent = t[k_fix] >= cfg.gnss_start_s - 1e-9      # drawn for every epoch: same noise whatever the start
     return {"params": params, "t_imu": t, "x_true": x_true, "u_meas": u, "ahrs_rpy": ahrs,
-            "fix_t": t[k_fix], "fix_enu": fix_enu, "fix_vel_en": fix_vel, "scn": scn}
+            "fix_t": t[k_fix][sent], "fix_enu": fix_enu[sent], "fix_vel_en": fix_vel[sent], "scn": scn}
 
 
 # ------------------------------------------------------------------ serial bytes and host reads
@@ -231,11 +232,20 @@ def _gnss_bursts(cfg: SynthSessionConfig, sim: dict) -> list[tuple[float, bytes]
     for j, t in enumerate(sim["fix_t"]):
         utc = cfg.epoch_utc + _dt.timedelta(seconds=float(t))
         la, lo = math.degrees(lat[j]), math.degrees(lon[j])
-        msg = (nmea_write.rmc(utc, la, lo, *sim["fix_vel_en"][j])
-               + nmea_write.gga(utc, la, lo, float(h[j]) - cfg.geoid_sep_m, cfg.geoid_sep_m, 1, 14, 0.72)
+        gga = nmea_write.gga(utc, la, lo, float(h[j]) - cfg.geoid_sep_m, cfg.geoid_sep_m, 1, 14, 0.72)
+        if t < cfg.gga_no_altitude_s - 1e-9:
+            gga = _without_altitude(gga)
+        msg = (nmea_write.rmc(utc, la, lo, *sim["fix_vel_en"][j]) + gga
                + nmea_write.gst(utc, cfg.fix_sigma_en_m, cfg.fix_sigma_en_m, cfg.fix_sigma_u_m, 1.8))
         out.append((float(t) + cfg.gnss_latency_s, msg))
     return out
+
+
+def _without_altitude(gga: bytes) -> bytes:
+    """The GGA sentence with its altitude field (the 10th, after the talker+type) emptied."""
+    fields = gga.decode("ascii").strip()[1:].split("*")[0].split(",")
+    fields[9] = ""
+    return nmea_write.sentence(",".join(fields))
 
 
 def _imu_bursts(cfg: SynthSessionConfig, sim: dict) -> list[tuple[float, bytes]]:
@@ -317,11 +327,13 @@ def _write_sdr(folder: Path, cfg: SynthSessionConfig, elements, progress) -> dic
     from leonav_runtime.beacons import synth
     from leonav_runtime.beacons.predict import Site
 
-    settings = sdr_capture.SdrSettings(sample_rate_hz=cfg.sdr_rate_hz, gain_db=30.0)
+    settings = sdr_capture.SdrSettings(rf_center_hz=cfg.carrier_hz, lnb_lo_hz=cfg.lnb_lo_hz,
+                                       sample_rate_hz=cfg.sdr_rate_hz, gain_db=30.0)
     start = cfg.epoch_utc + _dt.timedelta(seconds=cfg.sdr_start_s)
     duration = cfg.seconds - cfg.sdr_start_s - 0.05
     scfg = synth.SynthConfig(duration_s=duration, sample_rate_hz=cfg.sdr_rate_hz, center_freq_hz=settings.if_hz,
-                             lnb_lo_hz=settings.lnb_lo_hz, cn0_dbhz=cfg.cn0_dbhz, lo_offset_hz=cfg.lo_offset_hz,
+                             lnb_lo_hz=settings.lnb_lo_hz, tone_rf_hz=cfg.carrier_hz, cn0_dbhz=cfg.cn0_dbhz,
+                             lo_offset_hz=cfg.lo_offset_hz,
                              n_satellites=cfg.n_satellites, seed=cfg.seed)
     site = Site(math.radians(cfg.lat_deg), math.radians(cfg.lon_deg), cfg.alt_m)
     data = folder / "sdr.cu8"
@@ -423,12 +435,14 @@ def write_synthetic_session(folder: str | Path, cfg: SynthSessionConfig | None =
 def direct_inputs(synth: SyntheticSession, replayed, options=None, nav: navfuncs.NavFunctions | None = None):
     """The replay's inputs rebuilt from the floats that went into the session (no bytes).
 
-    Same truth, same noise draws, same initialization rules and same Doppler-rate values
-    (the beacon pipeline's output of the replay, i.e. the same measurement errors), but:
-    exact sample and fix times (no stamps, no time map), unquantized IMU values (so the
-    filter's IMU noise is the plain WT901 profile), unrounded fixes and angles, and the
-    Doppler-rate epochs at their true times. The RMSE difference between the two runs is
-    what the byte formats and time tagging cost.
+    Same truth, same noise draws, same initialization rules (`replay.assemble`: initial
+    fix, averaged specific force and its noise in the Doppler-rate R, prior), same carrier
+    and same Doppler-rate values (the beacon pipeline's output of the replay, i.e. the same
+    measurement errors), but: exact sample and fix times (no stamps, no time map),
+    unquantized IMU values (so the filter's IMU noise is the plain WT901 profile), unrounded
+    fixes and angles, and the Doppler-rate epochs at their true times. Fixes the session
+    sent without an altitude are left out, as the replay does. The RMSE difference between
+    the two runs is what the byte formats and time tagging cost.
     """
     from leonav_runtime import replay
 
@@ -438,36 +452,42 @@ def direct_inputs(synth: SyntheticSession, replayed, options=None, nav: navfuncs
     dt = 1.0 / cfg.imu_rate_hz
     lat0, lon0, h0 = synth.origin
     r_site = geometry.geodetic_to_ecef(lat0, lon0, h0)
-    r_fix = geometry.enu_to_ecef(synth.fix_enu, r_site, lat0, lon0)
+    sent = synth.fix_t >= cfg.gga_no_altitude_s - 1e-9
+    if not np.any(sent):
+        raise UserInputError(f"{synth.folder}: no GNSS fix with an altitude: nothing to compare")
+    r_fix = geometry.enu_to_ecef(synth.fix_enu[sent], r_site, lat0, lon0)
     lat, lon, h = geometry.ecef_to_geodetic(r_fix[0])
     origin = (float(lat), float(lon), float(h))
     enu = geometry.ecef_to_enu(r_fix, geometry.geodetic_to_ecef(*origin), origin[0], origin[1])
     n = synth.u_meas.shape[0]
     imu = replay.ImuTable(synth.t_imu[1:], np.full(n, dt), synth.u_meas[:, :3] / dt, synth.u_meas[:, 3:] / dt,
                           synth.ahrs_rpy)
-    sig = np.tile([cfg.fix_sigma_en_m, cfg.fix_sigma_en_m, cfg.fix_sigma_u_m], (synth.fix_t.size, 1))
-    fixes = replay.FixTable(synth.fix_t, enu, sig, synth.fix_vel_en)
+    sig = np.tile([cfg.fix_sigma_en_m, cfg.fix_sigma_en_m, cfg.fix_sigma_u_m], (enu.shape[0], 1))
+    fixes = replay.FixTable(synth.fix_t[sent], enu, sig, synth.fix_vel_en[sent])
     a = replayed.alpha
     alpha = replay.AlphaTable(a.t, a.norad, a.sat_index, a.z, a.sigma)
     if a.t.size:
         start = replayed.beacons["capture_start_utc"].timestamp()
         alpha.t = cfg.sdr_start_s + (a.t + replayed.epoch_utc.timestamp() - start)   # capture seconds -> truth axis
     inputs = replay.assemble(cfg.epoch_utc, origin, imu, fixes, alpha, synth.elements, options,
-                             replay.filter_profile(dt, quantized=False), nav)
+                             replay.filter_profile(dt, quantized=False), nav, carrier_hz=replayed.carrier_hz)
     inputs.skipped = dict(replayed.skipped)
     return inputs
 
 
 def compare_replay_direct(synth: SyntheticSession, out_dir: str | Path, options=None, elements=None,
                           nav: navfuncs.NavFunctions | None = None) -> dict:
-    """Replay the session (outputs in out_dir) and run the direct simulation; RMSE of both per mode."""
+    """Replay the session (outputs in out_dir) and run the direct simulation; RMSE of both per mode.
+
+    The session is decoded (and its capture processed) once; both runs use that decoding."""
     from leonav_runtime import replay
 
     options = options or replay.ReplayOptions(gnss_latency_s=synth.cfg.gnss_latency_s)
     nav = nav or navfuncs.NavFunctions()
     out_dir = Path(out_dir)
-    metrics = replay.replay_session(synth.folder, out_dir, options, elements=elements or synth.elements, nav=nav)
-    replayed = replay.decode_inputs(synth.folder, options, elements or synth.elements, None, nav)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    replayed = replay.decode_inputs(synth.folder, options, elements or synth.elements, out_dir, nav)
+    metrics = replay.replay_session(synth.folder, out_dir, options, nav=nav, inputs=replayed)
     direct = direct_inputs(synth, replayed, options, nav)
     runs = replay.run_modes(direct, options.modes, options.gate_nis, nav)
     ref = replay.truth_reference(synth.folder / "truth.csv", direct.epoch_utc, direct.origin, nav)

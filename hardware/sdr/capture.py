@@ -22,8 +22,9 @@ from pathlib import Path
 from typing import Any, Callable
 
 from leonav_runtime.errors import UserInputError
+from models.params import STARLINK_BEACON_HZ
 
-DEFAULT_RF_HZ = 11.325e9
+DEFAULT_RF_HZ = STARLINK_BEACON_HZ
 DEFAULT_LNB_LO_HZ = 9.75e9
 DEFAULT_SAMPLE_RATE = 2.4e6
 READ_BLOCK_BYTES = 2 * 262144           # 262,144 complex samples per read (~0.11 s at 2.4 MS/s)

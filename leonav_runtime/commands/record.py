@@ -6,6 +6,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from hardware.sdr.capture import DEFAULT_LNB_LO_HZ
+from models.params import STARLINK_BEACON_HZ
+
 
 def _gain(text: str) -> float | str:
     if text == "auto":
@@ -34,8 +37,11 @@ def register(subparsers) -> None:
     parser.add_argument("--configure", action="store_true",
                         help="send the 10 Hz configuration first (UBX CFG-VALSET: 100 ms rate, NAV-PVT, "
                         "RXM-RAWX/MEASX on UART1; WitMotion: unlock, 10 Hz, save)")
-    parser.add_argument("--rf-hz", type=float, default=11.325e9, help="beacon RF centre (Hz, default 11.325e9)")
-    parser.add_argument("--lnb-lo-hz", type=float, default=9.75e9, help="LNB local oscillator (Hz, default 9.75e9)")
+    parser.add_argument("--rf-hz", type=float, default=STARLINK_BEACON_HZ,
+                        help="beacon RF carrier, tuned to baseband 0 (Hz, default %(default)g); `leonav replay` "
+                        "takes the Doppler-rate carrier from it")
+    parser.add_argument("--lnb-lo-hz", type=float, default=DEFAULT_LNB_LO_HZ,
+                        help="LNB local oscillator (Hz, default %(default)g)")
     parser.add_argument("--sdr-rate", type=float, default=2.4e6, help="SDR sample rate (S/s, default 2.4e6)")
     parser.add_argument("--sdr-gain", type=_gain, default="auto", help="SDR gain in dB or 'auto'")
     parser.add_argument("--sdr-ppm", type=int, default=0, help="SDR frequency correction (ppm)")
