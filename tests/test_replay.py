@@ -4,7 +4,9 @@ Acceptance: a 12 s synthetic session (NMEA at 10 Hz, WitMotion at 10 Hz, 400 kS/
 capture with 5 tones) replays end to end, and its RMSE per mode is within 20 % of the
 same truth and noise run directly through the filter without bytes (differences: int16
 IMU quantization, NMEA rounding, arrival-stamp time tagging). Plus encoders vs the
-decoders, the IMU time fit, and bad sessions.
+decoders, the IMU time fit, and bad sessions. Also: the Doppler-rate carrier from the capture's
+metadata, the averaged specific force and its noise in the Doppler-rate R, GGA fixes without
+an altitude, a late first fix, and one decoding per comparison.
 """
 from __future__ import annotations
 
@@ -22,9 +24,13 @@ from hardware.imu import witmotion_encode as wenc
 from hardware.imu.witmotion import SampleGrouper, WitMotionParser
 from hardware.records import GnssFix, NmeaSentence
 from hardware.session import decode_session
-from leonav_runtime import replay, session_synth as ss
+from leonav_runtime import navfuncs, replay, session_synth as ss, simulate
 from leonav_runtime.cli import main as leonav_main
 from leonav_runtime.errors import UserInputError
+from models.imu import WT901
+from models.params import STARLINK_BEACON_HZ
+
+C_LIGHT = 299_792_458.0
 
 SECONDS = 12.0
 
@@ -37,8 +43,30 @@ def synth(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def comparison(synth, tmp_path_factory):
+    """compare_replay_direct, counting how often the session is decoded and its capture processed."""
+    import hardware.session
+    from leonav_runtime.beacons import pipeline
+
+    calls = {"decode_session": 0, "process_capture": 0}
+
+    def counted(module, name):
+        real = getattr(module, name)
+
+        def wrapper(*a, **k):
+            calls[name] += 1
+            return real(*a, **k)
+        return wrapper
+
     out = tmp_path_factory.mktemp("replay")
-    return ss.compare_replay_direct(synth, out) | {"out": out}
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(hardware.session, "decode_session", counted(hardware.session, "decode_session"))
+        mp.setattr(pipeline, "process_capture", counted(pipeline, "process_capture"))
+        res = ss.compare_replay_direct(synth, out)
+    return res | {"out": out, "calls": calls}
+
+
+def test_comparison_decodes_the_session_once(comparison):
+    assert comparison["calls"] == {"decode_session": 1, "process_capture": 1}
 
 
 def test_replay_matches_direct_simulation_within_20_percent(comparison):
@@ -198,3 +226,159 @@ def test_cli_replay_with_origin_and_bad_modes(synth, tmp_path, capsys):
     assert m["initialization"]["origin"] == "--origin" and m["initialization"]["yaw"] == "--yaw-deg"
     assert m["modes"]["gps+imu"]["rmse_position_m"] < 2.0
     assert leonav_main(["replay", str(folder), "--modes", "gps-only", "--out", str(tmp_path / "o2")]) == 2
+
+
+# ------------------------------------------------------------------ carrier, Doppler-rate inputs
+
+
+@pytest.fixture(scope="module")
+def carrier_session(tmp_path_factory):
+    """6 s at a 11.2 GHz carrier (not the default), 50 Hz IMU so the f_b average spans 5 samples."""
+    cfg = ss.SynthSessionConfig(seconds=6.0, seed=4, carrier_hz=11.2e9, imu_rate_hz=50.0, imu_baud=115200,
+                                host_read_s=0.001, n_satellites=4)
+    return ss.write_synthetic_session(tmp_path_factory.mktemp("carrier") / "s", cfg)
+
+
+@pytest.fixture(scope="module")
+def carrier_inputs(carrier_session):
+    opts = replay.ReplayOptions(gnss_latency_s=carrier_session.cfg.gnss_latency_s)
+    return replay.decode_inputs(carrier_session.folder, opts, carrier_session.elements), opts
+
+
+def test_carrier_comes_from_the_capture_metadata(carrier_session, carrier_inputs, tmp_path):
+    inputs, opts = carrier_inputs
+    L = navfuncs.NavFunctions().layout
+    meta = json.loads((carrier_session.folder / "sdr.sigmf-meta").read_text())
+    assert meta["global"]["leonav:rf_center_hz"] == pytest.approx(11.2e9)
+    assert inputs.carrier_hz == pytest.approx(11.2e9) and inputs.params[L.P_F_C_HZ] == pytest.approx(11.2e9)
+    assert inputs.beacons["counts"]["associated"] >= 3 and inputs.counts["alpha_records"] >= 8
+    m = replay.replay_session(carrier_session.folder, tmp_path, opts, inputs=inputs)
+    assert m["carrier_hz"] == pytest.approx(11.2e9) and "capture metadata" in m["carrier_source"]
+    assert not any("carrier" in n for n in m["notes"])
+    # with the 11.325 GHz model the 1.1 % scale error on rates of 100s of Hz/s would be gated
+    alpha = m["modes"]["leo-alpha+imu"]["per_observable"]["doppler_rate"]
+    assert alpha["gated"] == 0 and alpha["failed"] == 0 and alpha["nis_mean"] < 2.0
+    assert m["modes"]["leo-alpha+imu"]["rmse_position_m"] < 15.0
+
+
+def test_carrier_falls_back_to_the_starlink_beacon_with_a_note(carrier_session, tmp_path):
+    folder = _copy(carrier_session, tmp_path)
+    meta_path = folder / "sdr.sigmf-meta"
+    meta = json.loads(meta_path.read_text())
+    meta["global"]["leonav:lnb_lo_hz"] = 0.0        # no LNB: the RF centre is the 1.45 GHz IF
+    meta["global"]["leonav:rf_center_hz"] = meta["captures"][0]["core:frequency"]
+    meta_path.write_text(json.dumps(meta))
+    m = replay.replay_session(folder, tmp_path / "out", replay.ReplayOptions(modes=("gps+imu",)))
+    saved = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert saved["carrier_hz"] == STARLINK_BEACON_HZ and saved["carrier_source"].startswith("default")
+    assert any("carrier" in n and "outside the Ku downlink band" in n for n in saved["notes"])
+    assert m["modes"]["gps+imu"]["rmse_position_m"] < 2.5
+
+
+def test_doppler_rate_aux_is_the_averaged_specific_force_and_r_has_its_noise(carrier_inputs):
+    inputs, opts = carrier_inputs
+    L = navfuncs.NavFunctions().layout
+    imu, rec = inputs.imu, inputs.records["alpha"]
+    assert rec.size == inputs.alpha.t.size and np.allclose(rec["t"], inputs.alpha.t)
+    n_avg = round(simulate.F_B_AVERAGE_S * 50.0)
+    assert n_avg == 5
+    expect, single = [], []
+    for t in rec["t"]:
+        j = int(np.flatnonzero(imu.t <= t + 1e-9)[-1])        # latest sample at or before the epoch
+        sl = slice(max(0, j - n_avg + 1), j + 1)
+        expect.append((imu.f_b[sl] * imu.dt[sl, None]).sum(axis=0) / imu.dt[sl].sum())
+        single.append(imu.f_b[j])
+    f_b = rec["aux"][:, L.AUX_F_B:L.AUX_F_B + 3]
+    np.testing.assert_allclose(f_b, expect, atol=1e-9)
+    assert np.abs(f_b - np.array(single)).max() > 5e-3      # one raw sample would differ by its noise
+    vrw = inputs.init["imu_profile"]["vrw"]
+    sigma = np.maximum(inputs.alpha.sigma, opts.alpha_sigma_floor_hz_s)
+    r_expect = sigma**2 + (inputs.carrier_hz / C_LIGHT) ** 2 * vrw**2 / simulate.F_B_AVERAGE_S
+    np.testing.assert_allclose(rec["R"], r_expect, rtol=2e-3)
+    assert np.all(rec["R"] > sigma**2 * 1.05)
+
+
+# ------------------------------------------------------------------ GNSS start: no altitude, late first fix
+
+
+@pytest.fixture(scope="module")
+def degraded(tmp_path_factory):
+    """GNSS silent for 2 s, then 1 s of GGA without altitude, then normal fixes; no SDR."""
+    cfg = ss.SynthSessionConfig(seconds=6.0, seed=5, sdr=False, gnss_start_s=2.0, gga_no_altitude_s=3.0)
+    synth = ss.write_synthetic_session(tmp_path_factory.mktemp("degraded") / "s", cfg)
+    out = tmp_path_factory.mktemp("degraded_out")
+    m = replay.replay_session(synth.folder, out, replay.ReplayOptions(gnss_latency_s=cfg.gnss_latency_s))
+    return synth, m, out
+
+
+def test_fixes_without_altitude_are_skipped_and_counted(degraded):
+    synth, m, _ = degraded
+    no_alt = int(np.sum(synth.fix_t < synth.cfg.gga_no_altitude_s - 1e-9))
+    assert no_alt == 10
+    c = m["counts"]
+    assert c["gnss_fixes"] == synth.fix_t.size and c["gnss_fixes_unusable"] == no_alt
+    lat, lon, h = m["initialization"]["origin_deg"]
+    assert all(math.isfinite(v) for v in (lat, lon, h))
+    assert abs(lat - synth.cfg.lat_deg) < 1e-4 and abs(lon - synth.cfg.lon_deg) < 1e-4
+    assert abs(h - synth.cfg.alt_m) < 15.0
+    assert any("without a finite latitude, longitude and height" in n for n in m["notes"])
+    assert m["modes"]["gps+imu"]["rmse_position_m"] < 2.5
+    assert m["modes"]["gps+imu"]["records"]["failed"] == 0
+
+
+def test_late_first_fix_moves_the_filter_start(degraded):
+    synth, m, out = degraded
+    init, c = m["initialization"], m["counts"]
+    # replay t = 0 is truth 0.1 s; the first usable fix is at truth 3.0 s
+    t_fix = synth.cfg.gga_no_altitude_s - 1.0 / synth.cfg.imu_rate_hz
+    assert init["start_s"] == pytest.approx(t_fix, abs=0.02)
+    assert "initializing fix" in init["start"]
+    n_imu = synth.u_meas.shape[0] - 1                      # the first sample only opens the time axis
+    assert c["imu_records_before_start"] + c["imu_records"] == n_imu
+    assert c["imu_records_before_start"] in (28, 29)
+    rows = (out / "trajectory.csv").read_text().splitlines()[1:]
+    assert min(float(r.split(",")[0]) for r in rows) > init["start_s"]
+
+
+def _moving_tables(t_first_fix: float):
+    """10 Hz IMU for 3 s and 10 Hz fixes from t_first_fix of a receiver going East at 10 m/s."""
+    n = 30
+    t = 0.1 * np.arange(1, n + 1)
+    imu = replay.ImuTable(t, np.full(n, 0.1), np.zeros((n, 3)), np.tile([0.0, 0.0, 9.80], (n, 1)),
+                          np.tile([0.0, 0.0, math.pi / 2], (n, 1)))
+    tf = np.arange(t_first_fix, 3.0 + 1e-9, 0.1)
+    enu = np.column_stack([10.0 * tf, np.zeros_like(tf), np.zeros_like(tf)])
+    fixes = replay.FixTable(tf, enu, np.tile([1.5, 1.5, 3.0], (tf.size, 1)), np.tile([10.0, 0.0], (tf.size, 1)))
+    return imu, fixes
+
+
+@pytest.mark.parametrize("t_first_fix, start, dropped", [(0.03, 0.0, 0), (1.53, 1.53, 15)])
+def test_assemble_starts_at_a_late_first_fix(t_first_fix, start, dropped):
+    nav = navfuncs.NavFunctions()
+    L = nav.layout
+    imu, fixes = _moving_tables(t_first_fix)
+    inp = replay.assemble(dt.datetime(2026, 2, 23, tzinfo=dt.timezone.utc), (0.75, -1.35, 170.0), imu, fixes,
+                          replay.AlphaTable.empty(), None, replay.ReplayOptions(), WT901, nav)
+    rec = inp.records["imu"]
+    assert inp.init["start_s"] == pytest.approx(start)
+    assert inp.counts["imu_records_before_start"] == dropped and rec.size == 30 - dropped
+    assert rec["t"][0] - rec["dt"][0] == pytest.approx(start)         # first interval begins at the start
+    np.testing.assert_allclose(rec["dt"][1:], 0.1)
+    assert inp.x0[L.X_P_ENU] == pytest.approx(10.0 * t_first_fix)     # the fix's own position and velocity
+    assert inp.x0[L.X_V_ENU] == pytest.approx(10.0)
+    assert inp.records["fix"].size == 3 * (fixes.t.size - 1) and np.all(inp.records["fix"]["t"] > start)
+    # P0: fix sigma, 0.5 m/s, 0.5/0.5/5 deg, the profile's bias sigmas, clock/LO constants
+    sig = np.sqrt(np.diag(inp.P0))
+    np.testing.assert_allclose(sig[L.DX_DP:L.DX_DP + 3], [1.5, 1.5, 3.0])
+    np.testing.assert_allclose(sig[L.DX_DTHETA:L.DX_DTHETA + 3], np.radians([0.5, 0.5, 5.0]))
+    np.testing.assert_allclose(sig[L.DX_DB_A:L.DX_DB_A + 3], WT901.acc_bias_sigma)
+    assert sig[L.DX_DB_LO] == simulate.LO_OFFSET_SIGMA_HZ and np.all(np.isfinite(inp.params))
+
+
+def test_synthetic_imu_noise_is_the_simulators_draw(synth):
+    """The session's biases are `simulate.bias_walks` of its seed, as in the Monte Carlo trials."""
+    L = navfuncs.NavFunctions().layout
+    n, dt_s = synth.u_meas.shape[0], 1.0 / synth.cfg.imu_rate_hz
+    b_a, b_g = simulate.bias_walks(np.random.default_rng(synth.cfg.seed), WT901, n, dt_s)
+    np.testing.assert_array_equal(synth.x_true[:, L.X_B_A:L.X_B_A + 3], b_a)
+    np.testing.assert_array_equal(synth.x_true[:, L.X_B_G:L.X_B_G + 3], b_g)
