@@ -41,7 +41,7 @@ def test_session_synth_then_replay(tmp_path, capsys):
 
     assert leonav_main(["replay", str(session), "--out", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "reference: truth.csv" in text
+    assert "reference: truth.csv" in text and "carrier f_c: 11.325000 GHz, capture metadata" in text
     rows = _mode_rows(text)
     assert set(rows) == set(MODES), text
     for mode, rest in rows.items():       # every mode ran: RMSEs, applied/gated/failed counts

@@ -81,6 +81,8 @@ def run(args: argparse.Namespace) -> int:
               f"{b['unassociated']} unassociated; {metrics['counts'].get('alpha_records', 0)} Doppler-rate records")
     elif metrics["beacons"].get("reason_empty"):
         print(f"  beacons: none ({metrics['beacons']['reason_empty']})")
+    if b:
+        print(f"  carrier f_c: {metrics['carrier_hz'] / 1e9:.6f} GHz, {metrics['carrier_source']}")
     print(f"  {'mode':<20} {'pos RMSE m':>10} {'vel m/s':>8} {'att deg':>8} {'applied':>8} {'gated':>6} {'failed':>6}")
     for mode, m in metrics["modes"].items():
         r = m["records"]
