@@ -250,6 +250,7 @@ def regular_sample_times(t_mono: np.ndarray) -> tuple[np.ndarray, np.ndarray, in
     for a, b in zip(anchors[:-1], anchors[1:]):
         idx[a + 1:b] = idx[a] + np.arange(1, b - a)
         idx[b] = idx[a] + max(b - a, int(round((t[b] - t[a]) / period)))
+    idx = _drop_spurious_gaps(t, idx, period)
     keep = on_time.copy()
     for _ in range(3):
         a, b = np.polyfit(idx[keep], t[keep], 1)
@@ -257,6 +258,25 @@ def regular_sample_times(t_mono: np.ndarray) -> tuple[np.ndarray, np.ndarray, in
         mad = np.median(np.abs(res[keep] - np.median(res[keep])))
         keep = on_time & (np.abs(res) <= max(5 * 1.4826 * mad, 0.03))
     return a * idx + b, idx, int(idx[-1] + 1 - t.size)
+
+
+def _drop_spurious_gaps(t: np.ndarray, idx: np.ndarray, period: float, window: int = 10) -> np.ndarray:
+    """Sample indices without the gaps that read jitter made up.
+
+    Read delays of half a period or more (fast sensors, busy hosts) stretch one spacing
+    into what looks like a missing sample. Stamps are only ever late, so the lower envelope
+    of t - period * index (the least-delayed stamps of `window` samples) is the same before
+    and after a real gap; after a made-up one it drops by a period. Such gaps are removed
+    in time order.
+    """
+    idx = idx.copy()
+    for g in np.flatnonzero(np.diff(idx) > 1) + 1:
+        before = t[max(0, g - window):g] - period * idx[max(0, g - window):g]
+        after = t[g:g + window] - period * idx[g:g + window]
+        n_fake = min(int(round((before.min() - after.min()) / period)), int(idx[g] - idx[g - 1] - 1))
+        if n_fake > 0:
+            idx[g:] -= n_fake
+    return idx
 
 
 # ------------------------------------------------------------------ decoding to tables

@@ -177,6 +177,19 @@ def test_regular_sample_times_recover_period_and_gaps():
     assert abs(np.median(t - (5.0 + 0.1 * k)) - 0.026) < 0.004
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_regular_sample_times_do_not_invent_gaps_from_read_jitter(seed):
+    """50 Hz samples read by a host with 0.5 ms + Exp(4 ms) latency (the synthetic sessions' default):
+    single stretched spacings of 1.5 periods must not count as lost samples; the 3 real ones must."""
+    rng = np.random.default_rng(seed)
+    k = np.delete(np.arange(400), [100, 250, 251])
+    stamps = np.maximum.accumulate(5.0 + 0.02 * k + 0.0005 + rng.exponential(0.004, k.size))
+    t, idx, missing = replay.regular_sample_times(stamps)
+    assert missing == 3
+    assert np.mean(idx == k) > 0.95
+    np.testing.assert_allclose(np.median(np.diff(t) / np.diff(idx)), 0.02, rtol=1e-3)
+
+
 def _copy(synth, tmp_path, drop=()):
     dst = tmp_path / "s"
     shutil.copytree(synth.folder, dst)
@@ -235,7 +248,7 @@ def test_cli_replay_with_origin_and_bad_modes(synth, tmp_path, capsys):
 def carrier_session(tmp_path_factory):
     """6 s at a 11.2 GHz carrier (not the default), 50 Hz IMU so the f_b average spans 5 samples."""
     cfg = ss.SynthSessionConfig(seconds=6.0, seed=4, carrier_hz=11.2e9, imu_rate_hz=50.0, imu_baud=115200,
-                                host_read_s=0.001, n_satellites=4)
+                                n_satellites=4)
     return ss.write_synthetic_session(tmp_path_factory.mktemp("carrier") / "s", cfg)
 
 
@@ -252,6 +265,7 @@ def test_carrier_comes_from_the_capture_metadata(carrier_session, carrier_inputs
     assert meta["global"]["leonav:rf_center_hz"] == pytest.approx(11.2e9)
     assert inputs.carrier_hz == pytest.approx(11.2e9) and inputs.params[L.P_F_C_HZ] == pytest.approx(11.2e9)
     assert inputs.beacons["counts"]["associated"] >= 3 and inputs.counts["alpha_records"] >= 8
+    assert inputs.counts["imu_missing_samples"] == 0       # 50 Hz with 4 ms read jitter: no invented gaps
     m = replay.replay_session(carrier_session.folder, tmp_path, opts, inputs=inputs)
     assert m["carrier_hz"] == pytest.approx(11.2e9) and "capture metadata" in m["carrier_source"]
     assert not any("carrier" in n for n in m["notes"])
