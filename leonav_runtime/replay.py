@@ -233,8 +233,8 @@ def regular_sample_times(t_mono: np.ndarray) -> tuple[np.ndarray, np.ndarray, in
     samples arrive together: within such a burst only the last one is close to on time.
     The on-time samples are those not followed by another within half a period; between
     two of them, the index advances by round(time span / period), at least by the number
-    of samples received (any missing ones are placed just before the later on-time one).
-    The period (median spacing) is then refined, with the offset, by a least-squares line
+    of samples received (any missing ones are placed just before the later on-time one);
+    gaps that read jitter made up are then removed (`_drop_spurious_gaps`). The period (median spacing) is then refined, with the offset, by a least-squares line
     through (index, stamp) of the on-time samples after dropping stamps more than
     max(5 robust sigmas, 30 ms) off.
     """
