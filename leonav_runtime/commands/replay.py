@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import argparse
 import math
-from pathlib import Path
 
 from leonav_runtime import output
 from leonav_runtime.errors import UserInputError
