@@ -28,6 +28,7 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 from leonav_runtime.errors import UserInputError
 from models.imu import PROFILES as IMU_PROFILE_DATA
+from models.params import STARLINK_BEACON_HZ
 
 BUILTIN_DIR = Path(__file__).with_name("scenarios")
 
@@ -114,7 +115,7 @@ SCHEMA: dict[str, dict[str, Field]] = {
     },
     "starlink": {
         "rate_hz": Field(float, "Hz", 0.01, 100, default=1.0, doc="Starlink measurement epoch rate"),
-        "carrier_hz": Field(float, "Hz", 1e9, 3e10, default=11.325e9, doc="beacon channel centre"),
+        "carrier_hz": Field(float, "Hz", 1e9, 3e10, default=STARLINK_BEACON_HZ, doc="beacon channel centre"),
         "elevation_mask_deg": Field(float, "deg", -5, 90, default=28.0, doc="Starlink mask (paper: 28 deg)"),
         "counts": Field(list, "-", default=[5, 10, 15, 20, 25, 30, 35, 40, 45],
                         doc="Starlink satellite counts swept"),

@@ -87,6 +87,7 @@ class PipelineResult:
     ridge_measurements: list[RidgeMeasurements] = dataclasses.field(default_factory=list)
     combs: list[Comb] = dataclasses.field(default_factory=list)
     lo: LoEstimate = dataclasses.field(default_factory=LoEstimate)
+    tone_rf_hz: float = TONE_RF_HZ  # beacon carrier the Doppler is referred to (Hz)
 
     def by_ridge(self) -> dict[int, tuple[Ridge, RidgeMeasurements, Association]]:
         return {r.ridge_id: (r, m, a) for r, m, a in zip(self.ridges, self.measurements, self.associations)}
@@ -136,7 +137,8 @@ def process_capture(info: capture_io.CaptureInfo, elements, site: Site, cfg: Pip
     ca = associate_capture(meas, pred, cfg.association)
     filt = [m if a.status != "associated" else ca.filter_measurements[m.ridge_id] if a.carrier else _empty(m)
             for m, a in zip(meas, ca.associations)]
-    return PipelineResult(info, stft, ridges, stats, filt, pred, ca.associations, image, "", meas, ca.combs, ca.lo)
+    return PipelineResult(info, stft, ridges, stats, filt, pred, ca.associations, image, "", meas, ca.combs, ca.lo,
+                          cfg.tone_rf_hz)
 
 
 def _empty(m: RidgeMeasurements) -> RidgeMeasurements:
@@ -223,7 +225,7 @@ def write_outputs(res: PipelineResult, out_dir: Path) -> dict[str, Path]:
             for k in range(m.t_s.size):
                 rows_m.append([m.t_s[k], _iso(start, m.t_s[k]), a.norad_id, a.name, m.rate_hz_s[k],
                                m.sigma_rate_hz_s[k], m.doppler_hz[k], m.sigma_doppler_hz[k], lo_t[k],
-                               pr[k], m.rate_hz_s[k] - pr[k], m.snr_db[k], ridge.ridge_id, TONE_RF_HZ,
+                               pr[k], m.rate_hz_s[k] - pr[k], m.snr_db[k], ridge.ridge_id, res.tone_rf_hz,
                                drift, a.comb_id, int(nt[k])])
         if m0.t_s.size == 0:
             rows_a.append([math.nan, "", ridge.ridge_id, a.status, a.name, a.norad_id, math.nan, math.nan,

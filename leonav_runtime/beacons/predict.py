@@ -18,9 +18,10 @@ import functools
 import numpy as np
 
 from leonav_runtime.errors import UserInputError
+from models.params import STARLINK_BEACON_HZ
 
 DEFAULT_MASK_DEG = 28.0
-TONE_RF_HZ = 11.325e9  # central beacon tone of the 11.325 GHz channel
+TONE_RF_HZ = STARLINK_BEACON_HZ  # central beacon tone of the 11.325 GHz channel
 
 
 @functools.lru_cache(maxsize=4)

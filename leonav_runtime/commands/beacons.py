@@ -9,6 +9,7 @@ from pathlib import Path
 
 from leonav_runtime import output
 from leonav_runtime.errors import UserInputError
+from models.params import STARLINK_BEACON_HZ
 from leonav_runtime.orbits.elements import load_element_files
 
 ROCHESTER_DEG = (43.0848638, -77.6786127, 170.0)  # the paper's site
@@ -53,7 +54,7 @@ def register(subparsers) -> None:
                    help="SDR tuned frequency (the LNB IF), Hz, e.g. 1.575e9")
     p.add_argument("--lnb-lo", type=float, default=None, metavar="HZ",
                    help="nominal LNB local oscillator, Hz (default 9.75e9, universal LNB low band)")
-    p.add_argument("--tone-freq", type=float, default=11.325e9, metavar="HZ",
+    p.add_argument("--tone-freq", type=float, default=STARLINK_BEACON_HZ, metavar="HZ",
                    help="nominal RF tone frequency the Doppler refers to (default %(default)g)")
     p.add_argument("--mask", type=float, default=28.0, metavar="DEG",
                    help="elevation mask for candidate satellites, deg (default %(default)g, the paper's)")
