@@ -16,9 +16,12 @@ satellites are large and no derivatives are needed.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
+
+from leonav_runtime.errors import UserInputError
 
 # WGS84 defining constants (NIMA TR8350.2).
 WGS84_A_M = 6378137.0
@@ -241,3 +244,28 @@ def masks_for(constellations: Mapping[str, object], overrides_rad: Mapping[str, 
     """Elevation mask (rad) per constellation name: overrides first, else the paper's defaults."""
     overrides_rad = dict(overrides_rad or {})
     return {name: float(overrides_rad.get(name, default_mask_rad(name))) for name in constellations}
+
+
+@dataclass(frozen=True)
+class Site:
+    """Receiver site: WGS84 geodetic latitude/longitude (rad), ellipsoidal height (m)."""
+
+    lat_rad: float
+    lon_rad: float
+    h_m: float
+
+    @classmethod
+    def from_degrees(cls, lat_deg: float, lon_deg: float, h_m: float) -> "Site":
+        """Site from degrees; a latitude/longitude out of range is a UserInputError naming it."""
+        for name, value, limit in (("--lat", lat_deg, 90.0), ("--lon", lon_deg, 360.0)):
+            if not math.isfinite(value) or abs(value) > limit:
+                raise UserInputError(f"{name}: expected degrees within +/-{limit:g}, got {value}")
+        return cls(math.radians(lat_deg), math.radians(lon_deg), float(h_m))
+
+    @property
+    def r_ecef_m(self) -> np.ndarray:
+        """Site position in ECEF (m)."""
+        return geodetic_to_ecef(self.lat_rad, self.lon_rad, self.h_m)
+
+    def as_dict(self) -> dict:
+        return {"lat_deg": math.degrees(self.lat_rad), "lon_deg": math.degrees(self.lon_rad), "h_m": self.h_m}

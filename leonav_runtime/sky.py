@@ -20,6 +20,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from leonav_runtime import geometry
+from leonav_runtime.geometry import Site
 
 # Elements older (or newer) than this, relative to the window, are flagged stale when the
 # element set does not carry its own threshold (orbits.ElementSet.stale_after_days): SGP4
@@ -29,27 +30,6 @@ STALE_AGE_DAYS = 3.0
 # Satellite-epoch positions propagated per chunk (x3 doubles, plus velocities): keeps the
 # peak memory near 100 MB whatever the number of satellites and epochs.
 _CHUNK_SAT_EPOCHS = 2_000_000
-
-
-@dataclass(frozen=True)
-class Site:
-    """Receiver site: WGS84 geodetic latitude/longitude (rad), ellipsoidal height (m)."""
-
-    lat_rad: float
-    lon_rad: float
-    h_m: float
-
-    @classmethod
-    def from_degrees(cls, lat_deg: float, lon_deg: float, h_m: float) -> "Site":
-        return cls(math.radians(lat_deg), math.radians(lon_deg), float(h_m))
-
-    @property
-    def r_ecef_m(self) -> np.ndarray:
-        """Site position in ECEF (m)."""
-        return geometry.geodetic_to_ecef(self.lat_rad, self.lon_rad, self.h_m)
-
-    def as_dict(self) -> dict:
-        return {"lat_deg": math.degrees(self.lat_rad), "lon_deg": math.degrees(self.lon_rad), "h_m": self.h_m}
 
 
 # The paper's hardware and simulation site on the RIT campus, Rochester NY.

@@ -17,7 +17,7 @@ import functools
 
 import numpy as np
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.geometry import Site
 from models.params import STARLINK_BEACON_HZ
 
 DEFAULT_MASK_DEG = 28.0
@@ -67,22 +67,6 @@ def evaluate_model(r_ecef_m: np.ndarray, v_ecef_mps: np.ndarray, a_ecef_mps2: np
     cols = lambda a: np.ascontiguousarray(np.reshape(a, (n, 3)).T)  # noqa: E731
     d, r = f(cols(r_ecef_m), cols(v_ecef_mps), cols(a_ecef_mps2), np.tile(p[:, None], (1, n)))
     return np.asarray(d).reshape(shape), np.asarray(r).reshape(shape)
-
-
-@dataclasses.dataclass
-class Site:
-    """Receiver site, WGS84 (rad, rad, m)."""
-
-    lat_rad: float
-    lon_rad: float
-    h_m: float
-
-    @classmethod
-    def from_degrees(cls, lat_deg: float, lon_deg: float, h_m: float) -> "Site":
-        for name, v, lim in (("--lat", lat_deg, 90.0), ("--lon", lon_deg, 180.0)):
-            if not np.isfinite(v) or abs(v) > lim:
-                raise UserInputError(f"{name}: expected degrees within +/-{lim:g}, got {v}")
-        return cls(np.radians(lat_deg), np.radians(lon_deg), float(h_m))
 
 
 @dataclasses.dataclass
