@@ -27,6 +27,7 @@ else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.utc import parse_utc
 from models.imu import PROFILES as IMU_PROFILE_DATA
 from models.params import STARLINK_BEACON_HZ
 
@@ -208,20 +209,6 @@ def _numbers(source: str, section: str, key: str, value: Any, length: int | None
     return [float(v) for v in value]
 
 
-def _parse_epoch(source: str, text: str) -> _dt.datetime:
-    try:
-        epoch = _dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
-    except ValueError:
-        raise UserInputError(
-            f"{source}: [time] epoch = {text!r}: expected ISO 8601 UTC, e.g. 2026-01-30T17:00:00Z"
-        ) from None
-    if epoch.tzinfo is None:
-        raise UserInputError(
-            f"{source}: [time] epoch = {text!r}: expected an explicit UTC offset (end with Z)"
-        )
-    return epoch.astimezone(_dt.timezone.utc)
-
-
 def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
                        base_dir: Path | None = None) -> Scenario:
     """Validate a parsed TOML mapping and convert it to an SI `Scenario`."""
@@ -318,7 +305,7 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
         lat_rad=math.radians(values["site"]["lat_deg"]),
         lon_rad=math.radians(values["site"]["lon_deg"]),
         alt_m=values["site"]["alt_m"],
-        epoch_utc=_parse_epoch(source, values["time"]["epoch"]),
+        epoch_utc=parse_utc(values["time"]["epoch"], f"{source}: [time] epoch", require_zone=True),
         duration_s=duration,
         trajectory=traj,
         imu_profile=values["imu"]["profile"],

@@ -29,6 +29,7 @@ from typing import Iterator
 import numpy as np
 
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.utc import parse_utc  # noqa: F401  (re-exported: callers use capture_io.parse_utc)
 
 DEFAULT_LNB_LO_HZ = 9.75e9
 BYTES_PER_SAMPLE = {"cu8": 2, "ci8": 2, "cf32": 8}
@@ -71,17 +72,6 @@ class CaptureInfo:
         d["rf_center_hz"] = self.rf_center_hz
         d["duration_s"] = self.duration_s
         return d
-
-
-def parse_utc(text: str, where: str) -> _dt.datetime:
-    """Parse an ISO-8601 time ('Z' or offset allowed; naive means UTC)."""
-    try:
-        t = _dt.datetime.fromisoformat(str(text).strip().replace("Z", "+00:00"))
-    except ValueError:
-        raise UserInputError(f"{where}: expected an ISO-8601 UTC time like 2026-02-23T12:00:00Z, got {text!r}") from None
-    if t.tzinfo is None:
-        t = t.replace(tzinfo=_dt.timezone.utc)
-    return t.astimezone(_dt.timezone.utc)
 
 
 def _positive(value, where: str) -> float:

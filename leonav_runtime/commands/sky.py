@@ -11,6 +11,7 @@ import numpy as np
 
 from leonav_runtime import geometry, output, sky
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.utc import parse_utc
 
 DEFAULT_DURATION_S = 600.0
 DEFAULT_STEP_S = 10.0
@@ -55,22 +56,6 @@ def register(subparsers) -> None:
                    metavar="DEG", help="Starlink elevation mask, deg (default %(default)g)")
     output.add_out_argument(p)
     p.set_defaults(func=run)
-
-
-def parse_utc(text: str, option: str = "--start") -> _dt.datetime:
-    """ISO 8601 time -> timezone-aware UTC datetime (no zone means UTC)."""
-    s = text.strip()
-    if s.endswith(("Z", "z")):
-        s = s[:-1] + "+00:00"
-    try:
-        t = _dt.datetime.fromisoformat(s)
-    except ValueError:
-        raise UserInputError(
-            f"{option}: {text!r} is not an ISO 8601 time; expected e.g. 2026-02-23T12:00:00Z"
-        ) from None
-    if t.tzinfo is None:
-        t = t.replace(tzinfo=_dt.timezone.utc)
-    return t.astimezone(_dt.timezone.utc)
 
 
 def _round_to_second(t: _dt.datetime) -> _dt.datetime:
@@ -126,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
         if not any(len(es) for es in elements.values()):
             raise UserInputError(f"--tle: no usable element sets in {', '.join(args.tle)}")
         if args.start:
-            start, start_source = parse_utc(args.start), "--start"
+            start, start_source = parse_utc(args.start, "--start"), "--start"
         else:
             newest = max(max(es.epochs_utc) for es in elements.values() if len(es))
             start, start_source = _round_to_second(newest), "newest element-set epoch in the --tle files"
@@ -134,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
         from leonav_runtime.orbits import default_elements
 
         if args.start:
-            start, start_source = parse_utc(args.start), "--start"
+            start, start_source = parse_utc(args.start, "--start"), "--start"
         else:
             start, start_source = _round_to_second(_dt.datetime.now(_dt.timezone.utc)), "now"
         elements = default_elements(start)

@@ -14,17 +14,14 @@ from pathlib import Path
 import numpy as np
 
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.utc import parse_utc
 from leonav_runtime.output import add_out_argument, results_dir, write_json
 
 
 def _parse_epoch(text: str | None) -> _dt.datetime:
     if text is None:
         return _dt.datetime.now(_dt.timezone.utc)
-    try:
-        epoch = _dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
-    except ValueError:
-        raise UserInputError(f"--epoch {text!r}: expected an ISO time such as 2026-02-23T12:00:00Z") from None
-    return epoch.replace(tzinfo=_dt.timezone.utc) if epoch.tzinfo is None else epoch.astimezone(_dt.timezone.utc)
+    return parse_utc(text, "--epoch")
 
 
 def _cmd_fetch(args: argparse.Namespace) -> int:

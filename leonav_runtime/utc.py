@@ -1,0 +1,29 @@
+"""UTC times given by users (CLI options, metadata fields, scenario files)."""
+from __future__ import annotations
+
+import datetime as _dt
+
+from leonav_runtime.errors import UserInputError
+
+
+def parse_utc(text: str, where: str, *, require_zone: bool = False) -> _dt.datetime:
+    """ISO 8601 time -> timezone-aware UTC datetime.
+
+    'Z' or an offset is accepted; a time without a zone is taken as UTC, or rejected with
+    `require_zone` (scenario files, where an unstated zone is more likely a mistake).
+    `where` names the option or field in the error.
+    """
+    s = str(text).strip()
+    if s.endswith(("Z", "z")):
+        s = s[:-1] + "+00:00"
+    try:
+        t = _dt.datetime.fromisoformat(s)
+    except ValueError:
+        raise UserInputError(
+            f"{where}: {text!r} is not an ISO 8601 time; expected e.g. 2026-02-23T12:00:00Z"
+        ) from None
+    if t.tzinfo is None:
+        if require_zone:
+            raise UserInputError(f"{where}: {text!r}: expected an explicit UTC offset (end with Z)")
+        t = t.replace(tzinfo=_dt.timezone.utc)
+    return t.astimezone(_dt.timezone.utc)
