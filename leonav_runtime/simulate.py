@@ -28,7 +28,8 @@ import numpy as np
 
 from leonav_runtime import geometry, navfuncs, records
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.orbits import ElementSet, default_elements, load_elements, propagate_ecef
+from leonav_runtime.orbits import (ElementSet, default_elements, group_by_constellation, load_elements,
+                                   propagate_ecef)
 from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
 from leonav_runtime.trajectory import motion
 from models.imu import PROFILES as IMU_PROFILES
@@ -127,16 +128,7 @@ def scenario_elements(scn: Scenario) -> dict[str, ElementSet]:
     """
     if scn.element_source == "builtin":
         return default_elements(scn.epoch_utc)
-    sets: dict[str, list[ElementSet]] = {}
-    for path in scn.element_files:
-        es = load_elements(path)
-        sets.setdefault(es.constellation, []).append(es)
-    out = {}
-    for name, group in sets.items():
-        es = group[0]
-        for other in group[1:]:
-            es = es.concat(other)
-        out[name] = es
+    out = group_by_constellation([load_elements(path) for path in scn.element_files])
     for need in needed_constellations(scn):
         if need not in out:
             raise UserInputError(

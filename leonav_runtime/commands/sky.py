@@ -87,20 +87,15 @@ def _check_args(args) -> None:
 
 
 def _load_files(paths: list[str]):
-    from leonav_runtime.orbits import RejectedElementsWarning, load_elements
+    from leonav_runtime.orbits import RejectedElementsWarning, group_by_constellation, load_elements
 
-    by_name: dict = {}
-    sources: list[dict] = []
-    for path in paths:
-        with warnings.catch_warnings():
-            # Rejected entries are reported once, in the summary and sky.json.
-            warnings.simplefilter("ignore", RejectedElementsWarning)
-            es = load_elements(path)
-        name = (getattr(es, "constellation", None) or "unknown").lower()
-        sources.append({"file": str(path), "constellation": name, "satellites": len(es),
-                        "rejected_entries": len(getattr(es, "rejected", []) or [])})
-        by_name[name] = by_name[name].concat(es) if name in by_name else es
-    return by_name, sources
+    with warnings.catch_warnings():
+        # Rejected entries are reported once, in the summary and sky.json.
+        warnings.simplefilter("ignore", RejectedElementsWarning)
+        loaded = [load_elements(path) for path in paths]
+    sources = [{"file": str(path), "constellation": (es.constellation or "unknown").lower(),
+                "satellites": len(es), "rejected_entries": len(es.rejected)} for path, es in zip(paths, loaded)]
+    return group_by_constellation(loaded), sources
 
 
 def run(args: argparse.Namespace) -> int:

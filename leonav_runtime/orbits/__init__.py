@@ -14,6 +14,7 @@ from leonav_runtime.orbits.elements import (
     ElementSet,
     RejectedElementsWarning,
     RejectedEntry,
+    group_by_constellation,
     load_element_files,
     load_elements,
     parse_elements_text,
@@ -29,7 +30,7 @@ from leonav_runtime.orbits.propagate import (
 )
 
 __all__ = [
-    "ElementSet", "RejectedEntry", "RejectedElementsWarning", "load_elements", "load_element_files", "parse_elements_text",
+    "ElementSet", "RejectedEntry", "RejectedElementsWarning", "load_elements", "load_element_files", "group_by_constellation", "parse_elements_text",
     "SatStates", "StaleElementsWarning", "propagate_ecef", "propagate_teme", "gravity_ecef_mps2",
     "acceleration_ecef_mps2", "default_elements", "gps_walker_tle", "starlink_walker_tle",
     "FetchError", "fetch_group",

@@ -346,3 +346,12 @@ def load_element_files(paths: Sequence[str | Path], option: str = "--tle") -> El
     if paths and (es is None or len(es) == 0):
         raise UserInputError(f"{option}: no usable element sets in {', '.join(map(str, paths))}")
     return es
+
+
+def group_by_constellation(element_sets: Sequence[ElementSet]) -> dict[str, ElementSet]:
+    """Concatenate element sets per constellation ("starlink", "gps", "unknown"), in order."""
+    out: dict[str, ElementSet] = {}
+    for es in element_sets:
+        name = (es.constellation or "unknown").lower()
+        out[name] = out[name].concat(es) if name in out else es
+    return out
