@@ -37,7 +37,7 @@ from leonav_runtime import compiled, records  # noqa: E402
 from leonav_runtime import filter as lf  # noqa: E402
 from leonav_runtime.output import results_dir, write_json  # noqa: E402
 from models import constants as K  # noqa: E402
-from models.params import build_params  # noqa: E402
+from leonav_runtime.params import build_params  # noqa: E402
 
 LAT, LON, H = math.radians(40.0), math.radians(-83.0), 200.0
 IMU_HZ, GPS_HZ, LEO_HZ = 100.0, 10.0, 1.0

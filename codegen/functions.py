@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models import ekf, frames, kinematics
+from models import ekf, frames, input_noise, kinematics
 from models.measurements import models as measurement_models
 from models.measurements.geometry import receiver_ecef
 from models.state import NAUX, NDX, NP, NU, NX
+from models.state import P as P_BLOCK
 
 FUNCTION_OPTS = {"cse": True}
 
@@ -111,4 +112,9 @@ def build_functions() -> list[ca.Function]:
     r_U, v_U = receiver_ecef(x, p)
     out.append(_fn("leonav_receiver_ecef", {"x": x, "p": p}, {"r_ecef": r_U, "v_ecef": v_U},
                    "receiver ECEF position (m) and Earth-relative velocity (m/s)"))
+    sigma, span = ca.SX.sym("sigma_hz_s"), ca.SX.sym("f_b_span_s")
+    out.append(_fn("leonav_doppler_rate_variance", {"sigma_hz_s": sigma, "f_b_span_s": span, "p": p},
+                   {"R": input_noise.doppler_rate_variance(sigma, p[P_BLOCK["f_c_hz"].offset], p[P_BLOCK["vrw"].offset], span)},
+                   "Doppler-rate variance (Hz^2/s^2): beacon noise sigma plus the accelerometer noise of "
+                   "the specific force averaged over f_b_span_s (s) that enters the model"))
     return out

@@ -7,11 +7,13 @@ from pathlib import Path
 
 import casadi as ca
 
+from codegen import emit_data
 from models import state as S
 
 GEN_NAME = "leonav_gen"
 COMMAND = "python -m codegen  (or: leonav codegen)"
-FILES = (f"{GEN_NAME}.c", f"{GEN_NAME}.h", f"{GEN_NAME}.json", "state_layout.h", "state_layout.py", "__init__.py")
+FILES = (f"{GEN_NAME}.c", f"{GEN_NAME}.h", f"{GEN_NAME}.json", "state_layout.h", "state_layout.py",
+         "constants.py", "constants.h", "profiles.py", "__init__.py")
 CODEGEN_OPTS = {"with_header": True, "casadi_int": "int", "casadi_real": "double", "verbose": False}
 
 
@@ -106,6 +108,9 @@ def generate(output_dir: str | Path) -> list[Path]:
     (out / f"{GEN_NAME}.json").write_text(_manifest(functions))
     (out / "state_layout.h").write_text(_c_header_layout())
     (out / "state_layout.py").write_text(_py_layout())
+    (out / "constants.py").write_text(emit_data.constants_py(_banner("#")))
+    (out / "constants.h").write_text(emit_data.constants_h(_banner("//")))
+    (out / "profiles.py").write_text(emit_data.profiles_py(_banner("#")))
     (out / "__init__.py").write_text(_banner("#") + '"""Generated code (C sources, headers, state layout); see state_layout.py."""\n')
     return [out / name for name in FILES]
 

@@ -21,8 +21,8 @@ from typing import Mapping, Union
 import numpy as np
 
 from leonav_runtime import compiled, records
+from leonav_runtime.gen.constants import CHI2_1DOF_999
 
-CHI2_1DOF_999 = 10.827566170662733  # chi-square quantile, 1 dof, p = 0.999
 STATUS_IMU, STATUS_APPLIED, STATUS_GATED, STATUS_FAILED = -1, 0, 1, 2
 
 GateSpec = Union[None, float, Mapping[Union[str, int], float]]

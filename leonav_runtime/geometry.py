@@ -22,20 +22,16 @@ from typing import Mapping
 import numpy as np
 
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.gen.constants import GNSS_MASK_DEG, STARLINK_MASK_DEG, WGS84_A_M, WGS84_B_M, WGS84_E2, WGS84_F
 
-# WGS84 defining constants (NIMA TR8350.2).
-WGS84_A_M = 6378137.0
-WGS84_F = 1.0 / 298.257223563
-WGS84_B_M = WGS84_A_M * (1.0 - WGS84_F)
-WGS84_E2 = WGS84_F * (2.0 - WGS84_F)  # first eccentricity squared
 
 # Elevation masks used by the paper (Sec. II): 10 deg for GPS (common GNSS practice),
 # 28 deg for Starlink (what Starlink user terminals use). Unknown constellations get the
 # GNSS value. Radians.
 ELEVATION_MASK_DEFAULTS_RAD: dict[str, float] = {
-    "gps": math.radians(10.0),
-    "starlink": math.radians(28.0),
-    "unknown": math.radians(10.0),
+    "gps": math.radians(GNSS_MASK_DEG),
+    "starlink": math.radians(STARLINK_MASK_DEG),
+    "unknown": math.radians(GNSS_MASK_DEG),
 }
 
 

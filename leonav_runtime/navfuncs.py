@@ -90,6 +90,8 @@ class NavFunctions:
         self._work = None
         self._q_from_euler = GeneratedFunction(lib, "leonav_q_from_euler")
         self._euler_from_q = GeneratedFunction(lib, "leonav_euler_from_q")
+        self._gravity = GeneratedFunction(lib, "leonav_gravity_enu")
+        self._dr_variance = GeneratedFunction(lib, "leonav_doppler_rate_variance")
         self._h = {kid: GeneratedFunction(lib, f"leonav_h_{name}")
                    for name, kid in self.library.meas_ids.items()}
 
@@ -104,6 +106,28 @@ class NavFunctions:
         """Predicted measurement and its Jacobian (NDX,) w.r.t. the error state."""
         h, H = self._h[self.kind_id(kind)](x, aux, self.params)
         return float(h[0, 0]), H[0]
+
+    def doppler_rate_variance(self, sigma_hz_s, f_b_span_s: float, params: np.ndarray | None = None):
+        """Variance (Hz^2/s^2) of a Doppler-rate record: the beacon's own noise `sigma_hz_s`
+        plus the accelerometer noise (VRW of `params`) of the specific force averaged over
+        `f_b_span_s` (s) that the model uses, at the carrier of `params` (default: self.params).
+        A scalar or an array of sigmas (then an array of variances)."""
+        p = self.params if params is None else params
+        if np.ndim(sigma_hz_s) == 0:
+            return float(self._dr_variance(sigma_hz_s, f_b_span_s, p)[0][0, 0])
+        return np.array([self._dr_variance(s, f_b_span_s, p)[0][0, 0] for s in np.ravel(sigma_hz_s)]
+                        ).reshape(np.shape(sigma_hz_s))
+
+    def h_values(self, kind: int | str, x: np.ndarray, aux_rows: np.ndarray, params: np.ndarray | None = None
+                 ) -> np.ndarray:
+        """Predicted measurements (n,) of one state `x` (NX,) for n aux rows (n, NAUX)."""
+        f = self._h[self.kind_id(kind)]
+        p = self.params if params is None else params
+        return np.array([f(x, a, p)[0][0, 0] for a in np.atleast_2d(aux_rows)])
+
+    def gravity_enu(self, p_enu: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
+        """Normal gravity vector (m/s^2, origin ENU axes) at p_enu (m)."""
+        return self._gravity(p_enu, self.params if params is None else params)[0][:, 0]
 
     def boxplus(self, x: np.ndarray, dx: np.ndarray) -> np.ndarray:
         """x [+] dx (attitude error is a body-frame rotation vector, rad)."""

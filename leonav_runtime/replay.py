@@ -27,7 +27,7 @@ Pipeline (`replay_session`):
    aux = SGP4 ECEF state and acceleration of that satellite at that time and the specific
    force averaged over the last `simulate.F_B_AVERAGE_S` up to the latest IMU sample; R =
    max(sigma_fit, floor)^2 plus that average's accelerometer noise
-   (`models.input_noise.doppler_rate_variance`), as the simulator does.
+   (generated `leonav_doppler_rate_variance`), as the simulator does.
 6. Initial state: position = the initializing fix (sigma from its R), velocity = RMC
    speed/course or NAV-PVT velocity (0 when absent), roll/pitch = the sensor's angle output
    averaged over the first second, yaw = `yaw_deg` if given, else the sensor's yaw (its own
@@ -59,14 +59,13 @@ from leonav_runtime import filter as lfilter
 from leonav_runtime import geometry, navfuncs, records, simulate
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.output import write_csv, write_json
-from models.input_noise import doppler_rate_variance
-from models.params import STARLINK_BEACON_HZ
+from leonav_runtime.gen.constants import KU_DOWNLINK_MAX_HZ, KU_DOWNLINK_MIN_HZ, STARLINK_BEACON_HZ
 
 MODES = ("gps+imu", "leo-alpha+imu", "gps+leo-alpha+imu")
 MODE_USES = {"gps+imu": ("fix",), "leo-alpha+imu": ("alpha",), "gps+leo-alpha+imu": ("fix", "alpha")}
 DEFAULT_UERE_M = 1.5            # per-axis horizontal sigma per unit HDOP when no GST/NAV-PVT accuracy
 ALPHA_SIGMA_FLOOR_HZ_S = 0.5    # the fit sigma can be optimistic for short ridges
-KU_DOWNLINK_HZ = (10.7e9, 12.75e9)   # a capture RF centre outside this is not a Starlink beacon carrier
+KU_DOWNLINK_HZ = (KU_DOWNLINK_MIN_HZ, KU_DOWNLINK_MAX_HZ)  # a capture RF centre outside is not a beacon carrier
 INIT_WINDOW_S = 1.0             # samples averaged for the initial roll/pitch
 INIT_FIX_WINDOW_S = 0.2         # a fix this much before the first IMU sample still initializes
 # A fix up to this long after the filter's start initializes it there (position error at most
@@ -500,7 +499,7 @@ def beacon_table(folder: Path, out_dir: Path | None, to_utc, time_source_ok: boo
 def filter_profile(imu_period_s: float, quantized: bool = True):
     """WT901 profile, with the WitMotion quantization noise added to VRW/ARW when `quantized`."""
     from hardware.imu import witmotion_encode as wenc
-    from models.imu import WT901
+    from leonav_runtime.gen.profiles import WT901
 
     if not quantized:
         return WT901
@@ -552,7 +551,7 @@ def assemble(epoch_utc: _dt.datetime, origin, imu: ImuTable, fixes: FixTable, al
     The filter starts at the start of the first IMU interval or, when the initializing fix
     comes later than `INIT_FIX_MAX_DELAY_S` after it, at that fix (module doc, step 6).
     """
-    from models.params import build_params
+    from leonav_runtime.params import build_params
 
     notes = list(notes or [])
     L = nav.layout
@@ -605,7 +604,7 @@ def assemble(epoch_utc: _dt.datetime, origin, imu: ImuTable, fixes: FixTable, al
         k = np.clip(np.searchsorted(imu.t, al.t + 1e-9) - 1, -1, imu.t.size - 1)
         aux[:, L.AUX_F_B:L.AUX_F_B + 3] = f_b_avg[k + 1]
         sigma = np.maximum(al.sigma, options.alpha_sigma_floor_hz_s)
-        R = doppler_rate_variance(sigma, carrier_hz, profile.vrw, f_b_span_s)
+        R = nav.doppler_rate_variance(sigma, f_b_span_s, params)
         rec_alpha = records.measurement_records(al.t, nav.kind_id("doppler_rate"), al.z, R, aux, al.norad)
         counts["alpha_f_b_average_s"] = f_b_span_s
 

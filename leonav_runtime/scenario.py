@@ -28,8 +28,8 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.utc import parse_utc
-from models.imu import PROFILES as IMU_PROFILE_DATA
-from models.params import STARLINK_BEACON_HZ
+from leonav_runtime.params import IMU_PROFILES as IMU_PROFILE_DATA
+from leonav_runtime.gen.constants import CHI2_1DOF_999, STARLINK_BEACON_HZ, STARLINK_MASK_DEG
 
 BUILTIN_DIR = Path(__file__).with_name("scenarios")
 
@@ -117,7 +117,7 @@ SCHEMA: dict[str, dict[str, Field]] = {
     "starlink": {
         "rate_hz": Field(float, "Hz", 0.01, 100, default=1.0, doc="Starlink measurement epoch rate"),
         "carrier_hz": Field(float, "Hz", 1e9, 3e10, default=STARLINK_BEACON_HZ, doc="beacon channel centre"),
-        "elevation_mask_deg": Field(float, "deg", -5, 90, default=28.0, doc="Starlink mask (paper: 28 deg)"),
+        "elevation_mask_deg": Field(float, "deg", -5, 90, default=STARLINK_MASK_DEG, doc="Starlink mask (paper: 28 deg)"),
         "counts": Field(list, "-", default=[5, 10, 15, 20, 25, 30, 35, 40, 45],
                         doc="Starlink satellite counts swept"),
         "selection": Field(str, "-", default="highest-elevation", choices=SELECTION_RULES,
@@ -137,7 +137,7 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "initial_position_sigma_m": Field(float, "m", 1e-3, 1e6, default=10.0, doc="prior per ENU axis"),
         "initial_velocity_sigma_mps": Field(float, "m/s", 1e-4, 1e3, default=0.5, doc="prior per ENU axis"),
         "initial_attitude_sigma_deg": Field(float, "deg", 1e-4, 180, default=1.0, doc="prior per axis"),
-        "gate_nis": Field(float, "-", 0, 1e6, default=10.83, doc="chi2(1) 99.9 %; 0 disables"),
+        "gate_nis": Field(float, "-", 0, 1e6, default=CHI2_1DOF_999, doc="chi2(1) 99.9 %; 0 disables"),
     },
     "monte_carlo": {
         "trials": Field(int, "-", 1, 100000, default=100, doc="trials per (mode, count)"),

@@ -58,7 +58,7 @@ from hardware.session import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, S
 from leonav_runtime import geometry, navfuncs, simulate
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.output import write_csv, write_json
-from models.params import STARLINK_BEACON_HZ
+from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
 
 ROCHESTER = (43.0848638, -77.6786127, 170.0)   # the paper's site: deg, deg, m (ellipsoidal)
 PAPER_EPOCH = _dt.datetime(2026, 2, 23, 12, 0, tzinfo=_dt.timezone.utc)
@@ -148,8 +148,8 @@ def _scenario(cfg: SynthSessionConfig):
 
 def simulate_sensors(cfg: SynthSessionConfig, nav: navfuncs.NavFunctions | None = None) -> dict:
     """Truth and float sensor values (no bytes yet). Keys as in `SyntheticSession`."""
-    from models.imu import WT901
-    from models.params import build_params
+    from leonav_runtime.gen.profiles import WT901
+    from leonav_runtime.params import build_params
 
     if cfg.imu_rate_hz <= 0 or cfg.gnss_rate_hz <= 0 or cfg.seconds <= 1.0:
         raise UserInputError("synthetic session: expected seconds > 1 and positive IMU/GNSS rates")

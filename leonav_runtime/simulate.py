@@ -32,11 +32,10 @@ from leonav_runtime.orbits import (ElementSet, default_elements, group_by_conste
                                    propagate_ecef)
 from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
 from leonav_runtime.trajectory import motion
-from models.imu import PROFILES as IMU_PROFILES
-from models.input_noise import doppler_rate_variance
-from models.params import build_params
+from leonav_runtime.params import IMU_PROFILES
+from leonav_runtime.params import build_params
+from leonav_runtime.gen.constants import C_LIGHT_MPS
 
-C_LIGHT_MPS = 299_792_458.0
 
 # Prior of the filter's clock and LO states (not in the scenario file: they only set
 # how fast the filter locks; stated in the docs). Truth is drawn from the same prior.
@@ -300,7 +299,7 @@ def averaged_specific_force(dvel_b: np.ndarray, dt_s: np.ndarray | float,
     dvel_b (n, 3): velocity increments of the n intervals; dt_s: their lengths (s). Returns
     (f_b (n+1, 3) at samples 0..n, sample 0 taking the first interval; the averaging span
     in s), the input of the Doppler-rate model's receiver acceleration and of its noise
-    (`models.input_noise.doppler_rate_variance`).
+    (generated `leonav_doppler_rate_variance`).
     """
     dt = np.broadcast_to(np.asarray(dt_s, dtype=float), (dvel_b.shape[0],))
     n_avg = max(1, int(round(window_s / float(np.median(dt)))))
@@ -434,7 +433,7 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
         aux[:, L.AUX_F_B:L.AUX_F_B + 3] = f_b_avg[k]  # measured, averaged specific force
         R = sigma**2
         if kind_name == "doppler_rate":  # its model uses the measured specific force
-            R = doppler_rate_variance(sigma, setup.params[L.P_F_C_HZ], prof.vrw, f_b_span_s)
+            R = nav.doppler_rate_variance(sigma, f_b_span_s, setup.params)
         parts.append(records.measurement_records(s.t_s[rows], s.kind, z, R, aux, s.sat_id[rows]))
 
     dx0 = np.zeros(L.NDX) if noise_free else rng.multivariate_normal(np.zeros(L.NDX), setup.P0)

@@ -16,6 +16,8 @@ from models.constants import C_LIGHT_MPS
 
 @dataclass(frozen=True)
 class ClockProfile:
+    """Two-state receiver clock noise: white-frequency and random-walk-frequency PSDs (SI)."""
+
     name: str
     q_cdt: float    # m^2/s
     q_cddt: float   # m^2/s^3

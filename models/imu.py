@@ -14,8 +14,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-G0_MPS2 = 9.80665  # standard gravity, converts g / ug figures
-DEG = math.pi / 180.0
+from models.constants import DEG_RAD as DEG
+from models.constants import G0_MPS2
+
 HOUR_S = 3600.0
 
 

@@ -15,7 +15,7 @@ import warnings
 import numpy as np
 import pytest
 
-from models.params import build_params
+from leonav_runtime.params import build_params
 
 LAT, LON, H = 43.0848638, -77.6786127, 170.0
 F_C = 11.325e9

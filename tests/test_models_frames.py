@@ -10,7 +10,7 @@ import pytest
 from models import frames
 from models.clock import TCXO
 from models.imu import TACTICAL, WT901
-from models.params import build_params
+from leonav_runtime.params import build_params
 from codegen.functions import build_functions
 
 FNS = {f.name(): f for f in build_functions()}

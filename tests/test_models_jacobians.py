@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from codegen.functions import build_functions
-from models.params import build_params
+from leonav_runtime.params import build_params
 from models.state import MEASUREMENTS, NDX
 
 FNS = {f.name(): f for f in build_functions()}

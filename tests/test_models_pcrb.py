@@ -12,8 +12,8 @@ import math
 import numpy as np
 
 from codegen.functions import build_functions
-from models.imu import WT901
-from models.params import build_params
+from leonav_runtime.gen.profiles import WT901
+from leonav_runtime.params import build_params
 from models.state import NDX
 
 FNS = {f.name(): f for f in build_functions()}

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from codegen.compiled import external
-from models.params import build_params
+from leonav_runtime.params import build_params
 
 P_VEC = np.array(build_params(math.radians(43.0848638), math.radians(-77.6786127), 170.0))
 

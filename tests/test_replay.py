@@ -27,8 +27,8 @@ from hardware.session import decode_session
 from leonav_runtime import navfuncs, replay, session_synth as ss, simulate
 from leonav_runtime.cli import main as leonav_main
 from leonav_runtime.errors import UserInputError
-from models.imu import WT901
-from models.params import STARLINK_BEACON_HZ
+from leonav_runtime.gen.profiles import WT901
+from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
 
 C_LIGHT = 299_792_458.0
 

@@ -9,7 +9,7 @@ import pytest
 from leonav_runtime import compiled, records
 from leonav_runtime import filter as lf
 from models import constants as K
-from models.params import build_params
+from leonav_runtime.params import build_params
 
 LAT, LON, H = math.radians(40.0), math.radians(-83.0), 200.0
 IMU_DT = 0.01

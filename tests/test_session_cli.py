@@ -12,7 +12,7 @@ import pytest
 
 from leonav_runtime.cli import main as leonav_main
 from leonav_runtime.replay import MODES
-from models.params import STARLINK_BEACON_HZ
+from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
 
 SESSION_FILES = ("gnss.raw", "gnss.chunks.csv", "gnss_fix.csv", "imu.raw", "imu.chunks.csv", "imu.csv", "sdr.cu8",
                  "sdr.sigmf-meta", "session.json", "truth.csv", "synthetic.json")

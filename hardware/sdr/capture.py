@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from leonav_runtime.errors import UserInputError
-from models.params import STARLINK_BEACON_HZ
+from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
 
 DEFAULT_RF_HZ = STARLINK_BEACON_HZ
 DEFAULT_LNB_LO_HZ = 9.75e9

@@ -27,8 +27,8 @@ import dataclasses
 import numpy as np
 
 from leonav_runtime.beacons.doppler import RidgeMeasurements
+from leonav_runtime.gen.constants import COMB_SPACING_HZ
 
-COMB_SPACING_HZ = 43949.5  # spacing of the beacon tones around a channel centre (Hz)
 
 
 @dataclasses.dataclass

@@ -1,10 +1,10 @@
 """Predicted beacon Doppler and Doppler-rate of every visible satellite (static receiver).
 
-The curves come from the symbolic measurement models (`models/measurements/doppler.py`,
-`doppler_rate.py`), evaluated at the nominal state of a static receiver at the ENU
+The curves come from the generated measurement functions `leonav_h_doppler` and
+`leonav_h_doppler_rate` (models/measurements/doppler.py, doppler_rate.py), evaluated at the nominal state of a static receiver at the ENU
 origin (p_enu = 0, v_enu = 0, q_nb = identity, biases 0, b_lo = 0) with the specific
 force that holds it still, f_b = -g_enu(0) (so the model's receiver acceleration is 0).
-One `casadi.Function` is built per process and mapped over satellites x times.
+They are called through `leonav_runtime.navfuncs` (no casadi on this path).
 
 Satellite states come from `leonav_runtime.orbits.propagate_ecef` (SGP4, ECEF, with
 acceleration). Visibility uses the elevation mask at any prediction time in the window.
@@ -18,55 +18,52 @@ import functools
 import numpy as np
 
 from leonav_runtime.geometry import Site
-from models.params import STARLINK_BEACON_HZ
+from leonav_runtime.navfuncs import NavFunctions
+from leonav_runtime.params import params_array
+from leonav_runtime.gen.constants import STARLINK_BEACON_HZ, STARLINK_MASK_DEG
 
-DEFAULT_MASK_DEG = 28.0
+DEFAULT_MASK_DEG = STARLINK_MASK_DEG
 TONE_RF_HZ = STARLINK_BEACON_HZ  # central beacon tone of the 11.325 GHz channel
 
 
 @functools.lru_cache(maxsize=4)
-def _model_function():
-    """casadi Function (r_S, v_S, a_S [3], p [NP]) -> (doppler_hz, rate_hz_s) for the static receiver."""
-    import casadi as ca
+def _nav() -> NavFunctions:
+    """The generated model functions (one set per process)."""
+    return NavFunctions()
 
-    from models import kinematics
-    from models.measurements import doppler, doppler_rate
-    from models.state import AUX, NAUX, NP, NX, X
 
-    r_S, v_S, a_S = ca.SX.sym("r_S", 3), ca.SX.sym("v_S", 3), ca.SX.sym("a_S", 3)
-    p = ca.SX.sym("p", NP)
-    x = ca.DM.zeros(NX)
-    x[X["q_nb"].offset] = 1.0  # identity attitude: body axes = ENU axes
-    x = ca.SX(x)
-    f_b = -kinematics.gravity_enu(ca.SX.zeros(3), p)  # specific force of a receiver at rest
-    aux = ca.SX.zeros(NAUX)
-    aux[AUX["r_S_ecef"].slice] = r_S
-    aux[AUX["v_S_ecef"].slice] = v_S
-    aux[AUX["a_S_ecef"].slice] = a_S
-    aux[AUX["f_b"].slice] = f_b
-    return ca.Function("beacon_prediction", [r_S, v_S, a_S, p],
-                       [doppler.h(x, aux, p), doppler_rate.h(x, aux, p)],
-                       ["r_S_ecef", "v_S_ecef", "a_S_ecef", "p"], ["doppler_hz", "rate_hz_s"])
+def _static_receiver(nav: NavFunctions, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nominal state of a receiver at rest at the ENU origin (identity attitude: body axes =
+    ENU axes) and the specific force that holds it still, f_b = -g_enu(0)."""
+    x = np.zeros(nav.layout.NX)
+    x[nav.layout.X_Q_NB] = 1.0
+    return x, -nav.gravity_enu(np.zeros(3), p)
 
 
 def model_params(lat_rad: float, lon_rad: float, h_m: float, f_c_hz: float = TONE_RF_HZ) -> np.ndarray:
     """Parameter vector p for the site (WGS84 rad, rad, m) and carrier (Hz)."""
-    from models.params import build_params
-
-    return np.asarray(build_params(lat_rad, lon_rad, h_m, f_c_hz=f_c_hz), float)
+    return params_array(lat_rad, lon_rad, h_m, f_c_hz=f_c_hz)
 
 
 def evaluate_model(r_ecef_m: np.ndarray, v_ecef_mps: np.ndarray, a_ecef_mps2: np.ndarray,
                    p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Doppler (Hz) and Doppler rate (Hz/s) for arrays of satellite states (..., 3), ECEF."""
+    """Doppler (Hz) and Doppler rate (Hz/s) for arrays of satellite states (..., 3), ECEF,
+    from the generated `leonav_h_doppler` / `leonav_h_doppler_rate` at a static receiver."""
     shape = r_ecef_m.shape[:-1]
     n = int(np.prod(shape)) if shape else 1
     if n == 0:
         return np.zeros(shape), np.zeros(shape)
-    f = _model_function().map(n, "serial")
-    cols = lambda a: np.ascontiguousarray(np.reshape(a, (n, 3)).T)  # noqa: E731
-    d, r = f(cols(r_ecef_m), cols(v_ecef_mps), cols(a_ecef_mps2), np.tile(p[:, None], (1, n)))
-    return np.asarray(d).reshape(shape), np.asarray(r).reshape(shape)
+    nav = _nav()
+    L = nav.layout
+    x, f_b = _static_receiver(nav, p)
+    aux = np.zeros((n, L.NAUX))
+    aux[:, L.AUX_R_S_ECEF:L.AUX_R_S_ECEF + L.AUX_R_S_ECEF_SIZE] = np.reshape(r_ecef_m, (n, 3))
+    aux[:, L.AUX_V_S_ECEF:L.AUX_V_S_ECEF + L.AUX_V_S_ECEF_SIZE] = np.reshape(v_ecef_mps, (n, 3))
+    aux[:, L.AUX_A_S_ECEF:L.AUX_A_S_ECEF + L.AUX_A_S_ECEF_SIZE] = np.reshape(a_ecef_mps2, (n, 3))
+    aux[:, L.AUX_F_B:L.AUX_F_B + L.AUX_F_B_SIZE] = f_b
+    d = nav.h_values("doppler", x, aux, p)
+    r = nav.h_values("doppler_rate", x, aux, p)
+    return d.reshape(shape), r.reshape(shape)
 
 
 @dataclasses.dataclass

@@ -35,6 +35,7 @@ from leonav_runtime.beacons import capture_io
 from leonav_runtime.beacons.predict import Predictions, Site, TONE_RF_HZ, predict_visible
 
 from leonav_runtime.beacons.comb import COMB_SPACING_HZ  # noqa: F401  (re-exported: spacing of the ~9 tones)
+from leonav_runtime.gen.constants import STARLINK_MASK_DEG
 
 
 @dataclasses.dataclass
@@ -94,7 +95,7 @@ def choose_satellites(pred: Predictions, cfg: SynthConfig, rf_center_hz: float,
 
 
 def build_truth(elements, site: Site, start_utc: _dt.datetime, cfg: SynthConfig,
-                sat_index: Sequence[int] | None = None, mask_deg: float = 28.0) -> SynthTruth:
+                sat_index: Sequence[int] | None = None, mask_deg: float = STARLINK_MASK_DEG) -> SynthTruth:
     """Pick satellites (or use `sat_index`) and compute their true curves and the LO error."""
     rng = np.random.default_rng(cfg.seed)
     pred = predict_visible(elements, site, start_utc, cfg.duration_s, step_s=0.25, mask_deg=mask_deg,

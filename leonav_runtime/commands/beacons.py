@@ -9,7 +9,7 @@ from pathlib import Path
 
 from leonav_runtime import output
 from leonav_runtime.errors import UserInputError
-from models.params import STARLINK_BEACON_HZ
+from leonav_runtime.gen.constants import STARLINK_BEACON_HZ, STARLINK_MASK_DEG
 from leonav_runtime.orbits.elements import load_element_files
 
 ROCHESTER_DEG = (43.0848638, -77.6786127, 170.0)  # the paper's site
@@ -56,7 +56,7 @@ def register(subparsers) -> None:
                    help="nominal LNB local oscillator, Hz (default 9.75e9, universal LNB low band)")
     p.add_argument("--tone-freq", type=float, default=STARLINK_BEACON_HZ, metavar="HZ",
                    help="nominal RF tone frequency the Doppler refers to (default %(default)g)")
-    p.add_argument("--mask", type=float, default=28.0, metavar="DEG",
+    p.add_argument("--mask", type=float, default=STARLINK_MASK_DEG, metavar="DEG",
                    help="elevation mask for candidate satellites, deg (default %(default)g, the paper's)")
     p.add_argument("--fft-size", type=int, default=None, metavar="N",
                    help="STFT length (default: power of two closest to 16 ms of samples)")

@@ -7,7 +7,7 @@ import argparse
 import sys
 
 from hardware.sdr.capture import DEFAULT_LNB_LO_HZ
-from models.params import STARLINK_BEACON_HZ
+from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
 
 
 def _gain(text: str) -> float | str:

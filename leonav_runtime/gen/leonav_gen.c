@@ -80,6 +80,7 @@ extern "C" {
 #define casadi_f49 CASADI_PREFIX(f49)
 #define casadi_f5 CASADI_PREFIX(f5)
 #define casadi_f50 CASADI_PREFIX(f50)
+#define casadi_f51 CASADI_PREFIX(f51)
 #define casadi_f6 CASADI_PREFIX(f6)
 #define casadi_f7 CASADI_PREFIX(f7)
 #define casadi_f8 CASADI_PREFIX(f8)
@@ -20602,6 +20603,100 @@ CASADI_SYMBOL_EXPORT int leonav_receiver_ecef_work(casadi_int *sz_arg, casadi_in
 CASADI_SYMBOL_EXPORT int leonav_receiver_ecef_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
   if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 2*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_doppler_rate_variance:(sigma_hz_s,f_b_span_s,p[11])->(R) */
+static int casadi_f51(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2;
+  a0=arg[0]? arg[0][0] : 0;
+  a0=casadi_sq(a0);
+  a1=arg[2]? arg[2][10] : 0;
+  a2=299792458.;
+  a1=(a1/a2);
+  a1=casadi_sq(a1);
+  a2=arg[2]? arg[2][3] : 0;
+  a2=casadi_sq(a2);
+  a1=(a1*a2);
+  a2=arg[1]? arg[1][0] : 0;
+  a1=(a1/a2);
+  a0=(a0+a1);
+  if (res[0]!=0) res[0][0]=a0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f51(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_doppler_rate_variance_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_doppler_rate_variance_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_doppler_rate_variance_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_doppler_rate_variance_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_doppler_rate_variance_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_doppler_rate_variance_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_doppler_rate_variance_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "sigma_hz_s";
+    case 1: return "f_b_span_s";
+    case 2: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_doppler_rate_variance_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "R";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_doppler_rate_variance_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    case 1: return casadi_s2;
+    case 2: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_doppler_rate_variance_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);
   return 0;

@@ -739,6 +739,24 @@ int leonav_receiver_ecef_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casa
 #define leonav_receiver_ecef_SZ_RES 2
 #define leonav_receiver_ecef_SZ_IW 0
 #define leonav_receiver_ecef_SZ_W 0
+int leonav_doppler_rate_variance(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_doppler_rate_variance_checkout(void);
+void leonav_doppler_rate_variance_release(int mem);
+void leonav_doppler_rate_variance_incref(void);
+void leonav_doppler_rate_variance_decref(void);
+casadi_int leonav_doppler_rate_variance_n_in(void);
+casadi_int leonav_doppler_rate_variance_n_out(void);
+casadi_real leonav_doppler_rate_variance_default_in(casadi_int i);
+const char* leonav_doppler_rate_variance_name_in(casadi_int i);
+const char* leonav_doppler_rate_variance_name_out(casadi_int i);
+const casadi_int* leonav_doppler_rate_variance_sparsity_in(casadi_int i);
+const casadi_int* leonav_doppler_rate_variance_sparsity_out(casadi_int i);
+int leonav_doppler_rate_variance_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_doppler_rate_variance_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_doppler_rate_variance_SZ_ARG 3
+#define leonav_doppler_rate_variance_SZ_RES 1
+#define leonav_doppler_rate_variance_SZ_IW 0
+#define leonav_doppler_rate_variance_SZ_W 0
 void leonav_gen_casadi_version(int* major, int* minor, int* patch);
 int leonav_gen_casadi_int_size(void);
 int leonav_gen_casadi_real_size(void);

@@ -24,13 +24,14 @@ from dataclasses import dataclass
 
 from leonav_runtime.orbits.elements import ElementSet, as_utc, parse_elements_text
 from leonav_runtime.orbits.tle import format_tle
+from leonav_runtime.gen.constants import WGS72_J2, WGS72_MU_M3PS2, WGS72_RE_M, WGS84_A_M
 
-R_EQUATOR_KM = 6378.137
+R_EQUATOR_KM = WGS84_A_M / 1e3
 # SGP4 WGS-72 constants (what `Satrec.twoline2rv(..., WGS72)` uses to read the mean motion)
-_RE_WGS72_KM = 6378.135
-_MU_WGS72_KM3PS2 = 398600.8
+_RE_WGS72_KM = WGS72_RE_M / 1e3
+_MU_WGS72_KM3PS2 = WGS72_MU_M3PS2 / 1e9
 _XKE_PER_MIN = 60.0 / math.sqrt(_RE_WGS72_KM**3 / _MU_WGS72_KM3PS2)
-_J2_WGS72 = 0.001082616
+_J2_WGS72 = WGS72_J2
 _ECCENTRICITY = 1e-4
 
 GPS_NORAD_BASE = 90000

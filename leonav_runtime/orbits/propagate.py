@@ -33,15 +33,13 @@ from sgp4.api import SGP4_ERRORS
 
 from leonav_runtime.orbits.elements import ElementSet, as_utc, julian_date_split
 from leonav_runtime.orbits.teme import DAY_S, OMEGA_EARTH_RADPS, gmst82_rad, teme_to_ecef
+from leonav_runtime.gen.constants import WGS72_J2, WGS72_J3, WGS72_J4, WGS72_MU_M3PS2, WGS72_RE_M
 
 log = logging.getLogger("leonav.orbits")
 
-# WGS-72 (the gravity model of SGP4 and of the element sets fitted for it)
-MU_WGS72_M3PS2 = 398600.8e9
-RE_WGS72_M = 6378135.0
-J2_WGS72 = 0.001082616
-J3_WGS72 = -0.00000253881
-J4_WGS72 = -0.00000165597
+# WGS-72: the gravity model of SGP4 and of the element sets fitted for it
+MU_WGS72_M3PS2, RE_WGS72_M = WGS72_MU_M3PS2, WGS72_RE_M
+J2_WGS72, J3_WGS72, J4_WGS72 = WGS72_J2, WGS72_J3, WGS72_J4
 
 SGP4_ERROR_WORDS = {
     1: "mean eccentricity outside 0..1 (element set not usable)",

@@ -7,8 +7,9 @@ w = 7.292115146706979e-5 rad/s and the polar-motion matrix PM = R1(yp) R2(xp).
 from __future__ import annotations
 
 import numpy as np
+from leonav_runtime.gen.constants import OMEGA_EARTH_TEME_RADPS
 
-OMEGA_EARTH_RADPS = 7.292115146706979e-5  # Vallado's teme2ecef (LOD = 0)
+OMEGA_EARTH_RADPS = OMEGA_EARTH_TEME_RADPS  # Vallado's teme2ecef (LOD = 0)
 JD_J2000 = 2451545.0
 DAY_S = 86400.0
 
