@@ -9,7 +9,7 @@ import casadi as ca
 
 from models import ekf, frames, input_noise, kinematics
 from models.measurements import models as measurement_models
-from models.measurements.geometry import receiver_ecef
+from models.measurements.geometry import receiver_ecef, transmit_state
 from models.state import NAUX, NDX, NP, NU, NX
 from models.state import P as P_BLOCK
 
@@ -112,6 +112,13 @@ def build_functions() -> list[ca.Function]:
     r_U, v_U = receiver_ecef(x, p)
     out.append(_fn("leonav_receiver_ecef", {"x": x, "p": p}, {"r_ecef": r_U, "v_ecef": v_U},
                    "receiver ECEF position (m) and Earth-relative velocity (m/s)"))
+    r_S, v_S, a_S, r_rx = (ca.SX.sym(n, 3) for n in ("r_S_ecef", "v_S_ecef", "a_S_ecef", "r_rx_ecef"))
+    r_tx, v_tx, tau = transmit_state(r_S, v_S, a_S, r_rx)
+    out.append(_fn("leonav_transmit_state", {"r_S_ecef": r_S, "v_S_ecef": v_S, "a_S_ecef": a_S, "r_rx_ecef": r_rx},
+                   {"r_tx_ecef": r_tx, "v_tx_ecef": v_tx, "tau_s": tau},
+                   "satellite ECEF state at the transmit time of a signal received at r_rx (light time tau, s)"))
+    out.append(_fn("leonav_level", {"f_b": f_b}, {"roll_pitch": frames.level_from_specific_force(f_b)},
+                   "roll and pitch (rad) of a body at rest from its mean specific force (m/s^2, body FLU)"))
     sigma, span = ca.SX.sym("sigma_hz_s"), ca.SX.sym("f_b_span_s")
     out.append(_fn("leonav_doppler_rate_variance", {"sigma_hz_s": sigma, "f_b_span_s": span, "p": p},
                    {"R": input_noise.doppler_rate_variance(sigma, p[P_BLOCK["f_c_hz"].offset], p[P_BLOCK["vrw"].offset], span)},

@@ -61,6 +61,9 @@ def _py_layout() -> str:
         for b in blocks:
             lines.append(f"{prefix}_{b.name.upper()} = {b.offset}  # {b.unit}: {b.doc}")
             lines.append(f"{prefix}_{b.name.upper()}_SIZE = {b.size}")
+            lines.append(f"{prefix}_{b.name.upper()}_SLICE = slice({b.offset}, {b.offset + b.size})")
+    nav9 = S.DX["dtheta"].offset + S.DX["dtheta"].size
+    lines.append(f"DX_NAV9_SLICE = slice(0, {nav9})  # the 9D navigation error: dp, dv, dtheta")
     lines.append("")
     for b in S.P_BLOCKS:
         lines.append(f"P_{b.name.upper()} = {b.offset}  # {b.unit}: {b.doc}")

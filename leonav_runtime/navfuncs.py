@@ -91,6 +91,8 @@ class NavFunctions:
         self._q_from_euler = GeneratedFunction(lib, "leonav_q_from_euler")
         self._euler_from_q = GeneratedFunction(lib, "leonav_euler_from_q")
         self._gravity = GeneratedFunction(lib, "leonav_gravity_enu")
+        self._transmit = GeneratedFunction(lib, "leonav_transmit_state")
+        self._level = GeneratedFunction(lib, "leonav_level")
         self._dr_variance = GeneratedFunction(lib, "leonav_doppler_rate_variance")
         self._h = {kid: GeneratedFunction(lib, f"leonav_h_{name}")
                    for name, kid in self.library.meas_ids.items()}
@@ -128,6 +130,18 @@ class NavFunctions:
     def gravity_enu(self, p_enu: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
         """Normal gravity vector (m/s^2, origin ENU axes) at p_enu (m)."""
         return self._gravity(p_enu, self.params if params is None else params)[0][:, 0]
+
+    def transmit_state(self, r_S_ecef: np.ndarray, v_S_ecef: np.ndarray, a_S_ecef: np.ndarray,
+                       r_rx_ecef: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """Satellite position (m) and velocity (m/s) at the transmit time of a signal received
+        at r_rx_ecef, in the ECEF frame of the transmit epoch, and the light time (s)."""
+        r_tx, v_tx, tau = self._transmit(r_S_ecef, v_S_ecef, a_S_ecef, r_rx_ecef)
+        return r_tx[:, 0], v_tx[:, 0], float(tau[0, 0])
+
+    def level(self, f_b: np.ndarray) -> tuple[float, float]:
+        """Roll and pitch (rad) of a body at rest from its mean specific force (m/s^2, body FLU)."""
+        rp = self._level(f_b)[0][:, 0]
+        return float(rp[0]), float(rp[1])
 
     def boxplus(self, x: np.ndarray, dx: np.ndarray) -> np.ndarray:
         """x [+] dx (attitude error is a body-frame rotation vector, rad)."""

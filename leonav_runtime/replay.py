@@ -630,7 +630,7 @@ def assemble(epoch_utc: _dt.datetime, origin, imu: ImuTable, fixes: FixTable, al
     first = imu.t <= imu.t[0] + INIT_WINDOW_S
     roll, pitch = _circular_mean(imu.rpy[first, 0]), _circular_mean(imu.rpy[first, 1])
     f_mean = imu.f_b[first].mean(axis=0)
-    level = (math.atan2(f_mean[1], f_mean[2]), math.atan2(-f_mean[0], math.hypot(f_mean[1], f_mean[2])))
+    level = nav.level(f_mean)
     if options.yaw_deg is not None:
         yaw, yaw_sig, yaw_src = math.radians(options.yaw_deg), YAW_SIGMA0_GIVEN_RAD, "--yaw-deg"
     else:

@@ -34,7 +34,6 @@ from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
 from leonav_runtime.trajectory import motion
 from leonav_runtime.params import IMU_PROFILES
 from leonav_runtime.params import build_params
-from leonav_runtime.gen.constants import C_LIGHT_MPS
 
 
 # Prior of the filter's clock and LO states (not in the scenario file: they only set
@@ -200,21 +199,17 @@ def _gps_rows(scn, nav, es, t_imu, x_true, f_b, notes):
     idx = _epochs(scn, scn.gps["rate_hz"], t_imu)
     t = t_imu[idx]
     p_enu = x_true[idx, nav.layout.X_P_ENU:nav.layout.X_P_ENU + 3]
-    states, ranked, rho = _visible_ranked(scn, es, t, p_enu, scn.gps["elevation_mask_rad"], notes)
+    states, ranked, _ = _visible_ranked(scn, es, t, p_enu, scn.gps["elevation_mask_rad"], notes)
     r_rx = _receiver_ecef(scn, p_enu)
     rows = []
     for j, k in enumerate(idx):
         use = ranked[j][: scn.gps["max_satellites"]]
         for rank, s in enumerate(use):
-            # Satellite at transmit time t - tau (tau = range / c), by its ECEF Taylor
-            # expansion over ~70 ms (error far below a millimetre), in the ECEF frame of
-            # the transmit epoch, as the pseudorange model (with Sagnac) expects.
-            r, v, a = states.r_ecef_m[s, j], states.v_ecef_mps[s, j], states.a_ecef_mps2[s, j]
-            tau = rho[s, j] / C_LIGHT_MPS
-            for _ in range(2):
-                r_tx = r - v * tau + 0.5 * a * tau**2
-                tau = np.linalg.norm(r_tx - r_rx[j]) / C_LIGHT_MPS
-            rows.append((k, t[j], int(es.norad_ids[s]), _aux(nav, r_tx, v - a * tau, a, f_b[k]), rank))
+            # Satellite at transmit time (generated light-time solution), in the ECEF frame
+            # of the transmit epoch, as the pseudorange model (with Sagnac) expects.
+            a = states.a_ecef_mps2[s, j]
+            r_tx, v_tx, _ = nav.transmit_state(states.r_ecef_m[s, j], states.v_ecef_mps[s, j], a, r_rx[j])
+            rows.append((k, t[j], int(es.norad_ids[s]), _aux(nav, r_tx, v_tx, a, f_b[k]), rank))
     vis = [len(r) for r in ranked]
     return rows, min(vis) if vis else 0
 

@@ -187,3 +187,13 @@ def boxminus(x1, x0):
     dtheta = quat_log(quat_mul(quat_conj(q0), q1))
     i = X["q_nb"].offset
     return ca.vertcat(x1[0:i] - x0[0:i], dtheta, x1[i + 4 : NX] - x0[i + 4 : NX])
+
+
+def level_from_specific_force(f_b):
+    """Roll and pitch (rad) of a body at rest from its mean specific force f_b (m/s^2, body FLU).
+
+    At rest the accelerometer measures -g, i.e. +|g| along the ENU up axis, so with
+    C_b_n = Rz(yaw) Ry(pitch) Rx(roll): roll = atan2(f_y, f_z), pitch = atan2(-f_x,
+    sqrt(f_y^2 + f_z^2)). Yaw is not observable from the accelerometer.
+    """
+    return ca.vertcat(ca.atan2(f_b[1], f_b[2]), ca.atan2(-f_b[0], ca.sqrt(f_b[1] ** 2 + f_b[2] ** 2)))

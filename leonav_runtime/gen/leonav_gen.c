@@ -81,6 +81,8 @@ extern "C" {
 #define casadi_f5 CASADI_PREFIX(f5)
 #define casadi_f50 CASADI_PREFIX(f50)
 #define casadi_f51 CASADI_PREFIX(f51)
+#define casadi_f52 CASADI_PREFIX(f52)
+#define casadi_f53 CASADI_PREFIX(f53)
 #define casadi_f6 CASADI_PREFIX(f6)
 #define casadi_f7 CASADI_PREFIX(f7)
 #define casadi_f8 CASADI_PREFIX(f8)
@@ -90,6 +92,7 @@ extern "C" {
 #define casadi_mtimes_dense CASADI_PREFIX(mtimes_dense)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s10 CASADI_PREFIX(s10)
 #define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_s3 CASADI_PREFIX(s3)
 #define casadi_s4 CASADI_PREFIX(s4)
@@ -195,6 +198,7 @@ static const casadi_int casadi_s6[3] = {1, 18, 1};
 static const casadi_int casadi_s7[3] = {18, 1, 1};
 static const casadi_int casadi_s8[3] = {3, 1, 1};
 static const casadi_int casadi_s9[3] = {4, 1, 1};
+static const casadi_int casadi_s10[3] = {2, 1, 1};
 
 static const casadi_real casadi_zeros[324] = 
   {0.};
@@ -20608,8 +20612,271 @@ CASADI_SYMBOL_EXPORT int leonav_receiver_ecef_work_bytes(casadi_int *sz_arg, cas
   return 0;
 }
 
-/* leonav_doppler_rate_variance:(sigma_hz_s,f_b_span_s,p[11])->(R) */
+/* leonav_transmit_state:(r_S_ecef[3],v_S_ecef[3],a_S_ecef[3],r_rx_ecef[3])->(r_tx_ecef[3],v_tx_ecef[3],tau_s) */
 static int casadi_f51(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16, a17, a18;
+  a00=arg[0]? arg[0][0] : 0;
+  a01=arg[1]? arg[1][0] : 0;
+  a02=arg[3]? arg[3][0] : 0;
+  a03=(a00-a02);
+  a03=casadi_sq(a03);
+  a04=arg[0]? arg[0][1] : 0;
+  a05=arg[3]? arg[3][1] : 0;
+  a06=(a04-a05);
+  a06=casadi_sq(a06);
+  a03=(a03+a06);
+  a06=arg[0]? arg[0][2] : 0;
+  a07=arg[3]? arg[3][2] : 0;
+  a08=(a06-a07);
+  a08=casadi_sq(a08);
+  a03=(a03+a08);
+  a03=sqrt(a03);
+  a08=299792458.;
+  a03=(a03/a08);
+  a09=(a01*a03);
+  a09=(a00-a09);
+  a10=5.0000000000000000e-01;
+  a11=arg[2]? arg[2][0] : 0;
+  a12=(a10*a11);
+  a13=casadi_sq(a03);
+  a14=(a12*a13);
+  a09=(a09+a14);
+  a09=(a09-a02);
+  a09=casadi_sq(a09);
+  a14=arg[1]? arg[1][1] : 0;
+  a15=(a14*a03);
+  a15=(a04-a15);
+  a16=arg[2]? arg[2][1] : 0;
+  a17=(a10*a16);
+  a18=(a17*a13);
+  a15=(a15+a18);
+  a15=(a15-a05);
+  a15=casadi_sq(a15);
+  a09=(a09+a15);
+  a15=arg[1]? arg[1][2] : 0;
+  a03=(a15*a03);
+  a03=(a06-a03);
+  a18=arg[2]? arg[2][2] : 0;
+  a10=(a10*a18);
+  a13=(a10*a13);
+  a03=(a03+a13);
+  a03=(a03-a07);
+  a03=casadi_sq(a03);
+  a09=(a09+a03);
+  a09=sqrt(a09);
+  a09=(a09/a08);
+  a03=(a01*a09);
+  a00=(a00-a03);
+  a03=casadi_sq(a09);
+  a12=(a12*a03);
+  a00=(a00+a12);
+  if (res[0]!=0) res[0][0]=a00;
+  a12=(a14*a09);
+  a04=(a04-a12);
+  a17=(a17*a03);
+  a04=(a04+a17);
+  if (res[0]!=0) res[0][1]=a04;
+  a09=(a15*a09);
+  a06=(a06-a09);
+  a10=(a10*a03);
+  a06=(a06+a10);
+  if (res[0]!=0) res[0][2]=a06;
+  a00=(a00-a02);
+  a00=casadi_sq(a00);
+  a04=(a04-a05);
+  a04=casadi_sq(a04);
+  a00=(a00+a04);
+  a06=(a06-a07);
+  a06=casadi_sq(a06);
+  a00=(a00+a06);
+  a00=sqrt(a00);
+  a00=(a00/a08);
+  a11=(a11*a00);
+  a01=(a01-a11);
+  if (res[1]!=0) res[1][0]=a01;
+  a16=(a16*a00);
+  a14=(a14-a16);
+  if (res[1]!=0) res[1][1]=a14;
+  a18=(a18*a00);
+  a15=(a15-a18);
+  if (res[1]!=0) res[1][2]=a15;
+  if (res[2]!=0) res[2][0]=a00;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_transmit_state(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f51(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_transmit_state_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_transmit_state_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_transmit_state_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_transmit_state_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_transmit_state_n_in(void) { return 4;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_transmit_state_n_out(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_transmit_state_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_transmit_state_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "r_S_ecef";
+    case 1: return "v_S_ecef";
+    case 2: return "a_S_ecef";
+    case 3: return "r_rx_ecef";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_transmit_state_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "r_tx_ecef";
+    case 1: return "v_tx_ecef";
+    case 2: return "tau_s";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_transmit_state_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s8;
+    case 1: return casadi_s8;
+    case 2: return casadi_s8;
+    case 3: return casadi_s8;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_transmit_state_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s8;
+    case 1: return casadi_s8;
+    case 2: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_transmit_state_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 4;
+  if (sz_res) *sz_res = 3;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_transmit_state_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 4*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 3*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_level:(f_b[3])->(roll_pitch[2]) */
+static int casadi_f52(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2;
+  a0=arg[0]? arg[0][1] : 0;
+  a1=arg[0]? arg[0][2] : 0;
+  a2=atan2(a0,a1);
+  if (res[0]!=0) res[0][0]=a2;
+  a2=arg[0]? arg[0][0] : 0;
+  a2=(-a2);
+  a0=casadi_sq(a0);
+  a1=casadi_sq(a1);
+  a0=(a0+a1);
+  a0=sqrt(a0);
+  a2=atan2(a2,a0);
+  if (res[0]!=0) res[0][1]=a2;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_level(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f52(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_level_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_level_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_level_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_level_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_level_n_in(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_level_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_level_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_level_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "f_b";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_level_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "roll_pitch";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_level_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s8;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_level_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s10;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_level_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 1;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_level_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 1*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_doppler_rate_variance:(sigma_hz_s,f_b_span_s,p[11])->(R) */
+static int casadi_f53(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=arg[0]? arg[0][0] : 0;
   a0=casadi_sq(a0);
@@ -20628,7 +20895,7 @@ static int casadi_f51(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f51(arg, res, iw, w, mem);
+  return casadi_f53(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance_checkout(void) {

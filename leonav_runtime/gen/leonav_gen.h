@@ -739,6 +739,42 @@ int leonav_receiver_ecef_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casa
 #define leonav_receiver_ecef_SZ_RES 2
 #define leonav_receiver_ecef_SZ_IW 0
 #define leonav_receiver_ecef_SZ_W 0
+int leonav_transmit_state(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_transmit_state_checkout(void);
+void leonav_transmit_state_release(int mem);
+void leonav_transmit_state_incref(void);
+void leonav_transmit_state_decref(void);
+casadi_int leonav_transmit_state_n_in(void);
+casadi_int leonav_transmit_state_n_out(void);
+casadi_real leonav_transmit_state_default_in(casadi_int i);
+const char* leonav_transmit_state_name_in(casadi_int i);
+const char* leonav_transmit_state_name_out(casadi_int i);
+const casadi_int* leonav_transmit_state_sparsity_in(casadi_int i);
+const casadi_int* leonav_transmit_state_sparsity_out(casadi_int i);
+int leonav_transmit_state_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_transmit_state_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_transmit_state_SZ_ARG 4
+#define leonav_transmit_state_SZ_RES 3
+#define leonav_transmit_state_SZ_IW 0
+#define leonav_transmit_state_SZ_W 0
+int leonav_level(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_level_checkout(void);
+void leonav_level_release(int mem);
+void leonav_level_incref(void);
+void leonav_level_decref(void);
+casadi_int leonav_level_n_in(void);
+casadi_int leonav_level_n_out(void);
+casadi_real leonav_level_default_in(casadi_int i);
+const char* leonav_level_name_in(casadi_int i);
+const char* leonav_level_name_out(casadi_int i);
+const casadi_int* leonav_level_sparsity_in(casadi_int i);
+const casadi_int* leonav_level_sparsity_out(casadi_int i);
+int leonav_level_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_level_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_level_SZ_ARG 1
+#define leonav_level_SZ_RES 1
+#define leonav_level_SZ_IW 0
+#define leonav_level_SZ_W 0
 int leonav_doppler_rate_variance(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_doppler_rate_variance_checkout(void);
 void leonav_doppler_rate_variance_release(int mem);

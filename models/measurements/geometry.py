@@ -4,7 +4,10 @@ from __future__ import annotations
 import casadi as ca
 
 from models import kinematics
+from models.constants import C_LIGHT_MPS
 from models.state import X
+
+LIGHT_TIME_ITERATIONS = 2  # fixed-point steps of tau = |r_S(t - tau) - r_U| / c; the second changes r_tx by < 1 um
 
 
 def receiver_ecef(x, p):
@@ -26,3 +29,20 @@ def range_rate_accel(r_S, v_S, a_S, r_U, v_U, a_U):
     rho_dot = ca.dot(u, v_rel)
     rho_ddot = ca.dot(u, a_S - a_U) + (ca.dot(v_rel, v_rel) - rho_dot**2) / rho
     return rho, rho_dot, rho_ddot
+
+
+def transmit_state(r_S, v_S, a_S, r_U):
+    """Satellite state at the transmit time of a signal received at r_U (all ECEF, m, m/s, m/s^2).
+
+    The satellite moves along its ECEF Taylor expansion over the light time tau (~70 ms for
+    GPS, error far below a millimetre): r_tx = r_S - v_S tau + a_S tau^2 / 2, with tau the
+    fixed point of tau = |r_tx - r_U| / c started at |r_S - r_U| / c. Returns (r_tx, v_tx,
+    tau) with r_tx in the ECEF frame of the transmit epoch (the pseudorange model adds the
+    Sagnac term for the Earth's rotation during the flight).
+    """
+    tau = ca.norm_2(r_S - r_U) / C_LIGHT_MPS
+    r_tx = r_S
+    for _ in range(LIGHT_TIME_ITERATIONS):
+        r_tx = r_S - v_S * tau + 0.5 * a_S * tau**2
+        tau = ca.norm_2(r_tx - r_U) / C_LIGHT_MPS
+    return r_tx, v_S - a_S * tau, tau
