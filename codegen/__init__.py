@@ -1,8 +1,6 @@
 """Code generation: models -> casadi.Functions -> C in leonav_runtime/gen/.
 
-Entry points: `generate(output_dir)` and `python -m codegen [--out DIR] [--check]`.
-Importing this package generates nothing.
+Entry points: `codegen.generate.generate(output_dir)`, `codegen.generate.diff_against(dir)`
+and `python -m codegen [--out DIR] [--check]`. Importing this package generates nothing
+and loads no casadi, so `leonav --help` (which registers `leonav codegen`) works without it.
 """
-from codegen.generate import diff_against, default_output_dir, generate
-
-__all__ = ["generate", "diff_against", "default_output_dir"]
