@@ -32,6 +32,8 @@ import numpy as np
 from sgp4.api import SGP4_ERRORS
 
 from leonav_runtime.orbits.elements import ElementSet, as_utc, julian_date_split
+from leonav_runtime.orbits.eop import EopTable
+from leonav_runtime.orbits.eop import default_table as eop_default_table
 from leonav_runtime.orbits.teme import DAY_S, OMEGA_EARTH_RADPS, gmst82_rad, teme_to_ecef
 from leonav_runtime.gen.constants import WGS72_J2, WGS72_J3, WGS72_J4, WGS72_MU_M3PS2, WGS72_RE_M
 
@@ -150,21 +152,42 @@ def propagate_teme(
     return elements.satrec_array.sgp4(jd, fr)
 
 
+def earth_orientation(epoch_utc: _dt.datetime, t_s: np.ndarray, ut1_utc_s: float | None = None,
+                      xp_rad: float | None = None, yp_rad: float | None = None,
+                      eop: EopTable | None = None) -> tuple[np.ndarray | float, float, float]:
+    """UT1-UTC (s, per epoch) and polar motion (rad, at the middle epoch) for TEME -> ECEF.
+
+    Values given explicitly win; the others come from `eop` (default: the IERS table).
+    Polar motion changes by a few milliarcseconds a day, so one value serves a run.
+    """
+    if ut1_utc_s is not None and xp_rad is not None and yp_rad is not None:
+        return ut1_utc_s, xp_rad, yp_rad
+    table = eop if eop is not None else eop_default_table()
+    values = table.at(epoch_utc, t_s)
+    mid = values.ut1_utc_s.size // 2
+    return (values.ut1_utc_s if ut1_utc_s is None else ut1_utc_s,
+            float(values.xp_rad[mid]) if xp_rad is None else xp_rad,
+            float(values.yp_rad[mid]) if yp_rad is None else yp_rad)
+
+
 def propagate_ecef(
     elements: ElementSet,
     epoch_utc: _dt.datetime,
     t_s: np.ndarray | float,
     *,
-    ut1_utc_s: float = 0.0,
-    xp_rad: float = 0.0,
-    yp_rad: float = 0.0,
+    ut1_utc_s: float | None = None,
+    xp_rad: float | None = None,
+    yp_rad: float | None = None,
+    eop: EopTable | None = None,
     acceleration: bool = True,
     warn_stale: bool = True,
 ) -> SatStates:
     """ECEF position, velocity and (optionally) acceleration of every satellite at every time.
 
     epoch_utc: scenario epoch (UTC; naive datetimes are taken as UTC); t_s: (nt,) seconds
-    since it. ut1_utc_s: UT1-UTC for GMST (s); xp_rad, yp_rad: polar motion (rad).
+    since it. Earth orientation: UT1-UTC per epoch and polar motion at the middle epoch
+    from `eop` (default: the IERS table of `orbits.eop.default_table()`); explicit
+    ut1_utc_s (s) / xp_rad, yp_rad (rad) override it (0, 0, 0 reproduces GMST on UTC).
     Warns (StaleElementsWarning) about element sets older than `elements.stale_after_days`;
     callers that propagate one set in chunks pass warn_stale=False and call
     `warn_if_stale(elements, epoch_utc, t_s)` once themselves.
@@ -181,6 +204,7 @@ def propagate_ecef(
 
     err, r_teme_km, v_teme_kmps = propagate_teme(elements, epoch_utc, t_s)
 
+    ut1_utc_s, xp_rad, yp_rad = earth_orientation(epoch_utc, t_s, ut1_utc_s, xp_rad, yp_rad, eop)
     jd_whole, jd_frac = julian_date_split(epoch_utc)
     gmst = gmst82_rad(jd_whole, jd_frac + (t_s + ut1_utc_s) / DAY_S)
     # Work in blocks of satellites so the temporaries stay in the CPU cache: this makes the

@@ -1,0 +1,184 @@
+"""Earth orientation parameters: UT1-UTC and polar motion from the IERS tables.
+
+TEME -> ECEF needs GMST on UT1 and, to the centimetre, the pole's position. UT1-UTC is
+up to 0.9 s (about 400 m of Earth rotation at the equator); ignoring its 0.07 s of
+February 2026 moves a receiver 21 m east as seen from the satellites and biases the
+Starlink Doppler rate by up to 0.25 Hz/s. Polar motion is a few metres.
+
+Source: the IERS Rapid Service / Prediction Centre table `finals2000A.all` (Bulletin A:
+daily measured values and one year of predictions), as shipped by the `astropy-iers-data`
+package (updated on PyPI every few weeks: `pip install -U astropy-iers-data`). Another
+file in the same format can be given with `LEONAV_EOP_FILE` or `EopTable.load(path)`.
+
+Between the daily rows the values are interpolated linearly in time; a leap second
+(a 1 s jump of UT1-UTC between two days) is unwrapped before interpolation and put back
+after, so the day of a leap second is exact. Units: UT1-UTC in s, polar motion in rad.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import functools
+import math
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from leonav_runtime.errors import UserInputError
+
+ARCSEC_RAD = math.pi / (180.0 * 3600.0)
+MJD_UNIX_EPOCH = 40587.0          # MJD of 1970-01-01T00:00:00 UTC
+PREDICTION_STALE_DAYS = 30.0      # warn when the values used are predictions this far ahead of the last measurement
+ENV_FILE = "LEONAV_EOP_FILE"
+
+
+class StaleEopWarning(UserWarning):
+    """The EOP values used are long-range predictions or lie outside the table."""
+
+
+@dataclass(frozen=True)
+class EopValues:
+    """EOP at the requested times: UT1-UTC (s) and polar motion x_p, y_p (rad) per time,
+    whether each value is a prediction, and where the table came from."""
+
+    ut1_utc_s: np.ndarray
+    xp_rad: np.ndarray
+    yp_rad: np.ndarray
+    predicted: np.ndarray
+    source: str
+
+
+@dataclass(frozen=True)
+class EopTable:
+    """Daily IERS rows (Bulletin A): MJD (UTC), UT1-UTC (s), x_p, y_p (arcsec), measured flag."""
+
+    mjd: np.ndarray
+    ut1_utc_s: np.ndarray
+    xp_arcsec: np.ndarray
+    yp_arcsec: np.ndarray
+    measured: np.ndarray
+    source: str
+    rejected_lines: int = 0
+
+    @classmethod
+    def load(cls, path: str | Path | None = None) -> "EopTable":
+        """Read a `finals2000A.all`-format file (default: `$LEONAV_EOP_FILE`, else the
+        table of the installed `astropy-iers-data`)."""
+        path = Path(path) if path is not None else default_path()
+        try:
+            text = path.read_bytes().decode("ascii", errors="replace")
+        except OSError as exc:
+            raise UserInputError(f"{path}: cannot read the EOP table ({exc.strerror or exc})") from None
+        return cls.parse(text, str(path))
+
+    @classmethod
+    def parse(cls, text: str, source: str) -> "EopTable":
+        """Parse finals2000A fixed columns: MJD 8-15, PM flag 17, x_p 19-27, y_p 38-46,
+        UT1 flag 58, UT1-UTC 59-68 (1-based, inclusive). Rows without UT1-UTC end the table
+        (the file's tail has dates only); malformed rows are counted and skipped."""
+        rows, rejected = [], 0
+        for line in text.splitlines():
+            if len(line) < 68 or not line[58:68].strip():
+                continue
+            try:
+                rows.append((float(line[7:15]), float(line[58:68]), float(line[18:27]), float(line[37:46]),
+                             line[57] == "I"))
+            except ValueError:
+                rejected += 1
+        if len(rows) < 2:
+            raise UserInputError(f"{source}: no EOP rows (expected the IERS finals2000A format: MJD in columns "
+                                 "8-15, UT1-UTC in 59-68)")
+        a = np.array([r[:4] for r in rows], dtype=float)
+        order = np.argsort(a[:, 0], kind="stable")
+        if np.any(np.diff(a[order, 0]) <= 0):
+            raise UserInputError(f"{source}: duplicated MJD rows in the EOP table")
+        measured = np.array([r[4] for r in rows], bool)[order]
+        return cls(a[order, 0], a[order, 1], a[order, 2], a[order, 3], measured, source, rejected)
+
+    @property
+    def last_measured_mjd(self) -> float:
+        """MJD of the last measured (not predicted) UT1-UTC value."""
+        return float(self.mjd[self.measured][-1]) if self.measured.any() else float(self.mjd[0])
+
+    def at_mjd(self, mjd_utc: np.ndarray | float, warn: bool = True) -> EopValues:
+        """EOP at UTC MJDs (fractional), interpolated linearly between the daily rows."""
+        mjd = np.atleast_1d(np.asarray(mjd_utc, dtype=float))
+        if not np.all(np.isfinite(mjd)):
+            raise UserInputError("EOP requested at a non-finite time")
+        # unwrap leap seconds: UT1-UTC jumps by +1 s at the start of the day after a leap second
+        steps = np.round(np.diff(self.ut1_utc_s))
+        leaps = np.concatenate([[0.0], np.cumsum(steps)])
+        smooth = self.ut1_utc_s - leaps
+        day = np.clip(np.searchsorted(self.mjd, mjd, side="right") - 1, 0, self.mjd.size - 1)
+        ut1 = np.interp(mjd, self.mjd, smooth) + leaps[day]
+        xp = np.interp(mjd, self.mjd, self.xp_arcsec) * ARCSEC_RAD
+        yp = np.interp(mjd, self.mjd, self.yp_arcsec) * ARCSEC_RAD
+        predicted = mjd > self.last_measured_mjd
+        if warn:
+            self._warn_if_stale(mjd)
+        return EopValues(ut1, xp, yp, predicted, self.source)
+
+    def at(self, epoch_utc: _dt.datetime, t_s: np.ndarray | float = 0.0, warn: bool = True) -> EopValues:
+        """EOP at `epoch_utc` + t_s (s)."""
+        return self.at_mjd(mjd_utc(epoch_utc) + np.asarray(t_s, dtype=float) / 86400.0, warn=warn)
+
+    def _warn_if_stale(self, mjd: np.ndarray) -> None:
+        lo, hi = float(mjd.min()), float(mjd.max())
+        if lo < self.mjd[0] or hi > self.mjd[-1]:
+            warnings.warn(
+                f"EOP requested for MJD {lo:.1f}..{hi:.1f}, outside the table {self.source} "
+                f"(MJD {self.mjd[0]:.0f}..{self.mjd[-1]:.0f}): the nearest row's values are used; update it "
+                "(pip install -U astropy-iers-data)", StaleEopWarning, stacklevel=3)
+        elif hi - self.last_measured_mjd > PREDICTION_STALE_DAYS:
+            warnings.warn(
+                f"EOP for MJD {hi:.1f} are IERS predictions {hi - self.last_measured_mjd:.0f} days past the last "
+                f"measured value (MJD {self.last_measured_mjd:.0f}) of {self.source}; UT1-UTC predictions drift by "
+                "~1 ms per month (update: pip install -U astropy-iers-data)", StaleEopWarning, stacklevel=3)
+
+
+def mjd_utc(epoch_utc: _dt.datetime) -> float:
+    """UTC Modified Julian Date of an aware (or naive = UTC) datetime."""
+    if epoch_utc.tzinfo is None:
+        epoch_utc = epoch_utc.replace(tzinfo=_dt.timezone.utc)
+    return MJD_UNIX_EPOCH + epoch_utc.timestamp() / 86400.0
+
+
+def mjd_to_utc(mjd: float) -> _dt.datetime:
+    """Aware UTC datetime of a UTC Modified Julian Date."""
+    return _dt.datetime.fromtimestamp((float(mjd) - MJD_UNIX_EPOCH) * 86400.0, _dt.timezone.utc)
+
+
+def default_path() -> Path:
+    """`$LEONAV_EOP_FILE`, else the finals2000A table of the installed astropy-iers-data."""
+    env = os.environ.get(ENV_FILE)
+    if env:
+        return Path(env)
+    try:
+        import astropy_iers_data
+    except ImportError:  # pragma: no cover - a declared dependency
+        raise UserInputError("no EOP table: install astropy-iers-data or set LEONAV_EOP_FILE to a "
+                             "finals2000A.all file") from None
+    return Path(astropy_iers_data.IERS_A_FILE)
+
+
+@functools.lru_cache(maxsize=4)
+def _cached(path: str) -> EopTable:
+    return EopTable.load(path)
+
+
+def default_table() -> EopTable:
+    """The EOP table in use (read once per process)."""
+    return _cached(str(default_path()))
+
+
+def table_version() -> str:
+    """Version of the astropy-iers-data package providing the table ('' for a user file)."""
+    if os.environ.get(ENV_FILE):
+        return ""
+    try:
+        from astropy_iers_data import __version__
+    except ImportError:  # pragma: no cover
+        return ""
+    return str(__version__)
