@@ -62,6 +62,53 @@ WGS72_J4 = _const("WGS72_J4", -0.00000165597, "-", "WGS-72 zonal harmonic J4 (SG
 OMEGA_EARTH_TEME_RADPS = _const("OMEGA_EARTH_TEME_RADPS", 7.292115146706979e-5, "rad/s",
                                 "Earth rotation rate of Vallado's teme2ecef (LOD = 0)")
 
+# --- GNSS broadcast ephemeris: the constants each signal-in-space ICD fixes --------------
+# Satellite orbit and clock from a broadcast ephemeris must use the constants of its own
+# ICD (the control segment fits the elements with them), not WGS84's.
+GPS_MU_M3PS2 = _const("GPS_MU_M3PS2", 3.986005e14, "m^3/s^2",
+                      "Earth gravitational constant for GPS/QZSS broadcast orbits (IS-GPS-200, 20.3.3.4.3)")
+GPS_OMEGA_E_RADPS = _const("GPS_OMEGA_E_RADPS", 7.2921151467e-5, "rad/s",
+                           "Earth rotation rate for GPS/QZSS broadcast orbits (IS-GPS-200, 20.3.3.4.3)")
+GPS_F_REL_S_PER_SQRTM = _const("GPS_F_REL_S_PER_SQRTM", -4.442807633e-10, "s/m^0.5",
+                               "relativistic clock constant F = -2 sqrt(mu)/c^2 (IS-GPS-200, 20.3.3.3.3.1)")
+GPS_PI = _const("GPS_PI", 3.1415926535898, "-",
+                "the value of pi the GPS ICD fixes for semicircle <-> radian conversion (IS-GPS-200, 20.3.3.4.3)")
+GAL_MU_M3PS2 = _const("GAL_MU_M3PS2", 3.986004418e14, "m^3/s^2",
+                      "Earth gravitational constant for Galileo broadcast orbits (Galileo OS SIS ICD, 5.1.1)")
+GAL_OMEGA_E_RADPS = _const("GAL_OMEGA_E_RADPS", 7.2921151467e-5, "rad/s",
+                           "Earth rotation rate for Galileo broadcast orbits (Galileo OS SIS ICD, 5.1.1)")
+GAL_F_REL_S_PER_SQRTM = _const("GAL_F_REL_S_PER_SQRTM", -4.442807309e-10, "s/m^0.5",
+                               "relativistic clock constant F for Galileo (Galileo OS SIS ICD, 5.1.4)")
+BDS_MU_M3PS2 = _const("BDS_MU_M3PS2", 3.986004418e14, "m^3/s^2",
+                      "Earth gravitational constant for BeiDou broadcast orbits, CGCS2000 (BDS-SIS-ICD-B1I, 5.2.4)")
+BDS_OMEGA_E_RADPS = _const("BDS_OMEGA_E_RADPS", 7.2921150e-5, "rad/s",
+                           "Earth rotation rate for BeiDou broadcast orbits, CGCS2000 (BDS-SIS-ICD-B1I, 5.2.4)")
+BDS_F_REL_S_PER_SQRTM = _const("BDS_F_REL_S_PER_SQRTM", -4.442807309e-10, "s/m^0.5",
+                               "relativistic clock constant F for BeiDou (BDS-SIS-ICD-B1I, 5.2.4.10)")
+BDS_GEO_TILT_RAD = _const("BDS_GEO_TILT_RAD", -5.0 * math.pi / 180.0, "rad",
+                          "BeiDou GEO orbit frame: rotation about x of the user frame, -5 deg (BDS-SIS-ICD-B1I, 5.2.4.12)")
+GPS_WEEK_S = _const("GPS_WEEK_S", 604800.0, "s", "one GPS (and Galileo, BeiDou) week")
+BDT_MINUS_GPST_S = _const("BDT_MINUS_GPST_S", -14.0, "s",
+                          "BeiDou time minus GPS time (BDT epoch 2006-01-01 00:00:00 UTC, BDS-SIS-ICD-B1I 4.2)")
+BDT_WEEK_OFFSET = _const("BDT_WEEK_OFFSET", 1356.0, "week", "GPS week number of BDT week 0")
+GPS_L1_HZ = _const("GPS_L1_HZ", 1575.42e6, "Hz", "GPS/QZSS L1, Galileo E1, BeiDou B1C carrier (IS-GPS-200, 3.3.1.1)")
+GPS_L2_HZ = _const("GPS_L2_HZ", 1227.60e6, "Hz", "GPS/QZSS L2 carrier (IS-GPS-200, 3.3.1.1)")
+GPS_L5_HZ = _const("GPS_L5_HZ", 1176.45e6, "Hz", "GPS/QZSS L5, Galileo E5a, BeiDou B2a carrier (IS-GPS-705)")
+GAL_E5B_HZ = _const("GAL_E5B_HZ", 1207.14e6, "Hz", "Galileo E5b, BeiDou B2I/B2b carrier (Galileo OS SIS ICD, 2.3)")
+GAL_E6_HZ = _const("GAL_E6_HZ", 1278.75e6, "Hz", "Galileo E6 carrier")
+BDS_B1I_HZ = _const("BDS_B1I_HZ", 1561.098e6, "Hz", "BeiDou B1I carrier (BDS-SIS-ICD-B1I, 3.2)")
+BDS_B3I_HZ = _const("BDS_B3I_HZ", 1268.52e6, "Hz", "BeiDou B3I carrier")
+GLO_G1_HZ = _const("GLO_G1_HZ", 1602.0e6, "Hz", "GLONASS G1 FDMA centre (slot k: + k * GLO_G1_STEP_HZ)")
+GLO_G1_STEP_HZ = _const("GLO_G1_STEP_HZ", 0.5625e6, "Hz", "GLONASS G1 FDMA channel spacing")
+GLO_G2_HZ = _const("GLO_G2_HZ", 1246.0e6, "Hz", "GLONASS G2 FDMA centre (slot k: + k * GLO_G2_STEP_HZ)")
+GLO_G2_STEP_HZ = _const("GLO_G2_STEP_HZ", 0.4375e6, "Hz", "GLONASS G2 FDMA channel spacing")
+GPS_FIT_INTERVAL_DEFAULT_S = _const("GPS_FIT_INTERVAL_DEFAULT_S", 4.0 * 3600.0, "s",
+                                    "GPS curve-fit interval when the fit flag is 0 or unknown (IS-GPS-200, 20.3.3.4.3.1)")
+GAL_EPH_VALIDITY_S = _const("GAL_EPH_VALIDITY_S", 4.0 * 3600.0, "s",
+                            "span over which a Galileo ephemeris is used (nominal validity; OS SIS ICD 5.1.1 lists 4 h)")
+BDS_EPH_VALIDITY_S = _const("BDS_EPH_VALIDITY_S", 2.0 * 3600.0, "s",
+                            "span over which a BeiDou ephemeris is used (hourly uploads; +-1 h around toe)")
+
 # --- Starlink beacons --------------------------------------------------------------------
 STARLINK_BEACON_HZ = _const("STARLINK_BEACON_HZ", 11.325e9, "Hz",
                             "Starlink Ku-band beacon carrier used in the paper (central tone of the channel)")

@@ -22,6 +22,34 @@
 #define LEONAV_WGS72_J3 (-2.53881e-06)  /* -: WGS-72 zonal harmonic J3 (SGP4) */
 #define LEONAV_WGS72_J4 (-1.65597e-06)  /* -: WGS-72 zonal harmonic J4 (SGP4) */
 #define LEONAV_OMEGA_EARTH_TEME_RADPS (7.292115146706979e-05)  /* rad/s: Earth rotation rate of Vallado's teme2ecef (LOD = 0) */
+#define LEONAV_GPS_MU_M3PS2 (398600500000000.0)  /* m^3/s^2: Earth gravitational constant for GPS/QZSS broadcast orbits (IS-GPS-200, 20.3.3.4.3) */
+#define LEONAV_GPS_OMEGA_E_RADPS (7.2921151467e-05)  /* rad/s: Earth rotation rate for GPS/QZSS broadcast orbits (IS-GPS-200, 20.3.3.4.3) */
+#define LEONAV_GPS_F_REL_S_PER_SQRTM (-4.442807633e-10)  /* s/m^0.5: relativistic clock constant F = -2 sqrt(mu)/c^2 (IS-GPS-200, 20.3.3.3.3.1) */
+#define LEONAV_GPS_PI (3.1415926535898)  /* -: the value of pi the GPS ICD fixes for semicircle <-> radian conversion (IS-GPS-200, 20.3.3.4.3) */
+#define LEONAV_GAL_MU_M3PS2 (398600441800000.0)  /* m^3/s^2: Earth gravitational constant for Galileo broadcast orbits (Galileo OS SIS ICD, 5.1.1) */
+#define LEONAV_GAL_OMEGA_E_RADPS (7.2921151467e-05)  /* rad/s: Earth rotation rate for Galileo broadcast orbits (Galileo OS SIS ICD, 5.1.1) */
+#define LEONAV_GAL_F_REL_S_PER_SQRTM (-4.442807309e-10)  /* s/m^0.5: relativistic clock constant F for Galileo (Galileo OS SIS ICD, 5.1.4) */
+#define LEONAV_BDS_MU_M3PS2 (398600441800000.0)  /* m^3/s^2: Earth gravitational constant for BeiDou broadcast orbits, CGCS2000 (BDS-SIS-ICD-B1I, 5.2.4) */
+#define LEONAV_BDS_OMEGA_E_RADPS (7.292115e-05)  /* rad/s: Earth rotation rate for BeiDou broadcast orbits, CGCS2000 (BDS-SIS-ICD-B1I, 5.2.4) */
+#define LEONAV_BDS_F_REL_S_PER_SQRTM (-4.442807309e-10)  /* s/m^0.5: relativistic clock constant F for BeiDou (BDS-SIS-ICD-B1I, 5.2.4.10) */
+#define LEONAV_BDS_GEO_TILT_RAD (-0.08726646259971647)  /* rad: BeiDou GEO orbit frame: rotation about x of the user frame, -5 deg (BDS-SIS-ICD-B1I, 5.2.4.12) */
+#define LEONAV_GPS_WEEK_S (604800.0)  /* s: one GPS (and Galileo, BeiDou) week */
+#define LEONAV_BDT_MINUS_GPST_S (-14.0)  /* s: BeiDou time minus GPS time (BDT epoch 2006-01-01 00:00:00 UTC, BDS-SIS-ICD-B1I 4.2) */
+#define LEONAV_BDT_WEEK_OFFSET (1356.0)  /* week: GPS week number of BDT week 0 */
+#define LEONAV_GPS_L1_HZ (1575420000.0)  /* Hz: GPS/QZSS L1, Galileo E1, BeiDou B1C carrier (IS-GPS-200, 3.3.1.1) */
+#define LEONAV_GPS_L2_HZ (1227600000.0)  /* Hz: GPS/QZSS L2 carrier (IS-GPS-200, 3.3.1.1) */
+#define LEONAV_GPS_L5_HZ (1176450000.0)  /* Hz: GPS/QZSS L5, Galileo E5a, BeiDou B2a carrier (IS-GPS-705) */
+#define LEONAV_GAL_E5B_HZ (1207140000.0)  /* Hz: Galileo E5b, BeiDou B2I/B2b carrier (Galileo OS SIS ICD, 2.3) */
+#define LEONAV_GAL_E6_HZ (1278750000.0)  /* Hz: Galileo E6 carrier */
+#define LEONAV_BDS_B1I_HZ (1561098000.0)  /* Hz: BeiDou B1I carrier (BDS-SIS-ICD-B1I, 3.2) */
+#define LEONAV_BDS_B3I_HZ (1268520000.0)  /* Hz: BeiDou B3I carrier */
+#define LEONAV_GLO_G1_HZ (1602000000.0)  /* Hz: GLONASS G1 FDMA centre (slot k: + k * GLO_G1_STEP_HZ) */
+#define LEONAV_GLO_G1_STEP_HZ (562500.0)  /* Hz: GLONASS G1 FDMA channel spacing */
+#define LEONAV_GLO_G2_HZ (1246000000.0)  /* Hz: GLONASS G2 FDMA centre (slot k: + k * GLO_G2_STEP_HZ) */
+#define LEONAV_GLO_G2_STEP_HZ (437500.0)  /* Hz: GLONASS G2 FDMA channel spacing */
+#define LEONAV_GPS_FIT_INTERVAL_DEFAULT_S (14400.0)  /* s: GPS curve-fit interval when the fit flag is 0 or unknown (IS-GPS-200, 20.3.3.4.3.1) */
+#define LEONAV_GAL_EPH_VALIDITY_S (14400.0)  /* s: span over which a Galileo ephemeris is used (nominal validity; OS SIS ICD 5.1.1 lists 4 h) */
+#define LEONAV_BDS_EPH_VALIDITY_S (7200.0)  /* s: span over which a BeiDou ephemeris is used (hourly uploads; +-1 h around toe) */
 #define LEONAV_STARLINK_BEACON_HZ (11325000000.0)  /* Hz: Starlink Ku-band beacon carrier used in the paper (central tone of the channel) */
 #define LEONAV_KU_DOWNLINK_MIN_HZ (10700000000.0)  /* Hz: lower edge of the Ku downlink; a capture RF centre below it is not a beacon carrier */
 #define LEONAV_KU_DOWNLINK_MAX_HZ (12750000000.0)  /* Hz: upper edge of the Ku downlink; a capture RF centre above it is not a beacon carrier */
