@@ -1,0 +1,407 @@
+"""RINEX 2.10/2.11 and 3.00-3.05 observation files -> `ObservationTable`.
+
+Epochs with flag 0 (and 1, power failure before the epoch: rows get FLAG_POWER_FAILURE)
+become rows; flags 2-5 (events: moving, new site, header information, external event)
+are counted and their header lines skipped (a "# / TYPES OF OBSERV" / "SYS / # / OBS
+TYPES" inside a flag-4 block replaces the observation types); flag 6 (cycle-slip
+records) is counted and skipped.
+
+Bad input: an unreadable epoch line, a field that is not a number, a satellite block cut
+short by the next epoch or the end of the file, each becomes a `Rejection` (file, line,
+field) and the reader resynchronizes at the next epoch line; blank or zero observations
+are missing values (zeros counted). Unknown versions and non-observation files raise
+`UserInputError` naming file, line 1 and the field.
+
+Time systems: GPS, GAL, QZS, IRN epochs are GPS seconds; BDT + 14 s; GLO (UTC) + the
+GPS-UTC leap seconds of the date.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import re
+import warnings
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from leonav_runtime.errors import UserInputError
+from leonav_runtime.gnss import time as gtime
+from leonav_runtime.gnss.ephemeris import Rejection
+from leonav_runtime.gnss.observations import (
+    FLAG_ANTISPOOFING,
+    FLAG_CP_VALID,
+    FLAG_HALF_CYCLE,
+    FLAG_LOSS_OF_LOCK,
+    FLAG_POWER_FAILURE,
+    FLAG_PR_VALID,
+    ObservationTable,
+    RowBuilder,
+)
+
+log = logging.getLogger("leonav.gnss")
+
+SUPPORTED = "RINEX 2.10/2.11 or 3.00-3.05 observation files ('O')"
+_V2_EPOCH = re.compile(r"^ [ \d]\d [ \d]\d [ \d]\d [ \d]\d [ \d]\d [ \d]\d\.\d{7}  [0-6][ \d]{2}\d")
+_V2_EVENT = re.compile(r"^ {28}[2-5][ \d]{2}\d")  # event flags 2-5 may leave the epoch blank
+# RINEX 2 observation code -> (RINEX 3 signal code, quantity). L/D/S follow the code of
+# their band: L1 goes with C/A (1C), L2 with P(Y) (2W), as a RINEX 2 receiver tracks them.
+_V2_SIGNAL = {"1": "1C", "2": "2W", "5": "5X", "6": "6X", "7": "7X", "8": "8X"}
+_V2_CODE = {"C1": "1C", "P1": "1W", "C2": "2X", "P2": "2W", "C5": "5X", "C6": "6X", "C7": "7X", "C8": "8X"}
+
+
+class RejectedObservationsWarning(UserWarning):
+    """Some observation lines or fields were rejected (see `ObservationTable.rejected`)."""
+
+
+def _v2_type(obs_type: str, system: str) -> tuple[str, str] | None:
+    """(signal, quantity C/L/D/S) of a RINEX 2 observation code; None when unknown."""
+    if len(obs_type) != 2 or obs_type[0] not in "CPLDS":
+        return None
+    if obs_type[0] in "CP":
+        sig = _V2_CODE.get(obs_type)
+        if sig and system == "E":
+            sig = sig[0] + "X"
+        return (sig, "C") if sig else None
+    sig = _V2_SIGNAL.get(obs_type[1])
+    if sig and system == "E":
+        sig = sig[0] + "X"
+    return (sig, obs_type[0]) if sig else None
+
+
+class _Reader:
+    def __init__(self, text: str, source: str):
+        self.lines = text.splitlines()
+        self.source = source
+        self.rejected: list[Rejection] = []
+        self.counts: Counter = Counter()
+        self.rows = RowBuilder()
+        self.version = 0.0
+        self.file_system = "G"
+        self.time_system = "GPS"
+        self.types_v2: list[str] = []
+        self.types_v3: dict[str, list[str]] = {}
+        self.approx = None
+        self.glo_slots: dict[int, int] = {}
+
+    def reject(self, line_index: int, field_name: str, reason: str) -> None:
+        self.rejected.append(Rejection(self.source, line_index + 1, field_name, reason))
+        self.counts["rejected"] += 1
+
+    # -------------------------------------------------------------- header
+    def header(self) -> int:
+        lines, src = self.lines, self.source
+        if not lines:
+            raise UserInputError(f"{src}: empty file (expected {SUPPORTED})")
+        first = lines[0]
+        if "RINEX VERSION" not in first[60:]:
+            raise UserInputError(f"{src}:1: field RINEX VERSION / TYPE: not found in columns 61-80 "
+                                 f"(not a RINEX file? expected {SUPPORTED})")
+        try:
+            self.version = float(first[0:9])
+        except ValueError:
+            raise UserInputError(f"{src}:1: field RINEX VERSION: {first[0:9].strip()!r} is not a version number") from None
+        if not (2.0 <= self.version < 3.06):
+            raise UserInputError(f"{src}:1: field RINEX VERSION: version {self.version:g} is not supported "
+                                 f"(expected {SUPPORTED})")
+        if first[20:21] != "O":
+            raise UserInputError(f"{src}:1: field FILE TYPE: {first[20:21]!r} (expected 'O', observation data)")
+        self.file_system = first[40:41].strip() or "G"
+        if self.file_system == "M":
+            self.file_system = "G"  # blank satellite letters in a mixed RINEX 2 file mean GPS
+        pending_sys = None
+        for i, line in enumerate(lines[1:], start=1):
+            label = line[60:].strip()
+            if label == "END OF HEADER":
+                if not self.types_v2 and not self.types_v3:
+                    raise UserInputError(f"{src}: header has no observation types "
+                                         f"('# / TYPES OF OBSERV' or 'SYS / # / OBS TYPES')")
+                return i + 1
+            pending_sys = self._header_line(i, line, label, pending_sys)
+        raise UserInputError(f"{src}: no END OF HEADER line (expected a RINEX observation header)")
+
+    def _header_line(self, i: int, line: str, label: str, pending_sys):
+        try:
+            if label == "# / TYPES OF OBSERV":
+                if line[0:6].strip():
+                    self.types_v2 = []
+                    self._v2_count = int(line[0:6])
+                self.types_v2 += [line[10 + 6 * k:12 + 6 * k].strip() for k in range(9)
+                                  if line[10 + 6 * k:12 + 6 * k].strip()]
+            elif label == "SYS / # / OBS TYPES":
+                if line[0:1].strip():
+                    pending_sys = line[0]
+                    self.types_v3[pending_sys] = []
+                    int(line[3:6])
+                if pending_sys is None:
+                    raise ValueError("continuation line without a system")
+                self.types_v3[pending_sys] += [line[7 + 4 * k:10 + 4 * k].strip() for k in range(13)
+                                               if line[7 + 4 * k:10 + 4 * k].strip()]
+            elif label == "APPROX POSITION XYZ":
+                self.approx = np.array([float(line[14 * k:14 * (k + 1)]) for k in range(3)])
+            elif label == "TIME OF FIRST OBS":
+                self.time_system = line[48:51].strip() or ("GPS" if self.file_system != "R" else "GLO")
+            elif label == "GLONASS SLOT / FRQ #":
+                for k in range(8):
+                    chunk = line[4 + 7 * k:4 + 7 * (k + 1)]
+                    if chunk.strip():
+                        self.glo_slots[int(chunk[1:3])] = int(chunk[4:7])
+        except ValueError as exc:
+            self.reject(i, label, f"header line could not be read ({exc}); ignored")
+        return pending_sys
+
+    # -------------------------------------------------------------- time
+    def to_gps(self, t_sys: float) -> float:
+        ts = self.time_system
+        if ts == "BDT":
+            return float(gtime.bdt_to_gps_seconds(t_sys))
+        if ts == "GLO":
+            return t_sys + gtime.leap_seconds_at_gps(t_sys + 18)
+        return t_sys
+
+    # -------------------------------------------------------------- observations
+    def add_sat(self, t: float, sat: str, values: list[tuple[str, float, int, int]], power_failure: bool) -> None:
+        """values: (observation code, value, lli, ssi) of one satellite at one epoch."""
+        system = sat[0] if sat[0].strip() else self.file_system
+        try:
+            prn = int(sat[1:3])
+        except ValueError:
+            self.counts["bad_satellite_id"] += 1
+            return
+        by_signal: dict[str, list] = {}
+        for code, value, lli, ssi in values:
+            if self.version < 3:
+                st = _v2_type(code, system)
+            else:
+                st = (code[1:3], code[0]) if len(code) == 3 and code[0] in "CLDS" else None
+            if st is None:
+                continue
+            signal, qty = st
+            slot = by_signal.setdefault(signal, [math.nan, math.nan, math.nan, math.nan, 0, 0, 0])
+            if value == 0.0 and qty in "CLS":
+                self.counts[f"zero_{qty}"] += 1
+                continue
+            slot["CLDS".index(qty)] = value
+            if qty == "L":
+                slot[4] = lli
+            if qty == "C":
+                slot[5] = ssi
+            elif qty == "L" and not slot[5]:
+                slot[5] = ssi
+        for signal, (pr, cp, dop, cn0, lli, ssi, _) in by_signal.items():
+            if math.isnan(pr) and math.isnan(cp) and math.isnan(dop):
+                if not math.isnan(cn0):
+                    self.counts["rows_without_measurement"] += 1
+                continue
+            flags = 0
+            if not math.isnan(pr):
+                flags |= FLAG_PR_VALID
+            if not math.isnan(cp):
+                flags |= FLAG_CP_VALID
+            if lli & 1:
+                flags |= FLAG_LOSS_OF_LOCK
+            if lli & 2:
+                flags |= FLAG_HALF_CYCLE
+            if lli & 4:
+                flags |= FLAG_ANTISPOOFING
+            if power_failure:
+                flags |= FLAG_POWER_FAILURE
+            self.rows.add(t, system, prn, signal, pr, cp, dop, cn0, math.nan, lli, ssi, flags,
+                          self.glo_slots.get(prn, 0) if system == "R" else 0)
+
+    def field(self, line_index: int, text: str, what: str) -> tuple[float, int, int]:
+        """(value, lli, ssi) of one 16-column observation field; NaN when blank or unreadable."""
+        num = text[0:14].strip()
+        lli_c, ssi_c = text[14:15].strip(), text[15:16].strip()
+        value = math.nan
+        if num:
+            try:
+                value = float(num)
+            except ValueError:
+                self.reject(line_index, what, f"{num!r} is not a number")
+            else:
+                if not math.isfinite(value):
+                    self.reject(line_index, what, f"{num!r} is not a finite number")
+                    value = math.nan
+        lli = int(lli_c) if lli_c.isdigit() else 0
+        ssi = int(ssi_c) if ssi_c.isdigit() else 0
+        return value, lli, ssi
+
+    # -------------------------------------------------------------- RINEX 2 body
+    def body_v2(self, i: int) -> None:
+        lines, n = self.lines, len(self.lines)
+        while i < n:
+            line = lines[i]
+            if not line.strip():
+                i += 1
+                continue
+            if _V2_EVENT.match(line):
+                flag, nsat = int(line[28]), int(line[29:32])
+                self.counts[f"event_flag_{flag}"] += 1
+                i += 1 + nsat
+                continue
+            if not _V2_EPOCH.match(line):
+                self.reject(i, "epoch", "expected an epoch line (' yy mm dd hh mm ss.sssssss  f nnn'); "
+                            "skipped to the next epoch")
+                i = self._next_v2_epoch(i + 1)
+                continue
+            try:
+                yy, mo, dd, hh, mi = (int(line[1 + 3 * k:3 + 3 * k]) for k in range(5))
+                sec = float(line[15:26])
+                flag = int(line[28])
+                nsat = int(line[29:32])
+                t = self.to_gps(gtime.calendar_to_seconds(yy + (1900 if yy >= 80 else 2000), mo, dd, hh, mi, sec))
+            except ValueError as exc:
+                self.reject(i, "epoch", f"unreadable epoch ({exc})")
+                i = self._next_v2_epoch(i + 1)
+                continue
+            if 2 <= flag <= 5:
+                self.counts[f"event_flag_{flag}"] += 1
+                for k in range(i + 1, min(n, i + 1 + nsat)):
+                    label = lines[k][60:].strip()
+                    if label in ("# / TYPES OF OBSERV",):
+                        self._header_line(k, lines[k], label, None)
+                i += 1 + nsat
+                continue
+            sats = []
+            j = i
+            while len(sats) < nsat:
+                chunk = lines[j][32:68] if j < n else ""
+                take = min(12, nsat - len(sats))
+                ids = [chunk[3 * k:3 * k + 3] for k in range(take)]
+                if j > i and (j >= n or lines[j][:32].strip()):
+                    break
+                sats += ids
+                j += 1
+            if len(sats) != nsat:
+                self.reject(i, "satellite list", f"{len(sats)} of {nsat} satellite ids; epoch skipped")
+                i = self._next_v2_epoch(j)
+                continue
+            if flag == 6:
+                self.counts["cycle_slip_records"] += 1
+            ntypes = len(self.types_v2)
+            per_sat = max(1, -(-ntypes // 5))
+            i = j
+            complete = True
+            for sat in sats:
+                block = lines[i:i + per_sat]
+                if len(block) < per_sat or any(_V2_EPOCH.match(b) for b in block):
+                    cut = next((k for k, b in enumerate(block) if _V2_EPOCH.match(b)), len(block))
+                    self.reject(i + cut, f"observations of {sat.strip() or '?'}",
+                                "satellite block cut short (end of file or next epoch); rest of the epoch dropped")
+                    i += cut
+                    complete = False
+                    break
+                values = []
+                for k, code in enumerate(self.types_v2):
+                    text = block[k // 5][16 * (k % 5):16 * (k % 5) + 16]
+                    v, lli, ssi = self.field(i + k // 5, text, f"{code} of {sat.strip()}")
+                    if not math.isnan(v):
+                        values.append((code, v, lli, ssi))
+                if flag != 6:
+                    self.add_sat(t, sat, values, flag == 1)
+                i += per_sat
+            self.counts["epochs" if flag != 6 else "cycle_slip_epochs"] += 1 if complete or flag != 6 else 0
+
+    def _next_v2_epoch(self, i: int) -> int:
+        while i < len(self.lines) and not (_V2_EPOCH.match(self.lines[i]) or _V2_EVENT.match(self.lines[i])):
+            i += 1
+        return i
+
+    # -------------------------------------------------------------- RINEX 3 body
+    def body_v3(self, i: int) -> None:
+        lines, n = self.lines, len(self.lines)
+        while i < n:
+            line = lines[i]
+            if not line.strip():
+                i += 1
+                continue
+            if not line.startswith(">"):
+                self.reject(i, "epoch", "expected an epoch line starting with '>'; skipped to the next epoch")
+                i = self._next_v3_epoch(i + 1)
+                continue
+            if line[31:32] in ("2", "3", "4", "5") and not line[2:29].strip():
+                line = line[:2] + "0001 01 01 00 00  0.0000000" + line[29:]  # blank epoch of an event
+            try:
+                yy, mo, dd, hh, mi = int(line[2:6]), int(line[7:9]), int(line[10:12]), int(line[13:15]), int(line[16:18])
+                sec = float(line[18:29])
+                flag = int(line[31])
+                nsat = int(line[32:35])
+                t = self.to_gps(gtime.calendar_to_seconds(yy, mo, dd, hh, mi, sec)) if flag in (0, 1, 6) else 0.0
+            except ValueError as exc:
+                self.reject(i, "epoch", f"unreadable epoch line ({exc})")
+                i = self._next_v3_epoch(i + 1)
+                continue
+            if 2 <= flag <= 5:
+                self.counts[f"event_flag_{flag}"] += 1
+                pending = None
+                for k in range(i + 1, min(n, i + 1 + nsat)):
+                    label = lines[k][60:].strip()
+                    if label == "SYS / # / OBS TYPES":
+                        pending = self._header_line(k, lines[k], label, pending)
+                i += 1 + nsat
+                continue
+            if flag == 6:
+                self.counts["cycle_slip_records"] += 1
+            block_end = i + 1
+            while block_end < min(n, i + 1 + nsat) and not lines[block_end].startswith(">"):
+                block_end += 1
+            if block_end - (i + 1) < nsat:
+                self.reject(block_end if block_end < n else i, "satellite lines",
+                            f"{block_end - i - 1} of {nsat} satellite lines before the next epoch/end of file")
+            for k in range(i + 1, block_end):
+                sline = lines[k]
+                sat = sline[0:3]
+                system = sat[0]
+                types = self.types_v3.get(system)
+                if types is None:
+                    self.counts[f"no_obs_types_{system}"] += 1
+                    continue
+                values = []
+                for m, code in enumerate(types):
+                    text = sline[3 + 16 * m:3 + 16 * (m + 1)]
+                    if not text.strip():
+                        continue
+                    v, lli, ssi = self.field(k, text, f"{code} of {sat}")
+                    if not math.isnan(v):
+                        values.append((code, v, lli, ssi))
+                if flag != 6:
+                    self.add_sat(t, sat, values, flag == 1)
+            self.counts["epochs" if flag != 6 else "cycle_slip_epochs"] += 1
+            i = block_end
+
+    def _next_v3_epoch(self, i: int) -> int:
+        while i < len(self.lines) and not self.lines[i].startswith(">"):
+            i += 1
+        return i
+
+
+def parse_rinex_obs(text: str, source: str = "<string>") -> ObservationTable:
+    """Parse the text of a RINEX 2/3 observation file; see the module docstring."""
+    r = _Reader(text, source)
+    first = r.header()
+    if r.version < 3:
+        r.body_v2(first)
+    else:
+        r.body_v3(first)
+    table = r.rows.table(source=source, rejected=r.rejected, counts=r.counts, approx_position_ecef_m=r.approx)
+    table.counts["rows"] = len(table)
+    if r.rejected:
+        shown = "; ".join(str(x) for x in r.rejected[:3]) + (" ..." if len(r.rejected) > 3 else "")
+        message = f"{source}: {len(r.rejected)} observation lines/fields rejected (kept {len(table)} rows): {shown}"
+        log.warning(message)
+        warnings.warn(message, RejectedObservationsWarning, stacklevel=3)
+    return table
+
+
+def read_rinex_obs(path: str | Path) -> ObservationTable:
+    """Read a RINEX observation file (see `parse_rinex_obs`)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="ascii", errors="replace")
+    except FileNotFoundError:
+        raise UserInputError(f"{path}: observation file not found") from None
+    except IsADirectoryError:
+        raise UserInputError(f"{path}: is a directory, expected a RINEX observation file") from None
+    return parse_rinex_obs(text, str(path))
