@@ -269,7 +269,8 @@ class _Reader:
             while len(sats) < nsat:
                 chunk = lines[j][32:68] if j < n else ""
                 take = min(12, nsat - len(sats))
-                ids = [chunk[3 * k:3 * k + 3] for k in range(take)]
+                ids = [chunk[3 * k:3 * k + 3].ljust(3) for k in range(take)]
+                ids = [(x[0] if x[0].strip() else self.file_system) + x[1:3].replace(" ", "0") for x in ids]
                 if j > i and (j >= n or lines[j][:32].strip()):
                     break
                 sats += ids
