@@ -125,8 +125,9 @@ def test_truncated_file_keeps_complete_satellites():
     second = obs.take(obs.t_gps_s == obs.epochs()[1])
     assert list(second.prn) == [3, 3, 7]
     assert second.carrier_phase_cyc[2] == -701908.445 and np.isnan(second.pseudorange_m[2])
-    (rej,) = obs.rejected
-    assert (rej.line, rej.field) == (30, "observations of G08")
+    cut_field, missing = obs.rejected
+    assert (cut_field.line, cut_field.field) == (29, "C1 of G07") and "cut short" in cut_field.reason
+    assert (missing.line, missing.field) == (30, "observations of G08")
 
 
 @pytest.mark.parametrize("seed", range(30))

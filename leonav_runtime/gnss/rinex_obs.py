@@ -215,7 +215,9 @@ class _Reader:
         num = text[0:14].strip()
         lli_c, ssi_c = text[14:15].strip(), text[15:16].strip()
         value = math.nan
-        if num:
+        if num and len(text.rstrip("\n")) < 14:
+            self.reject(line_index, what, f"{num!r} cut short (the line ends inside the F14.3 field)")
+        elif num:
             try:
                 value = float(num)
             except ValueError:
