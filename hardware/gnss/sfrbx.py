@@ -193,3 +193,8 @@ def encode_ephemeris(row, *, convention: str = "source", tow_count: int | None =
         tow_count = int(sow // 6) + 1
     return [lnav.encode_subframe(sid, counts[sid], (tow_count + sid - 1) % 100800, convention=convention)
             for sid in (1, 2, 3)]
+
+
+def decode_rxm_sfrbx(frame) -> SfrbxFrame:
+    """`hardware.gnss.ubx.DECODERS` entry for (0x02, 0x13): a `UbxFrame` -> `SfrbxFrame`."""
+    return parse_sfrbx_payload(frame.payload)
