@@ -3,7 +3,6 @@ text (Galileo, BeiDou, GLONASS skipped), georinex as a second reader, bad input 
 seeded mutations."""
 from __future__ import annotations
 
-import math
 import random
 import warnings
 

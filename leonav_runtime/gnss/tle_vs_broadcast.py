@@ -91,7 +91,6 @@ def compare(tle_path, nav_path, *, step_s: float = 300.0, t0_gps_s: float | None
         first = float(np.min(nav["toc"]))
         t0_gps_s = np.floor(first / 86400.0) * 86400.0
     t = t0_gps_s + np.arange(0.0, span_s + 1e-9, step_s)
-    leap = gtime.leap_seconds_at_gps(float(t[0]))
     epoch_utc = gtime.gps_seconds_to_utc(float(t[0]))
     states = propagate_ecef(es, epoch_utc, t - t[0], acceleration=False, warn_stale=False)
     r_tle = states.r_ecef_m
@@ -112,7 +111,6 @@ def compare(tle_path, nav_path, *, step_s: float = 300.0, t0_gps_s: float | None
         d = r_tle[k, ok] - r
         rtn[k, ok] = np.stack([(d * e_r).sum(-1), (d * e_a).sum(-1), (d * e_c).sum(-1)], axis=-1)
     ages = es.ages_s(epoch_utc) / 86400.0
-    del leap
     return RtnErrors(prns, t, rtn, ages)
 
 
