@@ -6,7 +6,7 @@ import argparse
 
 import pytest
 
-from hardware.gnss import sfrbx
+from leonav_runtime.gnss import sfrbx
 from hardware.records import UbxFrame
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gnss.cli import register

@@ -4,7 +4,7 @@ is enough for pseudorange positioning.
 
 Framing and RAWX decoding are the device code's (`hardware.gnss.reader.GnssSplitter`,
 `hardware.gnss.ubx.decode_rxm_rawx`); SFRBX subframes go through
-`hardware.gnss.sfrbx.LnavAssembler`. The 10-bit LNAV week is resolved against the first
+`leonav_runtime.gnss.sfrbx.LnavAssembler`. The 10-bit LNAV week is resolved against the first
 RAWX week in the log, else `reference_week`, else the week of today's date.
 """
 from __future__ import annotations
@@ -14,7 +14,7 @@ from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
-from hardware.gnss import sfrbx as _sfrbx
+from leonav_runtime.gnss import sfrbx as _sfrbx
 from hardware.gnss import ubx as _ubx
 from hardware.gnss.reader import GnssSplitter
 from leonav_runtime.errors import UserInputError
