@@ -238,7 +238,7 @@ def _motion_targets(motion: str, rng: np.random.Generator, t: np.ndarray):
     """(v_enu (n, 3) m/s, euler (n, 3) rad) of a generic member of the motion class at times t."""
     n = t.size
     yaw0 = rng.uniform(-math.pi, math.pi)
-    roll0, pitch0 = rng.uniform(-0.08, 0.08, size=2)
+    roll0, pitch0 = rng.uniform(-0.03, 0.03, size=2)  # generic but near level: readable null directions
     speed = rng.uniform(5.0, 15.0)
     if motion == "static":
         return np.zeros((n, 3)), np.tile([roll0, pitch0, yaw0], (n, 1))
