@@ -289,6 +289,37 @@ def analyze_information(acc: Accumulated, scales: np.ndarray, names: Sequence[st
             "time_to_target_s": time_to, "weakest_final": weakest, "names": list(names)}
 
 
+def run_information(recs: np.ndarray, x_lin: np.ndarray, params: np.ndarray, scales: np.ndarray,
+                    t_out: np.ndarray | None = None, targets: Mapping[str, float] | None = None,
+                    library: compiled.Library | None = None) -> dict:
+    """Information along any record stream (simulated, replayed session, dataset): `accumulate`
+    then `analyze_information`, components named from the generated layout.
+
+    recs (RECORD_DTYPE), x_lin (n, NX) linearisation states (IMU record: start of its interval;
+    measurement: its time), params (NP,), scales (NDX,) unit per component (e.g. the filter's
+    prior sigmas: sqrt(diag(P0))); targets {component or block name: sigma (SI)} (others: the
+    scales). Returns `analyze_information`'s dict plus components, labels, units, scales.
+    """
+    lib = library if library is not None else compiled.load()
+    blocks = layout_blocks(lib.layout)
+    comps = component_names(blocks)
+    names = [c[0] for c in comps]
+    units = [b.unit for b in blocks for _ in range(b.size)]
+    block_of = [b.name for b in blocks for _ in range(b.size)]
+    scales = np.asarray(scales, dtype=float)
+    tgt = scales.copy()
+    for key, value in (targets or {}).items():
+        hit = [i for i, (n, b) in enumerate(zip(names, block_of)) if key in (n, b)]
+        if not hit:
+            raise ValueError(f"target {key!r}: no such component or block; known: {', '.join(names)}")
+        tgt[hit] = float(value)
+    acc = accumulate(recs, x_lin, params, t_out, lib)
+    out = analyze_information(acc, scales, names, units, tgt)
+    out.update({"components": names, "labels": [c[1] for c in comps], "units": units, "scales": scales,
+                "records": int(np.asarray(recs).size)})
+    return out
+
+
 # --- scenario runs ---------------------------------------------------------------------------
 
 def linearisation_states(recs: np.ndarray, t_imu: np.ndarray, x_true: np.ndarray, imu_rate_hz: float) -> np.ndarray:
@@ -305,7 +336,9 @@ def scenario_run(scn, mode: str, count: int | None = None, rate_hz: float = 1.0,
 
     count: Starlink satellites (default: the smallest of the scenario's counts); rate_hz: output
     grid; targets: {component or block name: target sigma (SI)}, others default to the prior
-    sigma. Returns `analyze_information`'s dict plus mode, count, prior_sigma, components, units.
+    sigma. Returns `run_information`'s dict plus mode, count, prior_sigma, and the PCRB beside it:
+    pcrb_over_prior (per component, final PCRB variance / the prior propagated without
+    measurements, with the scenario's process noise) and pcrb_prior_ratios (`pcrb_prior_ratios`).
     """
     from leonav_runtime import montecarlo, simulate
 
@@ -317,22 +350,13 @@ def scenario_run(scn, mode: str, count: int | None = None, rate_hz: float = 1.0,
     x_lin = linearisation_states(recs, setup.t_imu, setup.x_true, scn.imu_rate_hz)
     t_end = float(setup.t_imu[-1])
     t_out = np.unique(np.r_[np.arange(1, int(t_end * rate_hz) + 1) / rate_hz, t_end])
-    acc = accumulate(recs, x_lin, setup.params, t_out, nav.library)
-    blocks = layout_blocks(nav.layout)
-    comps = component_names(blocks)
-    names = [c[0] for c in comps]
-    units = [b.unit for b in blocks for _ in range(b.size)]
-    block_of = [b.name for b in blocks for _ in range(b.size)]
     prior = np.sqrt(np.diag(setup.P0))
-    tgt = prior.copy()
-    for key, value in (targets or {}).items():
-        hit = [i for i, (n, b) in enumerate(zip(names, block_of)) if key in (n, b)]
-        if not hit:
-            raise ValueError(f"target {key!r}: no such component or block; known: {', '.join(names)}")
-        tgt[hit] = float(value)
-    out = analyze_information(acc, prior, names, units, tgt)
-    out.update({"mode": mode, "count": count, "prior_sigma": prior, "components": names, "units": units,
-                "labels": [c[1] for c in comps], "records": int(recs.size)})
+    out = run_information(recs, x_lin, setup.params, prior, t_out, targets, nav.library)
+    # the stochastic view beside it: PCRB (process noise, prior P0) against the prior propagated alone
+    pr = pcrb_prior_ratios(recs, x_lin, setup.params, setup.P0, nav.library)
+    out.update({"mode": mode, "count": count, "prior_sigma": prior,
+                "pcrb_over_prior": np.diag(pr["B"]) / np.diag(pr["B_prior"]),
+                "pcrb_prior_ratios": pr["ratio"]})
     return out
 
 

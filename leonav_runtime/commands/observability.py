@@ -116,9 +116,10 @@ def run(args: argparse.Namespace) -> int:
                          rows)
         output.write_csv(out_dir / "run_time_to_target.csv",
                          ["mode", "component", "prior_sigma", "target_sigma", "time_to_target_s", "final_sigma_info",
-                          "final_index"],
+                          "final_index", "final_pcrb_over_prior"],
                          [[r["mode"], n, float(r["prior_sigma"][i]), float(r["targets"][i]),
-                           float(r["time_to_target_s"][i]), float(r["sigma_info"][-1, i]), float(r["index"][-1, i])]
+                           float(r["time_to_target_s"][i]), float(r["sigma_info"][-1, i]), float(r["index"][-1, i]),
+                           float(r["pcrb_over_prior"][i])]
                           for r in runs for i, n in enumerate(r["components"])])
     run_by_mode = {r["mode"]: r for r in runs}
     figures = ["singular_values.png"] if runs else []
