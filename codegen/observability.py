@@ -48,9 +48,10 @@ from typing import Callable, Mapping, Sequence
 import casadi as ca
 import numpy as np
 
+from leonav_runtime import observability as _rt  # naming and mode list (numeric side, no casadi)
 from models import ekf, frames, kinematics
 from models import state as S
-from models.constants import OMEGA_IE_RADPS, WGS84_A_M, WGS84_GM_M3PS2
+from models.constants import WGS84_A_M, WGS84_GM_M3PS2
 from models.measurements import models as measurement_models
 from models.params import build_params
 
@@ -82,13 +83,8 @@ rate, the change of gravity's direction along the track). Such a direction carri
 information over the window (its sigma is reported)."""
 MIN_GAP = 10.0
 """The rank decision is reported 'clear' when sigma_r / sigma_{r+1} >= MIN_GAP."""
-TERM_TOL = 1e-4
+TERM_TOL = _rt.TERM_TOL
 """Null-direction terms smaller than this (scaled coordinates, leading term 1) are not named."""
-MAJOR_TERM = 0.1
-"""Terms at least this large (scaled) name the direction in its short label."""
-PIVOT_SHARE = 0.05
-"""Naming a null space: the leading component of each basis direction is the earliest one with
-at least this share of the largest remaining column norm (see `name_directions`)."""
 
 DT_S = 1.0           # analysis step: one IMU interval of the filter's model (s)
 N_STEPS = 30         # steps along the motion (measurements at steps 0..N_STEPS)
@@ -108,8 +104,6 @@ MOTIONS: dict[str, str] = {
 }
 """Motion classes: name -> description."""
 
-_AXES_ENU, _AXES_BODY = ("e", "n", "u"), ("x", "y", "z")
-_ROTATION_NAMES = ("roll", "pitch", "yaw")
 
 
 # --- names -------------------------------------------------------------------------------
@@ -127,22 +121,16 @@ class Component:
 
 
 def components() -> list[Component]:
-    """Scalar error-state components, in dx order, named from `models.state.DX_BLOCKS`.
-
-    A 3-vector block gets suffixes e/n/u when its doc says ENU, else x/y/z; a 3-vector in rad
-    (a rotation vector) gets the hints roll/pitch/yaw on its x/y/z components.
-    """
+    """Scalar error-state components, in dx order, named from `models.state.DX_BLOCKS` by the
+    naming rule of `leonav_runtime.observability.component_names` (e/n/u for ENU 3-vectors, x/y/z
+    otherwise, roll/pitch/yaw hints on a rotation vector), scaled by `UNIT_SCALES`."""
+    blocks = [_rt.BlockInfo(b.name, b.offset, b.size, b.unit, b.doc) for b in S.DX_BLOCKS]
+    names = iter(_rt.component_names(blocks))
     out = []
     for b in S.DX_BLOCKS:
-        scale = UNIT_SCALES.get(b.unit, 1.0)
-        if b.size == 1:
-            out.append(Component(b.name, b.name, b.offset, b.unit, scale, b.name))
-            continue
-        axes = _AXES_ENU if "ENU" in b.doc else _AXES_BODY if b.size == 3 else tuple(str(i) for i in range(b.size))
-        for i, a in enumerate(axes):
-            name = f"{b.name}_{a}"
-            label = f"{name} ({_ROTATION_NAMES[i]})" if (b.unit == "rad" and b.size == 3) else name
-            out.append(Component(name, b.name, b.offset + i, b.unit, scale, label))
+        for i in range(b.size):
+            name, label = next(names)
+            out.append(Component(name, b.name, b.offset + i, b.unit, UNIT_SCALES.get(b.unit, 1.0), label))
     return out
 
 
@@ -158,9 +146,7 @@ def position_fix_observables() -> tuple[str, ...]:
 
 def default_modes() -> dict[str, tuple[str, ...]]:
     """The filter's modes (`leonav_runtime.scenario.MODE_OBSERVABLES`) plus a GNSS position-fix mode."""
-    from leonav_runtime.observability import analysis_modes  # no casadi there; one home for the list
-
-    return analysis_modes()
+    return _rt.analysis_modes()
 
 
 # --- symbolic functions ------------------------------------------------------------------
@@ -375,7 +361,8 @@ def trajectory(motion: str, observables: Sequence[str], seed: int = SEED, draw: 
             r, vs, a = sats(t[k])
             for j in range(1 if uses_ref else 0, n_sats):
                 aux = np.zeros(S.NAUX)
-                aux[S.AUX["r_S_ecef"].slice], aux[S.AUX["v_S_ecef"].slice], aux[S.AUX["a_S_ecef"].slice] = r[j], vs[j], a[j]
+                aux[S.AUX["r_S_ecef"].slice], aux[S.AUX["v_S_ecef"].slice] = r[j], vs[j]
+                aux[S.AUX["a_S_ecef"].slice] = a[j]
                 aux[S.AUX["r_ref_ecef"].slice], aux[S.AUX["v_ref_ecef"].slice] = r[0], vs[0]
                 aux[S.AUX["a_ref_ecef"].slice] = a[0]
                 aux[S.AUX["f_b"].slice] = f_b[k]
@@ -495,64 +482,23 @@ def rank_only(A: np.ndarray, rel_tol: float = REL_TOL) -> int:
     return int(np.sum(sv > rel_tol * sv[0]))
 
 
-# --- naming ------------------------------------------------------------------------------
+# --- naming (one implementation, shared with the run-along analysis) ------------------------
 
-def _term_text(terms: list[dict]) -> str:
-    parts = []
-    for k, t in enumerate(terms):
-        parts.append(f"1 {t['unit']} {t['label']}" if k == 0 else f"{t['coefficient']:+.3g} {t['unit']} {t['label']}")
-    return " ".join(parts)
-
-
-def _direction(row: np.ndarray, lead: int, comps: Sequence[Component], term_tol: float) -> dict:
-    """A direction (scaled coordinates, `row[lead]` = 1) as named terms in physical units."""
-    order = [lead] + [i for i in np.argsort(-np.abs(row)) if i != lead and abs(row[i]) >= term_tol]
-    terms = [{"component": comps[i].name, "label": comps[i].label,
-              "coefficient": float(row[i] * comps[i].scale / comps[lead].scale),
-              "unit": comps[i].unit, "scaled": float(row[i])} for i in order]
-    major = [t["label"] for t in terms if abs(t["scaled"]) >= MAJOR_TERM]
-    return {"leading": comps[lead].name, "label": " and ".join(major), "text": _term_text(terms), "terms": terms}
-
-
-def name_directions(N: np.ndarray, comps: Sequence[Component] | None = None,
-                    term_tol: float = TERM_TOL) -> list[dict]:
-    """Named canonical basis of the subspace spanned by the columns of N (scaled coordinates).
-
-    The basis is made readable by Gauss-Jordan elimination on N^T: each basis vector has a
-    leading component (coefficient 1) absent from the others. Pivots go to the earliest
-    component (dx order: navigation states before biases and clock) that carries at least
-    `PIVOT_SHARE` of the largest remaining column norm, so a tilt / accelerometer-bias pair
-    reads '1 rad dtheta_y (pitch) +9.8 m/s^2 db_a_x'. Each direction is returned as
-    {"leading", "label" (its major terms, |scaled coefficient| >= MAJOR_TERM), "text" (the
-    combination in physical units: '1 rad dtheta_z (yaw) -5.3e-05 rad/s db_g_x' means 1 rad
-    of yaw error together with -5.3e-05 rad/s of x gyro bias error), "terms"}.
-    """
+def naming(comps: Sequence[Component] | None = None) -> _rt.Naming:
+    """Names, labels, units and unit scales of the components, for `name_directions`."""
     comps = list(comps or components())
-    d = N.shape[1]
-    if d == 0:
-        return []
-    B = np.array(N.T, dtype=float)
-    lead: list[int] = []
-    for k in range(d):
-        norms = np.linalg.norm(B[k:], axis=0)
-        norms[lead] = 0.0
-        j = int(np.flatnonzero(norms >= PIVOT_SHARE * norms.max())[0])
-        p = k + int(np.argmax(np.abs(B[k:, j])))
-        B[[k, p]] = B[[p, k]]
-        B[k] /= B[k, j]
-        for r in range(d):
-            if r != k:
-                B[r] -= B[r, j] * B[k]
-        lead.append(j)
-    order = np.argsort(lead)
-    return [_direction(B[i], lead[i], comps, term_tol) for i in order]
+    return _rt.Naming(tuple(c.name for c in comps), tuple(c.label for c in comps), tuple(c.unit for c in comps),
+                      np.array([c.scale for c in comps]))
+
+
+def name_directions(N: np.ndarray, comps: Sequence[Component] | None = None, term_tol: float = TERM_TOL) -> list[dict]:
+    """Named canonical basis of span(N) (scaled coordinates): `leonav_runtime.observability.name_subspace`."""
+    return _rt.name_subspace(N, naming(comps), term_tol)
 
 
 def name_vector(v: np.ndarray, comps: Sequence[Component] | None = None, term_tol: float = 1e-2) -> dict:
     """One direction (scaled coordinates) named with its largest component leading."""
-    comps = list(comps or components())
-    lead = int(np.argmax(np.abs(v)))
-    return _direction(np.asarray(v) / v[lead], lead, comps, term_tol)
+    return _rt.name_vector(v, naming(comps), term_tol)
 
 
 def classify_components(N: np.ndarray, comps: Sequence[Component] | None = None,

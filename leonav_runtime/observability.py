@@ -124,26 +124,76 @@ def analysis_modes(layout: ModuleType | None = None) -> dict[str, tuple[str, ...
     return modes
 
 
-def name_vector(v: np.ndarray, names: Sequence[str], units: Sequence[str] | None = None,
-                scales: np.ndarray | None = None, term_tol: float = 1e-2) -> dict:
-    """A direction v (scaled coordinates) as named terms, largest first, leading coefficient 1.
+@dataclass(frozen=True)
+class Naming:
+    """How to name directions: per component name, label (name with a hint), unit and scale
+    (the unit a direction's scaled coordinates are expressed in)."""
 
-    Terms below `term_tol` of the largest are left out; coefficients are in physical units
-    (scaled coefficient * scale / leading scale) when `scales` is given.
-    """
-    v = np.asarray(v, dtype=float)
-    scales = np.ones(v.size) if scales is None else np.asarray(scales, dtype=float)
-    units = list(units) if units is not None else [""] * v.size
-    lead = int(np.argmax(np.abs(v)))
-    row = v / v[lead]
+    names: tuple[str, ...]
+    labels: tuple[str, ...]
+    units: tuple[str, ...]
+    scales: np.ndarray
+
+
+MAJOR_TERM = 0.05
+"""Terms with at least this share of the largest (scaled) name a direction in its short label."""
+PIVOT_SHARE = 0.05
+"""Canonical basis of a subspace: the leading component of each direction is the earliest one with
+at least this share of the largest remaining column norm (see `name_subspace`)."""
+TERM_TOL = 1e-4
+"""Terms below this (scaled, leading term 1) are not listed in a direction of a canonical basis."""
+
+
+def _direction(row: np.ndarray, lead: int, nm: Naming, term_tol: float) -> dict:
+    """A direction (scaled coordinates, `row[lead]` = 1) as named terms in physical units."""
     order = [lead] + [i for i in np.argsort(-np.abs(row)) if i != lead and abs(row[i]) >= term_tol]
-    terms = [{"component": names[i], "coefficient": float(row[i] * scales[i] / scales[lead]), "unit": units[i],
+    terms = [{"component": nm.names[i], "label": nm.labels[i],
+              "coefficient": float(row[i] * nm.scales[i] / nm.scales[lead]), "unit": nm.units[i],
               "scaled": float(row[i])} for i in order]
-    text = " ".join(f"1 {t['unit']} {t['component']}".replace("  ", " ") if k == 0 else
-                    f"{t['coefficient']:+.3g} {t['unit']} {t['component']}".replace("  ", " ")
-                    for k, t in enumerate(terms))
-    major = [t["component"] for t in terms if abs(t["scaled"]) >= 0.1]
-    return {"leading": names[lead], "label": " and ".join(major), "text": text, "terms": terms}
+    biggest = max(abs(t["scaled"]) for t in terms)
+    major = [t["label"] for t in terms if abs(t["scaled"]) >= MAJOR_TERM * biggest]
+    text = " ".join((f"1 {t['unit']} {t['label']}" if k == 0 else f"{t['coefficient']:+.3g} {t['unit']} {t['label']}")
+                    .replace("  ", " ") for k, t in enumerate(terms))
+    return {"leading": nm.names[lead], "label": " and ".join(major), "text": text, "terms": terms}
+
+
+def name_subspace(N: np.ndarray, nm: Naming, term_tol: float = TERM_TOL) -> list[dict]:
+    """Named canonical basis of the subspace spanned by the columns of N (scaled coordinates).
+
+    The basis is made readable by Gauss-Jordan elimination on N^T: each basis vector has a
+    leading component (coefficient 1) absent from the others. Pivots go to the earliest
+    component (dx order: navigation states before biases and clock) that carries at least
+    `PIVOT_SHARE` of the largest remaining column norm, so a tilt / accelerometer-bias pair
+    reads '1 rad dtheta_y (pitch) +9.8 m/s^2 db_a_x'. Each direction is returned as
+    {"leading", "label" (its major terms), "text" (the combination in physical units:
+    '1 rad dtheta_z (yaw) -5.3e-05 rad/s db_g_x' means 1 rad of yaw error together with
+    -5.3e-05 rad/s of x gyro bias error), "terms"}.
+    """
+    d = N.shape[1]
+    if d == 0:
+        return []
+    B = np.array(N.T, dtype=float)
+    lead: list[int] = []
+    for k in range(d):
+        norms = np.linalg.norm(B[k:], axis=0)
+        norms[lead] = 0.0
+        j = int(np.flatnonzero(norms >= PIVOT_SHARE * norms.max())[0])
+        p = k + int(np.argmax(np.abs(B[k:, j])))
+        B[[k, p]] = B[[p, k]]
+        B[k] /= B[k, j]
+        for r in range(d):
+            if r != k:
+                B[r] -= B[r, j] * B[k]
+        lead.append(j)
+    return [_direction(B[i], lead[i], nm, term_tol) for i in np.argsort(lead)]
+
+
+def name_vector(v: np.ndarray, nm: Naming, term_tol: float = 1e-2) -> dict:
+    """One direction (scaled coordinates) named with its largest component leading; terms below
+    `term_tol` of it are left out."""
+    v = np.asarray(v, dtype=float)
+    lead = int(np.argmax(np.abs(v)))
+    return _direction(v / v[lead], lead, nm, term_tol)
 
 
 # --- accumulation ----------------------------------------------------------------------------
@@ -240,7 +290,7 @@ def _sigma_info(Vt: np.ndarray, sv: np.ndarray, vague: float) -> np.ndarray:
 
 def analyze_information(acc: Accumulated, scales: np.ndarray, names: Sequence[str], units: Sequence[str] | None = None,
                         targets: np.ndarray | None = None, n_weakest: int = 3, rel_tol: float = REL_TOL,
-                        vague: float = VAGUE) -> dict:
+                        vague: float = VAGUE, labels: Sequence[str] | None = None) -> dict:
     """Eigen-analysis of the current-state information along the run.
 
     scales (NDX,): unit of each component (e.g. prior sigmas); targets (NDX,): target sigma in
@@ -249,8 +299,9 @@ def analyze_information(acc: Accumulated, scales: np.ndarray, names: Sequence[st
     A = R Phi^-1 S descending (sqrt of the scaled information; 1 = the information of one
     unit), rank, condition (inf when rank-deficient), condition_observable (over the counted
     ones), sigma_info (n, NDX) physical units, index (n, NDX) 1 - posterior / prior variance
-    with prior S^2, and at the final time the `n_weakest` weakest directions named, plus
-    time_to_target_s per component (inf when never reached).
+    with prior S^2, time_to_target_s per component (inf when never reached), and weakest_final:
+    at the final time every unobservable direction and the `n_weakest` weakest observable ones,
+    named (with `labels` when given) and with their information in units of S^-2.
     """
     scales = np.asarray(scales, dtype=float)
     targets = scales if targets is None else np.asarray(targets, dtype=float)
@@ -281,9 +332,12 @@ def analyze_information(acc: Accumulated, scales: np.ndarray, names: Sequence[st
     weakest = []
     if n:
         sv = sv_all[-1]
-        for i in range(ndx - 1, max(ndx - 1 - n_weakest, -1), -1):
-            weakest.append({"information_rel_prior": float(sv[i] ** 2), "unobservable": bool(sv[i] <= rel_tol * sv[0]),
-                            **name_vector(last_Vt[i], names, units, scales)})
+        nm = Naming(tuple(names), tuple(labels or names), tuple(units or [""] * ndx), scales)
+        r = int(rank[-1])
+        for d in name_subspace(last_Vt[r:].T, nm):  # the unobservable subspace, canonical basis
+            weakest.append({"information": 0.0, "unobservable": True, **d})
+        for i in range(r - 1, max(r - 1 - n_weakest, -1), -1):
+            weakest.append({"information": float(sv[i] ** 2), "unobservable": False, **name_vector(last_Vt[i], nm)})
     return {"t_s": acc.t_s, "n_meas": acc.n_meas, "singular_values": sv_all, "rank": rank, "condition": cond,
             "condition_observable": cond_obs, "sigma_info": sig, "index": index, "targets": targets,
             "time_to_target_s": time_to, "weakest_final": weakest, "names": list(names)}
@@ -314,7 +368,7 @@ def run_information(recs: np.ndarray, x_lin: np.ndarray, params: np.ndarray, sca
             raise ValueError(f"target {key!r}: no such component or block; known: {', '.join(names)}")
         tgt[hit] = float(value)
     acc = accumulate(recs, x_lin, params, t_out, lib)
-    out = analyze_information(acc, scales, names, units, tgt)
+    out = analyze_information(acc, scales, names, units, tgt, labels=[c[1] for c in comps])
     out.update({"components": names, "labels": [c[1] for c in comps], "units": units, "scales": scales,
                 "records": int(np.asarray(recs).size)})
     return out
@@ -453,7 +507,8 @@ def plot_singular_values(runs: Sequence[dict], path, title: str = "") -> Path:
     for ax in list(axes.flat)[len(runs):]:
         ax.axis("off")
     fig.suptitle((title or "information along the run: singular values of R Phi^-1 S")
-                 + f"\n(dashed: the prior's information; values below {REL_TOL:g} x the largest are numerically 0, not drawn)",
+                 + f"\n(dashed: the prior's information; values below {REL_TOL:g} x the largest are numerically 0, "
+                   "not drawn)",
                  fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

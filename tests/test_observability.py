@@ -210,7 +210,8 @@ def test_sigma_and_time_to_target_on_a_known_information_history():
     np.testing.assert_allclose(out["time_to_target_s"][:2], [4.0, 4.0])  # 2/sqrt(4) = 1, 0.1/sqrt(4) = 0.05
     assert out["time_to_target_s"][2] == math.inf and out["sigma_info"][-1, 2] > 1e5
     assert np.all(out["rank"] == 2) and out["weakest_final"][0]["leading"] == "c"
-    assert out["weakest_final"][0]["unobservable"]
+    assert out["weakest_final"][0]["unobservable"] and not out["weakest_final"][1]["unobservable"]
+    assert out["weakest_final"][1]["leading"] == "a" and out["weakest_final"][1]["information"] == pytest.approx(5 / 4)
 
 
 def test_static_scenario_run_has_the_rank_of_the_static_class():
@@ -247,7 +248,8 @@ def test_command_writes_table_figures_and_json(tmp_path, capsys):
     assert "gnss-fix+imu" in text and "dtheta_z (yaw)" in text
     with open(tmp_path / "structural.csv") as fh:
         rows = list(csv.DictReader(fh))
-    assert [(r["mode"], r["motion"]) for r in rows] == [(ro.GNSS_FIX_MODE, "static"), (ro.GNSS_FIX_MODE, "accelerating")]
+    assert [(r["mode"], r["motion"]) for r in rows] == [(ro.GNSS_FIX_MODE, "static"),
+                                                        (ro.GNSS_FIX_MODE, "accelerating")]
     assert rows[0]["rank"] == "12" and rows[1]["rank"] == "15"
     for name in ("structural_index.csv", "observability.json", "index_gnss-fix_imu.png"):
         assert (tmp_path / name).stat().st_size > 0

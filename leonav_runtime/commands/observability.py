@@ -104,6 +104,12 @@ def run(args: argparse.Namespace) -> int:
               f"({'prior sigma' if not targets else 'targets ' + ', '.join(f'{k}={v:g}' for k, v in targets.items())}"
               f" elsewhere; '-': not within the run; {scenario_info['count']} Starlink satellites)")
         print(obs.format_time_to_target(runs))
+        print(f"\n{scenario_info['name']}: at the end of the run (information in units of the prior's)")
+        for r in runs:
+            null = [w["label"] for w in r["weakest_final"] if w["unobservable"]]
+            weak = [f"{w['label']} {w['information']:.2g}" for w in r["weakest_final"] if not w["unobservable"]]
+            print(f"{r['mode']:22s} rank {int(r['rank'][-1])}/{len(r['components'])}; unobservable: "
+                  f"{'; '.join(null) or 'none'}; weakest: {'; '.join(weak)}")
         obs.plot_singular_values(runs, out_dir / "singular_values.png",
                                  f"{scenario_info['name']}: singular values of the scaled information vs time")
         rows = []
