@@ -614,15 +614,19 @@ def analyze_case(mode: str, observables: Sequence[str], motion: str, seed: int =
     by_step = [rank_only(Os[steps <= k]) for k in range(n_steps + 1)]
     saturate = next(k for k, r in enumerate(by_step) if r == by_step[-1]) + 1  # measurement epochs
     sv_abs = dec.sv_rel * dec.sv_max
-    weak = []
-    for i in range(dec.rank - dec.n_weak, dec.rank):
-        weak.append({"sv_rel": float(dec.sv_rel[i]), "sigma_units": float(1.0 / sv_abs[i]),
-                     **name_vector(dec.V[:, i], comps)})
-    weakest = {}
-    if dec.rank > 0:
-        i = dec.rank - 1
-        weakest = {"sv_rel": float(dec.sv_rel[i]), "sigma_units": float(1.0 / sv_abs[i]),
-                   **name_vector(dec.V[:, i], comps)}
+
+    def described(i: int) -> dict:
+        """Direction i of V with its sigma: in scaled units, and in the leading component's unit
+        (the sigma of that component along this direction, all others following it)."""
+        d = name_vector(dec.V[:, i], comps)
+        v = dec.V[:, i]
+        lead = int(np.argmax(np.abs(v)))
+        sigma_units = float(1.0 / sv_abs[i])
+        return {"sv_rel": float(dec.sv_rel[i]), "sigma_units": sigma_units,
+                "sigma": sigma_units * abs(v[lead]) * comps[lead].scale, "sigma_unit": comps[lead].unit, **d}
+
+    weak = [described(i) for i in range(dec.rank - dec.n_weak, dec.rank)]
+    weakest = described(dec.rank - 1) if dec.rank > 0 else {}
     return CaseResult(mode, motion, tuple(observables), dec, by_step, saturate, draws,
                       name_directions(dec.null_space, comps), weak, weakest,
                       classify_components(dec.null_space, comps), observability_index(Os),

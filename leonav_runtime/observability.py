@@ -546,7 +546,7 @@ def plot_index(mode: str, components: Sequence[str], by_motion: Mapping[str, np.
 
 STRUCTURAL_HEADER = ("mode", "motion", "rank", "n_states", "weak", "nullity", "steps_to_saturate", "gap",
                      "gap_clear", "draws_agree", "unobservable_directions", "weak_directions",
-                     "weakest_observable", "weakest_sigma_units")
+                     "weakest_observable", "weakest_sigma", "weakest_sigma_unit")
 
 
 def structural_rows(summaries: Sequence[dict]) -> list[list]:
@@ -557,8 +557,8 @@ def structural_rows(summaries: Sequence[dict]) -> list[list]:
         rows.append([s["mode"], s["motion"], s["rank"], s["n_states"], s["weak"], s["nullity"],
                      s["steps_to_saturate"], s["gap"], s["gap_clear"], s["draws_agree"],
                      " | ".join(d["text"] for d in s["unobservable_directions"]),
-                     " | ".join(f"{d['text']} (sigma {d['sigma_units']:.2g} units)" for d in s["weak_directions"]),
-                     w.get("text", ""), w.get("sigma_units", math.nan)])
+                     " | ".join(f"{d['text']} (sigma {d['sigma']:.2g} {d['sigma_unit']})" for d in s["weak_directions"]),
+                     w.get("text", ""), w.get("sigma", math.nan), w.get("sigma_unit", "")])
     return rows
 
 
@@ -576,7 +576,7 @@ def format_structural_table(summaries: Sequence[dict]) -> str:
         gap = "inf" if not math.isfinite(s["gap"]) else f"{s['gap']:.0e}"
         flags = ("" if s["gap_clear"] else " (gap not clear)") + ("" if s["draws_agree"] else " (draws disagree)")
         null = "; ".join(d["label"] for d in s["unobservable_directions"]) or "none"
-        weak = "; ".join(d["label"] for d in s["weak_directions"])
+        weak = "; ".join(f"{d['label']}: sigma {d['sigma']:.0e} {d['sigma_unit']}" for d in s["weak_directions"])
         lines.append(f"{s['mode']:22s} {s['motion']:17s} {rank:>9s} {s['steps_to_saturate']:5d} {gap:>7s}  "
                      f"{null}{' [' + weak + ']' if weak else ''}{flags}")
     return "\n".join(lines)
