@@ -106,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
         print(obs.format_time_to_target(runs))
         print(f"\n{scenario_info['name']}: at the end of the run (information in units of the prior's)")
         for r in runs:
-            null = [w["label"] for w in r["weakest_final"] if w["unobservable"]]
+            null = [_two_terms(w) for w in r["weakest_final"] if w["unobservable"]]
             weak = [f"{w['label']} {w['information']:.2g}" for w in r["weakest_final"] if not w["unobservable"]]
             print(f"{r['mode']:22s} rank {int(r['rank'][-1])}/{len(r['components'])}; unobservable: "
                   f"{'; '.join(null) or 'none'}; weakest: {'; '.join(weak)}")
@@ -146,6 +146,13 @@ def run(args: argparse.Namespace) -> int:
           + (", run_singular_values.csv, run_time_to_target.csv" if runs else "")
           + f", {', '.join(figures)}, observability.json)")
     return 0
+
+
+def _two_terms(direction: dict) -> str:
+    """A direction by its two largest terms in physical units, e.g. '1 m/s^2 db_a_x +0.102 rad dtheta_y (pitch)'."""
+    t = direction["terms"][:2]
+    head = f"1 {t[0]['unit']} {t[0]['label']}"
+    return head + "".join(f" {x['coefficient']:+.3g} {x['unit']} {x['label']}" for x in t[1:])
 
 
 def _scenario_runs(args, modes: dict, targets: dict) -> tuple[list[dict], dict]:
