@@ -41,7 +41,6 @@ import numpy as np
 
 from leonav_runtime import compiled, navfuncs, records
 from leonav_runtime import filter as lfilter
-from leonav_runtime.scenario import MODE_OBSERVABLES
 
 GNSS_FIX_MODE = "gnss-fix+imu"
 REL_TOL = 1e-12
@@ -118,6 +117,8 @@ def layout_blocks(layout: ModuleType | None = None) -> list[BlockInfo]:
 def analysis_modes(layout: ModuleType | None = None) -> dict[str, tuple[str, ...]]:
     """Modes analysed: the filter's `scenario.MODE_OBSERVABLES` plus a GNSS position-fix mode
     (`GNSS_FIX_MODE`: every observable named pos_*)."""
+    from leonav_runtime.scenario import MODE_OBSERVABLES  # (the scenario module reads models/imu.py)
+
     layout = layout or compiled.load_layout(compiled.GEN_DIR)
     modes = {k: tuple(v) for k, v in MODE_OBSERVABLES.items()}
     modes[GNSS_FIX_MODE] = tuple(s for s in layout.MEAS_SUFFIXES if s.startswith("pos_"))

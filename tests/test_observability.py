@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import functools
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -54,6 +55,16 @@ def test_states_and_observables_are_enumerated_from_the_models():
     from leonav_runtime.scenario import MODE_OBSERVABLES
     assert {m: MODES[m] for m in MODE_OBSERVABLES} == MODE_OBSERVABLES
     assert MODES[ro.GNSS_FIX_MODE] == tuple(s for _, s, _ in S.MEASUREMENTS if s.startswith("pos_"))
+
+
+def test_runtime_module_imports_neither_casadi_nor_models():
+    import subprocess
+    import sys
+
+    code = ("import sys, leonav_runtime.observability as o, leonav_runtime.commands.observability; "
+            "bad = [m for m in sys.modules if m == 'casadi' or m == 'models' or m.startswith(('casadi.', 'models.'))]; "
+            "assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=str(Path(__file__).resolve().parents[1]))
 
 
 def test_renamed_state_block_is_followed(monkeypatch):

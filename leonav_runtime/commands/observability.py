@@ -27,8 +27,11 @@ def register(subparsers) -> None:
             "Writes a table (printed and CSV), PNG figures and JSON. The symbolic part needs casadi."
         ),
     )
+    from leonav_runtime.observability import GNSS_FIX_MODE
+    from leonav_runtime.scenario import MODE_OBSERVABLES
+
     p.add_argument("--modes", nargs="+", metavar="MODE", default=None,
-                   help="modes to analyse (default: all, see the table)")
+                   help=f"modes to analyse (default: all: {', '.join([*MODE_OBSERVABLES, GNSS_FIX_MODE])})")
     p.add_argument("--motions", nargs="+", metavar="MOTION", default=None,
                    help="motion classes: static constant-velocity constant-turn accelerating (default: all)")
     p.add_argument("--scenario", default="paper", metavar="NAME",
