@@ -32,10 +32,14 @@ kept to the largest dropped singular value; `MIN_GAP` is required). Null-space d
 are reported as named combinations of error-state components (names from
 `models.state.DX_BLOCKS`), in physical units.
 
-Nothing here is specific to a state or an observable: states, units and observables are
-read from `models.state` and `models.measurements.models()`, so a model change needs no
-change in this file. The numeric, run-along analysis (Gramian along a scenario) is
-`leonav_runtime.observability`; the command is `leonav observability`.
+The list of error states, their units and the observables are read from `models.state` and
+`models.measurements.models()`, and the rows each observable contributes from the aux
+entries its model reads, so a new state block, observable or mode needs no change here. Only
+what defines a motion or a satellite names a block: position, velocity and attitude of the
+nominal state, the aux satellite / reference / specific-force blocks, and `GNSS_OBSERVABLES`
+(the observables whose satellites are put on GNSS rather than LEO orbits). The numeric,
+run-along analysis (Gramian along a scenario) is `leonav_runtime.observability`; the command
+is `leonav observability`.
 """
 from __future__ import annotations
 
@@ -103,7 +107,6 @@ MOTIONS: dict[str, str] = {
     "accelerating": "speeding up while climbing and turning (acceleration changes direction)",
 }
 """Motion classes: name -> description."""
-
 
 
 # --- names -------------------------------------------------------------------------------
@@ -267,9 +270,12 @@ def _solve_increments(sym: Symbolic, x, x_target, dt, p, guess) -> np.ndarray:
     for _ in range(20):
         r, J = (np.array(v) for v in sym.invert(x, u, x_target, dt, p))
         r = r.ravel()
-        u = u - np.linalg.solve(J, r)
         if np.max(np.abs(r)) < 1e-13:
-            break
+            return u
+        u = u - np.linalg.solve(J, r)
+    r = np.array(sym.invert(x, u, x_target, dt, p)[0]).ravel()
+    if np.max(np.abs(r)) > 1e-11:
+        raise RuntimeError(f"IMU increments for the motion did not converge (residual {np.max(np.abs(r)):.1e})")
     return u
 
 
