@@ -57,7 +57,7 @@ from models import ekf, frames, kinematics
 from models import state as S
 from models.constants import WGS84_A_M, WGS84_GM_M3PS2
 from models.measurements import models as measurement_models
-from models.params import build_params
+from leonav_runtime.params import build_params
 
 # --- scaling and thresholds ----------------------------------------------------------------
 

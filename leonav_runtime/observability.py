@@ -117,7 +117,7 @@ def layout_blocks(layout: ModuleType | None = None) -> list[BlockInfo]:
 def analysis_modes(layout: ModuleType | None = None) -> dict[str, tuple[str, ...]]:
     """Modes analysed: the filter's `scenario.MODE_OBSERVABLES` plus a GNSS position-fix mode
     (`GNSS_FIX_MODE`: every observable named pos_*)."""
-    from leonav_runtime.scenario import MODE_OBSERVABLES  # (the scenario module reads models/imu.py)
+    from leonav_runtime.scenario import MODE_OBSERVABLES
 
     layout = layout or compiled.load_layout(compiled.GEN_DIR)
     modes = {k: tuple(v) for k, v in MODE_OBSERVABLES.items()}
