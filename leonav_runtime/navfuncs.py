@@ -160,8 +160,8 @@ class NavFunctions:
             self._work = self.library.new_workspace()
         rc = self.library.lib.leonav_boxminus_many(a.shape[0], a.ctypes.data_as(_dp), b.ctypes.data_as(_dp),
                                                   out.ctypes.data_as(_dp), self._work.ctypes.data)
-        if rc != 0:
-            raise RuntimeError(f"leonav_boxminus_many returned {compiled.ERROR_NAMES.get(rc, rc)}")
+        if rc != self.layout.OK:
+            raise RuntimeError(f"leonav_boxminus_many returned {compiled.code_name(rc, self.layout)}")
         return out[0] if single else out
 
     def quat_from_euler(self, rpy: np.ndarray) -> np.ndarray:

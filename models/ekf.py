@@ -69,16 +69,6 @@ def congruence(A, S):
     return symmetric_from_upper(A.shape[0], lambda i, j: ca.dot(B[i, :], A[j, :]))
 
 
-def covariance_predict(P_, F, Qd):
-    """F P F^T + Qd, symmetric by construction, for SX F, P and a symmetric Qd (upper triangle used).
-
-    P is symmetrized first ((P + P^T) / 2: F P F^T + Qd symmetrized equals F P_sym F^T + Qd
-    for any P), so only the upper triangle is computed, over F's structural non-zeros.
-    """
-    FPFt = congruence(F, symmetric_part(P_))
-    return symmetric_from_upper(P_.shape[0], lambda i, j: FPFt[i, j] + Qd[i, j])
-
-
 def symmetric_part(P_):
     """(P + P^T) / 2 as an SX matrix whose mirrored entries are the same expression."""
     return symmetric_from_upper(P_.shape[0], lambda i, j: P_[i, i] if i == j else (P_[i, j] + P_[j, i]) / 2)
@@ -126,6 +116,23 @@ def scalar_update(x, P_, z, R, h_pred, H, boxplus: Callable):
 def information_add(J, H, R):
     """Fisher information after a scalar measurement: J + H^T H / R."""
     return J + ca.mtimes(H.T, H) / R
+
+
+def information_step(B, H, R):
+    """(B_next, S): the PCRB's scalar measurement step on the bound B = J^-1 (SX).
+
+    `information_add` written on B by Sherman-Morrison, so no matrix is inverted:
+    (J + H^T H / R)^-1 = B - b b^T / S with b = B H^T, S = R + H b.
+    It is the Joseph update with the optimal gain K = b / S (tests check both). B is
+    symmetrized first, only the upper triangle is formed; H (1 x n) is taken dense, so one
+    generated function serves every observable. S is accumulated from R (R + H_0 b_0 + ...)
+    and b in column order, as the hand-written loop this replaces did, so the bound is
+    reproduced to the bit.
+    """
+    B_sym = symmetric_part(B)
+    b = ca.mtimes(B_sym, H.T)
+    S = ca.mac(H, b, R)
+    return symmetric_from_upper(B.shape[0], lambda i, j: B_sym[i, j] - b[i] * b[j] / S), S
 
 
 # --- navigation instance ---------------------------------------------------------------

@@ -19,15 +19,6 @@ from models.state import DX, NX, X
 _SMALL_ANGLE2 = 1e-4
 
 
-def skew(v):
-    """Cross-product matrix [v x] (3x3)."""
-    return ca.vertcat(
-        ca.horzcat(0, -v[2], v[1]),
-        ca.horzcat(v[2], 0, -v[0]),
-        ca.horzcat(-v[1], v[0], 0),
-    )
-
-
 def quat_mul(p, q):
     """Hamilton product p (x) q of [w x y z] quaternions."""
     pw, pv = p[0], p[1:4]

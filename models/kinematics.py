@@ -46,12 +46,6 @@ def earth_rate_enu(p):
     return K.OMEGA_IE_RADPS * ca.vertcat(0, ca.cos(lat0), ca.sin(lat0))
 
 
-def position_ecef(p_enu, p):
-    """Receiver ECEF position (m): r0 + C_n_e p_enu."""
-    _, _, _, r0, C = origin(p)
-    return r0 + C @ p_enu
-
-
 def gravity_enu(p_enu, p):
     """Normal gravity vector (m/s^2) at position p_enu, in the origin's ENU axes.
 

@@ -64,7 +64,7 @@ def test_F_matches_finite_differences(seed):
     assert abs(F[0, 3] - dt) < 1e-6 and np.abs(F[3:6, 6:9]).max() > 1e-3
 
 
-@pytest.mark.parametrize("suffix", [s for _, s, _ in MEASUREMENTS])
+@pytest.mark.parametrize("suffix", [m.suffix for m in MEASUREMENTS])
 @pytest.mark.parametrize("seed", [0, 1])
 def test_H_matches_finite_differences(suffix, seed):
     rng = np.random.default_rng(seed)

@@ -241,3 +241,31 @@ def test_P_rows_returns_the_same_blocks_as_full_P(lib, params):
     np.testing.assert_array_equal(some.x, full.x)
     with pytest.raises(ValueError, match="increasing record indices"):
         lf.EKF(x_rest(), P0(), params, library=lib).run(recs, P_rows=[5, 3])
+
+
+def test_step_return_codes_are_distinct(lib, params):
+    """One success code for every step; gated/failed positive; errors negative (no -1 for success)."""
+    L = lib.layout
+    x, P, u = x_rest(), np.asfortranarray(P0()), lf.stationary_imu(x_rest(), IMU_DT, params, lib)
+    good, bad = lib.new_workspace(), np.zeros_like(lib.new_workspace())  # bad: never initialised
+    p_, w = lf._ptr(params), good.ctypes.data
+    predict = lib.lib.leonav_predict_step
+    assert predict(lf._ptr(x), lf._ptr(P), lf._ptr(u), IMU_DT, p_, None, None, bad.ctypes.data) == L.ERR_WORK
+    assert predict(lf._ptr(x), lf._ptr(P), lf._ptr(u), IMU_DT, p_, None, None, w) == L.OK
+    u_nan = np.full(L.NU, np.nan)
+    assert predict(lf._ptr(x), lf._ptr(P), lf._ptr(u_nan), IMU_DT, p_, None, None, w) == L.FAILED
+    assert lib.lib.leonav_mech_step(lf._ptr(x), lf._ptr(u), IMU_DT, p_, w) == L.OK
+    update, aux, ysn = lib.lib.leonav_update_step, np.zeros(L.NAUX), np.zeros(3)
+    args = lambda kind, z, R: (lf._ptr(x), lf._ptr(P), kind, z, R, lf._ptr(aux), p_, 10.0, lf._ptr(ysn), w)  # noqa: E731
+    assert update(*args(L.MEAS_POS_E, 0.5, 4.0)) == L.OK
+    assert update(*args(L.MEAS_POS_E, 1e4, 4.0)) == L.GATED
+    assert update(*args(L.MEAS_POS_E, float("nan"), 4.0)) == L.FAILED
+    assert update(*args(L.NMEAS, 0.0, 4.0)) == L.ERR_KIND
+    assert update(*args(L.MEAS_IMU, 0.0, 4.0)) == L.ERR_KIND
+    h, H = np.zeros(1), np.zeros(L.NDX)
+    assert lib.lib.leonav_h_step(L.MEAS_POS_E, lf._ptr(x), lf._ptr(aux), p_, lf._ptr(h), lf._ptr(H), w) == L.OK
+    assert len({L.OK, L.GATED, L.FAILED, L.ERR_WORK, L.ERR_KIND, L.ERR_LAYOUT, L.ERR_ARG, L.ERR_NUMERIC}) == 8
+    # the PCRB rejects a non-positive R with an error code (named in the exception)
+    rec = records.measurement_records([0.0], L.MEAS_POS_E, [0.0], [0.0])
+    with pytest.raises(RuntimeError, match="LEONAV_ERR_NUMERIC at record 0"):
+        lf.pcrb(rec, x_rest()[None, :], P0(), params, library=lib)
