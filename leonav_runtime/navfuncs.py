@@ -177,7 +177,7 @@ class NavFunctions:
     def imu_increments(self, x: np.ndarray, x_target: np.ndarray, dt: float,
                        guess: np.ndarray | None = None, jacobian: np.ndarray | None = None,
                        tol: float = 1e-13) -> tuple[np.ndarray, np.ndarray]:
-        """IMU increments u (6,) that take x to the velocity and attitude of x_target in dt.
+        """IMU increments u (NU,) that take x to the velocity and attitude of x_target in dt.
 
         Newton iterations on the generated mechanization, the residual measured by the
         generated boxminus (velocity and attitude blocks). The finite-difference Jacobian is
@@ -186,15 +186,15 @@ class NavFunctions:
         Returns (u, jacobian).
         """
         L = self.layout
-        sel = np.r_[L.DX_DV:L.DX_DV + 3, L.DX_DTHETA:L.DX_DTHETA + 3]
+        sel = np.r_[L.DX_DV_SLICE, L.DX_DTHETA_SLICE]
 
         def residual(u):
             return self._boxminus(self.mech(x, u, dt), x_target)[0][sel, 0]
 
         def fd_jacobian(u, r0, step=1e-7):
-            return np.column_stack([(residual(u + step * e) - r0) / step for e in np.eye(6)])
+            return np.column_stack([(residual(u + step * e) - r0) / step for e in np.eye(L.NU)])
 
-        u = np.zeros(6) if guess is None else np.array(guess, dtype=float)
+        u = np.zeros(L.NU) if guess is None else np.array(guess, dtype=float)
         J = jacobian
         r = residual(u)
         for iteration in range(12):

@@ -19,7 +19,7 @@ import casadi as ca
 
 from models import frames, kinematics
 from models.clock import clock_qd
-from models.state import DX, NDX, NU, P, U
+from models.state import DX, NDX, P, U
 
 def _at_zero(expr, sym):
     return ca.substitute(expr, sym, ca.DM.zeros(sym.shape))
@@ -259,10 +259,13 @@ def trapezoid_factors(F, G, dt):
     n_rest = NDX - rest.start
     E = ca.SX.eye(NDX)
     F_pre = ca.vertcat(F[dv, :], F[dth, :], E[dp, :], E[dv, :], F[rest, :])
-    G_pre = ca.vertcat(G[dv, :], G[dth, :], ca.SX(6, G.shape[1]), G[rest, :])
-    s = ca.SX.sym("s", 12 + n_rest)
-    v_next, th_next, pos, vel = s[0:3], s[3:6], s[6:9], s[9:12]
-    image = ca.vertcat(kinematics.trapezoid_position(pos, vel, v_next, dt), v_next, th_next, s[12:])
+    n_pv = DX["dp"].size + DX["dv"].size
+    G_pre = ca.vertcat(G[dv, :], G[dth, :], ca.SX(n_pv, G.shape[1]), G[rest, :])
+    sizes = (DX["dv"].size, DX["dtheta"].size, DX["dp"].size, DX["dv"].size)  # pre-state blocks before `rest`
+    s = ca.SX.sym("s", sum(sizes) + n_rest)
+    ends = [sum(sizes[: k + 1]) for k in range(len(sizes))]
+    v_next, th_next, pos, vel = (s[e - n : e] for e, n in zip(ends, sizes))
+    image = ca.vertcat(kinematics.trapezoid_position(pos, vel, v_next, dt), v_next, th_next, s[ends[-1] :])
     return ca.jacobian(image, s), F_pre, G_pre
 
 
@@ -295,5 +298,3 @@ def nav_update(h: Callable, x, P_, z, R, aux, p):
     h_pred, H = nav_h(h, x, aux, p)
     return scalar_update(x, P_, z, R, h_pred, H, frames.boxplus)
 
-
-assert NU == 6

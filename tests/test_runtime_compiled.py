@@ -24,7 +24,7 @@ x = np.zeros(L.NX); x[L.X_Q_NB] = 1.0
 u = lf.stationary_imu(x, 0.01, p, lib)
 t = np.arange(1, 101) * 0.01
 recs = records.merge_records(
-    records.imu_records(t, np.tile(u[:3], (100, 1)), np.tile(u[3:], (100, 1))),
+    records.imu_records(t, np.tile(u[L.U_DTHETA_B_SLICE], (100, 1)), np.tile(u[L.U_DVEL_B_SLICE], (100, 1))),
     records.measurement_records([0.5, 1.0], L.MEAS_POS_E, [0.0, 0.0], 1.0))
 res = lf.EKF(x, np.eye(L.NDX), p, library=lib).run(recs)
 assert res.n_imu == 100 and res.n_applied == 2, (res.n_imu, res.n_applied)
