@@ -32,8 +32,7 @@ RETURN_CODES = (
     Code("ERR_KIND", -2, "record kind is neither IMU nor a LEONAV_MEAS_* id"),
     Code("ERR_LAYOUT", -3, "a generated function's shape does not match state_layout.h"),
     Code("ERR_ARG", -4, "a required pointer is NULL or n < 0"),
-    Code("ERR_NUMERIC", -5, "PCRB / boxminus: a generated step failed or gave a non-finite or "
-                            "non-positive innovation variance"),
+    Code("ERR_NUMERIC", -5, "PCRB / boxminus: a generated step failed, S not positive and finite, or R <= 0"),
 )
 
 RECORD_STATUSES = (

@@ -104,9 +104,6 @@ def _py_layout() -> str:
               "MEAS_TABLE = ("]
     lines += [f"    Observable(MEAS_{m.name}, {m.suffix!r}, {m.dim}, {m.name!r}, {m.unit!r})," for m in S.MEASUREMENTS]
     lines += [")",
-              "MEAS_NAMES = tuple(m.name for m in MEAS_TABLE)",
-              "MEAS_SUFFIXES = tuple(m.suffix for m in MEAS_TABLE)",
-              "MEAS_UNITS = tuple(m.unit for m in MEAS_TABLE)",
               f"P_NAMES = {[b.name for b in S.P_BLOCKS]!r}",
               "",
               "# Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome, < 0 an error."]

@@ -47,7 +47,7 @@ def test_layout_twin_matches_header():
     twin = {k: v for k, v in namespace.items() if k.isupper() and isinstance(v, int)}
     assert header == twin
     assert (twin["NX"], twin["NDX"], twin["NP"], twin["NAUX"], twin["NU"], twin["NMEAS"]) == (19, 18, 11, 21, 6, 10)
-    assert [namespace["MEAS_NAMES"][twin[f"MEAS_{n}"]] for n in namespace["MEAS_NAMES"]] == list(namespace["MEAS_NAMES"])
+    assert all(twin[f"MEAS_{m.name}"] == m.kind for m in namespace["MEAS_TABLE"])
     assert twin["NNAV"] == 9 and namespace["DX_NAV9_SLICE"] == slice(0, twin["NNAV"])
     # the observable table: C X-macro rows == Python MEAS_TABLE rows (kind, suffix, dim, name, unit)
     text = (gen / "state_layout.h").read_text()

@@ -3,7 +3,7 @@
  *
  * Shared by the Python runtime (loaded with ctypes) and the standalone Pi program, so
  * it includes no Python header, never allocates inside a loop, never exits or aborts:
- * every function returns a status or an error code.
+ * every function returns one of the codes below (LEONAV_OK on success).
  *
  * Memory: the caller owns one workspace of leonav_work_size() bytes (8-byte aligned),
  * prepares it once with leonav_work_init() and passes it to every call. The workspace
@@ -40,7 +40,8 @@ extern "C" {
  *                           not initialised), _KIND (kind neither LEONAV_MEAS_IMU nor a
  *                           LEONAV_MEAS_* id), _LAYOUT (generated shapes differ from
  *                           state_layout.h), _ARG (NULL pointer, n < 0), _NUMERIC (PCRB or
- *                           boxminus: a generated step failed or S is not positive and finite)
+ *                           boxminus: a generated step failed, S is not positive and finite,
+ *                           or R <= 0)
  * so `rc < 0` is always an error and `rc == LEONAV_OK` always success.
  *
  * leonav_run also writes a status per record (leonav_run_out.status), its own enum:

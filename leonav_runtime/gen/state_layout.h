@@ -113,7 +113,7 @@
 #define LEONAV_ERR_KIND (-2)  /* record kind is neither IMU nor a LEONAV_MEAS_* id */
 #define LEONAV_ERR_LAYOUT (-3)  /* a generated function's shape does not match state_layout.h */
 #define LEONAV_ERR_ARG (-4)  /* a required pointer is NULL or n < 0 */
-#define LEONAV_ERR_NUMERIC (-5)  /* PCRB / boxminus: a generated step failed or gave a non-finite or non-positive innovation variance */
+#define LEONAV_ERR_NUMERIC (-5)  /* PCRB / boxminus: a generated step failed, S not positive and finite, or R <= 0 */
 /* X(name) for every return code above (LEONAV_<name>), e.g. for leonav_code_name() */
 #define LEONAV_RETURN_CODE_TABLE(X) X(OK) X(GATED) X(FAILED) X(ERR_WORK) X(ERR_KIND) X(ERR_LAYOUT) X(ERR_ARG) X(ERR_NUMERIC)
 

@@ -130,9 +130,6 @@ MEAS_TABLE = (
     Observable(MEAS_DOPPLER, 'doppler', 1, 'DOPPLER', 'Hz'),
     Observable(MEAS_OFDM_RANGE_DIFF, 'ofdm_range_diff', 1, 'OFDM_RANGE_DIFF', 'm'),
 )
-MEAS_NAMES = tuple(m.name for m in MEAS_TABLE)
-MEAS_SUFFIXES = tuple(m.suffix for m in MEAS_TABLE)
-MEAS_UNITS = tuple(m.unit for m in MEAS_TABLE)
 P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz']
 
 # Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome, < 0 an error.
@@ -143,7 +140,7 @@ ERR_WORK = -1  # workspace NULL, too small or not initialised
 ERR_KIND = -2  # record kind is neither IMU nor a LEONAV_MEAS_* id
 ERR_LAYOUT = -3  # a generated function's shape does not match state_layout.h
 ERR_ARG = -4  # a required pointer is NULL or n < 0
-ERR_NUMERIC = -5  # PCRB / boxminus: a generated step failed or gave a non-finite or non-positive innovation variance
+ERR_NUMERIC = -5  # PCRB / boxminus: a generated step failed, S not positive and finite, or R <= 0
 RETURN_NAMES = {0: 'LEONAV_OK', 1: 'LEONAV_GATED', 2: 'LEONAV_FAILED', -1: 'LEONAV_ERR_WORK', -2: 'LEONAV_ERR_KIND', -3: 'LEONAV_ERR_LAYOUT', -4: 'LEONAV_ERR_ARG', -5: 'LEONAV_ERR_NUMERIC'}
 
 # Per-record status of leonav_run (leonav_run_out.status, RunResult.status): its own enum.
