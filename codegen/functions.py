@@ -69,12 +69,6 @@ def build_functions() -> list[ca.Function]:
                          list(ekf.joseph_update(x, P, y_s, b_s, S_s, frames.boxplus)), FUNCTION_OPTS)
     xm, Pm, pm = (ca.MX.sym(n, *v.shape) for n, v in (("x", x), ("P", P), ("p", p)))
     auxm, zm, Rm, Jm = ca.MX.sym("aux", NAUX), ca.MX.sym("z"), ca.MX.sym("R"), ca.MX.sym("J", NDX, NDX)
-    Bm = ca.MX.sym("B", NDX, NDX)
-    # PCRB measurement step: leonav_pcrb_update_k = leonav_h_k's H into one shared SX step
-    # over a dense H (compiled once, like leonav_joseph).
-    B_s, H_s = ca.SX.sym("B", NDX, NDX), ca.SX.sym("H", 1, NDX)
-    information_step = ca.Function("leonav_information_step", [B_s, H_s, R],
-                                   list(ekf.information_step(B_s, H_s, R)), FUNCTION_OPTS)
     for suffix, h in measurement_models().items():
         h_pred, H = ekf.nav_h(h, x, aux, p)
         hfn = _fn(f"leonav_h_{suffix}", {"x": x, "aux": aux, "p": p}, {"h": h_pred, "H": H},
@@ -88,15 +82,18 @@ def build_functions() -> list[ca.Function]:
                        {"x": xm, "P": Pm, "z": zm, "R": Rm, "aux": auxm, "p": pm},
                        {"x_post": x_post, "P_post": P_post, "y": ym, "S": Sm, "nis": ym * ym / Sm},
                        f"{suffix}: scalar Joseph-form update"))
-        _, Hm = hfn(xm, auxm, pm)
-        B_next, S_b = information_step(Bm, Hm, Rm)
-        out.append(_fn(f"leonav_pcrb_update_{suffix}", {"B": Bm, "x": xm, "aux": auxm, "p": pm, "R": Rm},
-                       {"B_next": B_next, "S": S_b},
-                       f"{suffix}: PCRB measurement step on B = J^-1: B - B H^T H B / S, S = H B H^T + R"))
         # not on the filter path: MX keeps the dense J + H^T H / R a loop
+        _, Hm = hfn(xm, auxm, pm)
         out.append(_fn(f"leonav_pcrb_info_{suffix}", {"J": Jm, "x": xm, "aux": auxm, "p": pm, "R": Rm},
                        {"J_next": ekf.information_add(Jm, Hm, Rm)},
                        f"{suffix}: Fisher information add J + H^T H / R"))
+
+    # PCRB measurement step for any observable, H from its leonav_h_<k>: MX (dense loops,
+    # a few lines of C; the bound is not on the filter's hot path)
+    Bm, Hm = ca.MX.sym("B", NDX, NDX), ca.MX.sym("H", 1, NDX)
+    B_next, S_b = ekf.information_step(Bm, Hm, Rm)
+    out.append(_fn("leonav_pcrb_update", {"B": Bm, "H": Hm, "R": Rm}, {"B_next": B_next, "S": S_b},
+                   "PCRB measurement step on B = J^-1 (Sherman-Morrison): B - B H^T H B / S, S = H B H^T + R"))
 
     dx = ca.SX.sym("dx", NDX)
     x0 = ca.SX.sym("x0", NX)

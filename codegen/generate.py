@@ -55,8 +55,8 @@ def _c_header_layout() -> str:
         define(f"LEONAV_MEAS_{m.name}", i, m.unit)
     define("LEONAV_NMEAS", S.NMEAS)
     lines += ["", "/* Observables: X(kind id, function suffix, dimension of z, name, unit of z), in kind-id order.",
-              " * The driver builds its dispatch table from this list (leonav_h_<suffix>, leonav_update_<suffix>,",
-              " * leonav_pcrb_update_<suffix>), so a new observable in models/ needs no driver edit. */",
+              " * The driver builds its dispatch table from this list (leonav_h_<suffix>, leonav_update_<suffix>),",
+              " * so a new observable in models/ needs no driver edit. */",
               "#define LEONAV_MEAS_TABLE(X) \\"]
     rows = [f'    X(LEONAV_MEAS_{m.name}, {m.suffix}, {m.dim}, "{m.name}", "{m.unit}")' for m in S.MEASUREMENTS]
     lines += [row + " \\" for row in rows[:-1]] + rows[-1:]
@@ -99,7 +99,7 @@ def _py_layout() -> str:
     lines.append(f"NMEAS = {S.NMEAS}")
     lines += ["",
               "# Observables in kind-id order (twin of LEONAV_MEAS_TABLE): kind id, function suffix",
-              "# (leonav_h_<suffix>, leonav_update_<suffix>, leonav_pcrb_update_<suffix>), dimension of z, name, unit.",
+              "# (leonav_h_<suffix>, leonav_update_<suffix>), dimension of z, name, unit.",
               'Observable = namedtuple("Observable", "kind suffix dim name unit")',
               "MEAS_TABLE = ("]
     lines += [f"    Observable(MEAS_{m.name}, {m.suffix!r}, {m.dim}, {m.name!r}, {m.unit!r})," for m in S.MEASUREMENTS]

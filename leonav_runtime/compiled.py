@@ -223,12 +223,12 @@ def expected_shapes(layout: ModuleType) -> dict[str, tuple[list[tuple[int, int]]
         "leonav_mech": ([x, u, s, p], [x]),
         "leonav_predict": ([x, P, u, s, p], [x, P, P, P]),
         "leonav_boxminus": ([x, x], [(ndx, 1)]),
+        "leonav_pcrb_update": ([P, (1, ndx), s], [P, s]),
     }
     for m in layout.MEAS_TABLE:
         z = (m.dim, 1)
         shapes[f"leonav_h_{m.suffix}"] = ([x, aux, p], [z, (m.dim, ndx)])
         shapes[f"leonav_update_{m.suffix}"] = ([x, P, z, s, aux, p], [x, P, z, s, s])
-        shapes[f"leonav_pcrb_update_{m.suffix}"] = ([P, x, aux, p, s], [P, s])
         shapes[f"leonav_pcrb_info_{m.suffix}"] = ([P, x, aux, p, s], [P])
     return shapes
 

@@ -119,20 +119,20 @@ def information_add(J, H, R):
 
 
 def information_step(B, H, R):
-    """(B_next, S): the PCRB's scalar measurement step on the bound B = J^-1 (SX).
+    """(B_next, S): the PCRB's scalar measurement step on the bound B = J^-1.
 
     `information_add` written on B by Sherman-Morrison, so no matrix is inverted:
     (J + H^T H / R)^-1 = B - b b^T / S with b = B H^T, S = R + H b.
-    It is the Joseph update with the optimal gain K = b / S (tests check both). B is
-    symmetrized first, only the upper triangle is formed; H (1 x n) is taken dense, so one
-    generated function serves every observable. S is accumulated from R (R + H_0 b_0 + ...)
-    and b in column order, as the hand-written loop this replaces did, so the bound is
-    reproduced to the bit.
+    It is the Joseph update with the optimal gain K = b / S (tests check both). B is a
+    symmetric bound (the prior, F B F^T + Qd and this step keep it exactly symmetric:
+    b_i b_j = b_j b_i). Dense products, for MX: the generated code is three small loops
+    (b, S accumulated from R, then B - (b_i b_j) / S) in the order of the hand-written
+    driver loop it replaced, so the bound is reproduced to the bit. H (1 x n) is an input,
+    so one generated function serves every observable.
     """
-    B_sym = symmetric_part(B)
-    b = ca.mtimes(B_sym, H.T)
+    b = ca.mtimes(B, H.T)
     S = ca.mac(H, b, R)
-    return symmetric_from_upper(B.shape[0], lambda i, j: B_sym[i, j] - b[i] * b[j] / S), S
+    return B - ca.mtimes(b, b.T) / S, S
 
 
 # --- navigation instance ---------------------------------------------------------------

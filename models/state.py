@@ -89,7 +89,7 @@ U_BLOCKS = _blocks([
 class Observable:
     """One observable. Its kind id (`LEONAV_MEAS_<name>`) is its index in MEASUREMENTS;
     `suffix` names its generated functions (`leonav_h_<suffix>`, `leonav_update_<suffix>`,
-    `leonav_pcrb_update_<suffix>`, `leonav_pcrb_info_<suffix>`); `dim` is the size of z
+    `leonav_pcrb_info_<suffix>`); `dim` is the size of z
     (1: the filter's updates are scalar and sequential); `unit` is the unit of z."""
 
     name: str

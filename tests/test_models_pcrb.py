@@ -5,7 +5,7 @@ information recursion J+ = (F J^-1 F^T + Qd)^-1 + sum H^T H / R (leonav_pcrb_inf
 must equal the inverse of the covariance of a Kalman filter whose Jacobians are taken on
 the same trajectory (leonav_predict's P_next + leonav_update_<k>'s Joseph P_post), and the
 covariance-form recursion the C driver runs (leonav_predict on B, then the generated
-Sherman-Morrison step leonav_pcrb_update_<k>) must equal both.
+Sherman-Morrison step leonav_pcrb_update with leonav_h_<k>'s H) must equal both.
 """
 from __future__ import annotations
 
@@ -57,13 +57,14 @@ def test_information_recursion_equals_kalman_covariance():
                     P = np.array(FNS[f"leonav_update_{suffix}"](x, P, 0.0, R, aux, p)[1])
                     J = np.array(FNS[f"leonav_pcrb_info_{suffix}"](J, x, aux, p, R))
                     B_prior = B
-                    B, S = (np.array(v) for v in FNS[f"leonav_pcrb_update_{suffix}"](B, x, aux, p, R))
+                    H = FNS[f"leonav_h_{suffix}"](x, aux, p)[1]
+                    B, S = (np.array(v) for v in FNS["leonav_pcrb_update"](B, H, R))
                     # one step from the same prior: Sherman-Morrison == Joseph with the optimal gain
                     P_joseph, _, S_joseph = (np.array(v) for v in FNS[f"leonav_update_{suffix}"](
                         x, B_prior, 0.0, R, aux, p)[1:4])
                     np.testing.assert_allclose(B, P_joseph, rtol=1e-9, atol=1e-12 * np.abs(B_prior).max())
                     assert abs(S.item() / S_joseph.item() - 1) < 1e-12
-    np.testing.assert_array_equal(B, B.T)  # formed on the upper triangle, mirrored
+    np.testing.assert_array_equal(B, B.T)  # the step keeps B exactly symmetric (b_i b_j = b_j b_i)
     np.testing.assert_allclose(B, P, rtol=1e-6, atol=1e-8 * np.sqrt(np.outer(np.diag(P), np.diag(P))).max())
     B = np.linalg.inv(J)
     np.testing.assert_allclose(B, (B + B.T) / 2, atol=1e-9 * np.abs(B).max())

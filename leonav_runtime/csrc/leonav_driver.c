@@ -35,16 +35,15 @@ typedef struct {
 #define GEN_FN(name) {name, name##_work, name##_sparsity_out, name##_n_out}
 
 typedef struct {
-    gen_fn h;             /* leonav_h_<k>: h, H */
-    gen_fn update;        /* leonav_update_<k>: Joseph-form scalar update */
-    gen_fn pcrb_update;   /* leonav_pcrb_update_<k>: PCRB measurement step on B */
+    gen_fn h;         /* leonav_h_<k>: h, H */
+    gen_fn update;    /* leonav_update_<k>: Joseph-form scalar update */
     const char *name, *unit;
 } meas_fns;
 
 /* Kind id -> generated functions, built from the generated observable list
  * (state_layout.h), so a new observable in models/ needs no edit here. */
 #define MEAS_ENTRY(id, k, dim, name, unit) \
-    [id] = {GEN_FN(leonav_h_##k), GEN_FN(leonav_update_##k), GEN_FN(leonav_pcrb_update_##k), name, unit},
+    [id] = {GEN_FN(leonav_h_##k), GEN_FN(leonav_update_##k), name, unit},
 static const meas_fns MEAS[LEONAV_NMEAS] = {LEONAV_MEAS_TABLE(MEAS_ENTRY)};
 
 /* The driver's updates are scalar: a table entry with dimension != 1 fails to compile here. */
@@ -53,6 +52,7 @@ typedef char meas_dims_are_scalar[(1 LEONAV_MEAS_TABLE(MEAS_SCALAR)) ? 1 : -1];
 static const gen_fn MECH = GEN_FN(leonav_mech);
 static const gen_fn PREDICT = GEN_FN(leonav_predict);
 static const gen_fn BOXMINUS = GEN_FN(leonav_boxminus);
+static const gen_fn PCRB_UPDATE = GEN_FN(leonav_pcrb_update);  /* B - B H^T H B / S, any observable */
 
 /* ---- workspace ------------------------------------------------------------------- */
 
@@ -89,10 +89,10 @@ static work_sizes all_sizes(void)
     max_sizes(&MECH, &m);
     max_sizes(&PREDICT, &m);
     max_sizes(&BOXMINUS, &m);
+    max_sizes(&PCRB_UPDATE, &m);
     for (int k = 0; k < LEONAV_NMEAS; ++k) {
         max_sizes(&MEAS[k].h, &m);
         max_sizes(&MEAS[k].update, &m);
-        max_sizes(&MEAS[k].pcrb_update, &m);
     }
     return m;
 }
@@ -126,10 +126,9 @@ static int h_is_scalar(const gen_fn *f)
 int leonav_work_init(void *work, size_t nbytes)
 {
     if (!work || nbytes < leonav_work_size()) return LEONAV_ERR_WORK;
-    if (!outputs_fit(&MECH) || !outputs_fit(&PREDICT)) return LEONAV_ERR_LAYOUT;
+    if (!outputs_fit(&MECH) || !outputs_fit(&PREDICT) || !outputs_fit(&PCRB_UPDATE)) return LEONAV_ERR_LAYOUT;
     for (int k = 0; k < LEONAV_NMEAS; ++k)
-        if (!outputs_fit(&MEAS[k].h) || !outputs_fit(&MEAS[k].update) || !outputs_fit(&MEAS[k].pcrb_update) ||
-            !h_is_scalar(&MEAS[k].h))
+        if (!outputs_fit(&MEAS[k].h) || !outputs_fit(&MEAS[k].update) || !h_is_scalar(&MEAS[k].h))
             return LEONAV_ERR_LAYOUT;
     work_sizes m = all_sizes();
     char *base = (char *)work;
@@ -394,12 +393,12 @@ int leonav_pcrb_run(double *B, const double *p, const leonav_record *rec, long n
             if (leonav_predict_step(x_copy, B, r->u, r->dt, p, NULL, NULL, work) != LEONAV_OK)
                 return LEONAV_ERR_NUMERIC;
         } else if (r->kind >= 0 && r->kind < LEONAV_NMEAS) {
-            /* generated Sherman-Morrison step B - B H^T H B / S with H of leonav_h_<kind> at xi */
-            double S = NAN;
-            const double *in[5] = {B, xi, r->aux, p, &r->R};
+            /* H of leonav_h_<kind> at xi, then the generated Sherman-Morrison step on B */
+            double h, H[NDX], S = NAN;
+            if (leonav_h_step(r->kind, xi, r->aux, p, &h, H, work) != LEONAV_OK) return LEONAV_ERR_NUMERIC;
+            const double *in[3] = {B, H, &r->R};
             double *out[2] = {ws->P_tmp, &S};
-            if (!(r->R > 0.0) || call_gen(ws, &MEAS[r->kind].pcrb_update, in, 5, out, 2) != 0 || !(S > 0.0) ||
-                !isfinite(S) || !state_finite(xi, ws->P_tmp))
+            if (call_gen(ws, &PCRB_UPDATE, in, 3, out, 2) != 0 || !(S > 0.0) || !isfinite(S) || !(r->R > 0.0))
                 return LEONAV_ERR_NUMERIC;
             memcpy(B, ws->P_tmp, sizeof(double) * NMAT);
         } else {

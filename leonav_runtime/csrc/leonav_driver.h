@@ -134,7 +134,7 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
  * x_lin (n * NX): state at which record i is linearised: for an IMU record the true
  * state at the start of its interval (t - dt), for a measurement the true state at t.
  * IMU: B <- F B F^T + Qd (leonav_predict). Measurement: B <- B - B H^T H B / (H B H^T + R),
- * the generated leonav_pcrb_update_<kind> at x_lin (R must be > 0). Outputs per record
+ * the generated leonav_pcrb_update with H of leonav_h_<kind> at x_lin (R must be > 0). Outputs per record
  * (each may be NULL): B_diag (n * NDX), B_nav (n * NNAV^2, the NNAV x NNAV block of dp dv
  * dtheta, column-major), B_full (n * NDX * NDX).
  * Returns LEONAV_OK, or an error code with *n_done = index of the failing record. */

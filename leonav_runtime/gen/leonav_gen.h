@@ -91,24 +91,6 @@ int leonav_update_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_res,
 #define leonav_update_pseudorange_SZ_RES 8
 #define leonav_update_pseudorange_SZ_IW 0
 #define leonav_update_pseudorange_SZ_W 465
-int leonav_pcrb_update_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
-int leonav_pcrb_update_pseudorange_checkout(void);
-void leonav_pcrb_update_pseudorange_release(int mem);
-void leonav_pcrb_update_pseudorange_incref(void);
-void leonav_pcrb_update_pseudorange_decref(void);
-casadi_int leonav_pcrb_update_pseudorange_n_in(void);
-casadi_int leonav_pcrb_update_pseudorange_n_out(void);
-casadi_real leonav_pcrb_update_pseudorange_default_in(casadi_int i);
-const char* leonav_pcrb_update_pseudorange_name_in(casadi_int i);
-const char* leonav_pcrb_update_pseudorange_name_out(casadi_int i);
-const casadi_int* leonav_pcrb_update_pseudorange_sparsity_in(casadi_int i);
-const casadi_int* leonav_pcrb_update_pseudorange_sparsity_out(casadi_int i);
-int leonav_pcrb_update_pseudorange_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-int leonav_pcrb_update_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_pcrb_update_pseudorange_SZ_ARG 8
-#define leonav_pcrb_update_pseudorange_SZ_RES 4
-#define leonav_pcrb_update_pseudorange_SZ_IW 0
-#define leonav_pcrb_update_pseudorange_SZ_W 551
 int leonav_pcrb_info_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_pseudorange_checkout(void);
 void leonav_pcrb_info_pseudorange_release(int mem);
@@ -163,24 +145,6 @@ int leonav_update_pos_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_pos_e_SZ_RES 8
 #define leonav_update_pos_e_SZ_IW 0
 #define leonav_update_pos_e_SZ_W 465
-int leonav_pcrb_update_pos_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
-int leonav_pcrb_update_pos_e_checkout(void);
-void leonav_pcrb_update_pos_e_release(int mem);
-void leonav_pcrb_update_pos_e_incref(void);
-void leonav_pcrb_update_pos_e_decref(void);
-casadi_int leonav_pcrb_update_pos_e_n_in(void);
-casadi_int leonav_pcrb_update_pos_e_n_out(void);
-casadi_real leonav_pcrb_update_pos_e_default_in(casadi_int i);
-const char* leonav_pcrb_update_pos_e_name_in(casadi_int i);
-const char* leonav_pcrb_update_pos_e_name_out(casadi_int i);
-const casadi_int* leonav_pcrb_update_pos_e_sparsity_in(casadi_int i);
-const casadi_int* leonav_pcrb_update_pos_e_sparsity_out(casadi_int i);
-int leonav_pcrb_update_pos_e_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-int leonav_pcrb_update_pos_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_pcrb_update_pos_e_SZ_ARG 8
-#define leonav_pcrb_update_pos_e_SZ_RES 4
-#define leonav_pcrb_update_pos_e_SZ_IW 0
-#define leonav_pcrb_update_pos_e_SZ_W 551
 int leonav_pcrb_info_pos_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_pos_e_checkout(void);
 void leonav_pcrb_info_pos_e_release(int mem);
@@ -235,24 +199,6 @@ int leonav_update_pos_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_pos_n_SZ_RES 8
 #define leonav_update_pos_n_SZ_IW 0
 #define leonav_update_pos_n_SZ_W 465
-int leonav_pcrb_update_pos_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
-int leonav_pcrb_update_pos_n_checkout(void);
-void leonav_pcrb_update_pos_n_release(int mem);
-void leonav_pcrb_update_pos_n_incref(void);
-void leonav_pcrb_update_pos_n_decref(void);
-casadi_int leonav_pcrb_update_pos_n_n_in(void);
-casadi_int leonav_pcrb_update_pos_n_n_out(void);
-casadi_real leonav_pcrb_update_pos_n_default_in(casadi_int i);
-const char* leonav_pcrb_update_pos_n_name_in(casadi_int i);
-const char* leonav_pcrb_update_pos_n_name_out(casadi_int i);
-const casadi_int* leonav_pcrb_update_pos_n_sparsity_in(casadi_int i);
-const casadi_int* leonav_pcrb_update_pos_n_sparsity_out(casadi_int i);
-int leonav_pcrb_update_pos_n_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-int leonav_pcrb_update_pos_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_pcrb_update_pos_n_SZ_ARG 8
-#define leonav_pcrb_update_pos_n_SZ_RES 4
-#define leonav_pcrb_update_pos_n_SZ_IW 0
-#define leonav_pcrb_update_pos_n_SZ_W 551
 int leonav_pcrb_info_pos_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_pos_n_checkout(void);
 void leonav_pcrb_info_pos_n_release(int mem);
@@ -307,24 +253,6 @@ int leonav_update_pos_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_pos_u_SZ_RES 8
 #define leonav_update_pos_u_SZ_IW 0
 #define leonav_update_pos_u_SZ_W 465
-int leonav_pcrb_update_pos_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
-int leonav_pcrb_update_pos_u_checkout(void);
-void leonav_pcrb_update_pos_u_release(int mem);
-void leonav_pcrb_update_pos_u_incref(void);
-void leonav_pcrb_update_pos_u_decref(void);
-casadi_int leonav_pcrb_update_pos_u_n_in(void);
-casadi_int leonav_pcrb_update_pos_u_n_out(void);
-casadi_real leonav_pcrb_update_pos_u_default_in(casadi_int i);
-const char* leonav_pcrb_update_pos_u_name_in(casadi_int i);
-const char* leonav_pcrb_update_pos_u_name_out(casadi_int i);
-const casadi_int* leonav_pcrb_update_pos_u_sparsity_in(casadi_int i);
-const casadi_int* leonav_pcrb_update_pos_u_sparsity_out(casadi_int i);
-int leonav_pcrb_update_pos_u_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-int leonav_pcrb_update_pos_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_pcrb_update_pos_u_SZ_ARG 8
-#define leonav_pcrb_update_pos_u_SZ_RES 4
-#define leonav_pcrb_update_pos_u_SZ_IW 0
-#define leonav_pcrb_update_pos_u_SZ_W 551
 int leonav_pcrb_info_pos_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_pos_u_checkout(void);
 void leonav_pcrb_info_pos_u_release(int mem);
@@ -379,24 +307,6 @@ int leonav_update_vel_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_vel_e_SZ_RES 8
 #define leonav_update_vel_e_SZ_IW 0
 #define leonav_update_vel_e_SZ_W 465
-int leonav_pcrb_update_vel_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
-int leonav_pcrb_update_vel_e_checkout(void);
-void leonav_pcrb_update_vel_e_release(int mem);
-void leonav_pcrb_update_vel_e_incref(void);
-void leonav_pcrb_update_vel_e_decref(void);
-casadi_int leonav_pcrb_update_vel_e_n_in(void);
-casadi_int leonav_pcrb_update_vel_e_n_out(void);
-casadi_real leonav_pcrb_update_vel_e_default_in(casadi_int i);
-const char* leonav_pcrb_update_vel_e_name_in(casadi_int i);
-const char* leonav_pcrb_update_vel_e_name_out(casadi_int i);
-const casadi_int* leonav_pcrb_update_vel_e_sparsity_in(casadi_int i);
-const casadi_int* leonav_pcrb_update_vel_e_sparsity_out(casadi_int i);
-int leonav_pcrb_update_vel_e_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-int leonav_pcrb_update_vel_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_pcrb_update_vel_e_SZ_ARG 8
-#define leonav_pcrb_update_vel_e_SZ_RES 4
-#define leonav_pcrb_update_vel_e_SZ_IW 0
-#define leonav_pcrb_update_vel_e_SZ_W 551
 int leonav_pcrb_info_vel_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_vel_e_checkout(void);
 void leonav_pcrb_info_vel_e_release(int mem);
@@ -451,24 +361,6 @@ int leonav_update_vel_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_vel_n_SZ_RES 8
 #define leonav_update_vel_n_SZ_IW 0
 #define leonav_update_vel_n_SZ_W 465
-int leonav_pcrb_update_vel_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
-int leonav_pcrb_update_vel_n_checkout(void);
-void leonav_pcrb_update_vel_n_release(int mem);
-void leonav_pcrb_update_vel_n_incref(void);
-void leonav_pcrb_update_vel_n_decref(void);
-casadi_int leonav_pcrb_update_vel_n_n_in(void);
-casadi_int leonav_pcrb_update_vel_n_n_out(void);
-casadi_real leonav_pcrb_update_vel_n_default_in(casadi_int i);
-const char* leonav_pcrb_update_vel_n_name_in(casadi_int i);
-const char* leonav_pcrb_update_vel_n_name_out(casadi_int i);
-const casadi_int* leonav_pcrb_update_vel_n_sparsity_in(casadi_int i);
-const casadi_int* leonav_pcrb_update_vel_n_sparsity_out(casadi_int i);
-int leonav_pcrb_update_vel_n_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-int leonav_pcrb_update_vel_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_pcrb_update_vel_n_SZ_ARG 8
-#define leonav_pcrb_update_vel_n_SZ_RES 4
-#define leonav_pcrb_update_vel_n_SZ_IW 0
-#define leonav_pcrb_update_vel_n_SZ_W 551
 int leonav_pcrb_info_vel_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_vel_n_checkout(void);
 void leonav_pcrb_info_vel_n_release(int mem);
@@ -523,24 +415,6 @@ int leonav_update_vel_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_vel_u_SZ_RES 8
 #define leonav_update_vel_u_SZ_IW 0
 #define leonav_update_vel_u_SZ_W 465
-int leonav_pcrb_update_vel_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
-int leonav_pcrb_update_vel_u_checkout(void);
-void leonav_pcrb_update_vel_u_release(int mem);
-void leonav_pcrb_update_vel_u_incref(void);
-void leonav_pcrb_update_vel_u_decref(void);
-casadi_int leonav_pcrb_update_vel_u_n_in(void);
-casadi_int leonav_pcrb_update_vel_u_n_out(void);
-casadi_real leonav_pcrb_update_vel_u_default_in(casadi_int i);
-const char* leonav_pcrb_update_vel_u_name_in(casadi_int i);
-const char* leonav_pcrb_update_vel_u_name_out(casadi_int i);
-const casadi_int* leonav_pcrb_update_vel_u_sparsity_in(casadi_int i);
-const casadi_int* leonav_pcrb_update_vel_u_sparsity_out(casadi_int i);
-int leonav_pcrb_update_vel_u_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-int leonav_pcrb_update_vel_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_pcrb_update_vel_u_SZ_ARG 8
-#define leonav_pcrb_update_vel_u_SZ_RES 4
-#define leonav_pcrb_update_vel_u_SZ_IW 0
-#define leonav_pcrb_update_vel_u_SZ_W 551
 int leonav_pcrb_info_vel_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_vel_u_checkout(void);
 void leonav_pcrb_info_vel_u_release(int mem);
@@ -595,24 +469,6 @@ int leonav_update_doppler_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res
 #define leonav_update_doppler_rate_SZ_RES 8
 #define leonav_update_doppler_rate_SZ_IW 0
 #define leonav_update_doppler_rate_SZ_W 465
-int leonav_pcrb_update_doppler_rate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
-int leonav_pcrb_update_doppler_rate_checkout(void);
-void leonav_pcrb_update_doppler_rate_release(int mem);
-void leonav_pcrb_update_doppler_rate_incref(void);
-void leonav_pcrb_update_doppler_rate_decref(void);
-casadi_int leonav_pcrb_update_doppler_rate_n_in(void);
-casadi_int leonav_pcrb_update_doppler_rate_n_out(void);
-casadi_real leonav_pcrb_update_doppler_rate_default_in(casadi_int i);
-const char* leonav_pcrb_update_doppler_rate_name_in(casadi_int i);
-const char* leonav_pcrb_update_doppler_rate_name_out(casadi_int i);
-const casadi_int* leonav_pcrb_update_doppler_rate_sparsity_in(casadi_int i);
-const casadi_int* leonav_pcrb_update_doppler_rate_sparsity_out(casadi_int i);
-int leonav_pcrb_update_doppler_rate_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-int leonav_pcrb_update_doppler_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_pcrb_update_doppler_rate_SZ_ARG 8
-#define leonav_pcrb_update_doppler_rate_SZ_RES 4
-#define leonav_pcrb_update_doppler_rate_SZ_IW 0
-#define leonav_pcrb_update_doppler_rate_SZ_W 551
 int leonav_pcrb_info_doppler_rate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_doppler_rate_checkout(void);
 void leonav_pcrb_info_doppler_rate_release(int mem);
@@ -667,24 +523,6 @@ int leonav_update_doppler_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, cas
 #define leonav_update_doppler_SZ_RES 8
 #define leonav_update_doppler_SZ_IW 0
 #define leonav_update_doppler_SZ_W 465
-int leonav_pcrb_update_doppler(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
-int leonav_pcrb_update_doppler_checkout(void);
-void leonav_pcrb_update_doppler_release(int mem);
-void leonav_pcrb_update_doppler_incref(void);
-void leonav_pcrb_update_doppler_decref(void);
-casadi_int leonav_pcrb_update_doppler_n_in(void);
-casadi_int leonav_pcrb_update_doppler_n_out(void);
-casadi_real leonav_pcrb_update_doppler_default_in(casadi_int i);
-const char* leonav_pcrb_update_doppler_name_in(casadi_int i);
-const char* leonav_pcrb_update_doppler_name_out(casadi_int i);
-const casadi_int* leonav_pcrb_update_doppler_sparsity_in(casadi_int i);
-const casadi_int* leonav_pcrb_update_doppler_sparsity_out(casadi_int i);
-int leonav_pcrb_update_doppler_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-int leonav_pcrb_update_doppler_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_pcrb_update_doppler_SZ_ARG 8
-#define leonav_pcrb_update_doppler_SZ_RES 4
-#define leonav_pcrb_update_doppler_SZ_IW 0
-#define leonav_pcrb_update_doppler_SZ_W 551
 int leonav_pcrb_info_doppler(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_doppler_checkout(void);
 void leonav_pcrb_info_doppler_release(int mem);
@@ -739,24 +577,6 @@ int leonav_update_ofdm_range_diff_work_bytes(casadi_int *sz_arg, casadi_int* sz_
 #define leonav_update_ofdm_range_diff_SZ_RES 8
 #define leonav_update_ofdm_range_diff_SZ_IW 0
 #define leonav_update_ofdm_range_diff_SZ_W 465
-int leonav_pcrb_update_ofdm_range_diff(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
-int leonav_pcrb_update_ofdm_range_diff_checkout(void);
-void leonav_pcrb_update_ofdm_range_diff_release(int mem);
-void leonav_pcrb_update_ofdm_range_diff_incref(void);
-void leonav_pcrb_update_ofdm_range_diff_decref(void);
-casadi_int leonav_pcrb_update_ofdm_range_diff_n_in(void);
-casadi_int leonav_pcrb_update_ofdm_range_diff_n_out(void);
-casadi_real leonav_pcrb_update_ofdm_range_diff_default_in(casadi_int i);
-const char* leonav_pcrb_update_ofdm_range_diff_name_in(casadi_int i);
-const char* leonav_pcrb_update_ofdm_range_diff_name_out(casadi_int i);
-const casadi_int* leonav_pcrb_update_ofdm_range_diff_sparsity_in(casadi_int i);
-const casadi_int* leonav_pcrb_update_ofdm_range_diff_sparsity_out(casadi_int i);
-int leonav_pcrb_update_ofdm_range_diff_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-int leonav_pcrb_update_ofdm_range_diff_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
-#define leonav_pcrb_update_ofdm_range_diff_SZ_ARG 8
-#define leonav_pcrb_update_ofdm_range_diff_SZ_RES 4
-#define leonav_pcrb_update_ofdm_range_diff_SZ_IW 0
-#define leonav_pcrb_update_ofdm_range_diff_SZ_W 551
 int leonav_pcrb_info_ofdm_range_diff(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_ofdm_range_diff_checkout(void);
 void leonav_pcrb_info_ofdm_range_diff_release(int mem);
@@ -775,6 +595,24 @@ int leonav_pcrb_info_ofdm_range_diff_work_bytes(casadi_int *sz_arg, casadi_int* 
 #define leonav_pcrb_info_ofdm_range_diff_SZ_RES 3
 #define leonav_pcrb_info_ofdm_range_diff_SZ_IW 0
 #define leonav_pcrb_info_ofdm_range_diff_SZ_W 703
+int leonav_pcrb_update(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_pcrb_update_checkout(void);
+void leonav_pcrb_update_release(int mem);
+void leonav_pcrb_update_incref(void);
+void leonav_pcrb_update_decref(void);
+casadi_int leonav_pcrb_update_n_in(void);
+casadi_int leonav_pcrb_update_n_out(void);
+casadi_real leonav_pcrb_update_default_in(casadi_int i);
+const char* leonav_pcrb_update_name_in(casadi_int i);
+const char* leonav_pcrb_update_name_out(casadi_int i);
+const casadi_int* leonav_pcrb_update_sparsity_in(casadi_int i);
+const casadi_int* leonav_pcrb_update_sparsity_out(casadi_int i);
+int leonav_pcrb_update_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_pcrb_update_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_pcrb_update_SZ_ARG 6
+#define leonav_pcrb_update_SZ_RES 3
+#define leonav_pcrb_update_SZ_IW 0
+#define leonav_pcrb_update_SZ_W 702
 int leonav_boxplus(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_boxplus_checkout(void);
 void leonav_boxplus_release(int mem);

@@ -90,8 +90,8 @@
 #define LEONAV_NMEAS 10
 
 /* Observables: X(kind id, function suffix, dimension of z, name, unit of z), in kind-id order.
- * The driver builds its dispatch table from this list (leonav_h_<suffix>, leonav_update_<suffix>,
- * leonav_pcrb_update_<suffix>), so a new observable in models/ needs no driver edit. */
+ * The driver builds its dispatch table from this list (leonav_h_<suffix>, leonav_update_<suffix>),
+ * so a new observable in models/ needs no driver edit. */
 #define LEONAV_MEAS_TABLE(X) \
     X(LEONAV_MEAS_PSEUDORANGE, pseudorange, 1, "PSEUDORANGE", "m") \
     X(LEONAV_MEAS_POS_E, pos_e, 1, "POS_E", "m") \

@@ -116,7 +116,7 @@ MEAS_OFDM_RANGE_DIFF = 9  # m
 NMEAS = 10
 
 # Observables in kind-id order (twin of LEONAV_MEAS_TABLE): kind id, function suffix
-# (leonav_h_<suffix>, leonav_update_<suffix>, leonav_pcrb_update_<suffix>), dimension of z, name, unit.
+# (leonav_h_<suffix>, leonav_update_<suffix>), dimension of z, name, unit.
 Observable = namedtuple("Observable", "kind suffix dim name unit")
 MEAS_TABLE = (
     Observable(MEAS_PSEUDORANGE, 'pseudorange', 1, 'PSEUDORANGE', 'm'),
