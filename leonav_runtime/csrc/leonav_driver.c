@@ -49,6 +49,7 @@ static const meas_fns MEAS[LEONAV_NMEAS] = {LEONAV_MEAS_TABLE(MEAS_ENTRY)};
 /* The driver's updates are scalar: a table entry with dimension != 1 fails to compile here. */
 #define MEAS_SCALAR(id, k, dim, name, unit) &&(dim) == 1
 typedef char meas_dims_are_scalar[(1 LEONAV_MEAS_TABLE(MEAS_SCALAR)) ? 1 : -1];
+
 static const gen_fn MECH = GEN_FN(leonav_mech);
 static const gen_fn PREDICT = GEN_FN(leonav_predict);
 static const gen_fn BOXMINUS = GEN_FN(leonav_boxminus);
