@@ -47,14 +47,11 @@ int main(int argc, char **argv)
     long n = rec_bytes / (long)sizeof(leonav_record);
     const double *x0 = init, *P0 = init + LEONAV_NX, *p = init + LEONAV_NX + NMAT;
 
-    gen_fn update[LEONAV_NMEAS] = {0};
-    update[LEONAV_MEAS_PSEUDORANGE] = leonav_update_pseudorange;
-    update[LEONAV_MEAS_POS_E] = leonav_update_pos_e;
-    update[LEONAV_MEAS_POS_N] = leonav_update_pos_n;
-    update[LEONAV_MEAS_POS_U] = leonav_update_pos_u;
-    update[LEONAV_MEAS_DOPPLER_RATE] = leonav_update_doppler_rate;
-    work_fn works[] = {leonav_predict_work, leonav_update_pseudorange_work, leonav_update_pos_e_work,
-                       leonav_update_pos_n_work, leonav_update_pos_u_work, leonav_update_doppler_rate_work};
+    /* every observable's update, from the generated table (state_layout.h) */
+#define UPDATE_FN(id, k, dim, name, unit) [id] = leonav_update_##k,
+#define UPDATE_WORK(id, k, dim, name, unit) leonav_update_##k##_work,
+    gen_fn update[LEONAV_NMEAS] = {LEONAV_MEAS_TABLE(UPDATE_FN)};
+    work_fn works[] = {leonav_predict_work, LEONAV_MEAS_TABLE(UPDATE_WORK)};
     int sz_arg = 8, sz_res = 8, sz_iw = 0, sz_w = 0;
     for (size_t k = 0; k < sizeof works / sizeof works[0]; ++k) {
         int a, r, iw, w;

@@ -35,8 +35,9 @@ from numpy_ekf import NumpyEKF, ecef_from_geodetic, enu_axes  # noqa: E402
 
 from leonav_runtime import compiled, records  # noqa: E402
 from leonav_runtime import filter as lf  # noqa: E402
+from leonav_runtime.gen import constants as K  # noqa: E402
+from leonav_runtime.gen import state_layout as L  # noqa: E402
 from leonav_runtime.output import results_dir, write_json  # noqa: E402
-from models import constants as K  # noqa: E402
 from leonav_runtime.params import build_params  # noqa: E402
 
 LAT, LON, H = math.radians(40.0), math.radians(-83.0), 200.0
@@ -60,20 +61,21 @@ def build_stream(lib: compiled.Library, seconds: float, seed: int = 1):
     """(records, x_true, x0, P0, params) of the benchmark scenario."""
     rng = np.random.default_rng(seed)
     params = np.array(build_params(LAT, LON, H))
-    x_true = np.zeros(19)
-    x_true[6] = 1.0
+    x_true = np.zeros(L.NX)
+    x_true[L.X_Q_NB] = 1.0  # body axes aligned with ENU
     dt = 1.0 / IMU_HZ
     u0 = lf.stationary_imu(x_true, dt, params, lib)
     n = int(round(seconds * IMU_HZ))
     t = np.arange(1, n + 1) * dt
-    parts = [records.imu_records(t, u0[:3] + rng.normal(0, params[4] * math.sqrt(dt), (n, 3)),
-                                 u0[3:] + rng.normal(0, params[3] * math.sqrt(dt), (n, 3)))]
+    dth, dv = L.U_DTHETA_B_SLICE, L.U_DVEL_B_SLICE
+    parts = [records.imu_records(t, u0[dth] + rng.normal(0, params[L.P_ARW] * math.sqrt(dt), (n, L.U_DTHETA_B_SIZE)),
+                                 u0[dv] + rng.normal(0, params[L.P_VRW] * math.sqrt(dt), (n, L.U_DVEL_B_SIZE)))]
     r0, C = ecef_from_geodetic(LAT, LON, H), enu_axes(LAT, LON)
-    truth = lf.EKF(x_true, np.eye(18), params, library=lib)
+    truth = lf.EKF(x_true, np.eye(L.NDX), params, library=lib)
     t_gps = np.arange(1, int(seconds * GPS_HZ) + 1) / GPS_HZ
     for sat, los in enumerate(_sky(N_GPS, 2.2e7, 10.0, seed)):
         aux = np.zeros(records.NAUX)
-        aux[0:3] = r0 + C @ los
+        aux[L.AUX_R_S_ECEF_SLICE] = r0 + C @ los
         z = truth.h("pseudorange", aux)[0] + rng.normal(0, PR_SIGMA_M, t_gps.size)
         parts.append(records.measurement_records(t_gps, lib.kind_id("pseudorange"), z, PR_SIGMA_M**2, aux, sat))
     t_leo = np.arange(1, int(seconds * LEO_HZ) + 1) / LEO_HZ
@@ -81,17 +83,21 @@ def build_stream(lib: compiled.Library, seconds: float, seed: int = 1):
         aux = np.zeros(records.NAUX)
         r_S = r0 + C @ los
         along = np.cross(r_S, [0.0, 0.0, 1.0]) + 0.3 * np.cross(r_S, C[:, 0])
-        aux[0:3] = r_S
-        aux[3:6] = 7.6e3 * along / np.linalg.norm(along)
-        aux[6:9] = -K.WGS84_GM_M3PS2 * r_S / np.linalg.norm(r_S) ** 3
-        aux[18:21] = u0[3:] / dt  # specific force of the receiver at rest, body
+        aux[L.AUX_R_S_ECEF_SLICE] = r_S
+        aux[L.AUX_V_S_ECEF_SLICE] = 7.6e3 * along / np.linalg.norm(along)
+        aux[L.AUX_A_S_ECEF_SLICE] = -K.WGS84_GM_M3PS2 * r_S / np.linalg.norm(r_S) ** 3
+        aux[L.AUX_F_B_SLICE] = u0[dv] / dt  # specific force of the receiver at rest, body
         z = truth.h("doppler_rate", aux)[0] + rng.normal(0, DR_SIGMA_HZPS, t_leo.size)
         parts.append(records.measurement_records(t_leo, lib.kind_id("doppler_rate"), z, DR_SIGMA_HZPS**2, aux,
                                                  100 + sat))
-    P0 = np.diag(np.r_[np.full(3, 10.0**2), np.full(3, 0.5**2), np.full(3, 0.01**2), np.full(3, 0.05**2),
-                       np.full(3, 1e-4**2), 100.0**2, 1.0**2, 10.0**2])
+    sd = {"dp": 10.0, "dv": 0.5, "dtheta": 0.01, "db_a": 0.05, "db_g": 1e-4, "dc_dt": 100.0, "dc_ddt": 1.0,
+          "db_lo": 10.0}  # prior standard deviations per error-state block (SI)
+    P0 = np.zeros((L.NDX, L.NDX))
+    for name, s in sd.items():
+        block = getattr(L, f"DX_{name.upper()}_SLICE")
+        P0[block, block] = np.eye(block.stop - block.start) * s**2
     x0 = x_true.copy()
-    x0[0:3] = [3.0, -2.0, 1.0]
+    x0[L.X_P_ENU_SLICE] = [3.0, -2.0, 1.0]
     return records.merge_records(*parts), x_true, x0, P0, params
 
 
@@ -202,6 +208,7 @@ def run_benchmark(seconds: float = 20.0, repeats: int = 20, py_repeats: int = 2,
     c_s, c_all, c_fin = time_numpy(recs, x0, P0, params, gate, suffix_of, py_repeats)
 
     per = {k: v / n_imu * 1e6 for k, v in (("a", a_s), ("b", b_s), ("c", c_s), ("d", d_s))}
+    pos = L.X_P_ENU_SLICE
     x_a = a_fin["x"]
     res = a_fin["res"]
     gen_files = sorted(compiled.GEN_DIR.glob("leonav_gen.[ch]"))
@@ -218,10 +225,10 @@ def run_benchmark(seconds: float = 20.0, repeats: int = 20, py_repeats: int = 2,
         "repeats": {"c_paths": repeats, "python_paths": py_repeats,
                     "a_median_us_per_imu_step": statistics.median(a_all) / n_imu * 1e6},
         "agreement_final_state": {
-            "b_minus_a_pos_m": float(np.max(np.abs(b_fin["x"][:3] - x_a[:3]))),
-            "c_minus_a_pos_m": float(np.max(np.abs(c_fin["x"][:3] - x_a[:3]))),
-            "d_minus_a_pos_m": float(np.max(np.abs(d_x[:3] - x_a[:3]))),
-            "a_pos_error_m": float(np.linalg.norm(x_a[:3] - x_true[:3])),
+            "b_minus_a_pos_m": float(np.max(np.abs(b_fin["x"][pos] - x_a[pos]))),
+            "c_minus_a_pos_m": float(np.max(np.abs(c_fin["x"][pos] - x_a[pos]))),
+            "d_minus_a_pos_m": float(np.max(np.abs(d_x[pos] - x_a[pos]))),
+            "a_pos_error_m": float(np.linalg.norm(x_a[pos] - x_true[pos])),
             "a_counts": {"applied": res.n_applied, "gated": res.n_gated, "failed": res.n_failed},
         },
         "code": {"generated": code_size(gen_files), "driver": code_size(driver_files),

@@ -14,10 +14,20 @@ import math
 
 import numpy as np
 
-from models import constants as K
-from models import state as S
+from leonav_runtime.gen import constants as K
+from leonav_runtime.gen import state_layout as L
 
 EPS = 1e-6  # finite-difference step on the error state and on the IMU increments
+
+# x = [p_enu, v_enu | q_nb | b_a ... b_lo] and dx = [dp, dv | dtheta | db_a ... db_lo]: the
+# outer groups are additive, the quaternion in between is retracted.
+PV_X, PV_DX = slice(L.X_P_ENU, L.X_Q_NB), slice(L.DX_DP, L.DX_DTHETA)
+REST_X, REST_DX = slice(L.X_B_A, L.NX), slice(L.DX_DB_A, L.NDX)
+# mech() and boxplus() assemble x block by block in this order (docs/design.md)
+_X_ORDER = ("P_ENU", "V_ENU", "Q_NB", "B_A", "B_G", "C_DT", "C_DDT", "B_LO")
+assert [getattr(L, f"X_{n}") for n in _X_ORDER] == \
+    list(np.cumsum([0] + [getattr(L, f"X_{n}_SIZE") for n in _X_ORDER[:-1]])), "numpy_ekf: x block order changed"
+assert L.DX_DTHETA_SLICE.stop == L.DX_DB_A, "numpy_ekf: dx block order changed"
 
 
 # ---- quaternions, batched over rows: q has shape (m, 4), [w x y z] --------------------
@@ -83,12 +93,12 @@ def normal_gravity(lat: np.ndarray, h: np.ndarray) -> np.ndarray:
 class NumpyEKF:
     """Error-state EKF in NumPy (benchmark reference). x (NX,), P (NDX, NDX), p (NP,)."""
 
-    def __init__(self, x0, P0, p, gate_nis: float = 10.827566170662733) -> None:
+    def __init__(self, x0, P0, p, gate_nis: float = K.CHI2_1DOF_999) -> None:
         self.x = np.array(x0, dtype=float)
         self.P = np.array(P0, dtype=float)
         self.p = np.array(p, dtype=float)
         self.gate = gate_nis
-        lat0, lon0, h0 = self.p[0], self.p[1], self.p[2]
+        lat0, lon0, h0 = self.p[L.P_LAT0_RAD], self.p[L.P_LON0_RAD], self.p[L.P_H0_M]
         self.r0 = ecef_from_geodetic(lat0, lon0, h0)
         self.C_n_e = enu_axes(lat0, lon0)
         self.w_ie = K.OMEGA_IE_RADPS * np.array([0.0, math.cos(lat0), math.sin(lat0)])
@@ -102,15 +112,16 @@ class NumpyEKF:
         return -normal_gravity(lat, h)[:, None] * (up @ self.C_n_e)
 
     def mech(self, X: np.ndarray, U: np.ndarray, dt: float) -> np.ndarray:
-        """Nominal states after dt for rows X (m, NX) with increments U (m, 6)."""
-        pos, vel, q, b_a, b_g = X[:, 0:3], X[:, 3:6], X[:, 6:10], X[:, 10:13], X[:, 13:16]
-        phi = U[:, 0:3] - b_g * dt
+        """Nominal states after dt for rows X (m, NX) with increments U (m, NU)."""
+        pos, vel, q = X[:, L.X_P_ENU_SLICE], X[:, L.X_V_ENU_SLICE], X[:, L.X_Q_NB_SLICE]
+        b_a, b_g = X[:, L.X_B_A_SLICE], X[:, L.X_B_G_SLICE]
+        phi = U[:, L.U_DTHETA_B_SLICE] - b_g * dt
         e_full = quat_exp(np.tile(-self.w_ie * dt, (len(X), 1)))
         e_half = quat_exp(np.tile(-self.w_ie * dt / 2, (len(X), 1)))
         q_next = quat_mul(e_full, quat_mul(q, quat_exp(phi)))
         q_next /= np.linalg.norm(q_next, axis=1, keepdims=True)
         q_mid = quat_mul(e_half, quat_mul(q, quat_exp(phi / 2)))
-        dv_sf = np.einsum("mij,mj->mi", rot(q_mid), U[:, 3:6] - b_a * dt)
+        dv_sf = np.einsum("mij,mj->mi", rot(q_mid), U[:, L.U_DVEL_B_SLICE] - b_a * dt)
 
         def a_gc(pos_, vel_):
             return self.gravity(pos_) - 2 * np.cross(self.w_ie, vel_)
@@ -120,69 +131,73 @@ class NumpyEKF:
         pos_pred = pos + (vel + vel_pred) * dt / 2
         vel_next = vel + dv_sf + (a0 + a_gc(pos_pred, vel_pred)) * dt / 2
         pos_next = pos + (vel + vel_next) * dt / 2
-        clock = np.stack([X[:, 16] + X[:, 17] * dt, X[:, 17], X[:, 18]], -1)
+        clock = np.stack([X[:, L.X_C_DT] + X[:, L.X_C_DDT] * dt, X[:, L.X_C_DDT], X[:, L.X_B_LO]], -1)
         return np.hstack([pos_next, vel_next, q_next, b_a, b_g, clock])
 
     @staticmethod
     def boxplus(x: np.ndarray, DX: np.ndarray) -> np.ndarray:
-        q = quat_mul(np.tile(x[6:10], (len(DX), 1)), quat_exp(DX[:, 6:9]))
-        return np.hstack([x[0:6] + DX[:, 0:6], q, x[10:19] + DX[:, 9:18]])
+        q = quat_mul(np.tile(x[L.X_Q_NB_SLICE], (len(DX), 1)), quat_exp(DX[:, L.DX_DTHETA_SLICE]))
+        return np.hstack([x[PV_X] + DX[:, PV_DX], q, x[REST_X] + DX[:, REST_DX]])
 
     @staticmethod
     def boxminus(X1: np.ndarray, x0: np.ndarray) -> np.ndarray:
-        q0_inv = np.tile(x0[6:10] * np.array([1.0, -1.0, -1.0, -1.0]), (len(X1), 1))
-        dq = quat_mul(q0_inv, X1[:, 6:10])
-        return np.hstack([X1[:, 0:6] - x0[0:6], 2 * np.sign(dq[:, :1]) * dq[:, 1:], X1[:, 10:19] - x0[10:19]])
+        q0_inv = np.tile(x0[L.X_Q_NB_SLICE] * np.array([1.0, -1.0, -1.0, -1.0]), (len(X1), 1))
+        dq = quat_mul(q0_inv, X1[:, L.X_Q_NB_SLICE])
+        return np.hstack([X1[:, PV_X] - x0[PV_X], 2 * np.sign(dq[:, :1]) * dq[:, 1:], X1[:, REST_X] - x0[REST_X]])
 
     def h(self, kind: str, X: np.ndarray, aux: np.ndarray) -> np.ndarray:
         """Predicted measurement of `kind` for rows X (m, NX)."""
         if kind in ("pos_e", "pos_n", "pos_u"):
-            return X[:, "enu".index(kind[-1])]
-        r_U = self.r0 + X[:, 0:3] @ self.C_n_e.T
-        r_S = aux[0:3]
+            return X[:, L.X_P_ENU + "enu".index(kind[-1])]
+        r_U = self.r0 + X[:, L.X_P_ENU_SLICE] @ self.C_n_e.T
+        r_S = aux[L.AUX_R_S_ECEF_SLICE]
         if kind == "pseudorange":
             sagnac = K.OMEGA_IE_RADPS / K.C_LIGHT_MPS * (r_S[0] * r_U[:, 1] - r_S[1] * r_U[:, 0])
-            return np.linalg.norm(r_S - r_U, axis=1) + sagnac + X[:, 16]
+            return np.linalg.norm(r_S - r_U, axis=1) + sagnac + X[:, L.X_C_DT]
         if kind == "doppler_rate":
-            v_U = X[:, 3:6] @ self.C_n_e.T
-            f_b = aux[18:21]
-            a_enu = (np.einsum("mij,mj->mi", rot(X[:, 6:10]), f_b - X[:, 10:13]) + self.gravity(X[:, 0:3])
-                     - 2 * np.cross(self.w_ie, X[:, 3:6]))
+            v_U = X[:, L.X_V_ENU_SLICE] @ self.C_n_e.T
+            f_b = aux[L.AUX_F_B_SLICE]
+            a_enu = (np.einsum("mij,mj->mi", rot(X[:, L.X_Q_NB_SLICE]), f_b - X[:, L.X_B_A_SLICE])
+                     + self.gravity(X[:, L.X_P_ENU_SLICE]) - 2 * np.cross(self.w_ie, X[:, L.X_V_ENU_SLICE]))
             a_U = a_enu @ self.C_n_e.T
             d = r_S - r_U
             rho = np.linalg.norm(d, axis=1)
             u = d / rho[:, None]
-            v_rel = aux[3:6] - v_U
+            v_rel = aux[L.AUX_V_S_ECEF_SLICE] - v_U
             rho_dot = np.sum(u * v_rel, axis=1)
-            rho_ddot = np.sum(u * (aux[6:9] - a_U), axis=1) + (np.sum(v_rel * v_rel, axis=1) - rho_dot**2) / rho
-            return -(self.p[10] / K.C_LIGHT_MPS) * rho_ddot
+            rho_ddot = (np.sum(u * (aux[L.AUX_A_S_ECEF_SLICE] - a_U), axis=1)
+                        + (np.sum(v_rel * v_rel, axis=1) - rho_dot**2) / rho)
+            return -(self.p[L.P_F_C_HZ] / K.C_LIGHT_MPS) * rho_ddot
         raise NotImplementedError(f"observable {kind!r} is not part of the NumPy benchmark reference")
 
     # -- filter -----------------------------------------------------------------------
     def predict(self, u: np.ndarray, dt: float) -> None:
-        ndx = S.NDX
-        X = np.vstack([self.x, self.boxplus(self.x, EPS * np.eye(ndx)), np.tile(self.x, (6, 1))])
-        U = np.tile(u, (1 + ndx + 6, 1))
-        U[1 + ndx:] += EPS * np.eye(6)
+        ndx, nu = L.NDX, L.NU
+        X = np.vstack([self.x, self.boxplus(self.x, EPS * np.eye(ndx)), np.tile(self.x, (nu, 1))])
+        U = np.tile(u, (1 + ndx + nu, 1))
+        U[1 + ndx:] += EPS * np.eye(nu)
         out = self.mech(X, U, dt)
         x_next = out[0]
         F = (self.boxminus(out[1:1 + ndx], x_next) / EPS).T
         G = (self.boxminus(out[1 + ndx:], x_next) / EPS).T
         p = self.p
-        Qd = G @ np.diag(np.r_[np.full(3, p[4] ** 2 * dt), np.full(3, p[3] ** 2 * dt)]) @ G.T
-        Qd[np.arange(9, 12), np.arange(9, 12)] += p[5] ** 2 * dt
-        Qd[np.arange(12, 15), np.arange(12, 15)] += p[6] ** 2 * dt
-        Qd[17, 17] += p[9] * dt
-        Qd[15, 15] += p[7] * dt + p[8] * dt**3 / 3
-        Qd[15, 16] += p[8] * dt**2 / 2
-        Qd[16, 15] += p[8] * dt**2 / 2
-        Qd[16, 16] += p[8] * dt
+        Qd = G @ np.diag(np.r_[np.full(L.U_DTHETA_B_SIZE, p[L.P_ARW] ** 2 * dt),
+                               np.full(L.U_DVEL_B_SIZE, p[L.P_VRW] ** 2 * dt)]) @ G.T
+        ba, bg = np.r_[L.DX_DB_A_SLICE], np.r_[L.DX_DB_G_SLICE]
+        Qd[ba, ba] += p[L.P_ACC_BIAS_RW] ** 2 * dt
+        Qd[bg, bg] += p[L.P_GYRO_BIAS_RW] ** 2 * dt
+        Qd[L.DX_DB_LO, L.DX_DB_LO] += p[L.P_Q_BLO] * dt
+        c, d = L.DX_DC_DT, L.DX_DC_DDT
+        Qd[c, c] += p[L.P_Q_CDT] * dt + p[L.P_Q_CDDT] * dt**3 / 3
+        Qd[c, d] += p[L.P_Q_CDDT] * dt**2 / 2
+        Qd[d, c] += p[L.P_Q_CDDT] * dt**2 / 2
+        Qd[d, d] += p[L.P_Q_CDDT] * dt
         P = F @ self.P @ F.T + Qd
         self.x, self.P = x_next, (P + P.T) / 2
 
     def update(self, kind: str, z: float, R: float, aux: np.ndarray) -> int:
         """Scalar Joseph update; returns 0 applied, 1 gated, 2 failed."""
-        X = np.vstack([self.x, self.boxplus(self.x, EPS * np.eye(S.NDX))])
+        X = np.vstack([self.x, self.boxplus(self.x, EPS * np.eye(L.NDX))])
         hs = self.h(kind, X, aux)
         H = (hs[1:] - hs[0]) / EPS
         y = z - hs[0]

@@ -88,6 +88,13 @@ def build_functions() -> list[ca.Function]:
                        {"J_next": ekf.information_add(Jm, Hm, Rm)},
                        f"{suffix}: Fisher information add J + H^T H / R"))
 
+    # PCRB measurement step for any observable, H from its leonav_h_<k>: MX (dense loops,
+    # a few lines of C; the bound is not on the filter's hot path)
+    Bm, Hm = ca.MX.sym("B", NDX, NDX), ca.MX.sym("H", 1, NDX)
+    B_next, S_b = ekf.information_step(Bm, Hm, Rm)
+    out.append(_fn("leonav_pcrb_update", {"B": Bm, "H": Hm, "R": Rm}, {"B_next": B_next, "S": S_b},
+                   "PCRB measurement step on B = J^-1 (Sherman-Morrison): B - B H^T H B / S, S = H B H^T + R"))
+
     dx = ca.SX.sym("dx", NDX)
     x0 = ca.SX.sym("x0", NX)
     out.append(_fn("leonav_boxplus", {"x": x, "dx": dx}, {"x_out": frames.boxplus(x, dx)},

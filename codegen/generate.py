@@ -8,6 +8,7 @@ from pathlib import Path
 import casadi as ca
 
 from codegen import emit_data
+from codegen.driver_codes import RECORD_STATUSES, RETURN_CODES
 from models import state as S
 
 GEN_NAME = "leonav_gen"
@@ -29,12 +30,17 @@ def _banner(comment: str) -> str:
     )
 
 
+def _c_int(value: int) -> str:
+    return f"({value})" if value < 0 else str(value)
+
+
 def _c_header_layout() -> str:
     lines = [_banner("//").rstrip("\n"), "#ifndef LEONAV_STATE_LAYOUT_H", "#define LEONAV_STATE_LAYOUT_H", ""]
     def define(name, value, doc=""):
-        lines.append(f"#define {name} {value}" + (f"  /* {doc} */" if doc else ""))
+        lines.append(f"#define {name} {_c_int(value)}" + (f"  /* {doc} */" if doc else ""))
     for name, value in (("NX", S.NX), ("NDX", S.NDX), ("NP", S.NP), ("NAUX", S.NAUX), ("NU", S.NU)):
         define(f"LEONAV_{name}", value)
+    define("LEONAV_NNAV", S.NNAV, "the 9D navigation error (dp, dv, dtheta) = dx[0:NNAV]")
     for prefix, blocks in (("X", S.X_BLOCKS), ("DX", S.DX_BLOCKS), ("AUX", S.AUX_BLOCKS), ("U", S.U_BLOCKS)):
         lines.append("")
         for b in blocks:
@@ -44,38 +50,68 @@ def _c_header_layout() -> str:
     for b in S.P_BLOCKS:
         define(f"LEONAV_P_{b.name.upper()}", b.offset, f"{b.unit}: {b.doc}")
     lines.append("")
-    define("LEONAV_MEAS_IMU", -1, "record kind of an IMU interval")
-    for i, (name, _, unit) in enumerate(S.MEASUREMENTS):
-        define(f"LEONAV_MEAS_{name}", i, unit)
+    define("LEONAV_MEAS_IMU", S.KIND_IMU, "record kind of an IMU interval")
+    for i, m in enumerate(S.MEASUREMENTS):
+        define(f"LEONAV_MEAS_{m.name}", i, m.unit)
     define("LEONAV_NMEAS", S.NMEAS)
+    lines += ["", "/* Observables: X(kind id, function suffix, dimension of z, name, unit of z), in kind-id order.",
+              " * The driver builds its dispatch table from this list (leonav_h_<suffix>, leonav_update_<suffix>),",
+              " * so a new observable in models/ needs no driver edit. */",
+              "#define LEONAV_MEAS_TABLE(X) \\"]
+    rows = [f'    X(LEONAV_MEAS_{m.name}, {m.suffix}, {m.dim}, "{m.name}", "{m.unit}")' for m in S.MEASUREMENTS]
+    lines += [row + " \\" for row in rows[:-1]] + rows[-1:]
+    lines += ["", "/* Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome,",
+              " * < 0 an error (codegen/driver_codes.py). */"]
+    for c in RETURN_CODES:
+        define(f"LEONAV_{c.name}", c.value, c.doc)
+    lines.append("/* X(name) for every return code above (LEONAV_<name>), e.g. for leonav_code_name() */")
+    lines.append("#define LEONAV_RETURN_CODE_TABLE(X) " + " ".join(f"X({c.name})" for c in RETURN_CODES))
+    lines += ["", "/* Per-record status written by leonav_run into leonav_run_out.status (its own enum:",
+              " * a measurement record stores its update's return code, an IMU record STATUS_IMU). */"]
+    for c in RECORD_STATUSES:
+        define(f"LEONAV_{c.name}", c.value, c.doc)
     lines += ["", "#endif  /* LEONAV_STATE_LAYOUT_H */", ""]
     return "\n".join(lines)
 
 
 def _py_layout() -> str:
-    lines = [_banner("#").rstrip("\n"), '"""State, parameter, aux and observable layout (twin of state_layout.h). No casadi."""', ""]
+    lines = [_banner("#").rstrip("\n"),
+             '"""State, parameter, aux and observable layout, driver codes (twin of state_layout.h). No casadi."""',
+             "from collections import namedtuple", ""]
     for name, value in (("NX", S.NX), ("NDX", S.NDX), ("NP", S.NP), ("NAUX", S.NAUX), ("NU", S.NU)):
         lines.append(f"{name} = {value}")
+    lines.append(f"NNAV = {S.NNAV}  # the 9D navigation error (dp, dv, dtheta) = dx[DX_NAV9_SLICE]")
     for prefix, blocks in (("X", S.X_BLOCKS), ("DX", S.DX_BLOCKS), ("AUX", S.AUX_BLOCKS), ("U", S.U_BLOCKS)):
         lines.append("")
         for b in blocks:
             lines.append(f"{prefix}_{b.name.upper()} = {b.offset}  # {b.unit}: {b.doc}")
             lines.append(f"{prefix}_{b.name.upper()}_SIZE = {b.size}")
             lines.append(f"{prefix}_{b.name.upper()}_SLICE = slice({b.offset}, {b.offset + b.size})")
-    nav9 = S.DX["dtheta"].offset + S.DX["dtheta"].size
-    lines.append(f"DX_NAV9_SLICE = slice(0, {nav9})  # the 9D navigation error: dp, dv, dtheta")
+    nav0 = S.DX[S.NAV_BLOCKS[0]].offset
+    lines.append(f"DX_NAV9_SLICE = slice({nav0}, {nav0 + S.NNAV})  # the 9D navigation error: dp, dv, dtheta")
     lines.append("")
     for b in S.P_BLOCKS:
         lines.append(f"P_{b.name.upper()} = {b.offset}  # {b.unit}: {b.doc}")
     lines.append("")
-    lines.append("MEAS_IMU = -1  # record kind of an IMU interval")
-    for i, (name, _, unit) in enumerate(S.MEASUREMENTS):
-        lines.append(f"MEAS_{name} = {i}  # {unit}")
+    lines.append(f"MEAS_IMU = {S.KIND_IMU}  # record kind of an IMU interval")
+    for i, m in enumerate(S.MEASUREMENTS):
+        lines.append(f"MEAS_{m.name} = {i}  # {m.unit}")
     lines.append(f"NMEAS = {S.NMEAS}")
-    lines.append(f"MEAS_NAMES = {[name for name, _, _ in S.MEASUREMENTS]!r}")
-    lines.append(f"MEAS_SUFFIXES = {[suffix for _, suffix, _ in S.MEASUREMENTS]!r}  # leonav_h_<suffix> ...")
-    lines.append(f"MEAS_UNITS = {[unit for _, _, unit in S.MEASUREMENTS]!r}")
-    lines.append(f"P_NAMES = {[b.name for b in S.P_BLOCKS]!r}")
+    lines += ["",
+              "# Observables in kind-id order (twin of LEONAV_MEAS_TABLE): kind id, function suffix",
+              "# (leonav_h_<suffix>, leonav_update_<suffix>), dimension of z, name, unit.",
+              'Observable = namedtuple("Observable", "kind suffix dim name unit")',
+              "MEAS_TABLE = ("]
+    lines += [f"    Observable(MEAS_{m.name}, {m.suffix!r}, {m.dim}, {m.name!r}, {m.unit!r})," for m in S.MEASUREMENTS]
+    lines += [")",
+              f"P_NAMES = {[b.name for b in S.P_BLOCKS]!r}",
+              "",
+              "# Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome, < 0 an error."]
+    lines += [f"{c.name} = {c.value}  # {c.doc}" for c in RETURN_CODES]
+    lines += ["RETURN_NAMES = {" + ", ".join(f"{c.value}: 'LEONAV_{c.name}'" for c in RETURN_CODES) + "}",
+              "",
+              "# Per-record status of leonav_run (leonav_run_out.status, RunResult.status): its own enum."]
+    lines += [f"{c.name} = {c.value}  # {c.doc}" for c in RECORD_STATUSES]
     lines.append("")
     return "\n".join(lines)
 

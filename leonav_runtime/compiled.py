@@ -32,6 +32,8 @@ from types import ModuleType
 
 import numpy as np
 
+from leonav_runtime.gen import state_layout as _codes  # driver return codes (same in every layout)
+
 PACKAGE_DIR = Path(__file__).resolve().parent
 # $LEONAV_GEN_DIR points the loader at regenerated code elsewhere (tests, Pi build checks)
 GEN_DIR = Path(os.environ.get("LEONAV_GEN_DIR") or PACKAGE_DIR / "gen")
@@ -208,22 +210,26 @@ def load_layout(gen_dir: Path = GEN_DIR) -> ModuleType:
 
 
 def measurement_ids(layout: ModuleType) -> dict[str, int]:
-    """Observable function suffix (e.g. 'pseudorange') -> LEONAV_MEAS_* id."""
-    return {str(name): i for i, name in enumerate(layout.MEAS_SUFFIXES)}
+    """Observable function suffix (e.g. 'pseudorange') -> LEONAV_MEAS_* id, from the generated
+    observable table (`MEAS_TABLE`, twin of the C driver's LEONAV_MEAS_TABLE)."""
+    return {str(m.suffix): int(m.kind) for m in layout.MEAS_TABLE}
 
 
 def expected_shapes(layout: ModuleType) -> dict[str, tuple[list[tuple[int, int]], list[tuple[int, int]]]]:
     """Generated function name -> (input shapes, output shapes) required by the driver."""
-    nx, ndx, naux, np_, nu = layout.NX, layout.NDX, layout.NAUX, layout.NP, getattr(layout, "NU", 6)
+    nx, ndx, naux, np_, nu = layout.NX, layout.NDX, layout.NAUX, layout.NP, layout.NU
     x, P, u, s, p, aux = (nx, 1), (ndx, ndx), (nu, 1), (1, 1), (np_, 1), (naux, 1)
     shapes = {
         "leonav_mech": ([x, u, s, p], [x]),
         "leonav_predict": ([x, P, u, s, p], [x, P, P, P]),
+        "leonav_boxminus": ([x, x], [(ndx, 1)]),
+        "leonav_pcrb_update": ([P, (1, ndx), s], [P, s]),
     }
-    for k in measurement_ids(layout):
-        shapes[f"leonav_h_{k}"] = ([x, aux, p], [s, (1, ndx)])
-        shapes[f"leonav_update_{k}"] = ([x, P, s, s, aux, p], [x, P, s, s, s])
-        shapes[f"leonav_pcrb_info_{k}"] = ([P, x, aux, p, s], [P])
+    for m in layout.MEAS_TABLE:
+        z = (m.dim, 1)
+        shapes[f"leonav_h_{m.suffix}"] = ([x, aux, p], [z, (m.dim, ndx)])
+        shapes[f"leonav_update_{m.suffix}"] = ([x, P, z, s, aux, p], [x, P, z, s, s])
+        shapes[f"leonav_pcrb_info_{m.suffix}"] = ([P, x, aux, p, s], [P])
     return shapes
 
 
@@ -274,6 +280,9 @@ def _declare(lib: ctypes.CDLL) -> None:
         "leonav_h_step": (i, [i, dp, dp, dp, dp, dp, vp]),
         "leonav_run": (i, [dp, dp, dp, vp, lng, dp, ctypes.POINTER(RunOut), vp]),
         "leonav_pcrb_run": (i, [dp, dp, vp, lng, dp, dp, dp, dp, lp, vp]),
+        "leonav_code_name": (ctypes.c_char_p, [i]),
+        "leonav_meas_name": (ctypes.c_char_p, [i]),
+        "leonav_meas_unit": (ctypes.c_char_p, [i]),
     }
     for name, (restype, argtypes) in sigs.items():
         fn = getattr(lib, name)
@@ -293,8 +302,10 @@ class RunOut(ctypes.Structure):
     ]
 
 
-ERROR_NAMES = {-1: "LEONAV_ERR_WORK", -2: "LEONAV_ERR_KIND", -3: "LEONAV_ERR_LAYOUT",
-               -4: "LEONAV_ERR_ARG", -5: "LEONAV_ERR_NUMERIC"}
+def code_name(rc: int, layout: ModuleType | None = None) -> str:
+    """'LEONAV_ERR_KIND' etc. for a driver return code (generated RETURN_NAMES), else str(rc)."""
+    names = (layout or _codes).RETURN_NAMES
+    return names.get(int(rc), str(rc))
 
 
 @dataclass
@@ -311,8 +322,8 @@ class Library:
         """A fresh initialised workspace (keep the array alive and unmoved while used)."""
         work = np.zeros((self.work_size + 7) // 8, dtype=np.float64)
         rc = self.lib.leonav_work_init(work.ctypes.data, work.nbytes)
-        if rc != 0:
-            raise LayoutMismatchError(f"leonav_work_init returned {ERROR_NAMES.get(rc, rc)}")
+        if rc != self.layout.OK:
+            raise LayoutMismatchError(f"leonav_work_init returned {code_name(rc, self.layout)}")
         return work
 
     def kind_id(self, kind: int | str) -> int:

@@ -24,9 +24,9 @@ def position_gradients(setup: simulate.Setup, nav: navfuncs.NavFunctions, kind_n
     s = setup.series[kind_name]
     L = nav.layout
     k = np.rint(s.t_s[rows] * setup.scn.imu_rate_hz).astype(int)
-    grads = np.empty((rows.size, 3))
+    grads = np.empty((rows.size, L.X_P_ENU_SIZE))
     for j, (row, kk) in enumerate(zip(rows, k)):
-        for axis in range(3):
+        for axis in range(L.X_P_ENU_SIZE):
             xp, xm = setup.x_true[kk].copy(), setup.x_true[kk].copy()
             xp[L.X_P_ENU + axis] += FD_STEP_M
             xm[L.X_P_ENU + axis] -= FD_STEP_M
@@ -53,8 +53,9 @@ def pcrb_static(setup: simulate.Setup, nav: navfuncs.NavFunctions, count: int, m
     for off in (L.P_VRW, L.P_ARW, L.P_ACC_BIAS_RW, L.P_GYRO_BIAS_RW, L.P_Q_CDT, L.P_Q_CDDT, L.P_Q_BLO):
         params[off] = tiny_noise
     B0 = np.eye(L.NDX) * tight_var
-    B0[L.DX_DP:L.DX_DP + 3, L.DX_DP:L.DX_DP + 3] = np.eye(3) * vague_position_var_m2
+    dp = L.DX_DP_SLICE
+    B0[dp, dp] = np.eye(L.DX_DP_SIZE) * vague_position_var_m2
     from leonav_runtime.montecarlo import pcrb_on_truth
 
     _, res = pcrb_on_truth(setup, nav, mode, count, B0=B0, params=params)
-    return res.B_nav[-1][0:3, 0:3]
+    return res.B_nav[-1][dp, dp]  # B_nav's rows are those of dx[DX_NAV9_SLICE], which starts at dp

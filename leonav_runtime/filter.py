@@ -21,9 +21,14 @@ from typing import Mapping, Union
 import numpy as np
 
 from leonav_runtime import compiled, records
+from leonav_runtime.gen import state_layout as _codes
 from leonav_runtime.gen.constants import CHI2_1DOF_999
 
-STATUS_IMU, STATUS_APPLIED, STATUS_GATED, STATUS_FAILED = -1, 0, 1, 2
+# Per-record statuses (RunResult.status, EKF.status; generated, docs/design.md "Records"):
+# -1 IMU predicted, 0 applied, 1 gated, 2 numerical failure. The C step functions return
+# the driver's return codes instead (0 success, 1 gated, 2 failed, < 0 error).
+STATUS_IMU, STATUS_APPLIED = _codes.STATUS_IMU, _codes.STATUS_APPLIED
+STATUS_GATED, STATUS_FAILED = _codes.STATUS_GATED, _codes.STATUS_FAILED
 
 GateSpec = Union[None, float, Mapping[Union[str, int], float]]
 
@@ -39,8 +44,8 @@ class RunResult:
     """Per-record results of `EKF.run` (row i belongs to record i).
 
     t (s), kind, sat_id, x (n, NX), P_diag (n, NDX), P (n, NDX, NDX) or None, y, S,
-    nis (NaN on IMU records and where not computed), status (-1 IMU, 0 applied,
-    1 gated, 2 numerical failure), and counts.
+    nis (NaN on IMU records and where not computed), status (per-record: STATUS_IMU -1 IMU
+    predicted, STATUS_APPLIED 0, STATUS_GATED 1, STATUS_FAILED 2 numerical failure), and counts.
     """
 
     t: np.ndarray
@@ -113,13 +118,16 @@ class EKF:
     def predict(self, u, dt: float) -> int:
         """Propagate over one IMU interval dt (s) with u = [dtheta_b (rad), dvel_b (m/s)].
 
-        Returns -1 (predicted) or 2 (numerical failure: x, P unchanged).
+        Returns the record status STATUS_IMU (-1, predicted) or STATUS_FAILED (2, numerical
+        failure: x, P unchanged), as `run` reports the record.
         """
         u = self._vector("u", u, records.NU)
-        status = self.lib.lib.leonav_predict_step(
+        rc = self.lib.lib.leonav_predict_step(
             _ptr(self.x), _ptr(self.P), _ptr(u), float(dt), _ptr(self.params),
             _ptr(self.F), _ptr(self.Q), self._work.ctypes.data)
-        self.status = int(status)
+        if rc < 0:
+            raise RuntimeError(f"leonav_predict_step returned {compiled.code_name(rc)}")
+        self.status = STATUS_IMU if rc == _codes.OK else STATUS_FAILED
         self.x_prior, self.P_prior = self.x.copy(), self.P.copy(order="F")
         return self.status
 
@@ -127,20 +135,20 @@ class EKF:
         """Scalar update with observable `kind`; returns True when applied.
 
         z in the observable's unit, R its variance, aux (NAUX,) (zeros if None).
-        After the call: y, S, nis, status (0 applied, 1 gated, 2 failure), x_prior/P_prior
+        After the call: y, S, nis, status (record status: 0 applied, 1 gated, 2 failure), x_prior/P_prior
         (before), x_post/P_post (after; equal to the prior when not applied).
         """
         k = self.lib.kind_id(kind)
         aux_v = np.zeros(records.NAUX) if aux is None else self._vector("aux", aux, records.NAUX)
         ysn = np.full(3, np.nan)
         self.x_prior, self.P_prior = self.x.copy(), self.P.copy(order="F")
-        status = self.lib.lib.leonav_update_step(
+        rc = self.lib.lib.leonav_update_step(
             _ptr(self.x), _ptr(self.P), k, float(z), float(R), _ptr(aux_v), _ptr(self.params),
             float(self.gate[k]), _ptr(ysn), self._work.ctypes.data)
-        if status < 0:
-            raise RuntimeError(f"leonav_update_step returned {compiled.ERROR_NAMES.get(status, status)}")
+        if rc < 0:
+            raise RuntimeError(f"leonav_update_step returned {compiled.code_name(rc)}")
         self.y, self.S, self.nis = (float(v) for v in ysn)
-        self.status = int(status)
+        self.status = {_codes.OK: STATUS_APPLIED, _codes.GATED: STATUS_GATED}.get(int(rc), STATUS_FAILED)
         self.x_post, self.P_post = self.x.copy(), self.P.copy(order="F")
         return self.status == STATUS_APPLIED
 
@@ -152,8 +160,8 @@ class EKF:
         h, H = np.zeros(1), np.zeros(self.ndx)
         rc = self.lib.lib.leonav_h_step(k, _ptr(x_v), _ptr(aux_v), _ptr(self.params), _ptr(h), _ptr(H),
                                         self._work.ctypes.data)
-        if rc != 0:
-            raise RuntimeError(f"leonav_h_step returned {rc}")
+        if rc != _codes.OK:
+            raise RuntimeError(f"leonav_h_step returned {compiled.code_name(rc)}")
         return float(h[0]), H
 
     # -- whole streams ----------------------------------------------------------
@@ -192,8 +200,8 @@ class EKF:
             status=status.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
         rc = self.lib.lib.leonav_run(_ptr(self.x), _ptr(self.P), _ptr(self.params), recs.ctypes.data, n,
                                      _ptr(gates), ctypes.byref(out), self._work.ctypes.data)
-        if rc != 0:
-            raise RuntimeError(f"leonav_run returned {compiled.ERROR_NAMES.get(rc, rc)} at record {out.n_done}")
+        if rc != _codes.OK:
+            raise RuntimeError(f"leonav_run returned {compiled.code_name(rc)} at record {out.n_done}")
         if p_hist is not None:
             p_hist = p_hist.transpose(0, 2, 1)  # each block was written column-major
         return RunResult(recs["t"].copy(), recs["kind"].copy(), recs["sat_id"].copy(), x_hist, pd_hist, p_hist,
@@ -203,7 +211,7 @@ class EKF:
 
 @dataclass
 class PcrbResult:
-    """PCRB history: B_diag (n, NDX), B_nav (n, 9, 9) block of dp dv dtheta, B final."""
+    """PCRB history: B_diag (n, NDX), B_nav (n, NNAV, NNAV) block of dp dv dtheta (the 9D), B final."""
 
     t: np.ndarray
     B_diag: np.ndarray
@@ -219,7 +227,7 @@ def pcrb(recs: np.ndarray, x_lin: np.ndarray, B0, params, library: compiled.Libr
     covariance (NDX, NDX). Measurement R must be > 0.
     """
     lib = library if library is not None else compiled.load()
-    ndx, nx = int(lib.layout.NDX), int(lib.layout.NX)
+    ndx, nx, nnav = int(lib.layout.NDX), int(lib.layout.NX), int(lib.layout.NNAV)
     recs = np.ascontiguousarray(recs)
     records.check_records(recs, len(lib.meas_ids))
     n = recs.size
@@ -230,13 +238,13 @@ def pcrb(recs: np.ndarray, x_lin: np.ndarray, B0, params, library: compiled.Libr
     if B.shape != (ndx, ndx):
         raise ValueError(f"B0: expected shape ({ndx}, {ndx}), got {B.shape}")
     p = np.ascontiguousarray(params, dtype=np.float64)
-    B_diag, B_nav = np.empty((n, ndx)), np.empty((n, 9, 9))
+    B_diag, B_nav = np.empty((n, ndx)), np.empty((n, nnav, nnav))
     done = ctypes.c_long(0)
     work = lib.new_workspace()
     rc = lib.lib.leonav_pcrb_run(_ptr(B), _ptr(p), recs.ctypes.data, n, _ptr(x_lin), _ptr(B_diag), _ptr(B_nav),
                                  None, ctypes.byref(done), work.ctypes.data)
-    if rc != 0:
-        raise RuntimeError(f"leonav_pcrb_run returned {compiled.ERROR_NAMES.get(rc, rc)} at record {done.value}")
+    if rc != _codes.OK:
+        raise RuntimeError(f"leonav_pcrb_run returned {compiled.code_name(rc)} at record {done.value}")
     return PcrbResult(recs["t"].copy(), B_diag, B_nav.transpose(0, 2, 1), B)
 
 

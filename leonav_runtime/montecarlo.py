@@ -25,10 +25,13 @@ from scipy import stats
 
 from leonav_runtime import filter as lfilter
 from leonav_runtime import navfuncs, simulate
+from leonav_runtime.gen import state_layout as L
 from leonav_runtime.scenario import Scenario, scenario_from_dict
 
 EVAL_RATE_HZ = 10.0
-BLOCKS = {"position": slice(0, 3), "velocity": slice(3, 6), "attitude": slice(6, 9)}
+NAV = L.DX_NAV9_SLICE  # the 9D error (dp, dv, dtheta): the leading NNAV entries of dx
+# blocks of the 9D error (and of the PCRB's B_nav, whose rows are those of dx[NAV])
+BLOCKS = {"position": L.DX_DP_SLICE, "velocity": L.DX_DV_SLICE, "attitude": L.DX_DTHETA_SLICE}
 
 _SETUPS: dict[str, simulate.Setup] = {}
 _NAV: dict[str, navfuncs.NavFunctions] = {}
@@ -73,7 +76,7 @@ def eval_rows(recs: np.ndarray, t_imu: np.ndarray, rate_hz: float, imu_rate_hz: 
 
 @dataclass
 class TrialResult:
-    """One trial: errors (nt, 9) on the output grid, NEES (nt,), NIS sums per kind.
+    """One trial: errors (nt, NNAV) of the 9D on the output grid, NEES (nt,), NIS sums per kind.
 
     p_est: estimated ENU position on the output grid (kept for trial 0 only, for plots);
     c_seconds: time spent in the C filter loop; seconds: the whole trial.
@@ -103,8 +106,8 @@ def run_trial(scn: Scenario, mode: str, count: int, index: int) -> TrialResult:
     rows, k = eval_rows(trial.records, setup.t_imu, EVAL_RATE_HZ, scn.imu_rate_hz)
     res = ekf.run(trial.records, P_rows=rows)  # full P only on the output grid, for NEES
     t_c = time.perf_counter() - t_c
-    err = nav.boxminus(res.x[rows], trial.x_true[k])[:, :9]
-    P9 = res.P[:, :9, :9]
+    err = nav.boxminus(res.x[rows], trial.x_true[k])[:, NAV]
+    P9 = res.P[:, NAV, NAV]
     nees = np.einsum("ni,ni->n", err, np.linalg.solve(P9, err[:, :, None])[:, :, 0])
     meas = res.status >= 0
     nis_sum, nis_count = {}, {}
@@ -112,7 +115,7 @@ def run_trial(scn: Scenario, mode: str, count: int, index: int) -> TrialResult:
         sel = meas & (res.kind == kind) & (res.status <= 1)
         nis_sum[int(kind)] = float(np.sum(res.nis[sel]))
         nis_count[int(kind)] = int(np.sum(sel))
-    p_est = res.x[rows, 0:3].copy() if index == 0 else None
+    p_est = res.x[rows, L.X_P_ENU_SLICE].copy() if index == 0 else None
     return TrialResult(index, err, nees, nis_sum, nis_count, res.n_gated, res.n_failed, p_est,
                        t_c, time.perf_counter() - t0)
 
@@ -164,9 +167,9 @@ def pcrb_curve(scn: Scenario, mode: str, count: int) -> dict[str, np.ndarray]:
     return {name: np.sqrt(np.trace(B[:, s, s], axis1=1, axis2=2)) for name, s in BLOCKS.items()}
 
 
-def summarize(results: list[TrialResult], bound: dict[str, np.ndarray], n_err: int = 9) -> dict:
+def summarize(results: list[TrialResult], bound: dict[str, np.ndarray], n_err: int = L.NNAV) -> dict:
     """RMSE over trials (per time and overall), PCRB, efficiency, NEES and NIS statistics."""
-    err = np.stack([r.err for r in results])               # (trials, nt, 9)
+    err = np.stack([r.err for r in results])               # (trials, nt, NNAV)
     n = err.shape[0]
     out: dict = {"trials": n}
     for name, s in BLOCKS.items():

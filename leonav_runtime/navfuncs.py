@@ -6,10 +6,16 @@ quaternion <-> Euler conversion. They are all *generated* functions in the compi
 library; this module calls them through CasADi's C calling convention
 (`f(arg, res, iw, w, mem)` with buffers sized by `f_work`), so no equation is written
 twice. For the filter loop itself use `leonav_runtime.filter`.
+
+Thread safety: a GeneratedFunction (and NavFunctions.boxminus) owns one set of buffers and
+serializes its calls with a lock, so one NavFunctions can be shared by threads (a Dask
+worker runs trials in threads and shares the process's prepared scenario); without it,
+concurrent calls overwrote each other's inputs.
 """
 from __future__ import annotations
 
 import ctypes
+import threading
 from typing import Sequence
 
 import numpy as np
@@ -51,6 +57,7 @@ class GeneratedFunction:
         self._iw = np.zeros(max(n_iw, 1), dtype=np.intc)
         self._w = np.zeros(max(n_w, 1))
         self._iw_p, self._w_p = self._iw.ctypes.data_as(_ip), self._w.ctypes.data_as(_dp)
+        self._lock = threading.Lock()  # the buffers above are shared by every call
 
     @staticmethod
     def _shape(lib, fname: str, i: int) -> tuple[int, int]:
@@ -63,16 +70,18 @@ class GeneratedFunction:
     def __call__(self, *inputs: Sequence[float] | float) -> list[np.ndarray]:
         if len(inputs) != self.n_in:
             raise TypeError(f"{self.name}: expected {self.n_in} inputs, got {len(inputs)}")
-        for i, (value, buf) in enumerate(zip(inputs, self._in)):
-            arr = np.asarray(value, dtype=np.float64)
+        arrays = [np.asarray(value, dtype=np.float64) for value in inputs]
+        for i, (arr, buf) in enumerate(zip(arrays, self._in)):
             if arr.size != buf.size:
                 r, c = self.in_shapes[i]
                 raise ValueError(f"{self.name}: input {i} has {arr.size} values, expected {r}x{c}")
-            buf[:] = arr.ravel(order="F")
-        rc = self._f(self._arg, self._res, self._iw_p, self._w_p, 0)
-        if rc != 0:
-            raise RuntimeError(f"{self.name} returned {rc}")
-        return [o.reshape((r, c), order="F").copy() for o, (r, c) in zip(self._out, self.out_shapes)]
+        with self._lock:
+            for arr, buf in zip(arrays, self._in):
+                buf[:] = arr.ravel(order="F")
+            rc = self._f(self._arg, self._res, self._iw_p, self._w_p, 0)
+            if rc != 0:
+                raise RuntimeError(f"{self.name} returned {rc}")
+            return [o.reshape((r, c), order="F").copy() for o, (r, c) in zip(self._out, self.out_shapes)]
 
 
 class NavFunctions:
@@ -88,6 +97,7 @@ class NavFunctions:
         self._boxplus = GeneratedFunction(lib, "leonav_boxplus")
         self._boxminus = GeneratedFunction(lib, "leonav_boxminus")
         self._work = None
+        self._work_lock = threading.Lock()  # one workspace for boxminus, shared by threads
         self._q_from_euler = GeneratedFunction(lib, "leonav_q_from_euler")
         self._euler_from_q = GeneratedFunction(lib, "leonav_euler_from_q")
         self._gravity = GeneratedFunction(lib, "leonav_gravity_enu")
@@ -156,12 +166,13 @@ class NavFunctions:
         if a.shape != b.shape or a.shape[1] != self.layout.NX:
             raise ValueError(f"boxminus: expected two (n, {self.layout.NX}) arrays, got {a.shape} and {b.shape}")
         out = np.empty((a.shape[0], self.layout.NDX))
-        if self._work is None:
-            self._work = self.library.new_workspace()
-        rc = self.library.lib.leonav_boxminus_many(a.shape[0], a.ctypes.data_as(_dp), b.ctypes.data_as(_dp),
-                                                  out.ctypes.data_as(_dp), self._work.ctypes.data)
-        if rc != 0:
-            raise RuntimeError(f"leonav_boxminus_many returned {compiled.ERROR_NAMES.get(rc, rc)}")
+        with self._work_lock:
+            if self._work is None:
+                self._work = self.library.new_workspace()
+            rc = self.library.lib.leonav_boxminus_many(a.shape[0], a.ctypes.data_as(_dp), b.ctypes.data_as(_dp),
+                                                      out.ctypes.data_as(_dp), self._work.ctypes.data)
+        if rc != self.layout.OK:
+            raise RuntimeError(f"leonav_boxminus_many returned {compiled.code_name(rc, self.layout)}")
         return out[0] if single else out
 
     def quat_from_euler(self, rpy: np.ndarray) -> np.ndarray:
@@ -177,7 +188,7 @@ class NavFunctions:
     def imu_increments(self, x: np.ndarray, x_target: np.ndarray, dt: float,
                        guess: np.ndarray | None = None, jacobian: np.ndarray | None = None,
                        tol: float = 1e-13) -> tuple[np.ndarray, np.ndarray]:
-        """IMU increments u (6,) that take x to the velocity and attitude of x_target in dt.
+        """IMU increments u (NU,) that take x to the velocity and attitude of x_target in dt.
 
         Newton iterations on the generated mechanization, the residual measured by the
         generated boxminus (velocity and attitude blocks). The finite-difference Jacobian is
@@ -186,15 +197,15 @@ class NavFunctions:
         Returns (u, jacobian).
         """
         L = self.layout
-        sel = np.r_[L.DX_DV:L.DX_DV + 3, L.DX_DTHETA:L.DX_DTHETA + 3]
+        sel = np.r_[L.DX_DV_SLICE, L.DX_DTHETA_SLICE]
 
         def residual(u):
             return self._boxminus(self.mech(x, u, dt), x_target)[0][sel, 0]
 
         def fd_jacobian(u, r0, step=1e-7):
-            return np.column_stack([(residual(u + step * e) - r0) / step for e in np.eye(6)])
+            return np.column_stack([(residual(u + step * e) - r0) / step for e in np.eye(L.NU)])
 
-        u = np.zeros(6) if guess is None else np.array(guess, dtype=float)
+        u = np.zeros(L.NU) if guess is None else np.array(guess, dtype=float)
         J = jacobian
         r = residual(u)
         for iteration in range(12):

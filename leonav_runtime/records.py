@@ -13,19 +13,14 @@ the same class keep their input order (arrays in argument order, then index).
 """
 from __future__ import annotations
 
-from pathlib import Path
 import numpy as np
 
 from leonav_runtime.compiled import GEN_DIR, load_layout
 
-KIND_IMU = -1
-NU = 6
-
-
-def _naux() -> int:
-    if (Path(GEN_DIR) / "state_layout.py").exists():
-        return int(load_layout(GEN_DIR).NAUX)
-    return 21  # docs/design.md value, used only until gen/ exists; tests check against C
+_LAYOUT = load_layout(GEN_DIR)  # the generated layout the library is built from
+KIND_IMU = int(_LAYOUT.MEAS_IMU)  # record kind of an IMU interval (LEONAV_MEAS_IMU)
+NU = int(_LAYOUT.NU)
+NAUX = int(_LAYOUT.NAUX)
 
 
 def record_dtype(naux: int) -> np.dtype:
@@ -37,7 +32,6 @@ def record_dtype(naux: int) -> np.dtype:
     )
 
 
-NAUX = _naux()
 RECORD_DTYPE = record_dtype(NAUX)
 
 
@@ -61,9 +55,9 @@ def imu_records(t_s, dtheta_b, dvel_b, dt_s=None) -> np.ndarray:
     n = t.size
     dtheta = np.asarray(dtheta_b, dtype=np.float64)
     dvel = np.asarray(dvel_b, dtype=np.float64)
-    for name, arr in (("dtheta_b", dtheta), ("dvel_b", dvel)):
-        if arr.shape != (n, 3):
-            raise ValueError(f"{name}: expected shape ({n}, 3) to match t_s, got {arr.shape}")
+    for name, arr, size in (("dtheta_b", dtheta, _LAYOUT.U_DTHETA_B_SIZE), ("dvel_b", dvel, _LAYOUT.U_DVEL_B_SIZE)):
+        if arr.shape != (n, size):
+            raise ValueError(f"{name}: expected shape ({n}, {size}) to match t_s, got {arr.shape}")
     if dt_s is None:
         if n < 2:
             raise ValueError("imu_records: give dt_s when there are fewer than 2 samples")
@@ -73,7 +67,7 @@ def imu_records(t_s, dtheta_b, dvel_b, dt_s=None) -> np.ndarray:
     rec = np.zeros(n, dtype=RECORD_DTYPE)
     rec["t"], rec["kind"], rec["sat_id"], rec["dt"] = t, KIND_IMU, -1, dt
     rec["z"], rec["R"] = np.nan, np.nan
-    rec["u"][:, :3], rec["u"][:, 3:] = dtheta, dvel
+    rec["u"][:, _LAYOUT.U_DTHETA_B_SLICE], rec["u"][:, _LAYOUT.U_DVEL_B_SLICE] = dtheta, dvel
     return rec
 
 

@@ -26,6 +26,7 @@ import numpy as np
 from leonav_runtime import montecarlo as mc
 from leonav_runtime import output
 from leonav_runtime.executors import make_executor, map_in_order
+from leonav_runtime.gen import state_layout as L
 from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
 
 BLOCK_TRIALS = 10  # trials per executor task: enough work per task to hide scheduling cost
@@ -178,7 +179,7 @@ def run_sweep(scn: Scenario, out_dir: Path, *, trials: int | None = None, worker
             trajectories[task[3]] = block.p_est_trial0
     k = mc.eval_grid(setup.t_imu, scn.imu_rate_hz)
     result = SweepResult(summaries, check_findings(scn, summaries, setup.t_imu[k]), timing, trajectories,
-                         setup.x_true[k, 0:3], setup.t_imu[k], scn, list(setup.notes))
+                         setup.x_true[k, L.X_P_ENU_SLICE], setup.t_imu[k], scn, list(setup.notes))
     write_results(scn, out_dir, result, figures=figures)
     return result
 

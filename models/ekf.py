@@ -19,7 +19,7 @@ import casadi as ca
 
 from models import frames, kinematics
 from models.clock import clock_qd
-from models.state import DX, NDX, NU, P, U
+from models.state import DX, NDX, P, U
 
 def _at_zero(expr, sym):
     return ca.substitute(expr, sym, ca.DM.zeros(sym.shape))
@@ -69,16 +69,6 @@ def congruence(A, S):
     return symmetric_from_upper(A.shape[0], lambda i, j: ca.dot(B[i, :], A[j, :]))
 
 
-def covariance_predict(P_, F, Qd):
-    """F P F^T + Qd, symmetric by construction, for SX F, P and a symmetric Qd (upper triangle used).
-
-    P is symmetrized first ((P + P^T) / 2: F P F^T + Qd symmetrized equals F P_sym F^T + Qd
-    for any P), so only the upper triangle is computed, over F's structural non-zeros.
-    """
-    FPFt = congruence(F, symmetric_part(P_))
-    return symmetric_from_upper(P_.shape[0], lambda i, j: FPFt[i, j] + Qd[i, j])
-
-
 def symmetric_part(P_):
     """(P + P^T) / 2 as an SX matrix whose mirrored entries are the same expression."""
     return symmetric_from_upper(P_.shape[0], lambda i, j: P_[i, i] if i == j else (P_[i, j] + P_[j, i]) / 2)
@@ -126,6 +116,23 @@ def scalar_update(x, P_, z, R, h_pred, H, boxplus: Callable):
 def information_add(J, H, R):
     """Fisher information after a scalar measurement: J + H^T H / R."""
     return J + ca.mtimes(H.T, H) / R
+
+
+def information_step(B, H, R):
+    """(B_next, S): the PCRB's scalar measurement step on the bound B = J^-1.
+
+    `information_add` written on B by Sherman-Morrison, so no matrix is inverted:
+    (J + H^T H / R)^-1 = B - b b^T / S with b = B H^T, S = R + H b.
+    It is the Joseph update with the optimal gain K = b / S (tests check both). B is a
+    symmetric bound (the prior, F B F^T + Qd and this step keep it exactly symmetric:
+    b_i b_j = b_j b_i). Dense products, for MX: the generated code is three small loops
+    (b, S accumulated from R, then B - (b_i b_j) / S) in the order of the hand-written
+    driver loop it replaced, so the bound is reproduced to the bit. H (1 x n) is an input,
+    so one generated function serves every observable.
+    """
+    b = ca.mtimes(B, H.T)
+    S = ca.mac(H, b, R)
+    return B - ca.mtimes(b, b.T) / S, S
 
 
 # --- navigation instance ---------------------------------------------------------------
@@ -252,10 +259,13 @@ def trapezoid_factors(F, G, dt):
     n_rest = NDX - rest.start
     E = ca.SX.eye(NDX)
     F_pre = ca.vertcat(F[dv, :], F[dth, :], E[dp, :], E[dv, :], F[rest, :])
-    G_pre = ca.vertcat(G[dv, :], G[dth, :], ca.SX(6, G.shape[1]), G[rest, :])
-    s = ca.SX.sym("s", 12 + n_rest)
-    v_next, th_next, pos, vel = s[0:3], s[3:6], s[6:9], s[9:12]
-    image = ca.vertcat(kinematics.trapezoid_position(pos, vel, v_next, dt), v_next, th_next, s[12:])
+    n_pv = DX["dp"].size + DX["dv"].size
+    G_pre = ca.vertcat(G[dv, :], G[dth, :], ca.SX(n_pv, G.shape[1]), G[rest, :])
+    sizes = (DX["dv"].size, DX["dtheta"].size, DX["dp"].size, DX["dv"].size)  # pre-state blocks before `rest`
+    s = ca.SX.sym("s", sum(sizes) + n_rest)
+    ends = [sum(sizes[: k + 1]) for k in range(len(sizes))]
+    v_next, th_next, pos, vel = (s[e - n : e] for e, n in zip(ends, sizes))
+    image = ca.vertcat(kinematics.trapezoid_position(pos, vel, v_next, dt), v_next, th_next, s[ends[-1] :])
     return ca.jacobian(image, s), F_pre, G_pre
 
 
@@ -288,5 +298,3 @@ def nav_update(h: Callable, x, P_, z, R, aux, p):
     h_pred, H = nav_h(h, x, aux, p)
     return scalar_update(x, P_, z, R, h_pred, H, frames.boxplus)
 
-
-assert NU == 6

@@ -19,15 +19,6 @@ from models.state import DX, NX, X
 _SMALL_ANGLE2 = 1e-4
 
 
-def skew(v):
-    """Cross-product matrix [v x] (3x3)."""
-    return ca.vertcat(
-        ca.horzcat(0, -v[2], v[1]),
-        ca.horzcat(v[2], 0, -v[0]),
-        ca.horzcat(-v[1], v[0], 0),
-    )
-
-
 def quat_mul(p, q):
     """Hamilton product p (x) q of [w x y z] quaternions."""
     pw, pv = p[0], p[1:4]
@@ -176,17 +167,18 @@ def boxplus(x, dx):
     """x [+] dx: vector blocks add, attitude q (x) exp(dtheta/2) (body-frame perturbation)."""
     q = x[X["q_nb"].slice]
     q_new = quat_mul(q, quat_exp(dx[DX["dtheta"].slice]))
-    before = dx[0 : DX["dtheta"].offset]
-    after = dx[DX["dtheta"].offset + 3 :]
-    return ca.vertcat(x[0 : X["q_nb"].offset] + before, q_new, x[X["q_nb"].offset + 4 : NX] + after)
+    q_blk, th_blk = X["q_nb"].slice, DX["dtheta"].slice
+    before = dx[0 : th_blk.start]
+    after = dx[th_blk.stop :]
+    return ca.vertcat(x[0 : q_blk.start] + before, q_new, x[q_blk.stop : NX] + after)
 
 
 def boxminus(x1, x0):
     """x1 [-] x0: the dx with x0 [+] dx = x1 (attitude: 2 log(q0^-1 (x) q1), body frame)."""
     q0, q1 = x0[X["q_nb"].slice], x1[X["q_nb"].slice]
     dtheta = quat_log(quat_mul(quat_conj(q0), q1))
-    i = X["q_nb"].offset
-    return ca.vertcat(x1[0:i] - x0[0:i], dtheta, x1[i + 4 : NX] - x0[i + 4 : NX])
+    i, j = X["q_nb"].slice.start, X["q_nb"].slice.stop
+    return ca.vertcat(x1[0:i] - x0[0:i], dtheta, x1[j:NX] - x0[j:NX])
 
 
 def level_from_specific_force(f_b):

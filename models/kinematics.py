@@ -46,12 +46,6 @@ def earth_rate_enu(p):
     return K.OMEGA_IE_RADPS * ca.vertcat(0, ca.cos(lat0), ca.sin(lat0))
 
 
-def position_ecef(p_enu, p):
-    """Receiver ECEF position (m): r0 + C_n_e p_enu."""
-    _, _, _, r0, C = origin(p)
-    return r0 + C @ p_enu
-
-
 def gravity_enu(p_enu, p):
     """Normal gravity vector (m/s^2) at position p_enu, in the origin's ENU axes.
 
@@ -107,7 +101,7 @@ def mech_corrected(x, w, dt, p, gravity=None):
     gravity = gravity or gravity_enu
     pos, vel, q = x[X["p_enu"].slice], x[X["v_enu"].slice], x[X["q_nb"].slice]
     b_a, b_g = x[X["b_a"].slice], x[X["b_g"].slice]
-    phi, dv_b = w[0:3], w[3:6]
+    phi, dv_b = w[U["dtheta_b"].slice], w[U["dvel_b"].slice]  # w has the layout of u
     w_ie = earth_rate_enu(p)
 
     # half-interval rotations: q_mid = e_n (x) q (x) e_b, q_next = e_n (x) q_mid (x) e_b

@@ -83,19 +83,37 @@ U_BLOCKS = _blocks([
     ("dtheta_b", 3, "rad", "gyro angle increment over dt, body FLU"),
     ("dvel_b", 3, "m/s", "accelerometer velocity increment over dt, body FLU"),
 ])
-# Observables: (id name, function suffix, unit)
+
+
+@dataclass(frozen=True)
+class Observable:
+    """One observable. Its kind id (`LEONAV_MEAS_<name>`) is its index in MEASUREMENTS;
+    `suffix` names its generated functions (`leonav_h_<suffix>`, `leonav_update_<suffix>`,
+    `leonav_pcrb_info_<suffix>`); `dim` is the size of z
+    (1: the filter's updates are scalar and sequential); `unit` is the unit of z."""
+
+    name: str
+    suffix: str
+    dim: int
+    unit: str
+
+
+# Observables, in kind-id order. Adding one here (and its h in models/measurements/) is all
+# the generated code and the C driver need: codegen emits the table (LEONAV_MEAS_TABLE).
 MEASUREMENTS = (
-    ("PSEUDORANGE", "pseudorange", "m"),
-    ("POS_E", "pos_e", "m"),
-    ("POS_N", "pos_n", "m"),
-    ("POS_U", "pos_u", "m"),
-    ("VEL_E", "vel_e", "m/s"),
-    ("VEL_N", "vel_n", "m/s"),
-    ("VEL_U", "vel_u", "m/s"),
-    ("DOPPLER_RATE", "doppler_rate", "Hz/s"),
-    ("DOPPLER", "doppler", "Hz"),
-    ("OFDM_RANGE_DIFF", "ofdm_range_diff", "m"),
+    Observable("PSEUDORANGE", "pseudorange", 1, "m"),
+    Observable("POS_E", "pos_e", 1, "m"),
+    Observable("POS_N", "pos_n", 1, "m"),
+    Observable("POS_U", "pos_u", 1, "m"),
+    Observable("VEL_E", "vel_e", 1, "m/s"),
+    Observable("VEL_N", "vel_n", 1, "m/s"),
+    Observable("VEL_U", "vel_u", 1, "m/s"),
+    Observable("DOPPLER_RATE", "doppler_rate", 1, "Hz/s"),
+    Observable("DOPPLER", "doppler", 1, "Hz"),
+    Observable("OFDM_RANGE_DIFF", "ofdm_range_diff", 1, "m"),
 )
+# Record kind of an IMU interval (measurement records carry their observable's index).
+KIND_IMU = -1
 
 
 def _total(blocks: tuple[Block, ...]) -> int:
@@ -108,12 +126,16 @@ NP = _total(P_BLOCKS)
 NAUX = _total(AUX_BLOCKS)
 NU = _total(U_BLOCKS)
 NMEAS = len(MEASUREMENTS)
+# The 9D navigation error (dp, dv, dtheta): the leading blocks of dx that are scored and
+# bounded (NEES, the PCRB's B_nav).
+NAV_BLOCKS = ("dp", "dv", "dtheta")
 
 X = {b.name: b for b in X_BLOCKS}
 DX = {b.name: b for b in DX_BLOCKS}
 P = {b.name: b for b in P_BLOCKS}
 AUX = {b.name: b for b in AUX_BLOCKS}
 U = {b.name: b for b in U_BLOCKS}
-MEAS_ID = {name: i for i, (name, _, _) in enumerate(MEASUREMENTS)}
+NNAV = sum(DX[name].size for name in NAV_BLOCKS)
 
-assert (NX, NDX, NP, NAUX, NU) == (19, 18, 11, 21, 6), "layout drifted from docs/design.md"
+assert (NX, NDX, NP, NAUX, NU, NNAV) == (19, 18, 11, 21, 6, 9), "layout drifted from docs/design.md"
+assert [DX[name].offset for name in NAV_BLOCKS] == [0, 3, 6], "the 9D block must lead dx"

@@ -39,8 +39,8 @@ def golden_rows() -> list[list[float]]:
     out = []
     for i in rows:
         x, sd = res.x[i], np.sqrt(res.P_diag[i])
-        out.append([float(res.t[i]), *x[L.X_P_ENU:L.X_P_ENU + 3], *x[L.X_V_ENU:L.X_V_ENU + 3],
-                    *x[L.X_Q_NB:L.X_Q_NB + 4], x[L.X_C_DT], x[L.X_B_LO], *sd[L.DX_DP:L.DX_DP + 3]])
+        out.append([float(res.t[i]), *x[L.X_P_ENU_SLICE], *x[L.X_V_ENU_SLICE], *x[L.X_Q_NB_SLICE],
+                    x[L.X_C_DT], x[L.X_B_LO], *sd[L.DX_DP_SLICE]])
     return out
 
 

@@ -1,13 +1,31 @@
-"""The compiled generated C agrees with the symbolic CasADi functions (random inputs)."""
+"""The compiled generated C agrees with the symbolic CasADi functions (random inputs).
+
+Inputs are drawn from a generator seeded by the CRC-32 of the function's name, so every
+run (any PYTHONHASHSEED, any process) checks the same inputs.
+"""
 from __future__ import annotations
+
+import zlib
 
 import numpy as np
 import pytest
 
 from codegen.compiled import compile_shared, external
 from codegen.functions import build_functions
+from leonav_runtime.gen import state_layout as L
 
 FUNCTIONS = build_functions()
+# typical magnitude of each nominal-state block (SI) for random states
+X_SCALE = {"p_enu": 300.0, "v_enu": 30.0, "q_nb": 1.0, "b_a": 1e-2, "b_g": 1e-3, "c_dt": 1e3, "c_ddt": 10.0,
+           "b_lo": 1e3}
+P_VALUES = {"lat0_rad": 0.75, "lon0_rad": -1.35, "h0_m": 170.0, "vrw": 1e-3, "arw": 1e-4, "acc_bias_rw": 1e-5,
+            "gyro_bias_rw": 1e-7, "q_cdt": 0.01, "q_cddt": 0.03, "q_blo": 0.01, "f_c_hz": 11.325e9}
+P_VEC = np.array([P_VALUES[name] for name in L.P_NAMES])
+
+
+def seed_of(name: str) -> int:
+    """Stable seed of a function's inputs (str hash() changes with PYTHONHASHSEED)."""
+    return zlib.crc32(name.encode())
 
 
 @pytest.fixture(scope="module")
@@ -22,19 +40,31 @@ def _random_input(name: str, shape: tuple[int, int], rng) -> np.ndarray:
         A = rng.normal(size=(rows, rows))
         return A @ A.T + rows * np.eye(rows)
     if name in ("x", "x0", "x1"):
-        x = rng.normal(size=rows) * np.r_[300, 300, 30, 5, 5, 1, 1, 1, 1, 1, 1e-2 * np.ones(3), 1e-3 * np.ones(3), 1e3, 10, 1e3]
-        x[6:10] /= np.linalg.norm(x[6:10])
+        x = rng.normal(size=rows)
+        for block, scale in X_SCALE.items():
+            x[getattr(L, f"X_{block.upper()}_SLICE")] *= scale
+        x[L.X_Q_NB_SLICE] /= np.linalg.norm(x[L.X_Q_NB_SLICE])
         return x
     if name == "p":
-        return np.r_[0.75, -1.35, 170.0, 1e-3, 1e-4, 1e-5, 1e-7, 0.01, 0.03, 0.01, 11.325e9]
+        return P_VEC
     if name == "aux":
         r_s = np.r_[4.0e6, -4.5e6, 4.9e6]
-        return np.r_[r_s, rng.normal(size=3) * 5e3, rng.normal(size=3) * 8, r_s + rng.normal(size=3) * 5e5,
-                     rng.normal(size=3) * 5e3, rng.normal(size=3) * 8, rng.normal(size=3) + [0, 0, 9.8]]
+        aux = np.zeros(L.NAUX)
+        aux[L.AUX_R_S_ECEF_SLICE] = r_s
+        aux[L.AUX_V_S_ECEF_SLICE] = rng.normal(size=3) * 5e3
+        aux[L.AUX_A_S_ECEF_SLICE] = rng.normal(size=3) * 8
+        aux[L.AUX_R_REF_ECEF_SLICE] = r_s + rng.normal(size=3) * 5e5
+        aux[L.AUX_V_REF_ECEF_SLICE] = rng.normal(size=3) * 5e3
+        aux[L.AUX_A_REF_ECEF_SLICE] = rng.normal(size=3) * 8
+        aux[L.AUX_F_B_SLICE] = rng.normal(size=3) + [0, 0, 9.8]
+        return aux
     if name == "dt":
         return np.array([0.01 + 0.1 * rng.random()])
     if name == "u":
-        return rng.normal(size=6) * np.r_[1e-2 * np.ones(3), 0.1 * np.ones(3)]
+        u = rng.normal(size=L.NU)
+        u[L.U_DTHETA_B_SLICE] *= 1e-2
+        u[L.U_DVEL_B_SLICE] *= 0.1
+        return u
     if name == "q":
         q = rng.normal(size=4)
         return q / np.linalg.norm(q)
@@ -47,7 +77,7 @@ def _random_input(name: str, shape: tuple[int, int], rng) -> np.ndarray:
 def test_compiled_matches_symbolic(fn, so_path):
     compiled = external(fn.name(), so_path)
     assert compiled.n_in() == fn.n_in() and compiled.n_out() == fn.n_out()
-    rng = np.random.default_rng(abs(hash(fn.name())) % 2**32)
+    rng = np.random.default_rng(seed_of(fn.name()))
     for _ in range(5):
         args = [_random_input(fn.name_in(i), fn.size_in(i), rng) for i in range(fn.n_in())]
         ref, got = fn(*args), compiled(*args)

@@ -1,6 +1,7 @@
 """The committed leonav_runtime/gen/ is exactly what the models generate today."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -36,9 +37,9 @@ def test_layout_twin_matches_header():
     gen = default_output_dir()
     header = {}
     for line in (gen / "state_layout.h").read_text().splitlines():
-        if line.startswith("#define LEONAV_") and len(line.split()) >= 3:
+        if line.startswith("#define LEONAV_") and len(line.split()) >= 3 and "(" not in line.split()[1]:
             _, name, value = line.split()[:3]
-            header[name.removeprefix("LEONAV_")] = int(value)
+            header[name.removeprefix("LEONAV_")] = int(value.strip("()"))
     source = (gen / "state_layout.py").read_text()
     assert "import casadi" not in source and "from casadi" not in source
     namespace: dict = {}
@@ -46,5 +47,19 @@ def test_layout_twin_matches_header():
     twin = {k: v for k, v in namespace.items() if k.isupper() and isinstance(v, int)}
     assert header == twin
     assert (twin["NX"], twin["NDX"], twin["NP"], twin["NAUX"], twin["NU"], twin["NMEAS"]) == (19, 18, 11, 21, 6, 10)
-    assert [namespace["MEAS_NAMES"][twin[f"MEAS_{n}"]] for n in namespace["MEAS_NAMES"]] == namespace["MEAS_NAMES"]
+    assert all(twin[f"MEAS_{m.name}"] == m.kind for m in namespace["MEAS_TABLE"])
+    assert twin["NNAV"] == 9 and namespace["DX_NAV9_SLICE"] == slice(0, twin["NNAV"])
+    # the observable table: C X-macro rows == Python MEAS_TABLE rows (kind, suffix, dim, name, unit)
+    text = (gen / "state_layout.h").read_text()
+    rows = re.findall(r'X\(LEONAV_MEAS_(\w+), (\w+), (\d+), "(\w+)", "([^"]*)"\)', text)
+    assert [(twin[f"MEAS_{n}"], s, int(d), name, u) for n, s, d, name, u in rows] == \
+        [tuple(m) for m in namespace["MEAS_TABLE"]]
+    assert [m.kind for m in namespace["MEAS_TABLE"]] == list(range(twin["NMEAS"]))
+    # driver codes: one success value, errors negative and disjoint from the other outcomes
+    ret = {k: twin[k] for k in ("OK", "GATED", "FAILED")}
+    errs = {k: v for k, v in twin.items() if k.startswith("ERR_")}
+    assert ret == {"OK": 0, "GATED": 1, "FAILED": 2} and len(errs) == 5
+    assert all(v < 0 for v in errs.values()) and len(set(errs.values())) == len(errs)
+    assert namespace["RETURN_NAMES"] == {v: f"LEONAV_{k}" for k, v in {**ret, **errs}.items()}
+    assert [twin[f"STATUS_{k}"] for k in ("IMU", "APPLIED", "GATED", "FAILED")] == [-1, 0, 1, 2]
     assert twin["X_Q_NB"] == 6 and twin["DX_DTHETA"] == 6 and twin["P_F_C_HZ"] == 10 and twin["AUX_F_B"] == 18

@@ -15,6 +15,7 @@ import warnings
 import numpy as np
 import pytest
 
+from leonav_runtime.gen import state_layout as L
 from leonav_runtime.params import build_params
 from tests.eop_reference import skyfield_timescale_same_eop
 
@@ -47,8 +48,8 @@ def test_doppler_rate_matches_second_difference_of_skyfield_range(shared_data):
         states = orbits.propagate_ecef(elements, epoch, t_grid)
 
     p = np.array(build_params(math.radians(LAT), math.radians(LON), H, f_c_hz=F_C))
-    x = np.zeros(19)
-    x[6] = 1.0  # level, body forward = East, at rest at the origin
+    x = np.zeros(L.NX)
+    x[L.X_Q_NB] = 1.0  # level, body forward = East, at rest at the origin
     site = np.array(fns["leonav_receiver_ecef"](x, p)[0]).ravel()
     g_enu = np.array(fns["leonav_gravity_enu"](np.zeros(3), p)).ravel()
     up = site / np.linalg.norm(site)
@@ -67,8 +68,11 @@ def test_doppler_rate_matches_second_difference_of_skyfield_range(shared_data):
     for k, i in enumerate(chosen):
         sat = api.EarthSatellite(lines[k][0], lines[k][1], names[k], ts)
         for j, t in enumerate(t_grid):
-            aux = np.r_[states.r_ecef_m[i, j], states.v_ecef_mps[i, j], states.a_ecef_mps2[i, j],
-                        np.zeros(9), -g_enu]  # f_b of a level body at rest
+            aux = np.zeros(L.NAUX)
+            aux[L.AUX_R_S_ECEF_SLICE] = states.r_ecef_m[i, j]
+            aux[L.AUX_V_S_ECEF_SLICE] = states.v_ecef_mps[i, j]
+            aux[L.AUX_A_S_ECEF_SLICE] = states.a_ecef_mps2[i, j]
+            aux[L.AUX_F_B_SLICE] = -g_enu  # f_b of a level body at rest
             alpha = float(fns["leonav_h_doppler_rate"](x, aux, p)[0])
             offsets = np.arange(-2, 3) * step
             when = ts.from_datetimes([epoch + dt.timedelta(seconds=float(t + o)) for o in offsets])

@@ -10,6 +10,7 @@ import pytest
 from models import frames
 from models.clock import TCXO
 from models.imu import TACTICAL, WT901
+from leonav_runtime.gen import state_layout as L
 from leonav_runtime.params import build_params
 from codegen.functions import build_functions
 
@@ -63,15 +64,15 @@ def test_exp_log_round_trip_across_the_series_switch(angle):
 
 def test_boxplus_boxminus_are_inverse_and_body_frame():
     rng = np.random.default_rng(1)
-    x = rng.normal(size=19)
-    x[6:10] /= np.linalg.norm(x[6:10])
-    dx = rng.normal(size=18) * 0.1
+    x = rng.normal(size=L.NX)
+    x[L.X_Q_NB_SLICE] /= np.linalg.norm(x[L.X_Q_NB_SLICE])
+    dx = rng.normal(size=L.NDX) * 0.1
     x1 = np.array(FNS["leonav_boxplus"](x, dx)).ravel()
     np.testing.assert_allclose(np.array(FNS["leonav_boxminus"](x1, x)).ravel(), dx, atol=1e-14)
     # attitude perturbation is on the right: C(x1) = C(x) Exp(dtheta)
-    C0 = _num(lambda q: frames.rot_from_quat(q), x[6:10])
-    C1 = _num(lambda q: frames.rot_from_quat(q), x1[6:10])
-    dth = dx[6:9]
+    C0 = _num(lambda q: frames.rot_from_quat(q), x[L.X_Q_NB_SLICE])
+    C1 = _num(lambda q: frames.rot_from_quat(q), x1[L.X_Q_NB_SLICE])
+    dth = dx[L.DX_DTHETA_SLICE]
     a = np.linalg.norm(dth)
     K = np.array([[0, -dth[2], dth[1]], [dth[2], 0, -dth[0]], [-dth[1], dth[0], 0]]) / a
     Exp = np.eye(3) + math.sin(a) * K + (1 - math.cos(a)) * K @ K
@@ -101,22 +102,26 @@ def test_noise_profiles_and_discrete_noise():
     assert WT901.acc_bias_sigma == pytest.approx(0.005 * 9.80665)
     assert WT901.gyro_bias_sigma == pytest.approx(math.radians(0.05))
     p = np.array(build_params(0.75, -1.35, 170.0, imu=TACTICAL, clock=TCXO, q_blo=0.04))
-    x = np.zeros(19)
-    x[6:10] = np.array(FNS["leonav_q_from_euler"](np.array([0.1, 0.2, 1.0]))).ravel()
+    x = np.zeros(L.NX)
+    x[L.X_Q_NB_SLICE] = np.array(FNS["leonav_q_from_euler"](np.array([0.1, 0.2, 1.0]))).ravel()
     dt = 0.5
-    Qd = np.array(FNS["leonav_predict"](x, np.eye(18), np.r_[0, 0, 0, 0, 0, 9.8 * dt], dt, p)[3])
+    u = np.zeros(L.NU)
+    u[L.U_DVEL_B + 2] = 9.8 * dt  # level, specific force up
+    Qd = np.array(FNS["leonav_predict"](x, np.eye(L.NDX), u, dt, p)[3])
+    q_diag = np.diag(Qd)
     np.testing.assert_allclose(np.linalg.eigvalsh(Qd).min() >= -1e-20, True)
     # velocity: VRW (rotation-invariant) plus the ARW seen through the mid-interval attitude,
     # at most |dvel|^2 arw^2 dt / 4 per axis
     coupling = (9.8 * dt) ** 2 * TACTICAL.arw**2 * dt / 4
-    assert np.all(np.diag(Qd)[3:6] >= TACTICAL.vrw**2 * dt * (1 - 1e-12))
-    assert np.all(np.diag(Qd)[3:6] <= TACTICAL.vrw**2 * dt + coupling * 1.001)
-    np.testing.assert_allclose(np.diag(Qd)[6:9], TACTICAL.arw**2 * dt, rtol=1e-6)
-    np.testing.assert_allclose(np.diag(Qd)[12:15], TACTICAL.gyro_bias_rw**2 * dt, rtol=1e-12)
+    assert np.all(q_diag[L.DX_DV_SLICE] >= TACTICAL.vrw**2 * dt * (1 - 1e-12))
+    assert np.all(q_diag[L.DX_DV_SLICE] <= TACTICAL.vrw**2 * dt + coupling * 1.001)
+    np.testing.assert_allclose(q_diag[L.DX_DTHETA_SLICE], TACTICAL.arw**2 * dt, rtol=1e-6)
+    np.testing.assert_allclose(q_diag[L.DX_DB_G_SLICE], TACTICAL.gyro_bias_rw**2 * dt, rtol=1e-12)
     q1, q2 = TCXO.q_cdt, TCXO.q_cddt
-    np.testing.assert_allclose(Qd[15:17, 15:17], [[q1 * dt + q2 * dt**3 / 3, q2 * dt**2 / 2],
+    clock = slice(L.DX_DC_DT, L.DX_DC_DDT + 1)
+    np.testing.assert_allclose(Qd[clock, clock], [[q1 * dt + q2 * dt**3 / 3, q2 * dt**2 / 2],
                                                   [q2 * dt**2 / 2, q2 * dt]], rtol=1e-12)
-    assert Qd[17, 17] == pytest.approx(0.04 * dt)
+    assert Qd[L.DX_DB_LO, L.DX_DB_LO] == pytest.approx(0.04 * dt)
 
 
 def test_ellipsoid_normal_matches_geodetic_and_is_finite_on_the_axis():

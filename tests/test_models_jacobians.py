@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from codegen.functions import build_functions
+from leonav_runtime.gen import state_layout as L
 from leonav_runtime.params import build_params
 from models.state import MEASUREMENTS, NDX
 
@@ -13,20 +14,26 @@ P_VEC = np.array(build_params(np.radians(43.0848638), np.radians(-77.6786127), 1
 
 
 def _state(rng):
-    x = np.zeros(19)
-    x[0:3] = rng.normal(size=3) * [2000, 2000, 50]
-    x[3:6] = rng.normal(size=3) * [20, 20, 2]
+    x = np.zeros(L.NX)
+    x[L.X_P_ENU_SLICE] = rng.normal(size=3) * [2000, 2000, 50]
+    x[L.X_V_ENU_SLICE] = rng.normal(size=3) * [20, 20, 2]
     q = rng.normal(size=4)
-    x[6:10] = q / np.linalg.norm(q)
-    x[10:13] = rng.normal(size=3) * 0.05
-    x[13:16] = rng.normal(size=3) * 1e-3
-    x[16:19] = [300.0, -2.0, 1500.0]
+    x[L.X_Q_NB_SLICE] = q / np.linalg.norm(q)
+    x[L.X_B_A_SLICE] = rng.normal(size=3) * 0.05
+    x[L.X_B_G_SLICE] = rng.normal(size=3) * 1e-3
+    x[[L.X_C_DT, L.X_C_DDT, L.X_B_LO]] = [300.0, -2.0, 1500.0]
+    return x
+
+
+def _level_at_origin():
+    x = np.zeros(L.NX)
+    x[L.X_Q_NB] = 1.0
     return x
 
 
 def _aux(rng, r_sat_m):
     """A satellite at distance ~r_sat_m above the site, and a reference one, ECEF."""
-    site = np.array(FNS["leonav_receiver_ecef"](np.r_[np.zeros(6), 1, np.zeros(12)], P_VEC)[0]).ravel()
+    site = np.array(FNS["leonav_receiver_ecef"](_level_at_origin(), P_VEC)[0]).ravel()
     up = site / np.linalg.norm(site)
     r_s = site + r_sat_m * (up + 0.5 * rng.normal(size=3))
     r_ref = site + r_sat_m * (up + 0.5 * rng.normal(size=3))
@@ -46,7 +53,10 @@ def _fd(fun, x, step):
     return np.array(cols).T
 
 
-STEP = np.r_[1e-2 * np.ones(3), 1e-3 * np.ones(3), 1e-4 * np.ones(3), 1e-3 * np.ones(3), 1e-4 * np.ones(3), 1e-2, 1e-3, 1e-3]
+STEP = np.zeros(NDX)  # finite-difference step per error-state block
+for _name, _step in (("DP", 1e-2), ("DV", 1e-3), ("DTHETA", 1e-4), ("DB_A", 1e-3), ("DB_G", 1e-4),
+                     ("DC_DT", 1e-2), ("DC_DDT", 1e-3), ("DB_LO", 1e-3)):
+    STEP[getattr(L, f"DX_{_name}_SLICE")] = _step
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -61,10 +71,10 @@ def test_F_matches_finite_differences(seed):
     F_fd = _fd(lambda xx: np.array(boxminus(mech(xx, u, dt, P_VEC), f0)).ravel(), x, STEP)
     np.testing.assert_allclose(F, F_fd, rtol=1e-6, atol=1e-8)
     # and F is far from the identity where the physics says so (catches a zero Jacobian)
-    assert abs(F[0, 3] - dt) < 1e-6 and np.abs(F[3:6, 6:9]).max() > 1e-3
+    assert abs(F[L.DX_DP, L.DX_DV] - dt) < 1e-6 and np.abs(F[L.DX_DV_SLICE, L.DX_DTHETA_SLICE]).max() > 1e-3
 
 
-@pytest.mark.parametrize("suffix", [s for _, s, _ in MEASUREMENTS])
+@pytest.mark.parametrize("suffix", [m.suffix for m in MEASUREMENTS])
 @pytest.mark.parametrize("seed", [0, 1])
 def test_H_matches_finite_differences(suffix, seed):
     rng = np.random.default_rng(seed)
@@ -118,7 +128,7 @@ def test_trapezoid_factorization_reproduces_F_and_G():
         uv = np.r_[rng.normal(size=3) * 0.02, rng.normal(size=3) * 0.3 + [0, 0, 0.098]]
         dt_s = 0.01 + 0.1 * rng.random()
         F_, TF, G_, TG = (np.array(v) for v in fn(xv, uv, dt_s, P_VEC))
-        assert abs(F_[0, 3] - dt_s) < 1e-6 and np.abs(G_[0:3]).max() > 1e-4  # the dp rows are not trivial
+        assert abs(F_[L.DX_DP, L.DX_DV] - dt_s) < 1e-6 and np.abs(G_[L.DX_DP_SLICE]).max() > 1e-4  # dp rows not trivial
         np.testing.assert_allclose(TF, F_, rtol=1e-13, atol=1e-15)
         np.testing.assert_allclose(TG, G_, rtol=1e-13, atol=1e-15)
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from codegen.compiled import external
+from leonav_runtime.gen import state_layout as L
 from leonav_runtime.params import build_params
 
 P_VEC = np.array(build_params(math.radians(43.0848638), math.radians(-77.6786127), 170.0))
@@ -36,13 +37,18 @@ def _rest_imu(gen, p_enu, q, dt):
         [[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
     g = _vec(gen["gravity_enu"](p_enu, P_VEC))
     w_ie = _vec(gen["earth_rate_enu"](P_VEC))
-    return np.r_[C_b_n.T @ w_ie * dt, -C_b_n.T @ g * dt]
+    u = np.zeros(L.NU)
+    u[L.U_DTHETA_B_SLICE], u[L.U_DVEL_B_SLICE] = C_b_n.T @ w_ie * dt, -C_b_n.T @ g * dt
+    return u
 
 
 def _state(p_enu, q):
-    x = np.zeros(19)
-    x[0:3], x[6:10] = p_enu, q
+    x = np.zeros(L.NX)
+    x[L.X_P_ENU_SLICE], x[L.X_Q_NB_SLICE] = p_enu, q
     return x
+
+
+E, N, U = range(3)  # ENU axes within a position or velocity block
 
 
 def test_gravity_and_earth_rate_values(gen):
@@ -51,15 +57,15 @@ def test_gravity_and_earth_rate_values(gen):
     s2 = math.sin(lat) ** 2
     g_ell = 9.7803253359 * (1 + 0.00193185265241 * s2) / math.sqrt(1 - 0.00669437999013 * s2)
     g = _vec(gen["gravity_enu"](np.zeros(3), P_VEC))
-    assert g[2] == pytest.approx(-(g_ell - 3.0877e-6 * 170 * (1 - 0.0014 * s2)), abs=2e-6)
-    assert abs(g[0]) < 1e-12 and abs(g[1]) < 1e-12
+    assert g[U] == pytest.approx(-(g_ell - 3.0877e-6 * 170 * (1 - 0.0014 * s2)), abs=2e-6)
+    assert abs(g[E]) < 1e-12 and abs(g[N]) < 1e-12
     # free-air gradient ~ -3.086e-6 s^-2 and tilt of the vertical ~ distance / R
     g_up = _vec(gen["gravity_enu"](np.array([0, 0, 1000.0]), P_VEC))
-    assert (g_up[2] - g[2]) / 1000 == pytest.approx(3.086e-6, rel=0.01)
+    assert (g_up[U] - g[U]) / 1000 == pytest.approx(3.086e-6, rel=0.01)
     g_east = _vec(gen["gravity_enu"](np.array([5000.0, 0, 0]), P_VEC))
-    assert g_east[0] / g_east[2] == pytest.approx(5000.0 / 6.388e6, rel=0.01)
+    assert g_east[E] / g_east[U] == pytest.approx(5000.0 / 6.388e6, rel=0.01)
     w = _vec(gen["earth_rate_enu"](P_VEC))
-    assert np.linalg.norm(w) == pytest.approx(7.292115e-5) and w[0] == 0 and w[2] / w[1] == pytest.approx(math.tan(lat))
+    assert np.linalg.norm(w) == pytest.approx(7.292115e-5) and w[E] == 0 and w[U] / w[N] == pytest.approx(math.tan(lat))
 
 
 def test_stationary_perfect_imu_stays_put_600s(gen):
@@ -70,9 +76,9 @@ def test_stationary_perfect_imu_stays_put_600s(gen):
     u = _rest_imu(gen, p0, q0, dt)
     x0 = _state(p0, q0)
     x_end = _vec(gen["mech"].fold(n)(x0, u, dt, P_VEC))
-    assert np.linalg.norm(x_end[0:3] - p0) < 1e-3
-    assert np.linalg.norm(x_end[3:6]) < 1e-5
-    assert np.linalg.norm(_vec(gen["boxminus"](x_end, x0))[6:9]) < 1e-9
+    assert np.linalg.norm(x_end[L.X_P_ENU_SLICE] - p0) < 1e-3
+    assert np.linalg.norm(x_end[L.X_V_ENU_SLICE]) < 1e-5
+    assert np.linalg.norm(_vec(gen["boxminus"](x_end, x0))[L.DX_DTHETA_SLICE]) < 1e-9
 
 
 def test_quaternion_stays_unit_over_1e6_steps(gen):
@@ -80,14 +86,15 @@ def test_quaternion_stays_unit_over_1e6_steps(gen):
     dt, n = 0.01, 1_000_000
     w_b = np.array([0.3, -0.2, 0.5])  # rad/s, constant body rate
     x0 = _state(np.zeros(3), np.array([1.0, 0, 0, 0]))
-    u = np.r_[w_b * dt, 0, 0, 0]
+    u = np.zeros(L.NU)
+    u[L.U_DTHETA_B_SLICE] = w_b * dt
     # The attitude update depends only on q, b_g, u, dt and the site: the translational
     # states (here in free fall) do not feed back into it. Two nested folds (1000 x 1000)
     # keep the loop in compiled code at linear cost.
-    x_sym = ca.MX.sym("x", 19)
+    x_sym = ca.MX.sym("x", L.NX)
     chunk = ca.Function("chunk", [x_sym], [gen["mech"].fold(1000)(x_sym, u, dt, P_VEC)])
     x_end = _vec(chunk.fold(n // 1000)(x0))
-    q = x_end[6:10]
+    q = x_end[L.X_Q_NB_SLICE]
     assert abs(np.linalg.norm(q) - 1) < 1e-12
     # closed form: q(T) = exp(-w_ie T) (x) q0 (x) exp(w_b T)
     T = n * dt
@@ -100,9 +107,10 @@ def test_quaternion_stays_unit_over_1e6_steps(gen):
     def qmul(p, r):
         return np.r_[p[0] * r[0] - p[1:] @ r[1:], p[0] * r[1:] + r[0] * p[1:] + np.cross(p[1:], r[1:])]
 
-    q_ref = qmul(qexp(-w_ie * T), qmul(x0[6:10], qexp(w_b * T)))
-    err = np.r_[x_end[:6], q_ref, x_end[10:]]
-    assert np.linalg.norm(_vec(gen["boxminus"](x_end, err))[6:9]) < 1e-7
+    q_ref = qmul(qexp(-w_ie * T), qmul(x0[L.X_Q_NB_SLICE], qexp(w_b * T)))
+    ref = x_end.copy()
+    ref[L.X_Q_NB_SLICE] = q_ref
+    assert np.linalg.norm(_vec(gen["boxminus"](x_end, ref))[L.DX_DTHETA_SLICE]) < 1e-7
 
 
 def _zero_crossings(t, s):
@@ -120,22 +128,22 @@ def test_tilt_error_gives_schuler_oscillation(gen):
     q_true = np.array([1.0, 0, 0, 0])
     u = _rest_imu(gen, np.zeros(3), q_true, dt)
     q0 = _vec(gen["q_from_euler"](np.array([1e-4, 0, 0])))
-    x_sym = ca.MX.sym("x", 19)
+    x_sym = ca.MX.sym("x", L.NX)
     x_next = gen["mech"](x_sym, u, dt, P_VEC)
-    clamp = ca.DM.ones(19)
-    clamp[2], clamp[5] = 0, 0
+    clamp = ca.DM.ones(L.NX)
+    clamp[L.X_P_ENU + U], clamp[L.X_V_ENU + U] = 0, 0
     step = ca.Function("clamped", [x_sym], [x_next * clamp])
     traj = np.array(step.mapaccum(n)(_state(np.zeros(3), q0)))
     t = dt * np.arange(1, n + 1)
-    v_n = traj[4]  # roll error -> north-south specific force error
-    assert np.abs(traj[1]).max() > 100, "expected a Schuler excursion of order 2 * R * 1e-4"
+    v_n = traj[L.X_V_ENU + N]  # roll error -> north-south specific force error
+    assert np.abs(traj[L.X_P_ENU + N]).max() > 100, "expected a Schuler excursion of order 2 * R * 1e-4"
     crossings = _zero_crossings(t, v_n)
     assert len(crossings) >= 5
     period = 2 * np.mean(np.diff(crossings))
     expected = 2 * math.pi * math.sqrt(6.371e6 / 9.804)  # 84.4 min
     assert period == pytest.approx(expected, rel=0.01), f"period {period / 60:.2f} min"
     # bounded: the error oscillates instead of growing quadratically
-    assert np.abs(traj[1]).max() < 3 * 6.371e6 * 1e-4
+    assert np.abs(traj[L.X_P_ENU + N]).max() < 3 * 6.371e6 * 1e-4
 
 
 def test_unaided_vertical_channel_diverges(gen):
@@ -145,7 +153,7 @@ def test_unaided_vertical_channel_diverges(gen):
     traj = np.array(gen["mech"].mapaccum(n)(_state(np.array([0, 0, 1.0]), np.array([1.0, 0, 0, 0])),
                                           np.tile(u[:, None], n), dt, P_VEC))
     t = dt * np.arange(1, n + 1)
-    h = traj[2]
+    h = traj[L.X_P_ENU + U]
     assert h[-1] > 50, "vertical error should have grown by well over an order of magnitude"
     late = t > 1500
     slope = np.polyfit(t[late], np.log(h[late]), 1)[0]  # cosh ~ exp(t/tau)/2 for t >> tau

@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from leonav_runtime.gen.constants import CHI2_1DOF_999
+
 PI_DIR = Path(__file__).resolve().parents[1] / "hardware" / "pi"
 
 
@@ -35,16 +37,35 @@ def test_standalone_program_matches_the_python_runtime(program, tmp_path):
     trial.records.tofile(tmp_path / "records.bin")
     np.concatenate([trial.x0, setup.P0.ravel(order="F"), setup.params]).astype("<f8").tofile(tmp_path / "init.bin")
     run = subprocess.run([str(program), str(tmp_path / "records.bin"), str(tmp_path / "init.bin"),
-                          str(tmp_path / "out.csv"), "10.83"], capture_output=True, text=True)
+                          str(tmp_path / "out.csv")], capture_output=True, text=True)  # default gate
     assert run.returncode == 0, run.stderr
     got = np.genfromtxt(tmp_path / "out.csv", delimiter=",", names=True)
-    ref = EKF(trial.x0, setup.P0, setup.params, gate=10.83, library=nav.library).run(trial.records)
+    ref = EKF(trial.x0, setup.P0, setup.params, gate=CHI2_1DOF_999, library=nav.library).run(trial.records)
     L = nav.layout
     x_got = np.column_stack([got[f"x{i}"] for i in range(L.NX)])
     assert got.size == ref.x.shape[0]
     np.testing.assert_array_equal(got["status"].astype(int), ref.status)
     np.testing.assert_allclose(x_got, ref.x, rtol=1e-12, atol=1e-9)
     assert f"{trial.records.size} records" in run.stderr
+    # per-observable lines name the observable from the generated table
+    n_dr = int(np.sum((ref.kind == L.MEAS_DOPPLER_RATE) & (ref.status == L.STATUS_APPLIED)))
+    assert f"DOPPLER_RATE (Hz/s): {n_dr} applied" in run.stderr
+
+
+def test_standalone_program_names_a_bad_record_kind(program, tmp_path):
+    from leonav_runtime import records
+    from leonav_runtime.gen import state_layout as L
+
+    rec = records.imu_records([0.01, 0.02], np.zeros((2, 3)), np.zeros((2, 3)), dt_s=0.01)
+    rec["kind"][1] = L.NMEAS  # not an observable
+    rec.tofile(tmp_path / "records.bin")
+    P0 = np.eye(L.NDX)
+    x0 = np.zeros(L.NX)
+    x0[L.X_Q_NB] = 1.0
+    np.concatenate([x0, P0.ravel(order="F"), np.zeros(L.NP)]).astype("<f8").tofile(tmp_path / "init.bin")
+    run = subprocess.run([str(program), str(tmp_path / "records.bin"), str(tmp_path / "init.bin"),
+                          str(tmp_path / "out.csv")], capture_output=True, text=True)
+    assert run.returncode == 3 and "LEONAV_ERR_KIND" in run.stderr and "record 1" in run.stderr
 
 
 def test_standalone_program_rejects_bad_files(program, tmp_path):

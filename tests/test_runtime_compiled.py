@@ -24,7 +24,7 @@ x = np.zeros(L.NX); x[L.X_Q_NB] = 1.0
 u = lf.stationary_imu(x, 0.01, p, lib)
 t = np.arange(1, 101) * 0.01
 recs = records.merge_records(
-    records.imu_records(t, np.tile(u[:3], (100, 1)), np.tile(u[3:], (100, 1))),
+    records.imu_records(t, np.tile(u[L.U_DTHETA_B_SLICE], (100, 1)), np.tile(u[L.U_DVEL_B_SLICE], (100, 1))),
     records.measurement_records([0.5, 1.0], L.MEAS_POS_E, [0.0, 0.0], 1.0))
 res = lf.EKF(x, np.eye(L.NDX), p, library=lib).run(recs)
 assert res.n_imu == 100 and res.n_applied == 2, (res.n_imu, res.n_applied)
@@ -74,12 +74,13 @@ def test_changed_source_or_flags_give_a_new_key(tmp_path):
 def test_layout_mismatch_is_reported():
     lib = compiled.load()
     wrong = types.SimpleNamespace(**{k: getattr(lib.layout, k) for k in ("NX", "NDX", "NP", "NAUX", "NU",
-                                                                         "MEAS_SUFFIXES")})
+                                                                         "MEAS_TABLE")})
     wrong.NAUX += 1
     with pytest.raises(compiled.LayoutMismatchError, match=r"leonav_h_pseudorange: input 1 is 21x1, expected 22x1"):
         compiled.check_layout(lib.lib, wrong)
     wrong.NAUX -= 1
-    wrong.MEAS_SUFFIXES = list(wrong.MEAS_SUFFIXES) + ["carrier_phase"]
+    Observable = type(wrong.MEAS_TABLE[0])
+    wrong.MEAS_TABLE = tuple(wrong.MEAS_TABLE) + (Observable(len(wrong.MEAS_TABLE), "carrier_phase", 1, "CARRIER_PHASE", "m"),)
     with pytest.raises(compiled.LayoutMismatchError, match="leonav_h_carrier_phase: missing"):
         compiled.check_layout(lib.lib, wrong)
 
@@ -96,3 +97,16 @@ def test_missing_compiler_and_compile_errors_are_clear(monkeypatch, tmp_path):
     (csrc / "broken.c").write_text("int broken(void) { return undeclared_name; }\n")
     with pytest.raises(compiled.CompilerError, match="undeclared_name"):
         compiled.build(gen, csrc, out_dir=tmp_path / "build")
+
+
+def test_generated_tables_reach_the_driver():
+    """The driver's observable table and code names come from the generated lists."""
+    lib = compiled.load()
+    L = lib.layout
+    for m in L.MEAS_TABLE:
+        assert lib.lib.leonav_meas_name(m.kind).decode() == m.name
+        assert lib.lib.leonav_meas_unit(m.kind).decode() == m.unit
+    assert lib.lib.leonav_meas_name(L.NMEAS) is None and lib.lib.leonav_meas_name(L.MEAS_IMU) is None
+    for rc, name in L.RETURN_NAMES.items():
+        assert lib.lib.leonav_code_name(rc).decode() == name == compiled.code_name(rc)
+    assert lib.meas_ids == {m.suffix: m.kind for m in L.MEAS_TABLE}

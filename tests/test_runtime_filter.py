@@ -8,11 +8,15 @@ import pytest
 
 from leonav_runtime import compiled, records
 from leonav_runtime import filter as lf
-from models import constants as K
+from leonav_runtime.gen import state_layout as L
+from leonav_runtime.gen import constants as K
 from leonav_runtime.params import build_params
 
 LAT, LON, H = math.radians(40.0), math.radians(-83.0), 200.0
 IMU_DT = 0.01
+POS, VEL = L.X_P_ENU_SLICE, L.X_V_ENU_SLICE
+PV = slice(L.X_P_ENU, L.X_V_ENU + L.X_V_ENU_SIZE)  # position and velocity (same rows in x and dx)
+assert PV == slice(L.DX_DP, L.DX_DV + L.DX_DV_SIZE)
 
 
 @pytest.fixture(scope="module")
@@ -26,14 +30,19 @@ def params():
 
 
 def x_rest() -> np.ndarray:
-    x = np.zeros(19)
-    x[6] = 1.0  # body axes aligned with ENU
+    x = np.zeros(L.NX)
+    x[L.X_Q_NB] = 1.0  # body axes aligned with ENU
     return x
 
 
 def P0() -> np.ndarray:
-    return np.diag(np.r_[np.full(3, 10.0**2), np.full(3, 0.5**2), np.full(3, 0.01**2), np.full(3, 0.05**2),
-                         np.full(3, 1e-4**2), 100.0**2, 1.0**2, 10.0**2])
+    sd = {"DP": 10.0, "DV": 0.5, "DTHETA": 0.01, "DB_A": 0.05, "DB_G": 1e-4, "DC_DT": 100.0, "DC_DDT": 1.0,
+          "DB_LO": 10.0}  # prior standard deviation per error-state block (SI)
+    P = np.zeros((L.NDX, L.NDX))
+    for name, s in sd.items():
+        block = getattr(L, f"DX_{name}_SLICE")
+        P[block, block] = np.eye(block.stop - block.start) * s**2
+    return P
 
 
 def ecef_and_enu_axes():
@@ -55,7 +64,7 @@ def gps_aux(n_sat: int = 8) -> np.ndarray:
         az, el = 2 * math.pi * i / n_sat, math.radians(15 + 60 * (i % 3) / 2)
         los = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
         a = np.zeros(records.NAUX)
-        a[0:3] = r0 + C @ los * 2.2e7
+        a[L.AUX_R_S_ECEF_SLICE] = r0 + C @ los * 2.2e7
         rows.append(a)
     return np.array(rows)
 
@@ -66,14 +75,14 @@ def static_stream(lib, params, seconds, rng, fix_sigma=None, gps_rate_hz=10.0, p
     n = int(round(seconds / IMU_DT))
     t = np.arange(1, n + 1) * IMU_DT
     u0 = lf.stationary_imu(x, IMU_DT, params, lib)
-    vrw, arw = params[3], params[4]
-    dtheta = u0[:3] + rng.normal(0, arw * math.sqrt(IMU_DT), (n, 3))
-    dvel = u0[3:] + rng.normal(0, vrw * math.sqrt(IMU_DT), (n, 3))
+    vrw, arw = params[L.P_VRW], params[L.P_ARW]
+    dtheta = u0[L.U_DTHETA_B_SLICE] + rng.normal(0, arw * math.sqrt(IMU_DT), (n, L.U_DTHETA_B_SIZE))
+    dvel = u0[L.U_DVEL_B_SLICE] + rng.normal(0, vrw * math.sqrt(IMU_DT), (n, L.U_DVEL_B_SIZE))
     parts = [records.imu_records(t, dtheta, dvel)]
     t_gps = np.arange(1, int(seconds * gps_rate_hz) + 1) / gps_rate_hz
     if fix_sigma is not None:
         for axis, name in enumerate(("pos_e", "pos_n", "pos_u")):
-            z = x[axis] + rng.normal(0, fix_sigma, t_gps.size)
+            z = x[L.X_P_ENU + axis] + rng.normal(0, fix_sigma, t_gps.size)
             parts.append(records.measurement_records(t_gps, lib.kind_id(name), z, fix_sigma**2))
     if pr_sigma is not None:
         ekf = lf.EKF(x, P0(), params, library=lib)
@@ -101,14 +110,15 @@ def step_through(ekf: lf.EKF, recs) -> tuple[np.ndarray, np.ndarray, np.ndarray]
 def test_step_by_step_equals_c_loop(lib, params):
     rng = np.random.default_rng(3)
     recs = static_stream(lib, params, 2.0, rng, fix_sigma=2.0, pr_sigma=3.0)
-    recs["z"][np.flatnonzero(recs["kind"] == 0)[5]] += 1000.0  # one gated record on both paths
-    x0 = x_rest() + np.r_[3.0, -2.0, 1.0, np.zeros(16)]
+    recs["z"][np.flatnonzero(recs["kind"] == L.MEAS_PSEUDORANGE)[5]] += 1000.0  # one gated record on both paths
+    x0 = x_rest()
+    x0[POS] += [3.0, -2.0, 1.0]
     a, b = lf.EKF(x0, P0(), params, library=lib), lf.EKF(x0, P0(), params, library=lib)
     res = a.run(recs, full_P=True)
     xs, pd, st = step_through(b, recs)
     np.testing.assert_array_equal(res.P[-1], a.P)
     np.testing.assert_array_equal(np.diagonal(res.P, axis1=1, axis2=2), res.P_diag)
-    assert res.n_gated == 1 and np.count_nonzero(st == 1) == 1
+    assert res.n_gated == 1 and np.count_nonzero(st == lf.STATUS_GATED) == 1
     np.testing.assert_array_equal(res.status, st)
     assert np.max(np.abs(res.x - xs)) <= 1e-12
     assert np.max(np.abs(res.P_diag - pd) / pd) <= 1e-12
@@ -118,10 +128,10 @@ def test_step_by_step_equals_c_loop(lib, params):
 def test_predict_F_is_column_major_and_consistent(lib, params):
     rng = np.random.default_rng(0)
     x = x_rest()
-    x[3:6] = [20.0, -5.0, 1.0]
-    u = lf.stationary_imu(x_rest(), IMU_DT, params, lib) + rng.normal(0, 1e-3, 6)
-    A = rng.normal(size=(18, 18))
-    P = A @ A.T + 18 * np.eye(18)
+    x[VEL] = [20.0, -5.0, 1.0]
+    u = lf.stationary_imu(x_rest(), IMU_DT, params, lib) + rng.normal(0, 1e-3, L.NU)
+    A = rng.normal(size=(L.NDX, L.NDX))
+    P = A @ A.T + L.NDX * np.eye(L.NDX)
     ekf = lf.EKF(x, P, params, library=lib)
     ekf.predict(u, IMU_DT)
     np.testing.assert_allclose(ekf.P, ekf.F @ P @ ekf.F.T + ekf.Q, rtol=1e-10, atol=1e-10)
@@ -134,12 +144,12 @@ def test_predict_F_is_column_major_and_consistent(lib, params):
         return xx
 
     base, eps = mech(x), 1e-3
-    for j in range(6):
+    for j in range(PV.start, PV.stop):
         xp = x.copy()
         xp[j] += eps
-        col = (mech(xp)[:6] - base[:6]) / eps
-        np.testing.assert_allclose(ekf.F[:6, j], col, atol=1e-7)
-    assert ekf.F[0, 3] == pytest.approx(IMU_DT) and abs(ekf.F[3, 0]) < 1e-5
+        col = (mech(xp)[PV] - base[PV]) / eps
+        np.testing.assert_allclose(ekf.F[PV, j], col, atol=1e-7)
+    assert ekf.F[L.DX_DP, L.DX_DV] == pytest.approx(IMU_DT) and abs(ekf.F[L.DX_DV, L.DX_DP]) < 1e-5
 
 
 def test_outlier_is_gated_and_counted(lib, params):
@@ -158,7 +168,7 @@ def test_outlier_is_gated_and_counted(lib, params):
     ekf2 = lf.EKF(x_rest(), P0(), params, gate=None, library=lib)
     res2 = ekf2.run(recs)
     assert res2.n_gated == 0 and res2.status[bad] == lf.STATUS_APPLIED
-    assert np.linalg.norm(res2.x[bad, :3] - res2.x[bad - 1, :3]) > 1.0
+    assert np.linalg.norm(res2.x[bad, POS] - res2.x[bad - 1, POS]) > 1.0
 
 
 def test_numerical_failures_return_status_2_and_loop_continues(lib, params):
@@ -170,12 +180,12 @@ def test_numerical_failures_return_status_2_and_loop_continues(lib, params):
     recs = records.merge_records(good, fix, imu_nan, neg_dt)
     bad = np.flatnonzero(np.isin(recs["t"], [0.305, 0.505, 0.705, 0.805]))
     res = lf.EKF(x_rest(), P0(), params, library=lib).run(recs)
-    np.testing.assert_array_equal(res.status[bad], [2, 2, 2, 2])
+    np.testing.assert_array_equal(res.status[bad], [lf.STATUS_FAILED] * 4)
     assert res.n_failed == 4 and np.isnan(res.nis[bad[1]])
     assert res.S[bad[0]] < 0  # R = -1e9 gives S <= 0: reported, not applied
     # failures leave the state untouched, so the run equals the run without those records
     ref = lf.EKF(x_rest(), P0(), params, library=lib).run(good)
-    assert np.all(res.status[-5:] != 2) and res.n_applied == ref.n_applied
+    assert np.all(res.status[-5:] != lf.STATUS_FAILED) and res.n_applied == ref.n_applied
     np.testing.assert_array_equal(res.x[-1], ref.x[-1])
 
 
@@ -184,16 +194,16 @@ def test_static_receiver_with_fixes_is_consistent_with_P(lib, params):
     sigma = 2.0
     recs = static_stream(lib, params, 20.0, rng, fix_sigma=sigma, gps_rate_hz=1.0)
     x0 = x_rest()
-    x0[0:6] = [5.0, -4.0, 3.0, 0.3, -0.2, 0.1]  # initial error 5 m / 0.3 m/s vs sigma 10 m / 0.5 m/s
+    x0[PV] = [5.0, -4.0, 3.0, 0.3, -0.2, 0.1]  # initial error 5 m / 0.3 m/s vs sigma 10 m / 0.5 m/s
     res = lf.EKF(x0, P0(), params, library=lib).run(recs)
     assert res.n_applied == 60 and res.n_gated == 0 and res.n_failed == 0
-    err = res.x[:, :6] - x_rest()[:6]  # truth is at rest at the origin
-    sd = np.sqrt(res.P_diag[:, :6])
+    err = res.x[:, PV] - x_rest()[PV]  # truth is at rest at the origin
+    sd = np.sqrt(res.P_diag[:, PV])
     after_first_fix = res.t >= 1.0
     assert np.all(np.abs(err[after_first_fix]) < 4 * sd[after_first_fix])
-    assert np.all(sd[-1, :3] < 0.15 * sd[0, :3])  # converged from 10 m to ~1 m
-    assert np.linalg.norm(err[-1, :3]) < 0.5 * np.linalg.norm(x0[:3])
-    nis = res.nis[res.status == 0]
+    assert np.all(sd[-1, POS] < 0.15 * sd[0, POS])  # converged from 10 m to ~1 m
+    assert np.linalg.norm(err[-1, POS]) < 0.5 * np.linalg.norm(x0[POS])
+    nis = res.nis[res.status == lf.STATUS_APPLIED]
     assert 0.5 < nis[10:].mean() < 1.6  # after convergence, innovations match their S
 
 
@@ -215,19 +225,21 @@ def test_pcrb_equals_ekf_covariance_linearised_at_truth(lib, params):
         if i in (5, recs.size // 2):
             np.testing.assert_allclose(pc.B_diag[i], np.diag(ekf.P), rtol=1e-8)
     np.testing.assert_allclose(pc.B, ekf.P, rtol=1e-7, atol=1e-12)
-    np.testing.assert_allclose(pc.B_nav[-1], ekf.P[:9, :9], rtol=1e-7, atol=1e-12)
+    nav = L.DX_NAV9_SLICE
+    np.testing.assert_allclose(pc.B_nav[-1], ekf.P[nav, nav], rtol=1e-7, atol=1e-12)
 
 
 def test_stationary_imu_keeps_the_mechanization_at_rest(lib, params):
     x = x_rest()
-    x[6:10] = [math.cos(0.3), 0.0, 0.0, math.sin(0.3)]  # yawed 0.6 rad
+    x[L.X_Q_NB_SLICE] = [math.cos(0.3), 0.0, 0.0, math.sin(0.3)]  # yawed 0.6 rad
     u = lf.stationary_imu(x, IMU_DT, params, lib)
-    assert np.linalg.norm(u[3:]) / IMU_DT == pytest.approx(9.80, abs=0.01)  # gravity magnitude at 40 deg N
-    assert np.linalg.norm(u[:3]) / IMU_DT == pytest.approx(K.OMEGA_IE_RADPS, rel=1e-6)  # Earth rate
+    assert np.linalg.norm(u[L.U_DVEL_B_SLICE]) / IMU_DT == pytest.approx(9.80, abs=0.01)  # gravity at 40 deg N
+    assert np.linalg.norm(u[L.U_DTHETA_B_SLICE]) / IMU_DT == pytest.approx(K.OMEGA_IE_RADPS, rel=1e-6)  # Earth rate
     work, xx = lib.new_workspace(), x.copy()
     for _ in range(1000):  # 10 s
         assert lib.lib.leonav_mech_step(lf._ptr(xx), lf._ptr(u), IMU_DT, lf._ptr(params), work.ctypes.data) == 0
-    assert np.max(np.abs(xx[:6])) < 1e-6 and np.max(np.abs(xx[6:10] - x[6:10])) < 1e-9
+    q = L.X_Q_NB_SLICE
+    assert np.max(np.abs(xx[PV])) < 1e-6 and np.max(np.abs(xx[q] - x[q])) < 1e-9
 
 
 def test_P_rows_returns_the_same_blocks_as_full_P(lib, params):
@@ -241,3 +253,31 @@ def test_P_rows_returns_the_same_blocks_as_full_P(lib, params):
     np.testing.assert_array_equal(some.x, full.x)
     with pytest.raises(ValueError, match="increasing record indices"):
         lf.EKF(x_rest(), P0(), params, library=lib).run(recs, P_rows=[5, 3])
+
+
+def test_step_return_codes_are_distinct(lib, params):
+    """One success code for every step; gated/failed positive; errors negative (no -1 for success)."""
+    L = lib.layout
+    x, P, u = x_rest(), np.asfortranarray(P0()), lf.stationary_imu(x_rest(), IMU_DT, params, lib)
+    good, bad = lib.new_workspace(), np.zeros_like(lib.new_workspace())  # bad: never initialised
+    p_, w = lf._ptr(params), good.ctypes.data
+    predict = lib.lib.leonav_predict_step
+    assert predict(lf._ptr(x), lf._ptr(P), lf._ptr(u), IMU_DT, p_, None, None, bad.ctypes.data) == L.ERR_WORK
+    assert predict(lf._ptr(x), lf._ptr(P), lf._ptr(u), IMU_DT, p_, None, None, w) == L.OK
+    u_nan = np.full(L.NU, np.nan)
+    assert predict(lf._ptr(x), lf._ptr(P), lf._ptr(u_nan), IMU_DT, p_, None, None, w) == L.FAILED
+    assert lib.lib.leonav_mech_step(lf._ptr(x), lf._ptr(u), IMU_DT, p_, w) == L.OK
+    update, aux, ysn = lib.lib.leonav_update_step, np.zeros(L.NAUX), np.zeros(3)
+    args = lambda kind, z, R: (lf._ptr(x), lf._ptr(P), kind, z, R, lf._ptr(aux), p_, 10.0, lf._ptr(ysn), w)  # noqa: E731
+    assert update(*args(L.MEAS_POS_E, 0.5, 4.0)) == L.OK
+    assert update(*args(L.MEAS_POS_E, 1e4, 4.0)) == L.GATED
+    assert update(*args(L.MEAS_POS_E, float("nan"), 4.0)) == L.FAILED
+    assert update(*args(L.NMEAS, 0.0, 4.0)) == L.ERR_KIND
+    assert update(*args(L.MEAS_IMU, 0.0, 4.0)) == L.ERR_KIND
+    h, H = np.zeros(1), np.zeros(L.NDX)
+    assert lib.lib.leonav_h_step(L.MEAS_POS_E, lf._ptr(x), lf._ptr(aux), p_, lf._ptr(h), lf._ptr(H), w) == L.OK
+    assert len({L.OK, L.GATED, L.FAILED, L.ERR_WORK, L.ERR_KIND, L.ERR_LAYOUT, L.ERR_ARG, L.ERR_NUMERIC}) == 8
+    # the PCRB rejects a non-positive R with an error code (named in the exception)
+    rec = records.measurement_records([0.0], L.MEAS_POS_E, [0.0], [0.0])
+    with pytest.raises(RuntimeError, match="LEONAV_ERR_NUMERIC at record 0"):
+        lf.pcrb(rec, x_rest()[None, :], P0(), params, library=lib)

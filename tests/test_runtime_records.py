@@ -53,14 +53,15 @@ def test_merge_orders_by_time_imu_first_and_keeps_input_order():
     assert list(merged["kind"]) == [-1, 0, -1, 1, 0, -1, 1]
     assert list(merged["z"][[3, 4]]) == [10.0, 20.0]
     assert list(merged["sat_id"][[1, 3, 4]]) == [4, 7, 3]
-    records.check_records(merged, 10)
+    records.check_records(merged, compiled.load_layout().NMEAS)
 
 
 def test_imu_records_intervals_and_increments():
     t = np.array([1.0, 1.01, 1.03])
     rec = records.imu_records(t, np.ones((3, 3)) * 2, np.ones((3, 3)) * 3)
     assert np.allclose(rec["dt"], [0.01, 0.01, 0.02])
-    assert np.all(rec["u"][:, :3] == 2) and np.all(rec["u"][:, 3:] == 3)
+    L = compiled.load_layout()
+    assert np.all(rec["u"][:, L.U_DTHETA_B_SLICE] == 2) and np.all(rec["u"][:, L.U_DVEL_B_SLICE] == 3)
     assert np.all(rec["kind"] == records.KIND_IMU)
     with pytest.raises(ValueError, match="dvel_b"):
         records.imu_records(t, np.zeros((3, 3)), np.zeros((2, 3)))

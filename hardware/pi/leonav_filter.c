@@ -6,12 +6,16 @@
  * RECORDS.bin: a raw array of leonav_record (leonav_driver.h; NumPy: recs.tofile()).
  * INIT.bin:    x0 (NX), P0 (NDX*NDX, column-major), p (NP) as little-endian doubles.
  * OUT.csv:     one row per record: t, kind, sat_id, status, y, S, nis, x[NX], P_diag[NDX].
- * GATE_NIS:    chi-square gate on every observable (default 10.83; 0 disables).
- * Exit status: 0 ok, 2 bad arguments or files, 3 the run returned an error code.
+ * GATE_NIS:    chi-square gate on every observable (default LEONAV_CHI2_1DOF_999 = 10.8276,
+ *              the chi-square 1-dof 99.9 % quantile, as the Python EKF; 0 disables).
+ * status column: the per-record enum of leonav_run (-1 IMU, 0 applied, 1 gated, 2 failed).
+ * Exit status: 0 ok, 2 bad arguments or files, 3 the run returned an error code (named on
+ * stderr, LEONAV_ERR_*).
  */
 #include <stdio.h>
 #include <stdlib.h>
 
+#include "constants.h"
 #include "leonav_driver.h"
 
 #define NMAT (LEONAV_NDX * LEONAV_NDX)
@@ -50,7 +54,7 @@ int main(int argc, char **argv)
         return 2;
     }
     long n = rec_bytes / (long)sizeof(leonav_record);
-    double gate = argc == 5 ? atof(argv[4]) : 10.83;
+    double gate = argc == 5 ? atof(argv[4]) : LEONAV_CHI2_1DOF_999;
     double gates[LEONAV_NMEAS];
     for (int k = 0; k < LEONAV_NMEAS; ++k) gates[k] = gate;
 
@@ -88,5 +92,14 @@ int main(int argc, char **argv)
     fclose(f);
     fprintf(stderr, "%ld records: %ld IMU, %ld applied, %ld gated, %ld failed\n", out.n_done, out.n_imu,
             out.n_applied, out.n_gated, out.n_failed);
-    return rc == LEONAV_OK ? 0 : 3;
+    long applied[LEONAV_NMEAS] = {0};
+    for (long i = 0; i < out.n_done; ++i)
+        if (rec[i].kind >= 0 && rec[i].kind < LEONAV_NMEAS && status[i] == LEONAV_STATUS_APPLIED) applied[rec[i].kind]++;
+    for (int k = 0; k < LEONAV_NMEAS; ++k)
+        if (applied[k]) fprintf(stderr, "  %s (%s): %ld applied\n", leonav_meas_name(k), leonav_meas_unit(k), applied[k]);
+    if (rc != LEONAV_OK) {
+        fprintf(stderr, "leonav_run stopped at record %ld: %s (%d)\n", out.n_done, leonav_code_name(rc), rc);
+        return 3;
+    }
+    return 0;
 }

@@ -11,9 +11,11 @@
 
 #define NX LEONAV_NX
 #define NDX LEONAV_NDX
+#define NU LEONAV_NU
+#define NNAV LEONAV_NNAV
 #define NMAT (LEONAV_NDX * LEONAV_NDX)
-#define MAX_OUT 5     /* most outputs of any generated function (update: 5) */
-#define MAX_IN 6      /* most inputs of any generated function (update: 6) */
+#define MAX_OUT 5     /* most outputs of any generated function the driver calls (update: 5) */
+#define MAX_IN 6      /* most inputs of any generated function the driver calls (update: 6) */
 #define WORK_MAGIC 0x6c656f6e61763031ULL
 
 /* ---- table of generated functions ------------------------------------------------ */
@@ -33,27 +35,25 @@ typedef struct {
 #define GEN_FN(name) {name, name##_work, name##_sparsity_out, name##_n_out}
 
 typedef struct {
-    gen_fn h;
-    gen_fn update;
+    gen_fn h;         /* leonav_h_<k>: h, H */
+    gen_fn update;    /* leonav_update_<k>: Joseph-form scalar update */
+    const char *name, *unit;
 } meas_fns;
 
-/* Measurement id -> generated functions. Adding an observable = one line here. */
-#define MEAS_ENTRY(id, k) [id] = {GEN_FN(leonav_h_##k), GEN_FN(leonav_update_##k)}
-static const meas_fns MEAS[LEONAV_NMEAS] = {
-    MEAS_ENTRY(LEONAV_MEAS_PSEUDORANGE, pseudorange),
-    MEAS_ENTRY(LEONAV_MEAS_POS_E, pos_e),
-    MEAS_ENTRY(LEONAV_MEAS_POS_N, pos_n),
-    MEAS_ENTRY(LEONAV_MEAS_POS_U, pos_u),
-    MEAS_ENTRY(LEONAV_MEAS_VEL_E, vel_e),
-    MEAS_ENTRY(LEONAV_MEAS_VEL_N, vel_n),
-    MEAS_ENTRY(LEONAV_MEAS_VEL_U, vel_u),
-    MEAS_ENTRY(LEONAV_MEAS_DOPPLER_RATE, doppler_rate),
-    MEAS_ENTRY(LEONAV_MEAS_DOPPLER, doppler),
-    MEAS_ENTRY(LEONAV_MEAS_OFDM_RANGE_DIFF, ofdm_range_diff),
-};
+/* Kind id -> generated functions, built from the generated observable list
+ * (state_layout.h), so a new observable in models/ needs no edit here. */
+#define MEAS_ENTRY(id, k, dim, name, unit) \
+    [id] = {GEN_FN(leonav_h_##k), GEN_FN(leonav_update_##k), name, unit},
+static const meas_fns MEAS[LEONAV_NMEAS] = {LEONAV_MEAS_TABLE(MEAS_ENTRY)};
+
+/* The driver's updates are scalar: a table entry with dimension != 1 fails to compile here. */
+#define MEAS_SCALAR(id, k, dim, name, unit) &&(dim) == 1
+typedef char meas_dims_are_scalar[(1 LEONAV_MEAS_TABLE(MEAS_SCALAR)) ? 1 : -1];
+
 static const gen_fn MECH = GEN_FN(leonav_mech);
 static const gen_fn PREDICT = GEN_FN(leonav_predict);
 static const gen_fn BOXMINUS = GEN_FN(leonav_boxminus);
+static const gen_fn PCRB_UPDATE = GEN_FN(leonav_pcrb_update);  /* B - B H^T H B / S, any observable */
 
 /* ---- workspace ------------------------------------------------------------------- */
 
@@ -68,7 +68,6 @@ typedef struct {
     double P_tmp[NMAT];
     double x_run[NX];           /* leonav_run's second state buffer (swapped, not copied) */
     double P_run[NMAT];
-    double vec[NDX];            /* PCRB: B H^T */
 } workspace;
 
 typedef struct {
@@ -91,6 +90,7 @@ static work_sizes all_sizes(void)
     max_sizes(&MECH, &m);
     max_sizes(&PREDICT, &m);
     max_sizes(&BOXMINUS, &m);
+    max_sizes(&PCRB_UPDATE, &m);
     for (int k = 0; k < LEONAV_NMEAS; ++k) {
         max_sizes(&MEAS[k].h, &m);
         max_sizes(&MEAS[k].update, &m);
@@ -117,12 +117,20 @@ static int outputs_fit(const gen_fn *f)
     return f->n_out() <= MAX_OUT;
 }
 
+/* h of a scalar observable: h is 1 x 1, H is 1 x NDX. */
+static int h_is_scalar(const gen_fn *f)
+{
+    const int *h = f->sparsity_out(0), *H = f->sparsity_out(1);
+    return f->n_out() == 2 && h && H && h[0] == 1 && h[1] == 1 && H[0] == 1 && H[1] == NDX;
+}
+
 int leonav_work_init(void *work, size_t nbytes)
 {
     if (!work || nbytes < leonav_work_size()) return LEONAV_ERR_WORK;
-    if (!outputs_fit(&MECH) || !outputs_fit(&PREDICT)) return LEONAV_ERR_LAYOUT;
+    if (!outputs_fit(&MECH) || !outputs_fit(&PREDICT) || !outputs_fit(&PCRB_UPDATE)) return LEONAV_ERR_LAYOUT;
     for (int k = 0; k < LEONAV_NMEAS; ++k)
-        if (!outputs_fit(&MEAS[k].h) || !outputs_fit(&MEAS[k].update)) return LEONAV_ERR_LAYOUT;
+        if (!outputs_fit(&MEAS[k].h) || !outputs_fit(&MEAS[k].update) || !h_is_scalar(&MEAS[k].h))
+            return LEONAV_ERR_LAYOUT;
     work_sizes m = all_sizes();
     char *base = (char *)work;
     workspace *ws = (workspace *)base;
@@ -186,12 +194,12 @@ int leonav_mech_step(double *x, const double *u, double dt, const double *p, voi
 {
     workspace *ws = get_ws(work);
     if (!ws) return LEONAV_ERR_WORK;
-    if (!all_finite(u, 6) || !isfinite(dt) || dt < 0.0) return LEONAV_STATUS_FAILED;
+    if (!all_finite(u, NU) || !isfinite(dt) || dt < 0.0) return LEONAV_FAILED;
     const double *in[4] = {x, u, &dt, p};
     double *out[1] = {ws->x_tmp};
-    if (call_gen(ws, &MECH, in, 4, out, 1) != 0 || !all_finite(ws->x_tmp, NX)) return LEONAV_STATUS_FAILED;
+    if (call_gen(ws, &MECH, in, 4, out, 1) != 0 || !all_finite(ws->x_tmp, NX)) return LEONAV_FAILED;
     memcpy(x, ws->x_tmp, sizeof(double) * NX);
-    return 0;
+    return LEONAV_OK;
 }
 
 int leonav_boxminus_many(long n, const double *x1, const double *x0, double *dx, void *work)
@@ -222,29 +230,29 @@ static int state_finite(const double *x, const double *P)
 static int predict_into(workspace *ws, const double *x, const double *P, const double *u, double dt,
                         const double *p, double *x_out, double *P_out, double *F, double *Qd)
 {
-    if (!all_finite(u, 6) || !isfinite(dt) || dt < 0.0) return LEONAV_STATUS_FAILED;
+    if (!all_finite(u, NU) || !isfinite(dt) || dt < 0.0) return LEONAV_FAILED;
     const double *in[5] = {x, P, u, &dt, p};
     double *out[4] = {x_out, P_out, F, Qd};
-    if (call_gen(ws, &PREDICT, in, 5, out, 4) != 0 || !state_finite(x_out, P_out)) return LEONAV_STATUS_FAILED;
-    return LEONAV_STATUS_IMU;
+    if (call_gen(ws, &PREDICT, in, 5, out, 4) != 0 || !state_finite(x_out, P_out)) return LEONAV_FAILED;
+    return LEONAV_OK;
 }
 
-/* Scalar update of (x, P) into (x_out, P_out); returns APPLIED, GATED or FAILED and
+/* Scalar update of (x, P) into (x_out, P_out); returns LEONAV_OK, _GATED or _FAILED and
  * writes y, S, nis into ysn (NaN where not computed). */
 static int update_into(workspace *ws, const double *x, const double *P, int kind, double z, double R,
                        const double *aux, const double *p, double gate_nis, double *ysn,
                        double *x_out, double *P_out)
 {
     ysn[0] = ysn[1] = ysn[2] = NAN;
-    if (!isfinite(z) || !isfinite(R) || !all_finite(aux, LEONAV_NAUX)) return LEONAV_STATUS_FAILED;
+    if (!isfinite(z) || !isfinite(R) || !all_finite(aux, LEONAV_NAUX)) return LEONAV_FAILED;
     const double *in[6] = {x, P, &z, &R, aux, p};
     double *out[5] = {x_out, P_out, &ysn[0], &ysn[1], &ysn[2]};
     /* R < 0 is still evaluated so that its S is reported with the failure */
     if (call_gen(ws, &MEAS[kind].update, in, 6, out, 5) != 0 || R < 0.0 || !(ysn[1] > 0.0) || !isfinite(ysn[1]) ||
         !isfinite(ysn[2]) || !state_finite(x_out, P_out))
-        return LEONAV_STATUS_FAILED;
-    if (gate_nis > 0.0 && ysn[2] > gate_nis) return LEONAV_STATUS_GATED;
-    return LEONAV_STATUS_APPLIED;
+        return LEONAV_FAILED;
+    if (gate_nis > 0.0 && ysn[2] > gate_nis) return LEONAV_GATED;
+    return LEONAV_OK;
 }
 
 int leonav_predict_step(double *x, double *P, const double *u, double dt, const double *p,
@@ -253,7 +261,7 @@ int leonav_predict_step(double *x, double *P, const double *u, double dt, const 
     workspace *ws = get_ws(work);
     if (!ws) return LEONAV_ERR_WORK;
     int status = predict_into(ws, x, P, u, dt, p, ws->x_tmp, ws->P_tmp, F, Qd);
-    if (status == LEONAV_STATUS_IMU) {
+    if (status == LEONAV_OK) {
         memcpy(x, ws->x_tmp, sizeof(double) * NX);
         memcpy(P, ws->P_tmp, sizeof(double) * NMAT);
     }
@@ -268,7 +276,7 @@ int leonav_update_step(double *x, double *P, int kind, double z, double R, const
     if (kind < 0 || kind >= LEONAV_NMEAS) return LEONAV_ERR_KIND;
     double ysn[3];
     int status = update_into(ws, x, P, kind, z, R, aux, p, gate_nis, ysn, ws->x_tmp, ws->P_tmp);
-    if (status == LEONAV_STATUS_APPLIED) {
+    if (status == LEONAV_OK) {
         memcpy(x, ws->x_tmp, sizeof(double) * NX);
         memcpy(P, ws->P_tmp, sizeof(double) * NMAT);
     }
@@ -284,16 +292,36 @@ int leonav_h_step(int kind, const double *x, const double *aux, const double *p,
     if (kind < 0 || kind >= LEONAV_NMEAS) return LEONAV_ERR_KIND;
     const double *in[3] = {x, aux, p};
     double *out[2] = {h, H};
-    if (call_gen(ws, &MEAS[kind].h, in, 3, out, 2) != 0) return LEONAV_STATUS_FAILED;
-    if ((h && !isfinite(*h)) || (H && !all_finite(H, NDX))) return LEONAV_STATUS_FAILED;
-    return 0;
+    if (call_gen(ws, &MEAS[kind].h, in, 3, out, 2) != 0) return LEONAV_FAILED;
+    if ((h && !isfinite(*h)) || (H && !all_finite(H, NDX))) return LEONAV_FAILED;
+    return LEONAV_OK;
 }
+
+const char *leonav_code_name(int rc)
+{
+#define CODE_CASE(name) case LEONAV_##name: return "LEONAV_" #name;
+    switch (rc) { LEONAV_RETURN_CODE_TABLE(CODE_CASE) }
+#undef CODE_CASE
+    return "LEONAV_?";
+}
+
+const char *leonav_meas_name(int kind) { return kind >= 0 && kind < LEONAV_NMEAS ? MEAS[kind].name : NULL; }
+
+const char *leonav_meas_unit(int kind) { return kind >= 0 && kind < LEONAV_NMEAS ? MEAS[kind].unit : NULL; }
 
 /* ---- whole runs ------------------------------------------------------------------ */
 
 static void diag(const double *M, double *d)
 {
     for (int i = 0; i < NDX; ++i) d[i] = M[i + i * NDX];
+}
+
+/* Per-record status (its own enum, leonav_driver.h) of a step's return code. */
+static int32_t record_status(int kind, int rc)
+{
+    if (rc == LEONAV_FAILED) return LEONAV_STATUS_FAILED;
+    if (kind == LEONAV_MEAS_IMU) return LEONAV_STATUS_IMU;
+    return rc == LEONAV_GATED ? LEONAV_STATUS_GATED : LEONAV_STATUS_APPLIED;
 }
 
 int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, long n,
@@ -312,31 +340,31 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
     for (long i = 0; i < n; ++i) {
         const leonav_record *r = &rec[i];
         double ysn[3] = {NAN, NAN, NAN};
-        int status;
-        if (r->kind == LEONAV_KIND_IMU) {
-            status = predict_into(ws, xc, Pc, r->u, r->dt, p, xn, Pn, NULL, NULL);
-            if (status == LEONAV_STATUS_IMU) out->n_imu++;
+        int step;
+        if (r->kind == LEONAV_MEAS_IMU) {
+            step = predict_into(ws, xc, Pc, r->u, r->dt, p, xn, Pn, NULL, NULL);
+            if (step == LEONAV_OK) out->n_imu++;
         } else if (r->kind >= 0 && r->kind < LEONAV_NMEAS) {
             double gate = gate_nis ? gate_nis[r->kind] : 0.0;
-            status = update_into(ws, xc, Pc, r->kind, r->z, r->R, r->aux, p, gate, ysn, xn, Pn);
-            if (status == LEONAV_STATUS_APPLIED) out->n_applied++;
-            if (status == LEONAV_STATUS_GATED) out->n_gated++;
+            step = update_into(ws, xc, Pc, r->kind, r->z, r->R, r->aux, p, gate, ysn, xn, Pn);
+            if (step == LEONAV_OK) out->n_applied++;
+            if (step == LEONAV_GATED) out->n_gated++;
         } else {
             rc = LEONAV_ERR_KIND;
             break;
         }
-        if (status == LEONAV_STATUS_IMU || status == LEONAV_STATUS_APPLIED) {
+        if (step == LEONAV_OK) {
             double *t = xc; xc = xn; xn = t;
             t = Pc; Pc = Pn; Pn = t;
         }
-        if (status == LEONAV_STATUS_FAILED) out->n_failed++;
+        if (step == LEONAV_FAILED) out->n_failed++;
         if (out->x) memcpy(out->x + i * NX, xc, sizeof(double) * NX);
         if (out->P_diag) diag(Pc, out->P_diag + i * NDX);
         if (out->P && (!out->P_mask || out->P_mask[i])) memcpy(out->P + (n_P++) * NMAT, Pc, sizeof(double) * NMAT);
         if (out->y) out->y[i] = ysn[0];
         if (out->S) out->S[i] = ysn[1];
         if (out->nis) out->nis[i] = ysn[2];
-        if (out->status) out->status[i] = status;
+        if (out->status) out->status[i] = record_status(r->kind, step);
         out->n_done = i + 1;
     }
     if (xc != x) {  /* the state ends in the caller's buffers */
@@ -359,32 +387,28 @@ int leonav_pcrb_run(double *B, const double *p, const leonav_record *rec, long n
     for (long i = 0; i < n; ++i) {
         const leonav_record *r = &rec[i];
         const double *xi = x_lin + i * NX;
-        if (r->kind == LEONAV_KIND_IMU) {
+        if (r->kind == LEONAV_MEAS_IMU) {
             /* predict with P = B gives exactly F B F^T + Qd; the state output is discarded */
             double x_copy[NX];
             memcpy(x_copy, xi, sizeof x_copy);
-            if (leonav_predict_step(x_copy, B, r->u, r->dt, p, NULL, NULL, work) != LEONAV_STATUS_IMU)
+            if (leonav_predict_step(x_copy, B, r->u, r->dt, p, NULL, NULL, work) != LEONAV_OK)
                 return LEONAV_ERR_NUMERIC;
         } else if (r->kind >= 0 && r->kind < LEONAV_NMEAS) {
-            double h, H[NDX];
-            if (leonav_h_step(r->kind, xi, r->aux, p, &h, H, work) != 0) return LEONAV_ERR_NUMERIC;
-            double *BHt = ws->vec, S = r->R;
-            for (int a = 0; a < NDX; ++a) {
-                double s = 0.0;
-                for (int b = 0; b < NDX; ++b) s += B[a + b * NDX] * H[b];
-                BHt[a] = s;
-                S += H[a] * s;
-            }
-            if (!(S > 0.0) || !isfinite(S) || !(r->R > 0.0)) return LEONAV_ERR_NUMERIC;
-            for (int b = 0; b < NDX; ++b)
-                for (int a = 0; a < NDX; ++a) B[a + b * NDX] -= BHt[a] * BHt[b] / S;
+            /* H of leonav_h_<kind> at xi, then the generated Sherman-Morrison step on B */
+            double h, H[NDX], S = NAN;
+            if (leonav_h_step(r->kind, xi, r->aux, p, &h, H, work) != LEONAV_OK) return LEONAV_ERR_NUMERIC;
+            const double *in[3] = {B, H, &r->R};
+            double *out[2] = {ws->P_tmp, &S};
+            if (call_gen(ws, &PCRB_UPDATE, in, 3, out, 2) != 0 || !(S > 0.0) || !isfinite(S) || !(r->R > 0.0))
+                return LEONAV_ERR_NUMERIC;
+            memcpy(B, ws->P_tmp, sizeof(double) * NMAT);
         } else {
             return LEONAV_ERR_KIND;
         }
         if (B_diag) diag(B, B_diag + i * NDX);
-        if (B_nav)
-            for (int b = 0; b < 9; ++b)
-                for (int a = 0; a < 9; ++a) B_nav[i * 81 + a + b * 9] = B[a + b * NDX];
+        if (B_nav)  /* the 9D block leads dx (dx[0:NNAV], state_layout.h) */
+            for (int b = 0; b < NNAV; ++b)
+                for (int a = 0; a < NNAV; ++a) B_nav[i * NNAV * NNAV + a + b * NNAV] = B[a + b * NDX];
         if (B_full) memcpy(B_full + i * NMAT, B, sizeof(double) * NMAT);
         *n_done = i + 1;
     }

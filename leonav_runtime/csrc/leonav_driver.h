@@ -3,7 +3,7 @@
  *
  * Shared by the Python runtime (loaded with ctypes) and the standalone Pi program, so
  * it includes no Python header, never allocates inside a loop, never exits or aborts:
- * every function returns a status or an error code.
+ * every function returns one of the codes below (LEONAV_OK on success).
  *
  * Memory: the caller owns one workspace of leonav_work_size() bytes (8-byte aligned),
  * prepares it once with leonav_work_init() and passes it to every call. The workspace
@@ -28,33 +28,39 @@
 extern "C" {
 #endif
 
-/* Record kind of an IMU sample; measurement kinds are the LEONAV_MEAS_* ids. */
-#define LEONAV_KIND_IMU (-1)
-
-/* Per-record status written by leonav_run (and returned by the step functions). */
-#define LEONAV_STATUS_IMU (-1)     /* IMU record predicted */
-#define LEONAV_STATUS_APPLIED 0    /* measurement applied */
-#define LEONAV_STATUS_GATED 1      /* measurement rejected: nis above the gate */
-#define LEONAV_STATUS_FAILED 2     /* numerical failure (S <= 0, non-finite input/result,
-                                      R < 0, dt < 0): state and covariance left unchanged */
-
-/* Error codes returned by the run / init functions (never a status). */
-#define LEONAV_OK 0
-#define LEONAV_ERR_WORK (-1)       /* workspace too small or not initialised */
-#define LEONAV_ERR_KIND (-2)       /* record kind is neither IMU nor a LEONAV_MEAS_* id */
-#define LEONAV_ERR_LAYOUT (-3)     /* a generated function's shape does not match state_layout.h */
-#define LEONAV_ERR_ARG (-4)        /* a required pointer is NULL or n < 0 */
-#define LEONAV_ERR_NUMERIC (-5)    /* PCRB: non-finite or non-positive innovation variance */
+/* Codes (generated into state_layout.h from codegen/driver_codes.py, one definition for C and
+ * Python; table in docs/design.md "C driver API"):
+ *
+ * Every function here that returns int returns one of
+ *   LEONAV_OK (0)           success: the step was applied / the value computed
+ *   LEONAV_GATED (1)        leonav_update_step only: nis above the gate, x and P unchanged
+ *   LEONAV_FAILED (2)       numerical failure (non-finite input or result, R < 0, S <= 0,
+ *                           dt < 0): x and P unchanged
+ *   LEONAV_ERR_* (< 0)      an error of the call itself: _WORK (workspace NULL, too small or
+ *                           not initialised), _KIND (kind neither LEONAV_MEAS_IMU nor a
+ *                           LEONAV_MEAS_* id), _LAYOUT (generated shapes differ from
+ *                           state_layout.h), _ARG (NULL pointer, n < 0), _NUMERIC (PCRB or
+ *                           boxminus: a generated step failed, S is not positive and finite,
+ *                           or R <= 0)
+ * so `rc < 0` is always an error and `rc == LEONAV_OK` always success.
+ *
+ * leonav_run also writes a status per record (leonav_run_out.status), its own enum:
+ *   LEONAV_STATUS_IMU (-1) IMU record predicted, LEONAV_STATUS_APPLIED (0),
+ *   LEONAV_STATUS_GATED (1), LEONAV_STATUS_FAILED (2) (IMU or measurement record).
+ * A measurement record stores its update's return code; these values are never returned.
+ *
+ * Record kinds: LEONAV_MEAS_IMU (-1) for an IMU interval, else a LEONAV_MEAS_* id; the
+ * observables are listed by the generated X-macro LEONAV_MEAS_TABLE. */
 
 /* One record of a time-ordered stream. Mirrored by RECORD_DTYPE in records.py. */
 typedef struct leonav_record {
     double t;                  /* s since the scenario epoch */
-    int32_t kind;              /* LEONAV_KIND_IMU or LEONAV_MEAS_* */
+    int32_t kind;              /* LEONAV_MEAS_IMU or LEONAV_MEAS_* */
     int32_t sat_id;            /* satellite id, -1 if none */
     double z;                  /* measurement, unit of its observable */
     double R;                  /* measurement noise variance, unit^2 */
     double dt;                 /* IMU interval, s (unused for measurements) */
-    double u[6];               /* IMU increments: dtheta_b (rad, 3), dvel_b (m/s, 3), body FLU */
+    double u[LEONAV_NU];       /* IMU increments: dtheta_b (rad, 3), dvel_b (m/s, 3), body FLU */
     double aux[LEONAV_NAUX];   /* satellite / reference / specific force block, see design.md */
 } leonav_record;
 
@@ -68,7 +74,7 @@ typedef struct leonav_run_out {
     double *y;        /* n  innovation (NaN for IMU records and failures before it exists) */
     double *S;        /* n  innovation variance */
     double *nis;      /* n  normalised innovation squared y^2 / S */
-    int32_t *status;  /* n  LEONAV_STATUS_* */
+    int32_t *status;  /* n  LEONAV_STATUS_* (per-record enum above) */
     long n_done;      /* records processed (== n unless an error code was returned) */
     long n_imu, n_applied, n_gated, n_failed;  /* counts; n_failed includes IMU failures */
 } leonav_run_out;
@@ -80,45 +86,57 @@ size_t leonav_work_size(void);
  * or LEONAV_ERR_LAYOUT (a generated output is larger than NDX x NDX). */
 int leonav_work_init(void *work, size_t nbytes);
 
-/* Nominal mechanization over one interval, in place. Returns 0, or LEONAV_STATUS_FAILED
- * (x unchanged) on non-finite input or result. */
+/* Nominal mechanization over one interval, in place. Returns LEONAV_OK, LEONAV_FAILED
+ * (x unchanged) on non-finite input or result, or LEONAV_ERR_WORK. */
 int leonav_mech_step(double *x, const double *u, double dt, const double *p, void *work);
 
 /* Predict x (NX) and P in place over one IMU interval. F and Qd (NDX*NDX, column-major)
- * are written when not NULL. Returns LEONAV_STATUS_IMU, or LEONAV_STATUS_FAILED with x
- * and P unchanged (non-finite u/dt/result, dt < 0). */
-/* dx[i] = x1[i] [-] x0[i] for i < n (rows of NX, results rows of NDX), with the generated
- * boxminus (attitude: body-frame rotation vector). Used to score estimates against truth. */
-int leonav_boxminus_many(long n, const double *x1, const double *x0, double *dx, void *work);
-
+ * are written when not NULL. Returns LEONAV_OK, LEONAV_FAILED with x and P unchanged
+ * (non-finite u/dt/result, dt < 0), or LEONAV_ERR_WORK. */
 int leonav_predict_step(double *x, double *P, const double *u, double dt, const double *p,
                         double *F, double *Qd, void *work);
 
+/* dx[i] = x1[i] [-] x0[i] for i < n (rows of NX, results rows of NDX), with the generated
+ * boxminus (attitude: body-frame rotation vector). Used to score estimates against truth.
+ * Returns LEONAV_OK, LEONAV_ERR_WORK / _ARG / _NUMERIC. */
+int leonav_boxminus_many(long n, const double *x1, const double *x0, double *dx, void *work);
+
 /* Scalar update of observable `kind`, in place. gate_nis > 0 rejects nis > gate_nis;
  * gate_nis <= 0 disables gating. y_S_nis[3] (may be NULL) receives y, S, nis (NaN when
- * not computed). Returns LEONAV_STATUS_APPLIED / _GATED / _FAILED, or LEONAV_ERR_KIND. */
+ * not computed). Returns LEONAV_OK (applied), LEONAV_GATED, LEONAV_FAILED (x, P unchanged
+ * in both), LEONAV_ERR_WORK or LEONAV_ERR_KIND. */
 int leonav_update_step(double *x, double *P, int kind, double z, double R, const double *aux,
                        const double *p, double gate_nis, double *y_S_nis, void *work);
 
 /* Prediction h and Jacobian H (1 x NDX, w.r.t. the error state) of observable `kind`.
- * Returns 0, LEONAV_ERR_KIND, or LEONAV_STATUS_FAILED on non-finite result. */
+ * Returns LEONAV_OK, LEONAV_FAILED on a non-finite result, LEONAV_ERR_WORK or _KIND. */
 int leonav_h_step(int kind, const double *x, const double *aux, const double *p, double *h,
                   double *H, void *work);
+
+/* "LEONAV_OK", "LEONAV_ERR_KIND", ... for a return code (generated list); "LEONAV_?" if unknown. */
+const char *leonav_code_name(int rc);
+
+/* Name ("PSEUDORANGE", ...) and unit ("m", ...) of observable `kind` from the generated
+ * LEONAV_MEAS_TABLE; NULL when kind is not a LEONAV_MEAS_* id. */
+const char *leonav_meas_name(int kind);
+const char *leonav_meas_unit(int kind);
 
 /* Run the filter over n time-ordered records, updating x and P in place (final state).
  * gate_nis: LEONAV_NMEAS thresholds indexed by kind (<= 0 disables), or NULL for no
  * gating. Measurement failures are discarded and counted; the loop continues. An IMU
- * failure skips that predict (status 2) and the loop continues. Returns LEONAV_OK, or
- * LEONAV_ERR_KIND / _ERR_ARG / _ERR_WORK with out->n_done = index of the bad record. */
+ * failure skips that predict (status LEONAV_STATUS_FAILED) and the loop continues.
+ * Returns LEONAV_OK, or LEONAV_ERR_KIND / _ERR_ARG / _ERR_WORK with out->n_done = index
+ * of the bad record. */
 int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, long n,
                const double *gate_nis, leonav_run_out *out, void *work);
 
 /* Posterior Cramer-Rao bound B = J^-1 along a given trajectory, B updated in place.
  * x_lin (n * NX): state at which record i is linearised: for an IMU record the true
  * state at the start of its interval (t - dt), for a measurement the true state at t.
- * IMU: B <- F B F^T + Qd. Measurement: B <- B - B H^T H B / (H B H^T + R), H from
- * leonav_h_<kind> at x_lin. Outputs per record (each may be NULL): B_diag (n * NDX),
- * B_nav (n * 81, the 9x9 block of dp dv dtheta, column-major), B_full (n * NDX * NDX).
+ * IMU: B <- F B F^T + Qd (leonav_predict). Measurement: B <- B - B H^T H B / (H B H^T + R),
+ * the generated leonav_pcrb_update with H of leonav_h_<kind> at x_lin (R must be > 0). Outputs per record
+ * (each may be NULL): B_diag (n * NDX), B_nav (n * NNAV^2, the NNAV x NNAV block of dp dv
+ * dtheta, column-major), B_full (n * NDX * NDX).
  * Returns LEONAV_OK, or an error code with *n_done = index of the failing record. */
 int leonav_pcrb_run(double *B, const double *p, const leonav_record *rec, long n,
                     const double *x_lin, double *B_diag, double *B_nav, double *B_full,

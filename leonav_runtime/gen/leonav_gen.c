@@ -83,6 +83,7 @@ extern "C" {
 #define casadi_f51 CASADI_PREFIX(f51)
 #define casadi_f52 CASADI_PREFIX(f52)
 #define casadi_f53 CASADI_PREFIX(f53)
+#define casadi_f54 CASADI_PREFIX(f54)
 #define casadi_f6 CASADI_PREFIX(f6)
 #define casadi_f7 CASADI_PREFIX(f7)
 #define casadi_f8 CASADI_PREFIX(f8)
@@ -19202,8 +19203,107 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_ofdm_range_diff_work_bytes(casadi_int 
   return 0;
 }
 
-/* leonav_boxplus:(x[19],dx[18])->(x_out[19]) */
+/* leonav_pcrb_update:(B[18x18],H[1x18],R)->(B_next[18x18],S) */
 static int casadi_f43(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real *rr, *w0=w+18, *w1=w+342, *w2=w+666, *w4=w+684, w5;
+  const casadi_real *cr, *cs, *wr0, *wr3, *wr4;
+  wr0 = arg[0] ? arg[0] : casadi_zeros;
+  casadi_clear(w1, 324);
+  casadi_clear(w2, 18);
+  wr3 = arg[1] ? arg[1] : casadi_zeros;
+  wr4 = wr3;
+  casadi_mtimes_dense(wr0, 18, 18, wr4, 1, w2, 0);
+  casadi_copy(w2, 18, w4);
+  casadi_mtimes_dense(w2, 18, 1, w4, 18, w1, 0);
+  w5 = arg[2] ? arg[2][0] : 0;
+  casadi_mtimes_dense(wr3, 1, 18, w2, 1, (&w5), 0);
+  for (i=0, rr=w1; i<324; ++i) (*rr++) /= w5;
+  for (i=0, rr=w0, cr=wr0, cs=w1; i<324; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  casadi_copy(w0, 324, res[0]);
+  if (res[1]) res[1][0] = w5;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_update(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f43(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_update_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_update_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_update_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_update_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_pcrb_update_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_pcrb_update_n_out(void) { return 2;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_pcrb_update_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_pcrb_update_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "B";
+    case 1: return "H";
+    case 2: return "R";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_pcrb_update_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "B_next";
+    case 1: return "S";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_pcrb_update_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s4;
+    case 1: return casadi_s6;
+    case 2: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_pcrb_update_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s4;
+    case 1: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_update_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 6;
+  if (sz_res) *sz_res = 3;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 702;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_update_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 6*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 3*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 702*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_boxplus:(x[19],dx[18])->(x_out[19]) */
+static int casadi_f44(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14;
   a00=arg[0]? arg[0][0] : 0;
@@ -19348,7 +19448,7 @@ static int casadi_f43(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_boxplus(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f43(arg, res, iw, w, mem);
+  return casadi_f44(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_boxplus_checkout(void) {
@@ -19421,7 +19521,7 @@ CASADI_SYMBOL_EXPORT int leonav_boxplus_work_bytes(casadi_int *sz_arg, casadi_in
 }
 
 /* leonav_boxminus:(x1[19],x0[19])->(dx[18]) */
-static int casadi_f44(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f45(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15;
   a00=arg[0]? arg[0][0] : 0;
@@ -19574,7 +19674,7 @@ static int casadi_f44(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_boxminus(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f44(arg, res, iw, w, mem);
+  return casadi_f45(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_boxminus_checkout(void) {
@@ -19647,7 +19747,7 @@ CASADI_SYMBOL_EXPORT int leonav_boxminus_work_bytes(casadi_int *sz_arg, casadi_i
 }
 
 /* leonav_q_from_euler:(rpy[3])->(q[4]) */
-static int casadi_f45(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f46(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9;
   a0=arg[0]? arg[0][2] : 0;
   a1=2.;
@@ -19686,7 +19786,7 @@ static int casadi_f45(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_q_from_euler(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f45(arg, res, iw, w, mem);
+  return casadi_f46(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_q_from_euler_checkout(void) {
@@ -19757,7 +19857,7 @@ CASADI_SYMBOL_EXPORT int leonav_q_from_euler_work_bytes(casadi_int *sz_arg, casa
 }
 
 /* leonav_euler_from_q:(q[4])->(rpy[3]) */
-static int casadi_f46(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f47(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7;
   a0=arg[0]? arg[0][2] : 0;
   a1=arg[0]? arg[0][3] : 0;
@@ -19799,7 +19899,7 @@ static int casadi_f46(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_euler_from_q(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f46(arg, res, iw, w, mem);
+  return casadi_f47(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_euler_from_q_checkout(void) {
@@ -19870,7 +19970,7 @@ CASADI_SYMBOL_EXPORT int leonav_euler_from_q_work_bytes(casadi_int *sz_arg, casa
 }
 
 /* leonav_gravity_enu:(p_enu[3],p[11])->(g_enu[3]) */
-static int casadi_f47(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f48(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   a00=9.7803253359000006e+00;
@@ -20010,7 +20110,7 @@ static int casadi_f47(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_gravity_enu(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f47(arg, res, iw, w, mem);
+  return casadi_f48(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_gravity_enu_checkout(void) {
@@ -20083,7 +20183,7 @@ CASADI_SYMBOL_EXPORT int leonav_gravity_enu_work_bytes(casadi_int *sz_arg, casad
 }
 
 /* leonav_earth_rate_enu:(p[11])->(w_ie_enu[3]) */
-static int casadi_f48(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f49(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=0.;
   if (res[0]!=0) res[0][0]=a0;
@@ -20099,7 +20199,7 @@ static int casadi_f48(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_earth_rate_enu(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f48(arg, res, iw, w, mem);
+  return casadi_f49(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_earth_rate_enu_checkout(void) {
@@ -20170,7 +20270,7 @@ CASADI_SYMBOL_EXPORT int leonav_earth_rate_enu_work_bytes(casadi_int *sz_arg, ca
 }
 
 /* leonav_accel_enu:(x[19],f_b[3],p[11])->(a_enu[3]) */
-static int casadi_f49(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f50(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
@@ -20388,7 +20488,7 @@ static int casadi_f49(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_accel_enu(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f49(arg, res, iw, w, mem);
+  return casadi_f50(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_accel_enu_checkout(void) {
@@ -20463,7 +20563,7 @@ CASADI_SYMBOL_EXPORT int leonav_accel_enu_work_bytes(casadi_int *sz_arg, casadi_
 }
 
 /* leonav_receiver_ecef:(x[19],p[11])->(r_ecef[3],v_ecef[3]) */
-static int casadi_f50(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f51(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15;
   a00=6378137.;
@@ -20538,7 +20638,7 @@ static int casadi_f50(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_receiver_ecef(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f50(arg, res, iw, w, mem);
+  return casadi_f51(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_receiver_ecef_checkout(void) {
@@ -20613,7 +20713,7 @@ CASADI_SYMBOL_EXPORT int leonav_receiver_ecef_work_bytes(casadi_int *sz_arg, cas
 }
 
 /* leonav_transmit_state:(r_S_ecef[3],v_S_ecef[3],a_S_ecef[3],r_rx_ecef[3])->(r_tx_ecef[3],v_tx_ecef[3],tau_s) */
-static int casadi_f51(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f52(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18;
   a00=arg[0]? arg[0][0] : 0;
@@ -20706,7 +20806,7 @@ static int casadi_f51(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_transmit_state(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f51(arg, res, iw, w, mem);
+  return casadi_f52(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_transmit_state_checkout(void) {
@@ -20787,7 +20887,7 @@ CASADI_SYMBOL_EXPORT int leonav_transmit_state_work_bytes(casadi_int *sz_arg, ca
 }
 
 /* leonav_level:(f_b[3])->(roll_pitch[2]) */
-static int casadi_f52(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f53(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=arg[0]? arg[0][1] : 0;
   a1=arg[0]? arg[0][2] : 0;
@@ -20805,7 +20905,7 @@ static int casadi_f52(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_level(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f52(arg, res, iw, w, mem);
+  return casadi_f53(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_level_checkout(void) {
@@ -20876,7 +20976,7 @@ CASADI_SYMBOL_EXPORT int leonav_level_work_bytes(casadi_int *sz_arg, casadi_int*
 }
 
 /* leonav_doppler_rate_variance:(sigma_hz_s,f_b_span_s,p[11])->(R) */
-static int casadi_f53(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f54(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=arg[0]? arg[0][0] : 0;
   a0=casadi_sq(a0);
@@ -20895,7 +20995,7 @@ static int casadi_f53(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f53(arg, res, iw, w, mem);
+  return casadi_f54(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance_checkout(void) {

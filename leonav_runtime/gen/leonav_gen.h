@@ -595,6 +595,24 @@ int leonav_pcrb_info_ofdm_range_diff_work_bytes(casadi_int *sz_arg, casadi_int* 
 #define leonav_pcrb_info_ofdm_range_diff_SZ_RES 3
 #define leonav_pcrb_info_ofdm_range_diff_SZ_IW 0
 #define leonav_pcrb_info_ofdm_range_diff_SZ_W 703
+int leonav_pcrb_update(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_pcrb_update_checkout(void);
+void leonav_pcrb_update_release(int mem);
+void leonav_pcrb_update_incref(void);
+void leonav_pcrb_update_decref(void);
+casadi_int leonav_pcrb_update_n_in(void);
+casadi_int leonav_pcrb_update_n_out(void);
+casadi_real leonav_pcrb_update_default_in(casadi_int i);
+const char* leonav_pcrb_update_name_in(casadi_int i);
+const char* leonav_pcrb_update_name_out(casadi_int i);
+const casadi_int* leonav_pcrb_update_sparsity_in(casadi_int i);
+const casadi_int* leonav_pcrb_update_sparsity_out(casadi_int i);
+int leonav_pcrb_update_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_pcrb_update_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_pcrb_update_SZ_ARG 6
+#define leonav_pcrb_update_SZ_RES 3
+#define leonav_pcrb_update_SZ_IW 0
+#define leonav_pcrb_update_SZ_W 702
 int leonav_boxplus(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_boxplus_checkout(void);
 void leonav_boxplus_release(int mem);

@@ -8,6 +8,7 @@
 #define LEONAV_NP 11
 #define LEONAV_NAUX 21
 #define LEONAV_NU 6
+#define LEONAV_NNAV 9  /* the 9D navigation error (dp, dv, dtheta) = dx[0:NNAV] */
 
 #define LEONAV_X_P_ENU 0  /* m: position in the local ENU frame at the origin r0 */
 #define LEONAV_X_P_ENU_SIZE 3
@@ -75,7 +76,7 @@
 #define LEONAV_P_Q_BLO 9  /* Hz^2/s: LO offset random-walk PSD */
 #define LEONAV_P_F_C_HZ 10  /* Hz: beacon carrier frequency */
 
-#define LEONAV_MEAS_IMU -1  /* record kind of an IMU interval */
+#define LEONAV_MEAS_IMU (-1)  /* record kind of an IMU interval */
 #define LEONAV_MEAS_PSEUDORANGE 0  /* m */
 #define LEONAV_MEAS_POS_E 1  /* m */
 #define LEONAV_MEAS_POS_N 2  /* m */
@@ -87,5 +88,40 @@
 #define LEONAV_MEAS_DOPPLER 8  /* Hz */
 #define LEONAV_MEAS_OFDM_RANGE_DIFF 9  /* m */
 #define LEONAV_NMEAS 10
+
+/* Observables: X(kind id, function suffix, dimension of z, name, unit of z), in kind-id order.
+ * The driver builds its dispatch table from this list (leonav_h_<suffix>, leonav_update_<suffix>),
+ * so a new observable in models/ needs no driver edit. */
+#define LEONAV_MEAS_TABLE(X) \
+    X(LEONAV_MEAS_PSEUDORANGE, pseudorange, 1, "PSEUDORANGE", "m") \
+    X(LEONAV_MEAS_POS_E, pos_e, 1, "POS_E", "m") \
+    X(LEONAV_MEAS_POS_N, pos_n, 1, "POS_N", "m") \
+    X(LEONAV_MEAS_POS_U, pos_u, 1, "POS_U", "m") \
+    X(LEONAV_MEAS_VEL_E, vel_e, 1, "VEL_E", "m/s") \
+    X(LEONAV_MEAS_VEL_N, vel_n, 1, "VEL_N", "m/s") \
+    X(LEONAV_MEAS_VEL_U, vel_u, 1, "VEL_U", "m/s") \
+    X(LEONAV_MEAS_DOPPLER_RATE, doppler_rate, 1, "DOPPLER_RATE", "Hz/s") \
+    X(LEONAV_MEAS_DOPPLER, doppler, 1, "DOPPLER", "Hz") \
+    X(LEONAV_MEAS_OFDM_RANGE_DIFF, ofdm_range_diff, 1, "OFDM_RANGE_DIFF", "m")
+
+/* Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome,
+ * < 0 an error (codegen/driver_codes.py). */
+#define LEONAV_OK 0  /* success: the step was applied / the value computed */
+#define LEONAV_GATED 1  /* update rejected: nis above the gate; x and P unchanged */
+#define LEONAV_FAILED 2  /* numerical failure (non-finite input or result, R < 0, S <= 0, dt < 0); x and P unchanged */
+#define LEONAV_ERR_WORK (-1)  /* workspace NULL, too small or not initialised */
+#define LEONAV_ERR_KIND (-2)  /* record kind is neither IMU nor a LEONAV_MEAS_* id */
+#define LEONAV_ERR_LAYOUT (-3)  /* a generated function's shape does not match state_layout.h */
+#define LEONAV_ERR_ARG (-4)  /* a required pointer is NULL or n < 0 */
+#define LEONAV_ERR_NUMERIC (-5)  /* PCRB / boxminus: a generated step failed, S not positive and finite, or R <= 0 */
+/* X(name) for every return code above (LEONAV_<name>), e.g. for leonav_code_name() */
+#define LEONAV_RETURN_CODE_TABLE(X) X(OK) X(GATED) X(FAILED) X(ERR_WORK) X(ERR_KIND) X(ERR_LAYOUT) X(ERR_ARG) X(ERR_NUMERIC)
+
+/* Per-record status written by leonav_run into leonav_run_out.status (its own enum:
+ * a measurement record stores its update's return code, an IMU record STATUS_IMU). */
+#define LEONAV_STATUS_IMU (-1)  /* IMU record: predicted */
+#define LEONAV_STATUS_APPLIED 0  /* measurement record: applied */
+#define LEONAV_STATUS_GATED 1  /* measurement record: rejected by the gate (x, P unchanged) */
+#define LEONAV_STATUS_FAILED 2  /* IMU or measurement record: numerical failure (x, P unchanged) */
 
 #endif  /* LEONAV_STATE_LAYOUT_H */

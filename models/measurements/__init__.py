@@ -19,4 +19,4 @@ def models() -> dict:
         "doppler": doppler.h,
         "ofdm_range_diff": ofdm_range_difference.h,
     }
-    return {suffix: table[suffix] for _, suffix, _ in MEASUREMENTS}
+    return {m.suffix: table[m.suffix] for m in MEASUREMENTS}
