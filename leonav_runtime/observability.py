@@ -121,7 +121,7 @@ def analysis_modes(layout: ModuleType | None = None) -> dict[str, tuple[str, ...
 
     layout = layout or compiled.load_layout(compiled.GEN_DIR)
     modes = {k: tuple(v) for k, v in MODE_OBSERVABLES.items()}
-    modes[GNSS_FIX_MODE] = tuple(s for s in layout.MEAS_SUFFIXES if s.startswith("pos_"))
+    modes[GNSS_FIX_MODE] = tuple(m.suffix for m in layout.MEAS_TABLE if m.suffix.startswith("pos_"))
     return modes
 
 
