@@ -57,6 +57,7 @@ from models import ekf, frames, kinematics
 from models import state as S
 from models.constants import WGS84_A_M, WGS84_GM_M3PS2
 from models.measurements import models as measurement_models
+from models.measurements.geometry import receiver_ecef
 from leonav_runtime.params import build_params
 
 # --- scaling and thresholds ----------------------------------------------------------------
@@ -185,9 +186,8 @@ class Symbolic:
         self.invert = ca.Function("obs_invert", [x, u, xt, dt, p], [r, ca.jacobian(r, u)])
         rpy = ca.SX.sym("rpy", 3)
         self.q_from_euler = ca.Function("obs_q", [rpy], [frames.quat_from_euler(rpy)])
-        r_U = kinematics.position_ecef(x[S.X["p_enu"].slice], p)
         C = kinematics.origin(p)[4]
-        self.receiver = ca.Function("obs_rx", [x, p], [r_U, C @ x[S.X["v_enu"].slice]])
+        self.receiver = ca.Function("obs_rx", [x, p], list(receiver_ecef(x, p)))
         self.boxplus = ca.Function("obs_boxplus", [x, dx], [frames.boxplus(x, dx)])
         self.c_n_e = ca.Function("obs_cne", [p], [C])
         self.build_s = time.perf_counter() - t0
