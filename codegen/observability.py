@@ -140,12 +140,12 @@ def components() -> list[Component]:
 
 def observable_units() -> dict[str, str]:
     """Observable function suffix -> unit, from `models.state.MEASUREMENTS`."""
-    return {suffix: unit for _, suffix, unit in S.MEASUREMENTS}
+    return {m.suffix: m.unit for m in S.MEASUREMENTS}
 
 
 def position_fix_observables() -> tuple[str, ...]:
     """The GNSS position-fix observables of `models.state.MEASUREMENTS` (suffix pos_*)."""
-    return tuple(suffix for _, suffix, _ in S.MEASUREMENTS if suffix.startswith("pos_"))
+    return tuple(m.suffix for m in S.MEASUREMENTS if m.suffix.startswith("pos_"))
 
 
 def default_modes() -> dict[str, tuple[str, ...]]:

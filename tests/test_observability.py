@@ -54,7 +54,7 @@ def test_states_and_observables_are_enumerated_from_the_models():
     assert ob.symbolic().h.keys() == measurement_models().keys()
     from leonav_runtime.scenario import MODE_OBSERVABLES
     assert {m: MODES[m] for m in MODE_OBSERVABLES} == MODE_OBSERVABLES
-    assert MODES[ro.GNSS_FIX_MODE] == tuple(s for _, s, _ in S.MEASUREMENTS if s.startswith("pos_"))
+    assert MODES[ro.GNSS_FIX_MODE] == tuple(m.suffix for m in S.MEASUREMENTS if m.suffix.startswith("pos_"))
 
 
 def test_runtime_module_imports_neither_casadi_nor_models():
