@@ -35,18 +35,17 @@ class NmeaSentence:
 
 @dataclass
 class UbxFrame:
-    """One checksum-verified UBX frame (class, id, payload), before message decoding."""
+    """One checksum-verified UBX frame (class, id, payload), before message decoding.
+
+    `name` ("NAV-PVT", or "UBX-0xCC-0xII" when not listed) is given by the splitter from
+    `hardware.gnss.ubx.message_name`, so this module does not import the protocol module.
+    """
 
     t_mono_s: float
     msg_class: int
     msg_id: int
     payload: bytes = field(repr=False)
-
-    @property
-    def name(self) -> str:
-        from hardware.gnss.ubx import message_name  # late import: no cycle at module load
-
-        return message_name(self.msg_class, self.msg_id)
+    name: str = ""
 
 
 @dataclass
