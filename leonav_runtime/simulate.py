@@ -6,14 +6,17 @@
   the truth state is the mechanization's own output, so the filter and the truth share
   one model;
 - satellites: SGP4 states of GPS and Starlink at every measurement epoch, visibility and
-  the satellite-selection rule, aux blocks, and the noise-free measurements evaluated
-  with the generated `h` functions at the true state (clock and LO states at zero).
+  the satellite-selection rule, aux blocks (`inputs.satellite_aux`), and the noise-free
+  measurements evaluated with the generated `h` functions at the true state (clock and LO
+  states at zero).
 
 `trial_records(setup, mode, count, rng)` then draws one trial: IMU biases (random walks
 from the profile) and white noise, receiver clock and LO offset (random walks from the
 filter's own process model), measurement noise, GPS outages, and an initial estimate
 drawn from the prior. Clock and LO enter the measurements through the generated Jacobian
 H (the models are linear in those states), so no per-trial model evaluation is needed.
+The drawn IMU increments and measurements become sensor tables and go the one road into
+the filter every source takes (`leonav_runtime.inputs.assemble`), which builds the records.
 
 Time stamping: IMU samples at k/rate_hz; GPS and Starlink epochs fall on IMU sample
 times (as a receiver that tags measurements with its own clock), an IMU record carries
@@ -31,16 +34,16 @@ from leonav_runtime.errors import UserInputError
 from leonav_runtime.gen import state_layout
 from leonav_runtime.inputs import (CLOCK_BIAS_SIGMA_M, CLOCK_DRIFT_SIGMA_MPS, F_B_AVERAGE_S,  # noqa: F401
                                    LO_OFFSET_SIGMA_HZ, LO_RANDOM_WALK_HZ2_S, SATELLITE_TABLES, ImuTable, Prior,
-                                   assemble, averaged_specific_force, filter_params, prior_sigmas)
+                                   assemble, averaged_specific_force, filter_params, prior_sigmas, satellite_aux,
+                                   states_from_aux)
 from leonav_runtime.orbits import (ElementSet, default_elements, group_by_constellation, load_elements,
                                    propagate_ecef)
 from leonav_runtime.params import IMU_PROFILES
 from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
 from leonav_runtime.trajectory import motion
 
-# Re-exported from `leonav_runtime.inputs` (the road into the filter), where they live:
-# the filter prior's clock/LO sigmas and LO random walk, the specific-force average of the
-# Doppler-rate model, `prior_sigmas`, `averaged_specific_force`.
+# Re-exported from `leonav_runtime.inputs` (the road into the filter), where they live: the
+# prior's clock/LO sigmas, LO random walk, F_B_AVERAGE_S, prior_sigmas, averaged_specific_force.
 SERIES = ("pseudorange", "doppler_rate", "doppler", "ofdm_range_diff")
 
 
@@ -49,9 +52,9 @@ class SatSeries:
     """Measurements of one observable over the run (one row per measurement).
 
     t_s, sat_id (NORAD id), aux (n, NAUX), z_true (noise-free, clock/LO states at zero),
-    H (n, NDX) at the truth, rank (elevation rank at its epoch, 0 = highest); sat_ecef and
-    ref_ecef: the satellite's and the reference satellite's ECEF r, v, a of aux as
-    contiguous (n, 9) blocks (`inputs.SAT_*` columns), for the trials' satellite tables.
+    H (n, NDX) at the truth, rank (elevation rank at its epoch, 0 = highest); sat_ecef,
+    ref_ecef: the satellite's and the reference's r, v, a of aux as contiguous (n, 9) blocks
+    (`inputs.SAT_*` columns), what the trials' satellite tables are cut from.
     """
 
     kind: int
@@ -65,11 +68,7 @@ class SatSeries:
     ref_ecef: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        L = state_layout
-        self.sat_ecef = np.hstack([self.aux[:, L.AUX_R_S_ECEF_SLICE], self.aux[:, L.AUX_V_S_ECEF_SLICE],
-                                   self.aux[:, L.AUX_A_S_ECEF_SLICE]])
-        self.ref_ecef = np.hstack([self.aux[:, L.AUX_R_REF_ECEF_SLICE], self.aux[:, L.AUX_V_REF_ECEF_SLICE],
-                                   self.aux[:, L.AUX_A_REF_ECEF_SLICE]])
+        self.sat_ecef, self.ref_ecef = (np.ascontiguousarray(b) for b in states_from_aux(self.aux, state_layout))
 
 
 @dataclass
@@ -177,29 +176,21 @@ def _visible_ranked(scn, es, t_s, p_enu, mask_rad, notes: list[str], acceleratio
     return states, ranked, rho
 
 
-def _aux(nav, r, v, a, f_b, r_ref=None, v_ref=None, a_ref=None) -> np.ndarray:
-    L = nav.layout
-    aux = np.zeros(L.NAUX)
-    aux[L.AUX_R_S_ECEF_SLICE] = r
-    aux[L.AUX_V_S_ECEF_SLICE] = v
-    aux[L.AUX_A_S_ECEF_SLICE] = a
-    if r_ref is not None:
-        aux[L.AUX_R_REF_ECEF_SLICE] = r_ref
-        aux[L.AUX_V_REF_ECEF_SLICE] = v_ref
-        aux[L.AUX_A_REF_ECEF_SLICE] = a_ref
-    aux[L.AUX_F_B_SLICE] = f_b
-    return aux
-
-
-def _series(nav, kind_name, rows, x_true) -> SatSeries:
+def _series(nav, kind_name, rows, x_true, f_b) -> SatSeries:
+    """Rows (k, t, sat_id, satellite state (9,), reference state (9,) or None, rank) as a series:
+    aux as the road builds it (`inputs.satellite_aux`, f_b of sample k), h and H at the truth."""
+    n, L = len(rows), nav.layout
+    k = np.array([r[0] for r in rows], int)
+    sat = np.array([r[3] for r in rows]).reshape(n, 9)
+    ref = np.array([r[4] for r in rows]).reshape(n, 9) if n and rows[0][4] is not None else None
+    table = SATELLITE_TABLES[kind_name](np.array([r[1] for r in rows], float), np.array([r[2] for r in rows],
+                                        np.int32), np.zeros(n), 1.0, sat, ref)
+    aux = satellite_aux(table, f_b[k], L)
     kind = nav.kind_id(kind_name)
-    n = len(rows)
-    aux = np.array([r[3] for r in rows]).reshape(n, nav.layout.NAUX)
-    z, H = np.empty(n), np.empty((n, nav.layout.NDX))
-    for i, (k, _, _, a, _) in enumerate(rows):
-        z[i], H[i] = nav.h(kind, x_true[k], a)
-    return SatSeries(kind, np.array([r[1] for r in rows], float), np.array([r[2] for r in rows], np.int32),
-                     aux, z, H, np.array([r[4] for r in rows], np.int32))
+    z, H = np.empty(n), np.empty((n, L.NDX))
+    for i in range(n):
+        z[i], H[i] = nav.h(kind, x_true[k[i]], aux[i])
+    return SatSeries(kind, table.t, table.sat_id, aux, z, H, np.array([r[5] for r in rows], np.int32))
 
 
 def _gps_rows(scn, nav, es, t_imu, x_true, f_b, notes):
@@ -216,7 +207,7 @@ def _gps_rows(scn, nav, es, t_imu, x_true, f_b, notes):
             # of the transmit epoch, as the pseudorange model (with Sagnac) expects.
             a = states.a_ecef_mps2[s, j]
             r_tx, v_tx, _ = nav.transmit_state(states.r_ecef_m[s, j], states.v_ecef_mps[s, j], a, r_rx[j])
-            rows.append((k, t[j], int(es.norad_ids[s]), _aux(nav, r_tx, v_tx, a, f_b[k]), rank))
+            rows.append((k, t[j], int(es.norad_ids[s]), np.concatenate([r_tx, v_tx, a]), None, rank))
     vis = [len(r) for r in ranked]
     return rows, min(vis) if vis else 0
 
@@ -229,21 +220,19 @@ def _starlink_rows(scn, nav, es, t_imu, x_true, f_b, notes):
     # would miss risers over long runs, so propagate all (vectorized SGP4 is cheap).
     states, ranked, _ = _visible_ranked(scn, es, t, p_enu, scn.starlink["elevation_mask_rad"], notes)
     n_max = max(scn.starlink["counts"])
-    alpha, dopp, ofdm = [], [], []
+    alpha, dopp, ofdm = [], [], []   # rows: see _series
     for j, k in enumerate(idx):
         use = ranked[j][:n_max]
         if use.size == 0:
             continue
-        ref = use[0]
-        rr, vr, ar = states.r_ecef_m[ref, j], states.v_ecef_mps[ref, j], states.a_ecef_mps2[ref, j]
+        sat = np.concatenate([states.r_ecef_m[use, j], states.v_ecef_mps[use, j], states.a_ecef_mps2[use, j]],
+                             axis=1)
         for rank, s in enumerate(use):
-            r, v, a = states.r_ecef_m[s, j], states.v_ecef_mps[s, j], states.a_ecef_mps2[s, j]
-            sid = int(es.norad_ids[s])
-            aux = _aux(nav, r, v, a, f_b[k], rr, vr, ar)
-            alpha.append((k, t[j], sid, aux, rank))
-            dopp.append((k, t[j], sid, aux, rank))
+            row = (k, t[j], int(es.norad_ids[s]), sat[rank], sat[0], rank)
+            alpha.append(row)
+            dopp.append(row)
             if rank > 0:  # differenced against the highest satellite (rank 0)
-                ofdm.append((k, t[j], sid, aux, rank))
+                ofdm.append(row)
     vis = [len(r) for r in ranked]
     return alpha, dopp, ofdm, min(vis) if vis else 0
 
@@ -307,12 +296,8 @@ def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
         raise UserInputError(
             f"{scn.source}: only {gps_min} GPS satellites above the mask at some epoch (need >= 4)"
         )
-    series = {
-        "pseudorange": _series(nav, "pseudorange", gps_rows, x_true),
-        "doppler_rate": _series(nav, "doppler_rate", alpha, x_true),
-        "doppler": _series(nav, "doppler", dopp, x_true),
-        "ofdm_range_diff": _series(nav, "ofdm_range_diff", ofdm, x_true),
-    }
+    series = {name: _series(nav, name, rows, x_true, f_b) for name, rows in
+              (("pseudorange", gps_rows), ("doppler_rate", alpha), ("doppler", dopp), ("ofdm_range_diff", ofdm))}
     return Setup(scn, params, t_imu, x_true, u_true, series, {"gps": gps_min, "starlink": sl_min},
                  prior_covariance(scn, profile, nav.layout), profile, notes)
 
@@ -406,5 +391,5 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
 
 def _table(kind_name: str, s: SatSeries, rows: np.ndarray, z: np.ndarray, sigma: float):
     """The measurements of `rows` of a series as the road's satellite table of that kind."""
-    ref = None if kind_name == "pseudorange" else s.ref_ecef[rows]
-    return SATELLITE_TABLES[kind_name](s.t_s[rows], s.sat_id[rows], z, sigma, s.sat_ecef[rows], ref)
+    return SATELLITE_TABLES[kind_name](s.t_s[rows], s.sat_id[rows], z, sigma, s.sat_ecef[rows],
+                                       None if kind_name == "pseudorange" else s.ref_ecef[rows])

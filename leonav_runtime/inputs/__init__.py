@@ -17,7 +17,8 @@ from __future__ import annotations
 
 from leonav_runtime.inputs.assemble import STREAMS, FilterInputs, assemble
 from leonav_runtime.inputs.imu import F_B_AVERAGE_S, averaged_specific_force, imu_records, latest_sample
-from leonav_runtime.inputs.measurements import doppler_rate_variance, fix_records, satellite_records
+from leonav_runtime.inputs.measurements import (aux_blocks, doppler_rate_variance, fix_records, satellite_aux,
+                                                satellite_records, states_from_aux)
 from leonav_runtime.inputs.prior import (CLOCK_BIAS_SIGMA_M, CLOCK_DRIFT_SIGMA_MPS, LO_OFFSET_SIGMA_HZ,
                                          LO_RANDOM_WALK_HZ2_S, FirstFixPrior, Prior, filter_params,
                                          first_fix_prior, prior_sigmas)
@@ -27,7 +28,7 @@ from leonav_runtime.inputs.tables import (SAT_A_MPS2, SAT_R_M, SAT_V_MPS, SATELL
 __all__ = [
     "STREAMS", "FilterInputs", "assemble",
     "F_B_AVERAGE_S", "averaged_specific_force", "imu_records", "latest_sample",
-    "doppler_rate_variance", "fix_records", "satellite_records",
+    "aux_blocks", "doppler_rate_variance", "fix_records", "satellite_aux", "satellite_records", "states_from_aux",
     "CLOCK_BIAS_SIGMA_M", "CLOCK_DRIFT_SIGMA_MPS", "LO_OFFSET_SIGMA_HZ", "LO_RANDOM_WALK_HZ2_S",
     "FirstFixPrior", "Prior", "filter_params", "first_fix_prior", "prior_sigmas",
     "SAT_A_MPS2", "SAT_R_M", "SAT_V_MPS", "SATELLITE_TABLES", "DopplerRateTable", "DopplerTable", "FixTable", "ImuTable", "OfdmRangeDiffTable",

@@ -82,9 +82,9 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
     most one table per observable kind."""
     nav = nav or navfuncs.NavFunctions(params=params)
     notes = list(notes or [])
-    fixes = FixTable.empty() if fixes is None else fixes
     imu.check()
-    fixes.check()
+    if fixes is not None:
+        fixes.check()
     kinds = [tab.KIND for tab in satellites]
     if len(set(kinds)) < len(kinds) or not all(kinds):
         raise UserInputError(f"satellite tables: {kinds}: expected at most one table per observable kind")
@@ -103,11 +103,13 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
     out = {"imu": imu_records(imu)}
     counts: dict = {"imu_records_before_start": n_before}
 
-    inside = _inside(fixes.t, t_start, t_end)
-    if init_fix >= 0:
-        inside[init_fix] = False
-    counts["fixes_outside_imu_span"] = int((~inside).sum()) - (init_fix >= 0)
-    used_fixes = fixes if inside.all() else fixes.select(inside)
+    used_fixes = FixTable.empty()
+    if fixes is not None:
+        inside = _inside(fixes.t, t_start, t_end)
+        if init_fix >= 0:
+            inside[init_fix] = False
+        counts["fixes_outside_imu_span"] = int((~inside).sum()) - (init_fix >= 0)
+        used_fixes = fixes if inside.all() else fixes.select(inside)
     out["fix"] = fix_records(used_fixes, nav)
 
     used_sats: dict[str, SatelliteTable] = {}

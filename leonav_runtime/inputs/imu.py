@@ -31,16 +31,17 @@ def averaged_specific_force(dvel_b: np.ndarray, dt_s: np.ndarray | float,
     of its noise (generated `leonav_doppler_rate_variance`).
     """
     dt = np.broadcast_to(np.asarray(dt_s, dtype=float), (dvel_b.shape[0],))
-    n_avg = max(1, int(round(window_s / float(np.median(dt)))))
+    dt_median = float(np.median(dt))
+    n_avg = max(1, int(round(window_s / dt_median)))
     dv = np.vstack([np.zeros(3), np.cumsum(dvel_b, axis=0)])
     tt = np.concatenate([[0.0], np.cumsum(dt)])
     k_end = np.maximum(np.arange(dvel_b.shape[0] + 1), 1)
     k_start = np.maximum(k_end - n_avg, 0)
-    return (dv[k_end] - dv[k_start]) / (tt[k_end] - tt[k_start])[:, None], n_avg * float(np.median(dt))
+    return (dv[k_end] - dv[k_start]) / (tt[k_end] - tt[k_start])[:, None], n_avg * dt_median
 
 
 def latest_sample(imu: ImuTable, t_s: np.ndarray) -> np.ndarray:
     """Sample index (0 = the start of the first interval, j + 1 = the end of interval j) of the
     latest IMU sample at or before each time `t_s` (s), 1 ns tolerance: the row of
     `averaged_specific_force`'s output to use at a measurement time."""
-    return np.clip(np.searchsorted(imu.t, np.asarray(t_s) + 1e-9) - 1, -1, imu.t.size - 1) + 1
+    return np.searchsorted(imu.t, np.asarray(t_s) + 1e-9)     # (interval index, -1 before the first) + 1

@@ -38,15 +38,51 @@ def doppler_rate_variance(sigma, f_b_span_s: float, params: np.ndarray, nav: nav
     return nav.doppler_rate_variance(values, f_b_span_s, params)[inverse]
 
 
+SAT_NAMES = ("R_S_ECEF", "V_S_ECEF", "A_S_ECEF")
+REF_NAMES = ("R_REF_ECEF", "V_REF_ECEF", "A_REF_ECEF")
+_BLOCKS: dict[int, tuple] = {}
+
+
+def aux_blocks(layout) -> tuple[slice | None, slice | None, bool]:
+    """(aux columns of the satellite's r, v, a, of the reference's, whether aux is exactly
+    [satellite | reference | f_b]); a slice is None when the three blocks are not adjacent."""
+    key = id(layout)
+    if key not in _BLOCKS:
+        def block(names):
+            sl = [getattr(layout, f"AUX_{n}_SLICE") for n in names]
+            ok = all(a.stop == b.start for a, b in zip(sl, sl[1:]))
+            return slice(sl[0].start, sl[-1].stop) if ok else None
+        sat, ref = block(SAT_NAMES), block(REF_NAMES)
+        whole = (sat is not None and ref is not None and sat.start == 0 and ref.start == sat.stop
+                 and layout.AUX_F_B_SLICE.start == ref.stop and layout.AUX_F_B_SLICE.stop == layout.NAUX)
+        _BLOCKS[key] = (sat, ref, whole)
+    return _BLOCKS[key]
+
+
+def states_from_aux(aux: np.ndarray, layout) -> tuple[np.ndarray, np.ndarray]:
+    """The satellite and reference state blocks (n, 9) (`SAT_*` columns) of aux rows (n, NAUX)."""
+    out = []
+    for names, block in zip((SAT_NAMES, REF_NAMES), aux_blocks(layout)[:2]):
+        out.append(aux[:, block] if block is not None else
+                   np.hstack([aux[:, getattr(layout, f"AUX_{n}_SLICE")] for n in names]))
+    return out[0], out[1]
+
+
 def satellite_aux(table: SatelliteTable, f_b: np.ndarray, layout) -> np.ndarray:
     """(n, NAUX) aux blocks: satellite states, reference states (zeros if none), f_b (n, 3)."""
     L = layout
+    sat_block, ref_block, whole = aux_blocks(L)
+    if whole and table.ref_ecef is not None:   # the generated layout [sat r v a | ref r v a | f_b]: one copy
+        return np.concatenate([table.sat_ecef, table.ref_ecef, f_b], axis=1)
     aux = np.zeros((table.t.size, L.NAUX))
-    for state, (r, v, a) in ((table.sat_ecef, (L.AUX_R_S_ECEF_SLICE, L.AUX_V_S_ECEF_SLICE, L.AUX_A_S_ECEF_SLICE)),
-                             (table.ref_ecef, (L.AUX_R_REF_ECEF_SLICE, L.AUX_V_REF_ECEF_SLICE,
-                                               L.AUX_A_REF_ECEF_SLICE))):
-        if state is not None:
-            aux[:, r], aux[:, v], aux[:, a] = state[:, SAT_R_M], state[:, SAT_V_MPS], state[:, SAT_A_MPS2]
+    for state, names, block in ((table.sat_ecef, SAT_NAMES, sat_block), (table.ref_ecef, REF_NAMES, ref_block)):
+        if state is None:
+            continue
+        if block is not None:
+            aux[:, block] = state
+        else:
+            for name, cols in zip(names, (SAT_R_M, SAT_V_MPS, SAT_A_MPS2)):
+                aux[:, getattr(L, f"AUX_{name}_SLICE")] = state[:, cols]
     aux[:, L.AUX_F_B_SLICE] = f_b
     return aux
 

@@ -116,12 +116,13 @@ def start_and_init_fix(spec: FirstFixPrior, imu: ImuTable, fixes: FixTable, note
     return t_fix, k
 
 
-def first_fix_prior(spec: FirstFixPrior, imu: ImuTable, fixes: FixTable, nav: navfuncs.NavFunctions,
+def first_fix_prior(spec: FirstFixPrior, imu: ImuTable, fixes: FixTable | None, nav: navfuncs.NavFunctions,
                     notes: list[str]) -> tuple[Prior, ImuTable, int, int]:
     """(prior, IMU table from the start on, index of the initializing fix or -1, IMU intervals
     dropped before the start). The initializing fix is not to be applied again as a
     measurement (its error would count twice)."""
     L = nav.layout
+    fixes = FixTable.empty() if fixes is None else fixes
     t_first = imu.t_first
     t_start, init_fix = start_and_init_fix(spec, imu, fixes, notes)
     imu, n_before = imu.from_time(t_start)

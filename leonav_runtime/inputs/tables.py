@@ -10,6 +10,7 @@ checks every table it is given.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import ClassVar
 
 import numpy as np
@@ -26,10 +27,14 @@ def check_column(table: str, name: str, values, shape: tuple, finite: bool = Tru
                  unit: str = "") -> None:
     """Raise a UserInputError unless `values` has `shape` (and is finite / > 0 as asked)."""
     arr = values if isinstance(values, np.ndarray) else np.asarray(values)
-    if arr.shape == shape and (not finite or np.isfinite(arr).all()) and (not positive or (arr > 0).all()):
+    # fast path: a sum is finite only if every value is (an overflow to inf goes the slow way and passes)
+    if arr.shape == shape and (not arr.size or ((not finite or math.isfinite(arr.sum()))
+                                                and (not positive or arr.min() > 0))):
         return
     if arr.shape != shape:
         raise _bad(table, name, f"shape {arr.shape}", f"shape {shape}")
+    if (not finite or np.isfinite(arr).all()) and (not positive or (arr > 0).all()):
+        return
     bad = ~np.isfinite(arr) if finite and not np.isfinite(arr).all() else ~(arr > 0)
     rows = bad.reshape(arr.shape[0] if arr.ndim else 1, -1).any(axis=1)
     problem = "non-finite value" if finite and not np.isfinite(arr).all() else "value <= 0"
@@ -200,7 +205,7 @@ class SatelliteTable:
         n = np.shape(self.t)[0] if np.ndim(self.t) == 1 else -1
         name = self.name
         check_column(name, "t", self.t, (max(n, 0),), unit="s")
-        check_column(name, "sat_id", self.sat_id, (n,))
+        check_column(name, "sat_id", self.sat_id, (n,), finite=False)
         check_column(name, "z", self.z, (n,), unit=self.UNIT)
         check_column(name, "sigma", self.sigma, () if np.ndim(self.sigma) == 0 else (n,), positive=True,
                      unit=self.UNIT)
