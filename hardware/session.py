@@ -33,7 +33,7 @@ from hardware.records import GnssTimeTag, UbxAck
 from hardware.sdr import capture as sdr_capture
 from hardware.session_decode import DecodedSession, decode_session, iter_raw_chunks
 from hardware.session_files import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, SESSION_VERSION, CsvSink,
-                                    RawLog, RunningTimeMap, gnss_rows, imu_row, session_json)  # noqa: F401 (re-exported)
+                                    RawLog, RunningTimeMap, gnss_rows, imu_row, session_json)  # noqa: F401
 
 __all__ = ["RecordSession", "DeviceRun", "decode_session", "DecodedSession", "iter_raw_chunks", "CsvSink", "RawLog",
            "RunningTimeMap", "gnss_rows", "imu_row", "GNSS_FIX_COLUMNS", "GNSS_RAW_COLUMNS", "IMU_COLUMNS",

@@ -32,7 +32,7 @@ import numpy as np
 from leonav_runtime import geometry, navfuncs
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gen import state_layout
-from leonav_runtime.inputs import (CLOCK_BIAS_SIGMA_M, CLOCK_DRIFT_SIGMA_MPS, F_B_AVERAGE_S,  # noqa: F401
+from leonav_runtime.inputs import (CLOCK_BIAS_SIGMA_M, CLOCK_DRIFT_SIGMA_MPS, F_B_AVERAGE_S,
                                    LO_OFFSET_SIGMA_HZ, LO_RANDOM_WALK_HZ2_S, SATELLITE_TABLES, ImuTable, Prior,
                                    assemble, averaged_specific_force, filter_params, prior_sigmas, satellite_aux,
                                    states_from_aux)
@@ -42,8 +42,13 @@ from leonav_runtime.params import IMU_PROFILES
 from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
 from leonav_runtime.trajectory import motion
 
-# Re-exported from `leonav_runtime.inputs` (the road into the filter), where they live: the
-# prior's clock/LO sigmas, LO random walk, F_B_AVERAGE_S, prior_sigmas, averaged_specific_force.
+__all__ = [
+    "SatSeries", "Setup", "Trial", "truth", "needed_constellations", "scenario_elements", "prior_covariance",
+    "bias_walks", "measured_increments", "prepare", "noise_sigma", "selected_rows", "trial_records", "SERIES",
+    # re-exported from `leonav_runtime.inputs` (the road into the filter), where they live
+    "CLOCK_BIAS_SIGMA_M", "CLOCK_DRIFT_SIGMA_MPS", "F_B_AVERAGE_S", "LO_OFFSET_SIGMA_HZ", "LO_RANDOM_WALK_HZ2_S",
+    "prior_sigmas", "averaged_specific_force",
+]
 SERIES = ("pseudorange", "doppler_rate", "doppler", "ofdm_range_diff")
 
 
@@ -220,7 +225,7 @@ def _starlink_rows(scn, nav, es, t_imu, x_true, f_b, notes):
     # would miss risers over long runs, so propagate all (vectorized SGP4 is cheap).
     states, ranked, _ = _visible_ranked(scn, es, t, p_enu, scn.starlink["elevation_mask_rad"], notes)
     n_max = max(scn.starlink["counts"])
-    alpha, dopp, ofdm = [], [], []   # rows: see _series
+    doppler_rate, doppler, ofdm = [], [], []   # rows: see _series
     for j, k in enumerate(idx):
         use = ranked[j][:n_max]
         if use.size == 0:
@@ -229,12 +234,12 @@ def _starlink_rows(scn, nav, es, t_imu, x_true, f_b, notes):
                              axis=1)
         for rank, s in enumerate(use):
             row = (k, t[j], int(es.norad_ids[s]), sat[rank], sat[0], rank)
-            alpha.append(row)
-            dopp.append(row)
+            doppler_rate.append(row)
+            doppler.append(row)
             if rank > 0:  # differenced against the highest satellite (rank 0)
                 ofdm.append(row)
     vis = [len(r) for r in ranked]
-    return alpha, dopp, ofdm, min(vis) if vis else 0
+    return doppler_rate, doppler, ofdm, min(vis) if vis else 0
 
 
 def prior_covariance(scn: Scenario, profile, layout) -> np.ndarray:
@@ -283,7 +288,7 @@ def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
     notes: list[str] = []
     gps_rows, gps_min = (_gps_rows(scn, nav, elements["gps"], t_imu, x_true, f_b, notes)
                          if "gps" in needed else ([], 0))
-    alpha, dopp, ofdm, sl_min = (_starlink_rows(scn, nav, elements["starlink"], t_imu, x_true, f_b, notes)
+    doppler_rate, doppler, ofdm, sl_min = (_starlink_rows(scn, nav, elements["starlink"], t_imu, x_true, f_b, notes)
                                  if "starlink" in needed else ([], [], [], 0))
     n_max = max(scn.starlink["counts"])
     if "starlink" in needed and sl_min < n_max:
@@ -296,8 +301,8 @@ def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
         raise UserInputError(
             f"{scn.source}: only {gps_min} GPS satellites above the mask at some epoch (need >= 4)"
         )
-    series = {name: _series(nav, name, rows, x_true, f_b) for name, rows in
-              (("pseudorange", gps_rows), ("doppler_rate", alpha), ("doppler", dopp), ("ofdm_range_diff", ofdm))}
+    series = {name: _series(nav, name, rows, x_true, f_b) for name, rows in (
+        ("pseudorange", gps_rows), ("doppler_rate", doppler_rate), ("doppler", doppler), ("ofdm_range_diff", ofdm))}
     return Setup(scn, params, t_imu, x_true, u_true, series, {"gps": gps_min, "starlink": sl_min},
                  prior_covariance(scn, profile, nav.layout), profile, notes)
 

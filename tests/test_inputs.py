@@ -118,7 +118,8 @@ def _assemble(imu, fixes, rate, nav, prior=None, params=None):
 
 def test_good_tables_assemble(nav):
     inp = _assemble(*_tables(), nav)
-    assert inp.counts["imu_records"] == 20 and inp.counts["fix_epochs"] == 19 and inp.counts["doppler_rate_records"] == 20
+    assert inp.counts["imu_records"] == 20 and inp.counts["fix_epochs"] == 19
+    assert inp.counts["doppler_rate_records"] == 20
     assert inp.merged(["fix"]).size == 20 + 3 * 19 and inp.merged().size == 20 + 3 * 19 + 20
     assert inp.f_c_hz == STARLINK_BEACON_HZ
 

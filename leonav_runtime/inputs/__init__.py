@@ -22,8 +22,9 @@ from leonav_runtime.inputs.measurements import (aux_blocks, doppler_rate_varianc
 from leonav_runtime.inputs.prior import (CLOCK_BIAS_SIGMA_M, CLOCK_DRIFT_SIGMA_MPS, LO_OFFSET_SIGMA_HZ,
                                          LO_RANDOM_WALK_HZ2_S, FirstFixPrior, Prior, filter_params,
                                          first_fix_prior, prior_sigmas)
-from leonav_runtime.inputs.tables import (SAT_A_MPS2, SAT_R_M, SAT_V_MPS, SATELLITE_TABLES, DopplerRateTable, DopplerTable, FixTable, ImuTable,
-                                          OfdmRangeDiffTable, PseudorangeTable, SatelliteTable)
+from leonav_runtime.inputs.tables import (SAT_A_MPS2, SAT_R_M, SAT_V_MPS, SATELLITE_TABLES, DopplerRateTable,
+                                          DopplerTable, FixTable, ImuTable, OfdmRangeDiffTable, PseudorangeTable,
+                                          SatelliteTable, check_column)
 
 __all__ = [
     "STREAMS", "FilterInputs", "assemble",
@@ -31,6 +32,6 @@ __all__ = [
     "aux_blocks", "doppler_rate_variance", "fix_records", "satellite_aux", "satellite_records", "states_from_aux",
     "CLOCK_BIAS_SIGMA_M", "CLOCK_DRIFT_SIGMA_MPS", "LO_OFFSET_SIGMA_HZ", "LO_RANDOM_WALK_HZ2_S",
     "FirstFixPrior", "Prior", "filter_params", "first_fix_prior", "prior_sigmas",
-    "SAT_A_MPS2", "SAT_R_M", "SAT_V_MPS", "SATELLITE_TABLES", "DopplerRateTable", "DopplerTable", "FixTable", "ImuTable", "OfdmRangeDiffTable",
-    "PseudorangeTable", "SatelliteTable",
+    "SAT_A_MPS2", "SAT_R_M", "SAT_V_MPS", "SATELLITE_TABLES", "DopplerRateTable", "DopplerTable", "FixTable",
+    "ImuTable", "OfdmRangeDiffTable", "PseudorangeTable", "SatelliteTable", "check_column",
 ]

@@ -46,7 +46,7 @@ class SessionInputs(FilterInputs):
         return self.satellites.get("doppler_rate") or DopplerRateTable.empty()
 
 
-def first_fix_prior(options: ReplayOptions, profile) -> FirstFixPrior:
+def replay_prior(options: ReplayOptions, profile) -> FirstFixPrior:
     """The replay's start rule: the first usable fix, the WitMotion angles, `--yaw-deg`."""
     return FirstFixPrior(profile, yaw_rad=None if options.yaw_deg is None else math.radians(options.yaw_deg),
                          attitude_source=WITMOTION_ATTITUDE, yaw_given_source="--yaw-deg",
@@ -57,7 +57,7 @@ def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurem
                    profile, nav: navfuncs.NavFunctions, notes: list[str], f_c_hz: float) -> SessionInputs:
     """The road into the filter for one session's tables (also used by the direct simulation)."""
     doppler_rate = doppler_rate_table(meas, elements, epoch_utc, options.doppler_rate_sigma_floor_hz_s)
-    inputs = assemble(imu, filter_params(origin, profile, f_c_hz), first_fix_prior(options, profile),
+    inputs = assemble(imu, filter_params(origin, profile, f_c_hz), replay_prior(options, profile),
                       fixes=fixes, satellites=[doppler_rate], nav=nav, notes=notes, epoch_utc=epoch_utc,
                       origin=origin)
     out = SessionInputs.of(inputs, beacon_measurements=meas)
