@@ -30,14 +30,22 @@ def averaged_specific_force(dvel_b: np.ndarray, dt_s: np.ndarray | float,
     averaging span in s), the input of the Doppler-rate model's receiver acceleration and
     of its noise (generated `leonav_doppler_rate_variance`).
     """
-    dt = np.broadcast_to(np.asarray(dt_s, dtype=float), (dvel_b.shape[0],))
+    n = dvel_b.shape[0]
+    dt = np.broadcast_to(np.asarray(dt_s, dtype=float), (n,))
     dt_median = float(np.median(dt))
     n_avg = max(1, int(round(window_s / dt_median)))
-    dv = np.vstack([np.zeros(3), np.cumsum(dvel_b, axis=0)])
+    dv = np.vstack([np.zeros(3), np.cumsum(dvel_b, axis=0)])    # velocity change from sample 0 to sample k
     tt = np.concatenate([[0.0], np.cumsum(dt)])
-    k_end = np.maximum(np.arange(dvel_b.shape[0] + 1), 1)
-    k_start = np.maximum(k_end - n_avg, 0)
-    return (dv[k_end] - dv[k_start]) / (tt[k_end] - tt[k_start])[:, None], n_avg * dt_median
+    # the window of sample k runs from sample max(max(k, 1) - n_avg, 0) to sample max(k, 1)
+    m = min(n_avg, n) + 1
+
+    def ends(a):
+        return np.concatenate([a[1:2], a[1:]])
+
+    def starts(a):
+        return np.concatenate([np.broadcast_to(a[:1], (m,) + a.shape[1:]), a[1:max(n + 1 - n_avg, 1)]])
+
+    return (ends(dv) - starts(dv)) / (ends(tt) - starts(tt))[:, None], n_avg * dt_median
 
 
 def latest_sample(imu: ImuTable, t_s: np.ndarray) -> np.ndarray:
