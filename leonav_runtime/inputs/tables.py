@@ -33,13 +33,16 @@ def check_column(table: str, name: str, values, shape: tuple, finite: bool = Tru
         return
     if arr.shape != shape:
         raise _bad(table, name, f"shape {arr.shape}", f"shape {shape}")
-    if (not finite or np.isfinite(arr).all()) and (not positive or (arr > 0).all()):
-        return
-    bad = ~np.isfinite(arr) if finite and not np.isfinite(arr).all() else ~(arr > 0)
-    rows = bad.reshape(arr.shape[0] if arr.ndim else 1, -1).any(axis=1)
-    problem = "non-finite value" if finite and not np.isfinite(arr).all() else "value <= 0"
-    raise _bad(table, name, f"{problem} in row {int(np.flatnonzero(rows)[0])}",
-               f"{'finite' if problem[0] == 'n' else 'positive'} numbers{f' ({unit})' if unit else ''}")
+    for wanted, test, problem, expected in ((finite, np.isfinite, "non-finite value", "finite"),
+                                            (positive, _positive, "value <= 0", "positive")):
+        good = test(arr) if wanted else None
+        if wanted and not good.all():
+            row = int(np.flatnonzero(~good.reshape(arr.shape[0] if arr.ndim else 1, -1).all(axis=1))[0])
+            raise _bad(table, name, f"{problem} in row {row}", f"{expected} numbers{f' ({unit})' if unit else ''}")
+
+
+def _positive(arr: np.ndarray) -> np.ndarray:
+    return arr > 0
 
 
 @dataclasses.dataclass
