@@ -228,7 +228,7 @@ class ImuSample:
     t_mono_s: float
     f_b_mps2: tuple[float, float, float]      # specific force (reads +g up when level)
     w_b_radps: tuple[float, float, float]     # angular rate
-    euler_rad: tuple[float, float, float]     # roll, pitch, yaw (Z-Y-X) from the sensor's AHRS
+    rpy_rad: tuple[float, float, float]       # roll, pitch, yaw (Z-Y-X) from the sensor's AHRS
     temperature_c: float
     mag_raw: tuple[int, int, int] | None = None
     q_wxyz: tuple[float, float, float, float] | None = None

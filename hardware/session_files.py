@@ -136,7 +136,7 @@ def gnss_rows(rec: Any, utc_of: Callable[[float], float]) -> tuple[str, list[lis
 def imu_row(s: ImuSample, utc_of: Callable[[float], float]) -> list:
     mag = s.mag_raw or (None, None, None)
     q = s.q_wxyz or (None, None, None, None)
-    return [s.t_mono_s, utc_of(s.t_mono_s), *s.f_b_mps2, *s.w_b_radps, *s.euler_rad,
+    return [s.t_mono_s, utc_of(s.t_mono_s), *s.f_b_mps2, *s.w_b_radps, *s.rpy_rad,
             s.temperature_c, *mag, *q, s.device_time.isoformat() if s.device_time else None]
 
 

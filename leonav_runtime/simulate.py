@@ -109,7 +109,7 @@ def truth(scn: Scenario, params: np.ndarray, nav: navfuncs.NavFunctions):
     x_target = np.zeros((n + 1, L.NX))
     x_target[:, L.X_P_ENU_SLICE] = m.p_enu_m
     x_target[:, L.X_V_ENU_SLICE] = m.v_enu_mps
-    x_target[:, L.X_Q_NB_SLICE] = nav.quat_from_euler(m.euler_rad)
+    x_target[:, L.X_Q_NB_SLICE] = nav.quat_from_euler(m.rpy_rad)
     x_true = np.empty_like(x_target)
     x_true[0] = x_target[0]
     u_true = np.zeros((n, 6))

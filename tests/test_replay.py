@@ -158,7 +158,7 @@ def test_witmotion_encoders_round_trip_with_quantization_and_saturation():
     assert len(samples) == 20 and not parser.rejected
     got_f = np.array([s.f_b_mps2 for s in samples])
     got_w = np.array([s.w_b_radps for s in samples])
-    got_a = np.array([s.euler_rad for s in samples])
+    got_a = np.array([s.rpy_rad for s in samples])
     assert got_f[0, 0] == pytest.approx(32767 * wenc.ACC_LSB_MPS2)
     assert got_w[0, 1] == pytest.approx(-32768 * wenc.GYRO_LSB_RADPS)
     np.testing.assert_array_less(np.abs(got_f[1:] - f[1:]), wenc.ACC_LSB_MPS2 / 2 + 1e-12)

@@ -160,7 +160,7 @@ def imu_table(samples, to_utc, notes: list[str], imu_baud: int | None = None) ->
     t = utc - epoch
     w = np.array([s.w_b_radps for s in samples], float)
     f = np.array([s.f_b_mps2 for s in samples], float)
-    rpy = np.array([s.euler_rad for s in samples], float)
+    rpy = np.array([s.rpy_rad for s in samples], float)
     period = float(np.median(np.diff(t)))
     if missing:
         notes.append(f"IMU: {missing} missing sample(s) inside the session; their intervals are bridged with "
