@@ -22,6 +22,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from hardware.records import GnssTimeTag
+from hardware.uart import serialization_s
 
 # Preferred source of time tags: one per navigation epoch, best time quality first.
 SOURCE_PRIORITY = ("NAV-PVT", "TIMEGPS", "RAWX", "RMC", "ZDA")
@@ -119,12 +120,12 @@ class TimeMap:
         }
 
 
-def uart_delay_profile(epoch_bytes: Sequence[int], baud: int, bits_per_byte: int = 10) -> dict:
+def uart_delay_profile(epoch_bytes: Sequence[int], baud: int) -> dict:
     """Serialization delay (s) of the end of each message after the start of its epoch's
-    burst, for the byte offsets `epoch_bytes` of message ends (8N1: 10 bits per byte).
+    burst, for the byte offsets `epoch_bytes` of message ends (`uart.serialization_s`).
 
     This is the part of the stamping error the UART alone causes: a message ending n
     bytes into the burst is stamped n*10/baud s after the first byte left the receiver.
     """
-    delays = np.asarray(epoch_bytes, float) * bits_per_byte / baud
+    delays = serialization_s(np.asarray(epoch_bytes, float), baud)
     return {"baud": baud, "median_s": float(np.median(delays)), "max_s": float(np.max(delays))}

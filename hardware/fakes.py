@@ -5,9 +5,12 @@
   be closed to simulate a device that is unplugged mid-run.
 - `FakeRtlSdr`: the subset of pyrtlsdr's `RtlSdr` that `hardware.sdr.capture` uses,
   producing a deterministic cu8 test signal (a complex tone plus noise).
+- `serial_chunks`: bytes sent over a UART and read by a host at random times, as
+  (chunk, read time) pairs (the synthetic session writer, `fake_session.py`, uses it).
 """
 from __future__ import annotations
 
+import math
 import os
 import threading
 import time
@@ -15,6 +18,8 @@ import tty
 from typing import Sequence
 
 import numpy as np
+
+from hardware.uart import serialization_s
 
 
 class PtyDevice:
@@ -115,3 +120,39 @@ class FakeRtlSdr:
 
     def close(self) -> None:
         self.closed = True
+
+
+def serial_chunks(bursts: list[tuple[float, bytes]], baud: int, rng: np.random.Generator,
+                  host_read_s: float, t_stop: float) -> list[tuple[bytes, float]]:
+    """(chunk, t_read) as a host reading a UART would see them (times in s, any origin).
+
+    bursts: (time the first byte starts, bytes), in time order. Bytes go out back to back
+    at `baud` (a burst waits for the previous one); byte i is complete at start +
+    (i+1) * `uart.serialization_s(1, baud)`. The host reads at times spaced by
+    0.5 ms + Exp(host_read_s) and gets every byte complete by then; reads that find
+    nothing return nothing; a last read 1 ms after the last byte collects the rest.
+    """
+    if not bursts:
+        return []
+    t_byte = serialization_s(1, baud)
+    ends, data = [], []
+    free = -math.inf
+    for t0, payload in bursts:
+        start = max(t0, free)
+        e = start + t_byte * np.arange(1, len(payload) + 1)
+        ends.append(e)
+        data.append(payload)
+        free = e[-1]
+    ends_all = np.concatenate(ends)
+    blob = b"".join(data)
+    n_reads = int((max(t_stop, ends_all[-1]) - bursts[0][0]) / (0.0005 + host_read_s)) * 2 + 10
+    reads = bursts[0][0] + np.cumsum(0.0005 + rng.exponential(host_read_s, n_reads))
+    reads = reads[reads <= max(t_stop, ends_all[-1]) + 0.06]
+    reads = np.append(reads, ends_all[-1] + 0.001)       # the last bytes are read
+    cut = np.searchsorted(ends_all, reads, side="right")
+    out, prev = [], 0
+    for c, t in zip(cut, reads):
+        if c > prev:
+            out.append((blob[prev:c], float(t)))
+            prev = c
+    return out

@@ -35,18 +35,17 @@ class NmeaSentence:
 
 @dataclass
 class UbxFrame:
-    """One checksum-verified UBX frame (class, id, payload), before message decoding."""
+    """One checksum-verified UBX frame (class, id, payload), before message decoding.
+
+    `name` ("NAV-PVT", or "UBX-0xCC-0xII" when not listed) is given by the splitter from
+    `hardware.gnss.ubx.message_name`, so this module does not import the protocol module.
+    """
 
     t_mono_s: float
     msg_class: int
     msg_id: int
     payload: bytes = field(repr=False)
-
-    @property
-    def name(self) -> str:
-        from hardware.gnss.ubx import message_name  # late import: no cycle at module load
-
-        return message_name(self.msg_class, self.msg_id)
+    name: str = ""
 
 
 @dataclass
@@ -229,7 +228,7 @@ class ImuSample:
     t_mono_s: float
     f_b_mps2: tuple[float, float, float]      # specific force (reads +g up when level)
     w_b_radps: tuple[float, float, float]     # angular rate
-    euler_rad: tuple[float, float, float]     # roll, pitch, yaw (Z-Y-X) from the sensor's AHRS
+    rpy_rad: tuple[float, float, float]       # roll, pitch, yaw (Z-Y-X) from the sensor's AHRS
     temperature_c: float
     mag_raw: tuple[int, int, int] | None = None
     q_wxyz: tuple[float, float, float, float] | None = None

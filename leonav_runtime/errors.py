@@ -1,9 +1,11 @@
-"""Exceptions that carry a message meant for the user (file, line, field, expectation)."""
+"""Exceptions that carry a message meant for the user (file, line, field, expectation).
+
+`UserInputError` is defined in `hardware/errors.py` (the device layer raises it too and
+must not import the runtime); this module is its runtime name, so `except UserInputError`
+catches the errors of both layers.
+"""
 from __future__ import annotations
 
+from hardware.errors import UserInputError
 
-class UserInputError(ValueError):
-    """Bad input from a user: the message names the file/line/field and what was expected.
-
-    The CLI prints it as one line and exits with status 2, without a traceback.
-    """
+__all__ = ["UserInputError"]

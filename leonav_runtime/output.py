@@ -1,5 +1,7 @@
 """Results folders: every computing command writes JSON/CSV/PNG into one folder.
 
+`write_json` is `hardware.jsonfile.write_json` (one JSON writer for session files and results).
+
 Default location is `./leonav-out/<command>-<UTC timestamp>/`; `--out DIR` overrides it.
 """
 from __future__ import annotations
@@ -7,12 +9,14 @@ from __future__ import annotations
 import argparse
 import csv
 import datetime as _dt
-import json
-import math
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 import numpy as np
+
+from hardware.jsonfile import write_json
+
+__all__ = ["add_out_argument", "results_dir", "write_json", "write_csv"]
 
 DEFAULT_ROOT = Path("leonav-out")
 
@@ -34,34 +38,6 @@ def results_dir(out: str | Path | None, command: str) -> Path:
         out = DEFAULT_ROOT / f"{command}-{stamp}"
     path = Path(out)
     path.mkdir(parents=True, exist_ok=True)
-    return path
-
-
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, float)):
-        value = float(obj)
-        return value if math.isfinite(value) else None  # JSON has no NaN/inf
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    if isinstance(obj, (_dt.datetime, _dt.date)):
-        return obj.isoformat()
-    if isinstance(obj, Path):
-        return str(obj)
-    return obj
-
-
-def write_json(path: str | Path, data: Any) -> Path:
-    """Write `data` as indented JSON (numpy types converted, NaN/inf as null)."""
-    path = Path(path)
-    path.write_text(json.dumps(_jsonable(data), indent=2) + "\n")
     return path
 
 

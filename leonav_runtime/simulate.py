@@ -6,14 +6,17 @@
   the truth state is the mechanization's own output, so the filter and the truth share
   one model;
 - satellites: SGP4 states of GPS and Starlink at every measurement epoch, visibility and
-  the satellite-selection rule, aux blocks, and the noise-free measurements evaluated
-  with the generated `h` functions at the true state (clock and LO states at zero).
+  the satellite-selection rule, aux blocks (`inputs.satellite_aux`), and the noise-free
+  measurements evaluated with the generated `h` functions at the true state (clock and LO
+  states at zero).
 
 `trial_records(setup, mode, count, rng)` then draws one trial: IMU biases (random walks
 from the profile) and white noise, receiver clock and LO offset (random walks from the
 filter's own process model), measurement noise, GPS outages, and an initial estimate
 drawn from the prior. Clock and LO enter the measurements through the generated Jacobian
 H (the models are linear in those states), so no per-trial model evaluation is needed.
+The drawn IMU increments and measurements become sensor tables and go the one road into
+the filter every source takes (`leonav_runtime.inputs.assemble`), which builds the records.
 
 Time stamping: IMU samples at k/rate_hz; GPS and Starlink epochs fall on IMU sample
 times (as a receiver that tags measurements with its own clock), an IMU record carries
@@ -26,26 +29,27 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from leonav_runtime import geometry, navfuncs, records
+from leonav_runtime import geometry, navfuncs
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.gen import state_layout
+from leonav_runtime.inputs import (CLOCK_BIAS_SIGMA_M, CLOCK_DRIFT_SIGMA_MPS, F_B_AVERAGE_S,
+                                   LO_OFFSET_SIGMA_HZ, LO_RANDOM_WALK_HZ2_S, SATELLITE_TABLES, ImuTable, Prior,
+                                   assemble, averaged_specific_force, filter_params, prior_sigmas, satellite_aux,
+                                   states_from_aux)
 from leonav_runtime.orbits import (ElementSet, default_elements, group_by_constellation, load_elements,
                                    propagate_ecef)
+from leonav_runtime.params import IMU_PROFILES
 from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
 from leonav_runtime.trajectory import motion
-from leonav_runtime.params import IMU_PROFILES
-from leonav_runtime.params import build_params
 
-
-# Prior of the filter's clock and LO states (not in the scenario file: they only set
-# how fast the filter locks; stated in the docs). Truth is drawn from the same prior.
-CLOCK_BIAS_SIGMA_M = 300.0      # 1 us
-CLOCK_DRIFT_SIGMA_MPS = 1.0
-LO_OFFSET_SIGMA_HZ = 50e3       # LNB LO tolerance class (tens of kHz)
-LO_RANDOM_WALK_HZ2_S = 1e-2     # LO drift PSD used by filter and truth
-# The Doppler-rate model needs the receiver acceleration; the filter takes it from the
-# accelerometer averaged over this window (one sample's white noise, shared by every
-# satellite of an epoch, would otherwise be a correlated error the filter cannot see).
-F_B_AVERAGE_S = 0.1
+__all__ = [
+    "SatSeries", "Setup", "Trial", "truth", "needed_constellations", "scenario_elements", "prior_covariance",
+    "bias_walks", "measured_increments", "prepare", "noise_sigma", "selected_rows", "trial_records", "SERIES",
+    # re-exported from `leonav_runtime.inputs` (the road into the filter), where they live
+    "CLOCK_BIAS_SIGMA_M", "CLOCK_DRIFT_SIGMA_MPS", "F_B_AVERAGE_S", "LO_OFFSET_SIGMA_HZ", "LO_RANDOM_WALK_HZ2_S",
+    "prior_sigmas", "averaged_specific_force",
+]
+SERIES = ("pseudorange", "doppler_rate", "doppler", "ofdm_range_diff")
 
 
 @dataclass
@@ -53,7 +57,9 @@ class SatSeries:
     """Measurements of one observable over the run (one row per measurement).
 
     t_s, sat_id (NORAD id), aux (n, NAUX), z_true (noise-free, clock/LO states at zero),
-    H (n, NDX) at the truth, rank (elevation rank at its epoch, 0 = highest).
+    H (n, NDX) at the truth, rank (elevation rank at its epoch, 0 = highest); sat_ecef,
+    ref_ecef: the satellite's and the reference's r, v, a of aux as contiguous (n, 9) blocks
+    (`inputs.SAT_*` columns), what the trials' satellite tables are cut from.
     """
 
     kind: int
@@ -63,6 +69,11 @@ class SatSeries:
     z_true: np.ndarray
     H: np.ndarray
     rank: np.ndarray
+    sat_ecef: np.ndarray = field(init=False, repr=False)
+    ref_ecef: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.sat_ecef, self.ref_ecef = (np.ascontiguousarray(b) for b in states_from_aux(self.aux, state_layout))
 
 
 @dataclass
@@ -96,9 +107,9 @@ def truth(scn: Scenario, params: np.ndarray, nav: navfuncs.NavFunctions):
     m = motion(scn, t)
     L = nav.layout
     x_target = np.zeros((n + 1, L.NX))
-    x_target[:, L.X_P_ENU:L.X_P_ENU + 3] = m.p_enu_m
-    x_target[:, L.X_V_ENU:L.X_V_ENU + 3] = m.v_enu_mps
-    x_target[:, L.X_Q_NB:L.X_Q_NB + 4] = nav.quat_from_euler(m.euler_rad)
+    x_target[:, L.X_P_ENU_SLICE] = m.p_enu_m
+    x_target[:, L.X_V_ENU_SLICE] = m.v_enu_mps
+    x_target[:, L.X_Q_NB_SLICE] = nav.quat_from_euler(m.rpy_rad)
     x_true = np.empty_like(x_target)
     x_true[0] = x_target[0]
     u_true = np.zeros((n, 6))
@@ -170,35 +181,27 @@ def _visible_ranked(scn, es, t_s, p_enu, mask_rad, notes: list[str], acceleratio
     return states, ranked, rho
 
 
-def _aux(nav, r, v, a, f_b, r_ref=None, v_ref=None, a_ref=None) -> np.ndarray:
-    L = nav.layout
-    aux = np.zeros(L.NAUX)
-    aux[L.AUX_R_S_ECEF:L.AUX_R_S_ECEF + 3] = r
-    aux[L.AUX_V_S_ECEF:L.AUX_V_S_ECEF + 3] = v
-    aux[L.AUX_A_S_ECEF:L.AUX_A_S_ECEF + 3] = a
-    if r_ref is not None:
-        aux[L.AUX_R_REF_ECEF:L.AUX_R_REF_ECEF + 3] = r_ref
-        aux[L.AUX_V_REF_ECEF:L.AUX_V_REF_ECEF + 3] = v_ref
-        aux[L.AUX_A_REF_ECEF:L.AUX_A_REF_ECEF + 3] = a_ref
-    aux[L.AUX_F_B:L.AUX_F_B + 3] = f_b
-    return aux
-
-
-def _series(nav, kind_name, rows, x_true) -> SatSeries:
+def _series(nav, kind_name, rows, x_true, f_b) -> SatSeries:
+    """Rows (k, t, sat_id, satellite state (9,), reference state (9,) or None, rank) as a series:
+    aux as the road builds it (`inputs.satellite_aux`, f_b of sample k), h and H at the truth."""
+    n, L = len(rows), nav.layout
+    k = np.array([r[0] for r in rows], int)
+    sat = np.array([r[3] for r in rows]).reshape(n, 9)
+    ref = np.array([r[4] for r in rows]).reshape(n, 9) if n and rows[0][4] is not None else None
+    table = SATELLITE_TABLES[kind_name](np.array([r[1] for r in rows], float), np.array([r[2] for r in rows],
+                                        np.int32), np.zeros(n), 1.0, sat, ref)
+    aux = satellite_aux(table, f_b[k], L)
     kind = nav.kind_id(kind_name)
-    n = len(rows)
-    aux = np.array([r[3] for r in rows]).reshape(n, nav.layout.NAUX)
-    z, H = np.empty(n), np.empty((n, nav.layout.NDX))
-    for i, (k, _, _, a, _) in enumerate(rows):
-        z[i], H[i] = nav.h(kind, x_true[k], a)
-    return SatSeries(kind, np.array([r[1] for r in rows], float), np.array([r[2] for r in rows], np.int32),
-                     aux, z, H, np.array([r[4] for r in rows], np.int32))
+    z, H = np.empty(n), np.empty((n, L.NDX))
+    for i in range(n):
+        z[i], H[i] = nav.h(kind, x_true[k[i]], aux[i])
+    return SatSeries(kind, table.t, table.sat_id, aux, z, H, np.array([r[5] for r in rows], np.int32))
 
 
 def _gps_rows(scn, nav, es, t_imu, x_true, f_b, notes):
     idx = _epochs(scn, scn.gps["rate_hz"], t_imu)
     t = t_imu[idx]
-    p_enu = x_true[idx, nav.layout.X_P_ENU:nav.layout.X_P_ENU + 3]
+    p_enu = x_true[idx, nav.layout.X_P_ENU_SLICE]
     states, ranked, _ = _visible_ranked(scn, es, t, p_enu, scn.gps["elevation_mask_rad"], notes)
     r_rx = _receiver_ecef(scn, p_enu)
     rows = []
@@ -209,7 +212,7 @@ def _gps_rows(scn, nav, es, t_imu, x_true, f_b, notes):
             # of the transmit epoch, as the pseudorange model (with Sagnac) expects.
             a = states.a_ecef_mps2[s, j]
             r_tx, v_tx, _ = nav.transmit_state(states.r_ecef_m[s, j], states.v_ecef_mps[s, j], a, r_rx[j])
-            rows.append((k, t[j], int(es.norad_ids[s]), _aux(nav, r_tx, v_tx, a, f_b[k]), rank))
+            rows.append((k, t[j], int(es.norad_ids[s]), np.concatenate([r_tx, v_tx, a]), None, rank))
     vis = [len(r) for r in ranked]
     return rows, min(vis) if vis else 0
 
@@ -217,45 +220,26 @@ def _gps_rows(scn, nav, es, t_imu, x_true, f_b, notes):
 def _starlink_rows(scn, nav, es, t_imu, x_true, f_b, notes):
     idx = _epochs(scn, scn.starlink["rate_hz"], t_imu)
     t = t_imu[idx]
-    p_enu = x_true[idx, nav.layout.X_P_ENU:nav.layout.X_P_ENU + 3]
+    p_enu = x_true[idx, nav.layout.X_P_ENU_SLICE]
     # Only satellites that can be above the mask need states: pre-filter on the first epoch
     # would miss risers over long runs, so propagate all (vectorized SGP4 is cheap).
     states, ranked, _ = _visible_ranked(scn, es, t, p_enu, scn.starlink["elevation_mask_rad"], notes)
     n_max = max(scn.starlink["counts"])
-    alpha, dopp, ofdm = [], [], []
+    doppler_rate, doppler, ofdm = [], [], []   # rows: see _series
     for j, k in enumerate(idx):
         use = ranked[j][:n_max]
         if use.size == 0:
             continue
-        ref = use[0]
-        rr, vr, ar = states.r_ecef_m[ref, j], states.v_ecef_mps[ref, j], states.a_ecef_mps2[ref, j]
+        sat = np.concatenate([states.r_ecef_m[use, j], states.v_ecef_mps[use, j], states.a_ecef_mps2[use, j]],
+                             axis=1)
         for rank, s in enumerate(use):
-            r, v, a = states.r_ecef_m[s, j], states.v_ecef_mps[s, j], states.a_ecef_mps2[s, j]
-            sid = int(es.norad_ids[s])
-            aux = _aux(nav, r, v, a, f_b[k], rr, vr, ar)
-            alpha.append((k, t[j], sid, aux, rank))
-            dopp.append((k, t[j], sid, aux, rank))
+            row = (k, t[j], int(es.norad_ids[s]), sat[rank], sat[0], rank)
+            doppler_rate.append(row)
+            doppler.append(row)
             if rank > 0:  # differenced against the highest satellite (rank 0)
-                ofdm.append((k, t[j], sid, aux, rank))
+                ofdm.append(row)
     vis = [len(r) for r in ranked]
-    return alpha, dopp, ofdm, min(vis) if vis else 0
-
-
-def prior_sigmas(layout, profile, position_m, velocity_mps, attitude_rad) -> np.ndarray:
-    """1-sigma of the filter prior per error state (NDX,): navigation sigmas as given
-    (scalars or 3-vectors; m, m/s, rad), IMU biases from the profile, clock and LO from the
-    module constants."""
-    L = layout
-    sig = np.zeros(L.NDX)
-    sig[L.DX_DP:L.DX_DP + 3] = position_m
-    sig[L.DX_DV:L.DX_DV + 3] = velocity_mps
-    sig[L.DX_DTHETA:L.DX_DTHETA + 3] = attitude_rad
-    sig[L.DX_DB_A:L.DX_DB_A + 3] = profile.acc_bias_sigma
-    sig[L.DX_DB_G:L.DX_DB_G + 3] = profile.gyro_bias_sigma
-    sig[L.DX_DC_DT] = CLOCK_BIAS_SIGMA_M
-    sig[L.DX_DC_DDT] = CLOCK_DRIFT_SIGMA_MPS
-    sig[L.DX_DB_LO] = LO_OFFSET_SIGMA_HZ
-    return sig
+    return doppler_rate, doppler, ofdm, min(vis) if vis else 0
 
 
 def prior_covariance(scn: Scenario, profile, layout) -> np.ndarray:
@@ -287,42 +271,24 @@ def measured_increments(rng: np.random.Generator, profile, u_true: np.ndarray, b
     return u
 
 
-def averaged_specific_force(dvel_b: np.ndarray, dt_s: np.ndarray | float,
-                            window_s: float = F_B_AVERAGE_S) -> tuple[np.ndarray, float]:
-    """Specific force (m/s^2, body) averaged over the last `window_s` at every IMU sample.
-
-    dvel_b (n, 3): velocity increments of the n intervals; dt_s: their lengths (s). Returns
-    (f_b (n+1, 3) at samples 0..n, sample 0 taking the first interval; the averaging span
-    in s), the input of the Doppler-rate model's receiver acceleration and of its noise
-    (generated `leonav_doppler_rate_variance`).
-    """
-    dt = np.broadcast_to(np.asarray(dt_s, dtype=float), (dvel_b.shape[0],))
-    n_avg = max(1, int(round(window_s / float(np.median(dt)))))
-    dv = np.vstack([np.zeros(3), np.cumsum(dvel_b, axis=0)])
-    tt = np.concatenate([[0.0], np.cumsum(dt)])
-    k_end = np.maximum(np.arange(dvel_b.shape[0] + 1), 1)
-    k_start = np.maximum(k_end - n_avg, 0)
-    return (dv[k_end] - dv[k_start]) / (tt[k_end] - tt[k_start])[:, None], n_avg * float(np.median(dt))
-
-
 def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
     """Truth, satellite geometry and noise-free measurements shared by all trials."""
     nav = nav or navfuncs.NavFunctions()
     profile = IMU_PROFILES[scn.imu_profile]
-    params = np.array(build_params(scn.lat_rad, scn.lon_rad, scn.alt_m, imu=profile,
-                                   q_blo=LO_RANDOM_WALK_HZ2_S, f_c_hz=scn.starlink["carrier_hz"]))
+    params = filter_params((scn.lat_rad, scn.lon_rad, scn.alt_m), profile, scn.starlink["carrier_hz"])
     nav.params = params
     t_imu, x_true, u_true = truth(scn, params, nav)
     dt = 1.0 / scn.imu_rate_hz
     # specific force of the latest IMU interval at each sample (sample 0: first interval)
-    f_b = np.vstack([u_true[:1, 3:], u_true[:, 3:]]) / dt
+    dvel = u_true[:, nav.layout.U_DVEL_B_SLICE]
+    f_b = np.vstack([dvel[:1], dvel]) / dt
 
     elements = scenario_elements(scn)
     needed = needed_constellations(scn)
     notes: list[str] = []
     gps_rows, gps_min = (_gps_rows(scn, nav, elements["gps"], t_imu, x_true, f_b, notes)
                          if "gps" in needed else ([], 0))
-    alpha, dopp, ofdm, sl_min = (_starlink_rows(scn, nav, elements["starlink"], t_imu, x_true, f_b, notes)
+    doppler_rate, doppler, ofdm, sl_min = (_starlink_rows(scn, nav, elements["starlink"], t_imu, x_true, f_b, notes)
                                  if "starlink" in needed else ([], [], [], 0))
     n_max = max(scn.starlink["counts"])
     if "starlink" in needed and sl_min < n_max:
@@ -335,12 +301,8 @@ def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
         raise UserInputError(
             f"{scn.source}: only {gps_min} GPS satellites above the mask at some epoch (need >= 4)"
         )
-    series = {
-        "pseudorange": _series(nav, "pseudorange", gps_rows, x_true),
-        "doppler_rate": _series(nav, "doppler_rate", alpha, x_true),
-        "doppler": _series(nav, "doppler", dopp, x_true),
-        "ofdm_range_diff": _series(nav, "ofdm_range_diff", ofdm, x_true),
-    }
+    series = {name: _series(nav, name, rows, x_true, f_b) for name, rows in (
+        ("pseudorange", gps_rows), ("doppler_rate", doppler_rate), ("doppler", doppler), ("ofdm_range_diff", ofdm))}
     return Setup(scn, params, t_imu, x_true, u_true, series, {"gps": gps_min, "starlink": sl_min},
                  prior_covariance(scn, profile, nav.layout), profile, notes)
 
@@ -403,15 +365,14 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     c_dt = scn.gps["clock_bias_m"] + np.concatenate([[0.0], np.cumsum(c_ddt[:-1] * dt)]) \
         + _random_walk(rng, n, dt, 0.0, g * q_cdt)
     b_lo = _random_walk(rng, n, dt, scn.starlink["lo_offset_hz"], g * setup.params[L.P_Q_BLO])
-    x_true[:, L.X_B_A:L.X_B_A + 3] = b_a
-    x_true[:, L.X_B_G:L.X_B_G + 3] = b_g
+    x_true[:, L.X_B_A_SLICE] = b_a
+    x_true[:, L.X_B_G_SLICE] = b_g
     x_true[:, L.X_C_DT], x_true[:, L.X_C_DDT], x_true[:, L.X_B_LO] = c_dt, c_ddt, b_lo
 
     u = measured_increments(rng, prof, setup.u_true, b_a, b_g, dt, g)
-    parts = [records.imu_records(setup.t_imu[1:], u[:, :3], u[:, 3:], dt_s=dt)]
-    f_b_avg, f_b_span_s = averaged_specific_force(u[:, 3:], dt)
-
-    for kind_name in ("pseudorange", "doppler_rate", "doppler", "ofdm_range_diff"):
+    imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
+    tables = []
+    for kind_name in SERIES:
         s = setup.series[kind_name]
         sigma = noise_sigma(scn, kind_name)
         noise = rng.standard_normal(s.t_s.size)  # drawn for every series: common numbers
@@ -424,13 +385,16 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
         for off, dx_off in ((L.X_C_DT, L.DX_DC_DT), (L.X_C_DDT, L.DX_DC_DDT), (L.X_B_LO, L.DX_DB_LO)):
             z += s.H[rows, dx_off] * x_true[k, off]
         z += g * sigma * noise[rows]
-        aux = s.aux[rows].copy()
-        aux[:, L.AUX_F_B:L.AUX_F_B + 3] = f_b_avg[k]  # measured, averaged specific force
-        R = sigma**2
-        if kind_name == "doppler_rate":  # its model uses the measured specific force
-            R = nav.doppler_rate_variance(sigma, f_b_span_s, setup.params)
-        parts.append(records.measurement_records(s.t_s[rows], s.kind, z, R, aux, s.sat_id[rows]))
+        tables.append(_table(kind_name, s, rows, z, sigma))
 
     dx0 = np.zeros(L.NDX) if noise_free else rng.multivariate_normal(np.zeros(L.NDX), setup.P0)
     x0 = nav.boxplus(x_true[0], dx0)
-    return Trial(records.merge_records(*parts), x0, x_true)
+    # the road every source takes: tables -> records (aux f_b averaged from these IMU increments)
+    inputs = assemble(imu, setup.params, Prior(x0, setup.P0), satellites=tables, nav=nav)
+    return Trial(inputs.merged(), x0, x_true)
+
+
+def _table(kind_name: str, s: SatSeries, rows: np.ndarray, z: np.ndarray, sigma: float):
+    """The measurements of `rows` of a series as the road's satellite table of that kind."""
+    return SATELLITE_TABLES[kind_name](s.t_s[rows], s.sat_id[rows], z, sigma, s.sat_ecef[rows],
+                                       None if kind_name == "pseudorange" else s.ref_ecef[rows])

@@ -28,14 +28,18 @@ _FINE = 20  # sub-steps per output sample for the position integral (keeps it <<
 class Motion:
     """Intended motion sampled at `t_s` (s since the scenario epoch).
 
-    `p_enu_m`, `v_enu_mps` (n, 3) in the ENU frame at the scenario site; `euler_rad` (n, 3)
-    roll, pitch, yaw of `C_b_n = Rz(yaw) Ry(pitch) Rx(roll)`.
+    `p_enu_m`, `v_enu_mps` (n, 3) in the ENU frame at the scenario site; `rpy_rad` (n, 3)
+    roll, pitch, yaw of `C_b_n = Rz(yaw) Ry(pitch) Rx(roll)` (`euler_rad` is its old name).
     """
 
     t_s: np.ndarray
     p_enu_m: np.ndarray
     v_enu_mps: np.ndarray
-    euler_rad: np.ndarray
+    rpy_rad: np.ndarray
+
+    @property
+    def euler_rad(self) -> np.ndarray:
+        return self.rpy_rad
 
 
 def _speed_heading(t_s: np.ndarray, speed0: float, yaw0: float,
@@ -59,8 +63,8 @@ def motion(scn: Scenario, t_s: np.ndarray) -> Motion:
     roll0, pitch0, yaw0 = scn.trajectory["attitude_rad"]
     n = t_s.size
     if scn.trajectory["kind"] == "static":
-        euler = np.tile([roll0, pitch0, yaw0], (n, 1))
-        return Motion(t_s, np.zeros((n, 3)), np.zeros((n, 3)), euler)
+        rpy = np.tile([roll0, pitch0, yaw0], (n, 1))
+        return Motion(t_s, np.zeros((n, 3)), np.zeros((n, 3)), rpy)
 
     # Integrate position on a finer grid, then sample it: velocity is exact, position
     # error of the trapezoid rule is O(dt^2 * v * turn_rate^2), far below a millimetre.
@@ -78,5 +82,5 @@ def motion(scn: Scenario, t_s: np.ndarray) -> Motion:
     t = fine[idx]
     roll = roll0 + scn.trajectory["roll_amplitude_rad"] * np.sin(w * t)
     pitch = pitch0 + scn.trajectory["pitch_amplitude_rad"] * np.sin(w * t + 1.1)
-    euler = np.stack([roll, pitch, heading[idx]], 1)
-    return Motion(t_s, p_fine[idx], v_fine[idx], euler)
+    rpy = np.stack([roll, pitch, heading[idx]], 1)
+    return Motion(t_s, p_fine[idx], v_fine[idx], rpy)

@@ -67,7 +67,7 @@ def test_datasheet_packets_decode_to_physical_values():
     assert s.f_b_mps2 == pytest.approx((0.5 * G, -1.25 * G, 1.0 * G), abs=16 * G / 32768)
     assert s.w_b_radps == pytest.approx(tuple(math.radians(w) for w in (90.0, -45.0, 1000.0)),
                                         abs=math.radians(2000 / 32768))
-    assert s.euler_rad == pytest.approx(tuple(math.radians(a) for a in (10.0, -20.0, 170.0)),
+    assert s.rpy_rad == pytest.approx(tuple(math.radians(a) for a in (10.0, -20.0, 170.0)),
                                         abs=math.radians(180 / 32768))
     assert s.temperature_c == pytest.approx(25.31)
     assert s.mag_raw == (100, -200, 300)
@@ -89,7 +89,7 @@ def test_real_wt901sd_recording():
     assert len(samples) == 2017 and not parser.rejected and grouper.incomplete == 0
     f = np.array([s.f_b_mps2 for s in samples])
     w = np.array([s.w_b_radps for s in samples])
-    e = np.array([s.euler_rad for s in samples])
+    e = np.array([s.rpy_rad for s in samples])
     temp = np.array([s.temperature_c for s in samples])
     # scalings against the independent decode
     np.testing.assert_allclose(f, ref[0x51][:, :3] / 32768 * 16 * G)
@@ -118,7 +118,7 @@ def test_garbage_partial_packets_and_bad_checksums_are_skipped_and_counted():
     stream = (b"\x00\x55\x55\x99garbage" + good[0] + bytes(bad_sum) + partial + b"\x55\x51" + good[3]
               + bytes(range(256)) + good[4] + good[5][:-3])
     samples, parser, grouper = decode_all(stream, chunk=7)
-    yaws = [round(math.degrees(s.euler_rad[2])) for s in samples]
+    yaws = [round(math.degrees(s.rpy_rad[2])) for s in samples]
     assert yaws == [0, 3, 4, 5]                     # cycle 5 lost only its mag packet
     assert parser.rejected["bad_checksum"] >= 1
     assert parser.rejected["unknown_type"] >= 1

@@ -211,3 +211,39 @@ def test_ctrl_c_leaves_a_readable_session(tmp_path):
     assert len(dec.imu_samples) == n_samples
     assert dec.gnss_summary["accepted"] == dev["gnss"]["accepted"]
     assert (out / "imu.raw").read_bytes() == imu_bytes[: dev["imu"]["bytes_read"]]
+
+
+def test_uart_delay_profile_gives_the_readme_figures():
+    """hardware/README.md "Time alignment": the NEO-M9N log's default NMEA set (1,336 bytes per
+    epoch as logged, RMC first, 10 bits per byte): the end of RMC is 72 / 18 / 6 ms after the
+    start of the burst at 9600 / 38400 / 115200 baud, GGA 189 / 47 / 16 ms, ZDA 1.35 / 0.34 / 0.11 s."""
+    from hardware.clock import uart_delay_profile
+    from hardware.uart import serialization_s
+
+    lines = [ln for ln in shared_file("nmea/gpsd/ublox-neo-m9n-nmea.log").read_bytes().split(b"\n")
+             if ln.startswith(b"$")]
+    epochs: list[list[bytes]] = []
+    for ln in lines:
+        if ln[3:6] == b"RMC" or not epochs:
+            epochs.append([])
+        epochs[-1].append(ln + b"\n")
+    assert np.median([sum(len(ln) for ln in e) for e in epochs]) == 1336
+    expected = {b"RMC": (0.072, 0.018, 0.006), b"GGA": (0.189, 0.047, 0.016), b"ZDA": (1.35, 0.34, 0.11)}
+    for kind, delays in expected.items():
+        ends = [np.cumsum([len(ln) for ln in e])[[ln[3:6] for ln in e].index(kind)] for e in epochs]
+        for baud, want in zip((9600, 38400, 115200), delays):
+            got = uart_delay_profile(ends, baud)
+            assert got["median_s"] == pytest.approx(want, rel=0.03), (kind, baud)
+            assert got["max_s"] == pytest.approx(float(serialization_s(max(ends), baud)))
+
+
+def test_device_layer_and_runtime_share_one_error_class_and_one_json_writer():
+    """hardware/ defines UserInputError and write_json; the runtime's names are the same objects,
+    so the CLI's `except UserInputError` catches device errors as one line."""
+    import hardware.errors
+    import hardware.jsonfile
+    from leonav_runtime import errors, output
+
+    assert errors.UserInputError is hardware.errors.UserInputError
+    assert output.write_json is hardware.jsonfile.write_json
+    assert sdr_capture.SdrUnavailable.__mro__[1] is UserInputError

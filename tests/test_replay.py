@@ -4,7 +4,8 @@ Acceptance: a 12 s synthetic session (NMEA at 10 Hz, WitMotion at 10 Hz, 400 kS/
 capture with 5 tones) replays end to end, and its RMSE per mode is within 20 % of the
 same truth and noise run directly through the filter without bytes (differences: int16
 IMU quantization, NMEA rounding, arrival-stamp time tagging). Plus encoders vs the
-decoders, the IMU time fit, and bad sessions. Also: the Doppler-rate carrier from the capture's
+decoders, the IMU time fit, and bad sessions. Modes: fix+imu (position fixes),
+leo-alpha+imu (Doppler-rate), fix+leo-alpha+imu. Also: the Doppler-rate carrier from the capture's
 metadata, the averaged specific force and its noise in the Doppler-rate R, GGA fixes without
 an altitude, a late first fix, and one decoding per comparison.
 """
@@ -24,7 +25,7 @@ from hardware.imu import witmotion_encode as wenc
 from hardware.imu.witmotion import SampleGrouper, WitMotionParser
 from hardware.records import GnssFix, NmeaSentence
 from hardware.session import decode_session
-from leonav_runtime import navfuncs, replay, session_synth as ss, simulate
+from leonav_runtime import inputs as road, navfuncs, replay, session_synth as ss
 from leonav_runtime.cli import main as leonav_main
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gen.profiles import WT901
@@ -61,7 +62,7 @@ def comparison(synth, tmp_path_factory):
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(hardware.session, "decode_session", counted(hardware.session, "decode_session"))
         mp.setattr(pipeline, "process_capture", counted(pipeline, "process_capture"))
-        res = ss.compare_replay_direct(synth, out)
+        res = replay.compare_replay_direct(synth, out)
     return res | {"out": out, "calls": calls}
 
 
@@ -78,8 +79,8 @@ def test_replay_matches_direct_simulation_within_20_percent(comparison):
             assert v["replay"] == pytest.approx(v["direct"], rel=0.20), (mode, key, v)
     m = rep["modes"]
     # sanity against the noise put in: 1.5/1.5/3 m fixes, consumer IMU, 5 Starlink satellites
-    assert m["gps+imu"]["rmse_position_m"] < 2.0
-    assert m["gps+leo-alpha+imu"]["rmse_position_m"] < 2.0
+    assert m["fix+imu"]["rmse_position_m"] < 2.0
+    assert m["fix+leo-alpha+imu"]["rmse_position_m"] < 2.0
     assert m["leo-alpha+imu"]["rmse_position_m"] < 15.0
     assert all(mm["records"]["failed"] == 0 for mm in m.values())
     assert m["leo-alpha+imu"]["per_observable"]["doppler_rate"]["applied"] >= 5 * (SECONDS - 4)
@@ -104,7 +105,7 @@ def test_output_files(comparison):
         assert (folder / name).is_file(), name
     rows = (folder / "rmse_vs_time.csv").read_text().splitlines()
     assert rows[0].startswith("t_s,mode,position_error_m")
-    assert len(rows) - 1 == 3 * int(comparison["replay"]["modes"]["gps+imu"]["eval_points"])
+    assert len(rows) - 1 == 3 * int(comparison["replay"]["modes"]["fix+imu"]["eval_points"])
 
 
 def test_session_files_decode_like_a_recording(synth):
@@ -157,7 +158,7 @@ def test_witmotion_encoders_round_trip_with_quantization_and_saturation():
     assert len(samples) == 20 and not parser.rejected
     got_f = np.array([s.f_b_mps2 for s in samples])
     got_w = np.array([s.w_b_radps for s in samples])
-    got_a = np.array([s.euler_rad for s in samples])
+    got_a = np.array([s.rpy_rad for s in samples])
     assert got_f[0, 0] == pytest.approx(32767 * wenc.ACC_LSB_MPS2)
     assert got_w[0, 1] == pytest.approx(-32768 * wenc.GYRO_LSB_RADPS)
     np.testing.assert_array_less(np.abs(got_f[1:] - f[1:]), wenc.ACC_LSB_MPS2 / 2 + 1e-12)
@@ -213,9 +214,9 @@ def test_empty_capture_and_missing_fixes_skip_modes_with_reasons(synth, tmp_path
     folder = _copy(synth, tmp_path)
     (folder / "sdr.cu8").write_bytes(b"")
     m = replay.replay_session(folder, tmp_path / "out1")
-    assert set(m["modes"]) == {"gps+imu"}
+    assert set(m["modes"]) == {"fix+imu"}
     assert "empty" in m["skipped_modes"]["leo-alpha+imu"]
-    assert m["modes"]["gps+imu"]["rmse_position_m"] < 2.0
+    assert m["modes"]["fix+imu"]["rmse_position_m"] < 2.0
     # no GNSS at all: no time map (host clock used, noted), no position -> nothing runs
     for name in ("gnss.raw", "gnss.chunks.csv", "sdr.cu8", "sdr.sigmf-meta"):
         (folder / name).unlink()
@@ -223,21 +224,23 @@ def test_empty_capture_and_missing_fixes_skip_modes_with_reasons(synth, tmp_path
     assert rc == 1
     m = json.loads((tmp_path / "out2" / "metrics.json").read_text())
     assert m["modes"] == {}
-    assert m["skipped_modes"]["gps+imu"] == "no GNSS fix in gnss.raw"
+    assert m["skipped_modes"]["fix+imu"] == "no GNSS fix in gnss.raw"
     assert "no initial position" in m["skipped_modes"]["leo-alpha+imu"]
     assert any("host wall clock" in n for n in m["notes"])
 
 
 def test_cli_replay_with_origin_and_bad_modes(synth, tmp_path, capsys):
     folder = _copy(synth, tmp_path, drop=("sdr.cu8", "sdr.sigmf-meta"))
+    # the old name of the position-fix mode still works, with a note
     rc = leonav_main(["replay", str(folder), "--modes", "gps+imu", "--origin", str(synth.cfg.lat_deg),
                       str(synth.cfg.lon_deg), str(synth.cfg.alt_m), "--yaw-deg", "90", "--out", str(tmp_path / "o")])
     assert rc == 0
     text = capsys.readouterr().out
-    assert "gps+imu" in text and "reference: truth.csv" in text
+    assert "fix+imu" in text and "reference: truth.csv" in text
+    assert "note: mode 'gps+imu' is now 'fix+imu'" in text
     m = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert m["initialization"]["origin"] == "--origin" and m["initialization"]["yaw"] == "--yaw-deg"
-    assert m["modes"]["gps+imu"]["rmse_position_m"] < 2.0
+    assert set(m["modes"]) == {"fix+imu"} and m["modes"]["fix+imu"]["rmse_position_m"] < 2.0
     assert leonav_main(["replay", str(folder), "--modes", "gps-only", "--out", str(tmp_path / "o2")]) == 2
 
 
@@ -247,7 +250,7 @@ def test_cli_replay_with_origin_and_bad_modes(synth, tmp_path, capsys):
 @pytest.fixture(scope="module")
 def carrier_session(tmp_path_factory):
     """6 s at a 11.2 GHz carrier (not the default), 50 Hz IMU so the f_b average spans 5 samples."""
-    cfg = ss.SynthSessionConfig(seconds=6.0, seed=4, carrier_hz=11.2e9, imu_rate_hz=50.0, imu_baud=115200,
+    cfg = ss.SynthSessionConfig(seconds=6.0, seed=4, f_c_hz=11.2e9, imu_rate_hz=50.0, imu_baud=115200,
                                 n_satellites=4)
     return ss.write_synthetic_session(tmp_path_factory.mktemp("carrier") / "s", cfg)
 
@@ -263,15 +266,15 @@ def test_carrier_comes_from_the_capture_metadata(carrier_session, carrier_inputs
     L = navfuncs.NavFunctions().layout
     meta = json.loads((carrier_session.folder / "sdr.sigmf-meta").read_text())
     assert meta["global"]["leonav:rf_center_hz"] == pytest.approx(11.2e9)
-    assert inputs.carrier_hz == pytest.approx(11.2e9) and inputs.params[L.P_F_C_HZ] == pytest.approx(11.2e9)
-    assert inputs.beacons["counts"]["associated"] >= 3 and inputs.counts["alpha_records"] >= 8
+    assert inputs.f_c_hz == pytest.approx(11.2e9) and inputs.params[L.P_F_C_HZ] == pytest.approx(11.2e9)
+    assert inputs.beacons["counts"]["associated"] >= 3 and inputs.counts["doppler_rate_records"] >= 8
     assert inputs.counts["imu_missing_samples"] == 0       # 50 Hz with 4 ms read jitter: no invented gaps
     m = replay.replay_session(carrier_session.folder, tmp_path, opts, inputs=inputs)
-    assert m["carrier_hz"] == pytest.approx(11.2e9) and "capture metadata" in m["carrier_source"]
+    assert m["f_c_hz"] == pytest.approx(11.2e9) and "capture metadata" in m["f_c_source"]
     assert not any("carrier" in n for n in m["notes"])
     # with the 11.325 GHz model the 1.1 % scale error on rates of 100s of Hz/s would be gated
-    alpha = m["modes"]["leo-alpha+imu"]["per_observable"]["doppler_rate"]
-    assert alpha["gated"] == 0 and alpha["failed"] == 0 and alpha["nis_mean"] < 2.0
+    doppler_rate = m["modes"]["leo-alpha+imu"]["per_observable"]["doppler_rate"]
+    assert doppler_rate["gated"] == 0 and doppler_rate["failed"] == 0 and doppler_rate["nis_mean"] < 2.0
     assert m["modes"]["leo-alpha+imu"]["rmse_position_m"] < 15.0
 
 
@@ -282,32 +285,32 @@ def test_carrier_falls_back_to_the_starlink_beacon_with_a_note(carrier_session, 
     meta["global"]["leonav:lnb_lo_hz"] = 0.0        # no LNB: the RF centre is the 1.45 GHz IF
     meta["global"]["leonav:rf_center_hz"] = meta["captures"][0]["core:frequency"]
     meta_path.write_text(json.dumps(meta))
-    m = replay.replay_session(folder, tmp_path / "out", replay.ReplayOptions(modes=("gps+imu",)))
+    m = replay.replay_session(folder, tmp_path / "out", replay.ReplayOptions(modes=("fix+imu",)))
     saved = json.loads((tmp_path / "out" / "metrics.json").read_text())
-    assert saved["carrier_hz"] == STARLINK_BEACON_HZ and saved["carrier_source"].startswith("default")
+    assert saved["f_c_hz"] == STARLINK_BEACON_HZ and saved["f_c_source"].startswith("default")
     assert any("carrier" in n and "outside the Ku downlink band" in n for n in saved["notes"])
-    assert m["modes"]["gps+imu"]["rmse_position_m"] < 2.5
+    assert m["modes"]["fix+imu"]["rmse_position_m"] < 2.5
 
 
 def test_doppler_rate_aux_is_the_averaged_specific_force_and_r_has_its_noise(carrier_inputs):
     inputs, opts = carrier_inputs
     L = navfuncs.NavFunctions().layout
-    imu, rec = inputs.imu, inputs.records["alpha"]
-    assert rec.size == inputs.alpha.t.size and np.allclose(rec["t"], inputs.alpha.t)
-    n_avg = round(simulate.F_B_AVERAGE_S * 50.0)
+    imu, rec = inputs.imu, inputs.records["doppler_rate"]
+    assert rec.size == inputs.doppler_rate.t.size and np.allclose(rec["t"], inputs.doppler_rate.t)
+    n_avg = round(road.F_B_AVERAGE_S * 50.0)
     assert n_avg == 5
     expect, single = [], []
     for t in rec["t"]:
         j = int(np.flatnonzero(imu.t <= t + 1e-9)[-1])        # latest sample at or before the epoch
         sl = slice(max(0, j - n_avg + 1), j + 1)
-        expect.append((imu.f_b[sl] * imu.dt[sl, None]).sum(axis=0) / imu.dt[sl].sum())
-        single.append(imu.f_b[j])
-    f_b = rec["aux"][:, L.AUX_F_B:L.AUX_F_B + 3]
+        expect.append((imu.f_b_mps2[sl] * imu.dt[sl, None]).sum(axis=0) / imu.dt[sl].sum())
+        single.append(imu.f_b_mps2[j])
+    f_b = rec["aux"][:, L.AUX_F_B_SLICE]
     np.testing.assert_allclose(f_b, expect, atol=1e-9)
     assert np.abs(f_b - np.array(single)).max() > 5e-3      # one raw sample would differ by its noise
     vrw = inputs.init["imu_profile"]["vrw"]
-    sigma = np.maximum(inputs.alpha.sigma, opts.alpha_sigma_floor_hz_s)
-    r_expect = sigma**2 + (inputs.carrier_hz / C_LIGHT) ** 2 * vrw**2 / simulate.F_B_AVERAGE_S
+    sigma = np.maximum(inputs.doppler_rate.sigma, opts.doppler_rate_sigma_floor_hz_s)
+    r_expect = sigma**2 + (inputs.f_c_hz / C_LIGHT) ** 2 * vrw**2 / road.F_B_AVERAGE_S
     np.testing.assert_allclose(rec["R"], r_expect, rtol=2e-3)
     assert np.all(rec["R"] > sigma**2 * 1.05)
 
@@ -336,8 +339,8 @@ def test_fixes_without_altitude_are_skipped_and_counted(degraded):
     assert abs(lat - synth.cfg.lat_deg) < 1e-4 and abs(lon - synth.cfg.lon_deg) < 1e-4
     assert abs(h - synth.cfg.alt_m) < 15.0
     assert any("without a finite latitude, longitude and height" in n for n in m["notes"])
-    assert m["modes"]["gps+imu"]["rmse_position_m"] < 2.5
-    assert m["modes"]["gps+imu"]["records"]["failed"] == 0
+    assert m["modes"]["fix+imu"]["rmse_position_m"] < 2.5
+    assert m["modes"]["fix+imu"]["records"]["failed"] == 0
 
 
 def test_late_first_fix_moves_the_filter_start(degraded):
@@ -358,11 +361,11 @@ def _moving_tables(t_first_fix: float):
     """10 Hz IMU for 3 s and 10 Hz fixes from t_first_fix of a receiver going East at 10 m/s."""
     n = 30
     t = 0.1 * np.arange(1, n + 1)
-    imu = replay.ImuTable(t, np.full(n, 0.1), np.zeros((n, 3)), np.tile([0.0, 0.0, 9.80], (n, 1)),
-                          np.tile([0.0, 0.0, math.pi / 2], (n, 1)))
+    imu = road.ImuTable.from_rates(t, np.full(n, 0.1), np.zeros((n, 3)), np.tile([0.0, 0.0, 9.80], (n, 1)),
+                                   np.tile([0.0, 0.0, math.pi / 2], (n, 1)))
     tf = np.arange(t_first_fix, 3.0 + 1e-9, 0.1)
     enu = np.column_stack([10.0 * tf, np.zeros_like(tf), np.zeros_like(tf)])
-    fixes = replay.FixTable(tf, enu, np.tile([1.5, 1.5, 3.0], (tf.size, 1)), np.tile([10.0, 0.0], (tf.size, 1)))
+    fixes = road.FixTable(tf, enu, np.tile([1.5, 1.5, 3.0], (tf.size, 1)), np.tile([10.0, 0.0], (tf.size, 1)))
     return imu, fixes
 
 
@@ -371,28 +374,31 @@ def test_assemble_starts_at_a_late_first_fix(t_first_fix, start, dropped):
     nav = navfuncs.NavFunctions()
     L = nav.layout
     imu, fixes = _moving_tables(t_first_fix)
-    inp = replay.assemble(dt.datetime(2026, 2, 23, tzinfo=dt.timezone.utc), (0.75, -1.35, 170.0), imu, fixes,
-                          replay.AlphaTable.empty(), None, replay.ReplayOptions(), WT901, nav)
+    params = road.filter_params((0.75, -1.35, 170.0), WT901, STARLINK_BEACON_HZ)
+    inp = road.assemble(imu, params, road.FirstFixPrior(WT901), fixes=fixes, nav=nav)
     rec = inp.records["imu"]
     assert inp.init["start_s"] == pytest.approx(start)
     assert inp.counts["imu_records_before_start"] == dropped and rec.size == 30 - dropped
     assert rec["t"][0] - rec["dt"][0] == pytest.approx(start)         # first interval begins at the start
     np.testing.assert_allclose(rec["dt"][1:], 0.1)
+    np.testing.assert_allclose(rec["u"][0], [0, 0, 0, 0, 0, 9.80 * rec["dt"][0]])   # cut: mean rates kept
     assert inp.x0[L.X_P_ENU] == pytest.approx(10.0 * t_first_fix)     # the fix's own position and velocity
     assert inp.x0[L.X_V_ENU] == pytest.approx(10.0)
     assert inp.records["fix"].size == 3 * (fixes.t.size - 1) and np.all(inp.records["fix"]["t"] > start)
     # P0: fix sigma, 0.5 m/s, 0.5/0.5/5 deg, the profile's bias sigmas, clock/LO constants
     sig = np.sqrt(np.diag(inp.P0))
-    np.testing.assert_allclose(sig[L.DX_DP:L.DX_DP + 3], [1.5, 1.5, 3.0])
-    np.testing.assert_allclose(sig[L.DX_DTHETA:L.DX_DTHETA + 3], np.radians([0.5, 0.5, 5.0]))
-    np.testing.assert_allclose(sig[L.DX_DB_A:L.DX_DB_A + 3], WT901.acc_bias_sigma)
-    assert sig[L.DX_DB_LO] == simulate.LO_OFFSET_SIGMA_HZ and np.all(np.isfinite(inp.params))
+    np.testing.assert_allclose(sig[L.DX_DP_SLICE], [1.5, 1.5, 3.0])
+    np.testing.assert_allclose(sig[L.DX_DTHETA_SLICE], np.radians([0.5, 0.5, 5.0]))
+    np.testing.assert_allclose(sig[L.DX_DB_A_SLICE], WT901.acc_bias_sigma)
+    assert sig[L.DX_DB_LO] == road.LO_OFFSET_SIGMA_HZ and np.all(np.isfinite(inp.params))
 
 
 def test_synthetic_imu_noise_is_the_simulators_draw(synth):
     """The session's biases are `simulate.bias_walks` of its seed, as in the Monte Carlo trials."""
+    from leonav_runtime import simulate
+
     L = navfuncs.NavFunctions().layout
     n, dt_s = synth.u_meas.shape[0], 1.0 / synth.cfg.imu_rate_hz
     b_a, b_g = simulate.bias_walks(np.random.default_rng(synth.cfg.seed), WT901, n, dt_s)
-    np.testing.assert_array_equal(synth.x_true[:, L.X_B_A:L.X_B_A + 3], b_a)
-    np.testing.assert_array_equal(synth.x_true[:, L.X_B_G:L.X_B_G + 3], b_g)
+    np.testing.assert_array_equal(synth.x_true[:, L.X_B_A_SLICE], b_a)
+    np.testing.assert_array_equal(synth.x_true[:, L.X_B_G_SLICE], b_g)

@@ -54,7 +54,7 @@ def test_session_synth_then_replay(tmp_path, capsys):
     m = json.loads((out / "metrics.json").read_text())
     assert set(m["modes"]) == set(MODES) and m["skipped_modes"] == {}
     assert all(math.isfinite(mm["rmse_position_m"]) for mm in m["modes"].values())
-    assert m["carrier_hz"] == STARLINK_BEACON_HZ and "capture metadata" in m["carrier_source"]
+    assert m["f_c_hz"] == STARLINK_BEACON_HZ and "capture metadata" in m["f_c_source"]
 
 
 def test_session_synth_without_sdr_and_compare(tmp_path, capsys):
@@ -65,13 +65,13 @@ def test_session_synth_without_sdr_and_compare(tmp_path, capsys):
     assert not (session / "sdr.cu8").exists() and (session / "truth.csv").is_file()
     assert "replay vs direct simulation" in text
     row = _mode_rows(text)
-    assert set(row) == {"gps+imu"}        # no capture: the Starlink modes are skipped
-    replayed, direct = (float(v) for v in row["gps+imu"].split()[0:3:2])
+    assert set(row) == {"fix+imu"}        # no capture: the Starlink modes are skipped
+    replayed, direct = (float(v) for v in row["fix+imu"].split()[0:3:2])
     assert 0 < replayed < 3.0 and 0 < direct < 3.0
     saved = json.loads((out / "replay_vs_direct.json").read_text())
-    assert saved["rmse"]["gps+imu"]["rmse_position_m"]["replay"] == pytest.approx(replayed, abs=5e-4)
+    assert saved["rmse"]["fix+imu"]["rmse_position_m"]["replay"] == pytest.approx(replayed, abs=5e-4)
     m = json.loads((out / "metrics.json").read_text())
-    assert "no capture" in m["carrier_source"] and not any("carrier" in n for n in m["notes"])
+    assert "no capture" in m["f_c_source"] and not any("carrier" in n for n in m["notes"])
 
 
 def test_session_cli_errors(tmp_path, capsys):

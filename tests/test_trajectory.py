@@ -14,7 +14,7 @@ def test_static_profile_keeps_site_and_attitude():
     scn = load_scenario("paper")
     m = motion(scn, np.arange(0, 20.01, 0.01))
     assert np.all(m.p_enu_m == 0) and np.all(m.v_enu_mps == 0)
-    assert np.allclose(m.euler_rad, [0, 0, math.pi / 2])
+    assert np.allclose(m.rpy_rad, [0, 0, math.pi / 2])
 
 
 def test_maritime_segments_give_expected_speed_heading_and_distance():
@@ -27,7 +27,7 @@ def test_maritime_segments_give_expected_speed_heading_and_distance():
     assert m.p_enu_m[i60] == pytest.approx([0.0, 480.0, 0.0], abs=1e-6)
     # after the 3 deg/s, 30 s turn the heading is 180 deg (West), speed unchanged
     i90 = np.searchsorted(t, 90.0)
-    assert m.euler_rad[i90, 2] == pytest.approx(math.pi)
+    assert m.rpy_rad[i90, 2] == pytest.approx(math.pi)
     assert speed[i90] == pytest.approx(8.0)
     # a constant-speed 90 deg turn of radius v/omega moves r East-West and r North
     r = 8.0 / math.radians(3.0)
@@ -36,4 +36,4 @@ def test_maritime_segments_give_expected_speed_heading_and_distance():
     # the position is the integral of the velocity (checked with an independent rule)
     p_check = np.cumsum(np.r_[[np.zeros(3)], 0.5 * (m.v_enu_mps[1:] + m.v_enu_mps[:-1]) * 0.01], 0)
     assert np.max(np.abs(p_check - m.p_enu_m)) < 0.01
-    assert np.max(np.abs(m.euler_rad[:, 0])) == pytest.approx(math.radians(3.0), rel=1e-3)
+    assert np.max(np.abs(m.rpy_rad[:, 0])) == pytest.approx(math.radians(3.0), rel=1e-3)

@@ -15,7 +15,7 @@ from typing import Any, Callable, Iterator
 
 from hardware.byte_source import SourceReader
 from hardware.gnss import nmea, ubx
-from hardware.records import GnssFix, GnssTimeTag, NavPvt, NavTimeGps, NmeaSentence, RxmRawx, UbxFrame
+from hardware.records import GnssFix, GnssTimeTag, NavPvt, NavTimeGps, RxmRawx, UbxFrame
 
 MAX_NMEA_BYTES = 200      # NMEA says 82; u-blox proprietary and NMEA 4.1 lines stay far below 200
 MAX_UBX_PAYLOAD = 8192    # largest u-blox output (RAWX with ~100 signals) is ~3.2 kB
@@ -101,7 +101,8 @@ class GnssSplitter:
                     self.rejected["junk_bytes"] += 1
                     i += 1
                     continue
-                out.append(("ubx", UbxFrame(t_mono_s, body[0], body[1], body[4:]), t_mono_s))
+                frame = UbxFrame(t_mono_s, body[0], body[1], body[4:], ubx.message_name(body[0], body[1]))
+                out.append(("ubx", frame, t_mono_s))
                 i += total
             else:
                 match = _START.search(buf, i)

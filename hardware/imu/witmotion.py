@@ -196,7 +196,7 @@ class SampleGrouper:
             t_mono_s=acc.t_mono_s,
             f_b_mps2=acc.values[:3],
             w_b_radps=gyro.values[:3],
-            euler_rad=angle.values[:3],
+            rpy_rad=angle.values[:3],
             temperature_c=acc.values[3],
             mag_raw=tuple(mag.values[:3]) if mag else None,
             q_wxyz=tuple(quat.values) if quat else None,

@@ -4,7 +4,6 @@ session folder (raw logs, decoded CSVs, SigMF IQ, session.json). See hardware/RE
 from __future__ import annotations
 
 import argparse
-import sys
 
 from hardware.sdr.capture import DEFAULT_LNB_LO_HZ
 from leonav_runtime.gen.constants import STARLINK_BEACON_HZ

@@ -1,4 +1,4 @@
-"""`leonav replay SESSION`: a recorded session through the filter in GPS+IMU, LEO(alpha)+IMU, GPS+LEO(alpha)+IMU."""
+"""`leonav replay SESSION`: a recorded session through the filter in fix+imu, leo-alpha+imu, fix+leo-alpha+imu."""
 from __future__ import annotations
 
 import argparse
@@ -12,12 +12,13 @@ from leonav_runtime.orbits.elements import load_element_files
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "replay",
-        help="replay a `leonav record` session through the filter (GPS+IMU, LEO(alpha)+IMU, GPS+LEO(alpha)+IMU)",
+        help="replay a `leonav record` session through the filter (fix+imu, leo-alpha+imu, fix+leo-alpha+imu)",
         description=(
             "Decode a session folder (gnss.raw, imu.raw with their chunk stamps, sdr.cu8 + sdr.sigmf-meta), put "
-            "every record on one time axis (host monotonic stamps -> UTC through the GNSS time map), build IMU "
-            "increments from the WitMotion samples, ENU fix records from the NMEA/UBX fixes, Doppler-rate records "
-            "from the beacon pipeline on the capture, and run the generated filter per mode. Writes metrics.json, "
+            "every record on one time axis (host monotonic stamps -> UTC through the GNSS time map), build the IMU, "
+            "GNSS fix (NMEA/UBX position fixes) and Doppler-rate (beacon pipeline on the capture) tables, turn them "
+            "into filter inputs (leonav_runtime.inputs) and run the generated filter per mode: fix+imu (position "
+            "fixes; the old name gps+imu is accepted), leo-alpha+imu, fix+leo-alpha+imu. Writes metrics.json, "
             "rmse_vs_time.csv/.png, trajectory.csv, trajectories.png and the beacon outputs (beacons/). "
             "Reference: truth.csv if the session has one (synthetic sessions), else the GNSS fixes."),
     )
@@ -33,8 +34,8 @@ def register(subparsers) -> None:
                    help="initial heading, deg from East towards North (default: the WitMotion yaw output)")
     p.add_argument("--gnss-latency", type=float, default=0.0, metavar="S",
                    help="receiver output latency to remove from the time map, s (measure it with a PPS; default 0)")
-    p.add_argument("--alpha-sigma-floor", type=float, default=0.5, metavar="HZ/S",
-                   help="lower bound of the Doppler-rate 1-sigma (default %(default)g)")
+    p.add_argument("--doppler-rate-sigma-floor", "--alpha-sigma-floor", dest="doppler_rate_sigma_floor", type=float,
+                   default=0.5, metavar="HZ/S", help="lower bound of the Doppler-rate 1-sigma (default %(default)g)")
     p.add_argument("--no-truth", action="store_true", help="ignore truth.csv; score against the GNSS fixes")
     output.add_out_argument(p)
     p.set_defaults(func=run)
@@ -55,15 +56,16 @@ def run(args: argparse.Namespace) -> int:
 
     from leonav_runtime import replay
 
-    modes = tuple(m.strip() for m in args.modes.split(",") if m.strip())
+    modes = tuple(m.strip() for m in args.modes.split(",") if m.strip())   # old names: a note in the metrics
     if not (math.isfinite(args.gnss_latency) and 0 <= args.gnss_latency < 1):
         raise UserInputError(f"--gnss-latency: {args.gnss_latency!r}: expected seconds in [0, 1)")
-    if not (math.isfinite(args.alpha_sigma_floor) and args.alpha_sigma_floor >= 0):
-        raise UserInputError(f"--alpha-sigma-floor: {args.alpha_sigma_floor!r}: expected a number >= 0 (Hz/s)")
+    if not (math.isfinite(args.doppler_rate_sigma_floor) and args.doppler_rate_sigma_floor >= 0):
+        raise UserInputError(f"--doppler-rate-sigma-floor: {args.doppler_rate_sigma_floor!r}: expected a number "
+                             ">= 0 (Hz/s)")
     if args.yaw_deg is not None and not math.isfinite(args.yaw_deg):
         raise UserInputError("--yaw-deg: expected a finite angle in degrees")
     options = replay.ReplayOptions(modes=modes, origin_deg=tuple(args.origin) if args.origin else None,
-                                   yaw_deg=args.yaw_deg, alpha_sigma_floor_hz_s=args.alpha_sigma_floor,
+                                   yaw_deg=args.yaw_deg, doppler_rate_sigma_floor_hz_s=args.doppler_rate_sigma_floor,
                                    use_truth=not args.no_truth, gnss_latency_s=args.gnss_latency)
     if args.origin:
         lat, lon, h = args.origin
@@ -77,11 +79,12 @@ def run(args: argparse.Namespace) -> int:
     b = metrics["beacons"].get("counts")
     if b:
         print(f"  beacons: {b['ridges']} ridges, {b['associated']} associated, {b['ambiguous']} ambiguous, "
-              f"{b['unassociated']} unassociated; {metrics['counts'].get('alpha_records', 0)} Doppler-rate records")
+              f"{b['unassociated']} unassociated; {metrics['counts'].get('doppler_rate_records', 0)} "
+              "Doppler-rate records")
     elif metrics["beacons"].get("reason_empty"):
         print(f"  beacons: none ({metrics['beacons']['reason_empty']})")
     if b:
-        print(f"  carrier f_c: {metrics['carrier_hz'] / 1e9:.6f} GHz, {metrics['carrier_source']}")
+        print(f"  carrier f_c: {metrics['f_c_hz'] / 1e9:.6f} GHz, {metrics['f_c_source']}")
     print(f"  {'mode':<20} {'pos RMSE m':>10} {'vel m/s':>8} {'att deg':>8} {'applied':>8} {'gated':>6} {'failed':>6}")
     for mode, m in metrics["modes"].items():
         r = m["records"]

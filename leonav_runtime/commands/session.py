@@ -44,7 +44,7 @@ def register(subparsers) -> None:
 def run_synth(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from leonav_runtime import session_synth as ss
+    from leonav_runtime import replay, session_synth as ss
     from leonav_runtime.beacons.capture_io import parse_utc
     from leonav_runtime.orbits import load_element_files
 
@@ -69,7 +69,7 @@ def run_synth(args: argparse.Namespace) -> int:
     print(f"  files: {', '.join(files)}")
     if args.compare:
         out = output.results_dir(args.out, "session-synth")
-        res = ss.compare_replay_direct(synth, out, elements=elements)
+        res = replay.compare_replay_direct(synth, out, elements=elements)
         print(f"  replay vs direct simulation (same truth and noise, no bytes) -> {out}")
         print(f"  {'mode':<20} {'pos RMSE m':>17} {'vel m/s':>15} {'att deg':>15}")
         print(f"  {'':<20} {'replay / direct':>17} {'replay / direct':>15} {'replay / direct':>15}")

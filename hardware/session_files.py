@@ -1,0 +1,167 @@
+"""Session folder formats shared by the recorder, `decode_session` and the synthetic writer.
+
+Column lists of the decoded CSVs, the flushed CSV and raw-log writers, the running
+monotonic -> UTC map the live CSVs use, record -> CSV row functions and the session.json
+content (`session_json`). Every column is described in hardware/README.md.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import threading
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+from hardware.clock import TimeMap, utc_unix
+from hardware.records import GnssFix, GnssTimeTag, ImuSample, RxmRawx
+
+SESSION_VERSION = 1
+RECORDER_CLOCK_TEXT = "time.monotonic() of the recording host, stamped when a chunk is read"
+RUNNING_MAP_WINDOW = 300        # tags used by the live time map (the last 30 s at 10 Hz)
+
+GNSS_FIX_COLUMNS = [
+    "t_mono_s", "t_utc_mapped_s", "source", "fix_utc_s", "lat_deg", "lon_deg", "hmsl_m",
+    "height_m", "quality", "num_sv", "hdop", "h_acc_m", "v_acc_m", "vel_n_mps", "vel_e_mps",
+    "vel_d_mps",
+]
+GNSS_RAW_COLUMNS = [
+    "t_mono_s", "t_utc_mapped_s", "rcv_tow_s", "week", "leap_s", "gnss_id", "sv_id", "sig_id",
+    "freq_id", "pseudorange_m", "carrier_phase_cyc", "doppler_hz", "cno_dbhz", "locktime_s",
+    "pr_std_m", "cp_std_cyc", "do_std_hz", "pr_valid", "cp_valid", "half_cyc",
+]
+IMU_COLUMNS = [
+    "t_mono_s", "t_utc_mapped_s", "f_x_mps2", "f_y_mps2", "f_z_mps2", "w_x_radps", "w_y_radps",
+    "w_z_radps", "roll_rad", "pitch_rad", "yaw_rad", "temperature_c", "mag_x_raw", "mag_y_raw",
+    "mag_z_raw", "q_w", "q_x", "q_y", "q_z", "device_time_utc",
+]
+
+
+def _num(value: Any) -> Any:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return int(value)
+    if isinstance(value, float):
+        return "" if math.isnan(value) else repr(value)
+    return value
+
+
+class CsvSink:
+    """A CSV file written one flushed row at a time (survives an interrupted run)."""
+
+    def __init__(self, path: Path, columns: list[str]) -> None:
+        self.path = path
+        self._fh = open(path, "w", newline="")
+        self._writer = csv.writer(self._fh)
+        self._writer.writerow(columns)
+        self.rows = 0
+
+    def write(self, row: Iterable[Any]) -> None:
+        self._writer.writerow([_num(v) for v in row])
+        self._fh.flush()
+        self.rows += 1
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+class RawLog:
+    """Raw byte log plus its chunk index (`t_mono_s,end_offset`), both flushed per chunk."""
+
+    def __init__(self, folder: Path, name: str) -> None:
+        self.path = folder / f"{name}.raw"
+        self._fh = open(self.path, "wb")
+        self._idx = open(folder / f"{name}.chunks.csv", "w")
+        self._idx.write("t_mono_s,end_offset\n")
+        self.n_bytes = 0
+        self._lock = threading.Lock()
+
+    def write(self, chunk: bytes, t_mono_s: float) -> None:
+        with self._lock:
+            self._fh.write(chunk)
+            self._fh.flush()
+            self.n_bytes += len(chunk)
+            self._idx.write(f"{t_mono_s!r},{self.n_bytes}\n")
+            self._idx.flush()
+
+    def close(self) -> None:
+        self._fh.close()
+        self._idx.close()
+
+
+class RunningTimeMap:
+    """Thread-safe monotonic->UTC map refitted on the latest GNSS time tags."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._tags: list[GnssTimeTag] = []
+        self._map = TimeMap()
+
+    def add(self, tag: GnssTimeTag) -> None:
+        with self._lock:
+            self._tags.append(tag)
+            self._map = TimeMap.fit(self._tags[-RUNNING_MAP_WINDOW:])
+
+    def utc(self, t_mono_s: float) -> float:
+        with self._lock:
+            m = self._map
+        return float(m.to_utc_unix(t_mono_s)) if m.valid else math.nan
+
+    def final(self) -> TimeMap:
+        with self._lock:
+            return TimeMap.fit(self._tags)
+
+
+# ------------------------------------------------------------------ record -> rows
+
+
+def gnss_rows(rec: Any, utc_of: Callable[[float], float]) -> tuple[str, list[list]]:
+    """(csv name, rows) for a GNSS record that goes into a CSV, else ("", [])."""
+    if isinstance(rec, GnssFix):
+        vel = rec.vel_ned_mps or (None, None, None)
+        return "gnss_fix", [[
+            rec.t_mono_s, utc_of(rec.t_mono_s), rec.source, utc_unix(rec.utc) if rec.utc else None,
+            math.degrees(rec.lat_rad), math.degrees(rec.lon_rad), rec.hmsl_m, rec.height_m,
+            rec.quality, rec.num_sv, rec.hdop, rec.h_acc_m, rec.v_acc_m, *vel]]
+    if isinstance(rec, RxmRawx):
+        t_utc = utc_of(rec.t_mono_s)
+        return "gnss_raw", [[
+            rec.t_mono_s, t_utc, rec.rcv_tow_s, rec.week, rec.leap_s, m.gnss_id, m.sv_id, m.sig_id,
+            m.freq_id, m.pseudorange_m, m.carrier_phase_cyc, m.doppler_hz, m.cno_dbhz, m.locktime_s,
+            m.pr_std_m, m.cp_std_cyc, m.do_std_hz, m.pr_valid, m.cp_valid, m.half_cyc]
+            for m in rec.measurements]
+    return "", []
+
+
+def imu_row(s: ImuSample, utc_of: Callable[[float], float]) -> list:
+    mag = s.mag_raw or (None, None, None)
+    q = s.q_wxyz or (None, None, None, None)
+    return [s.t_mono_s, utc_of(s.t_mono_s), *s.f_b_mps2, *s.w_b_radps, *s.rpy_rad,
+            s.temperature_c, *mag, *q, s.device_time.isoformat() if s.device_time else None]
+
+
+def sdr_settings_json(settings) -> dict:
+    """session.json `sdr_settings` of an `hardware.sdr.capture.SdrSettings`."""
+    s = settings
+    return {"rf_center_hz": s.rf_center_hz, "lnb_lo_hz": s.lnb_lo_hz, "if_hz": s.if_hz,
+            "sample_rate_hz": s.sample_rate_hz, "gain_db": s.gain_db, "ppm": s.ppm}
+
+
+def session_json(status: str, start_utc: str, t_mono_start_s: float, devices: list[dict], sdr_settings=None,
+                 stop: tuple[str, float, TimeMap] | None = None) -> dict:
+    """session.json content: status, start (ISO UTC of the host clock, monotonic s), the devices,
+    the SDR settings (if any), and at the end `stop` = (stop UTC, monotonic stop s, final time map)."""
+    info = {
+        "leonav_session_version": SESSION_VERSION,
+        "status": status,
+        "start_utc": start_utc,
+        "t_mono_start_s": t_mono_start_s,
+        "clock": RECORDER_CLOCK_TEXT,
+        "devices": devices,
+    }
+    if sdr_settings is not None:
+        info["sdr_settings"] = sdr_settings_json(sdr_settings)
+    if stop is not None:
+        info["stop_utc"], info["t_mono_stop_s"] = stop[0], stop[1]
+        info["time_map"] = stop[2].as_dict()
+    return info

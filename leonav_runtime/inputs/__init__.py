@@ -1,0 +1,37 @@
+"""The one road into the filter: sensor tables -> records, x0, P0 and p.
+
+Every source (the simulator, a recorded session's replay, a dataset, live devices) turns
+its data into the tables of `tables.py` and calls `assemble`, which returns one
+`FilterInputs` for the generated C loop (`leonav_runtime.filter.EKF.run`):
+
+    ImuTable, FixTable, PseudorangeTable, DopplerRateTable, ...   (tables.py: units, frames)
+      + params (filter_params) + Prior | FirstFixPrior           (prior.py)
+      -> assemble(...)                                            (assemble.py)
+      -> FilterInputs(records per stream, x0, P0, params, notes, counts, init)
+
+Record building lives only here: IMU increments (`imu.py`), GNSS fixes and satellite
+observables with their aux and R (`measurements.py`). A new sensor or observable adds a
+table and its record function here; nothing else in the runtime changes.
+"""
+from __future__ import annotations
+
+from leonav_runtime.inputs.assemble import STREAMS, FilterInputs, assemble
+from leonav_runtime.inputs.imu import F_B_AVERAGE_S, averaged_specific_force, imu_records, latest_sample
+from leonav_runtime.inputs.measurements import (aux_blocks, doppler_rate_variance, fix_records, satellite_aux,
+                                                satellite_records, states_from_aux)
+from leonav_runtime.inputs.prior import (CLOCK_BIAS_SIGMA_M, CLOCK_DRIFT_SIGMA_MPS, LO_OFFSET_SIGMA_HZ,
+                                         LO_RANDOM_WALK_HZ2_S, FirstFixPrior, Prior, filter_params,
+                                         first_fix_prior, prior_sigmas)
+from leonav_runtime.inputs.tables import (SAT_A_MPS2, SAT_R_M, SAT_V_MPS, SATELLITE_TABLES, DopplerRateTable,
+                                          DopplerTable, FixTable, ImuTable, OfdmRangeDiffTable, PseudorangeTable,
+                                          SatelliteTable, check_column)
+
+__all__ = [
+    "STREAMS", "FilterInputs", "assemble",
+    "F_B_AVERAGE_S", "averaged_specific_force", "imu_records", "latest_sample",
+    "aux_blocks", "doppler_rate_variance", "fix_records", "satellite_aux", "satellite_records", "states_from_aux",
+    "CLOCK_BIAS_SIGMA_M", "CLOCK_DRIFT_SIGMA_MPS", "LO_OFFSET_SIGMA_HZ", "LO_RANDOM_WALK_HZ2_S",
+    "FirstFixPrior", "Prior", "filter_params", "first_fix_prior", "prior_sigmas",
+    "SAT_A_MPS2", "SAT_R_M", "SAT_V_MPS", "SATELLITE_TABLES", "DopplerRateTable", "DopplerTable", "FixTable",
+    "ImuTable", "OfdmRangeDiffTable", "PseudorangeTable", "SatelliteTable", "check_column",
+]

@@ -1,0 +1,100 @@
+"""Measurement tables -> measurement records (z, R, aux) of the generated observables.
+
+- GNSS fixes: three records per epoch, POS_E, POS_N, POS_U (m, ENU at the origin),
+  R = sigma^2 per axis.
+- Satellite observables: aux = the satellite's ECEF state r, v, a (and the reference
+  satellite's for a differenced observable) plus the receiver's specific force f_b
+  (m/s^2, body) averaged over `imu.F_B_AVERAGE_S` up to the latest IMU sample at or
+  before the measurement (`imu.averaged_specific_force`); R = sigma^2, except the
+  Doppler-rate, whose model uses that measured f_b: R = sigma^2 plus the average's
+  accelerometer noise at the carrier (generated `leonav_doppler_rate_variance`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from leonav_runtime import navfuncs, records
+from leonav_runtime.inputs.imu import latest_sample
+from leonav_runtime.inputs.tables import SAT_A_MPS2, SAT_R_M, SAT_V_MPS, FixTable, ImuTable, SatelliteTable
+
+FIX_KINDS = ("pos_e", "pos_n", "pos_u")
+
+
+def fix_records(fixes: FixTable, nav: navfuncs.NavFunctions) -> np.ndarray:
+    """POS_E, POS_N, POS_U records of every fix (in that order at each epoch)."""
+    if not fixes.t.size:
+        return np.zeros(0, records.RECORD_DTYPE)
+    parts = [records.measurement_records(fixes.t, nav.kind_id(k), fixes.p_enu_m[:, i], fixes.sigma_enu_m[:, i] ** 2)
+             for i, k in enumerate(FIX_KINDS)]
+    return records.merge_records(*parts)
+
+
+def doppler_rate_variance(sigma, f_b_span_s: float, params: np.ndarray, nav: navfuncs.NavFunctions):
+    """R (Hz^2/s^2) of Doppler-rate records of 1-sigma `sigma` (scalar or (n,)): one generated
+    call per distinct sigma."""
+    if np.ndim(sigma) == 0:
+        return nav.doppler_rate_variance(sigma, f_b_span_s, params)
+    values, inverse = np.unique(np.asarray(sigma, float), return_inverse=True)
+    return nav.doppler_rate_variance(values, f_b_span_s, params)[inverse]
+
+
+SAT_NAMES = ("R_S_ECEF", "V_S_ECEF", "A_S_ECEF")
+REF_NAMES = ("R_REF_ECEF", "V_REF_ECEF", "A_REF_ECEF")
+_BLOCKS: dict[int, tuple] = {}
+
+
+def aux_blocks(layout) -> tuple[slice | None, slice | None, bool]:
+    """(aux columns of the satellite's r, v, a, of the reference's, whether aux is exactly
+    [satellite | reference | f_b]); a slice is None when the three blocks are not adjacent."""
+    key = id(layout)
+    if key not in _BLOCKS:
+        def block(names):
+            sl = [getattr(layout, f"AUX_{n}_SLICE") for n in names]
+            ok = all(a.stop == b.start for a, b in zip(sl, sl[1:]))
+            return slice(sl[0].start, sl[-1].stop) if ok else None
+        sat, ref = block(SAT_NAMES), block(REF_NAMES)
+        whole = (sat is not None and ref is not None and sat.start == 0 and ref.start == sat.stop
+                 and layout.AUX_F_B_SLICE.start == ref.stop and layout.AUX_F_B_SLICE.stop == layout.NAUX)
+        _BLOCKS[key] = (sat, ref, whole)
+    return _BLOCKS[key]
+
+
+def states_from_aux(aux: np.ndarray, layout) -> tuple[np.ndarray, np.ndarray]:
+    """The satellite and reference state blocks (n, 9) (`SAT_*` columns) of aux rows (n, NAUX)."""
+    out = []
+    for names, block in zip((SAT_NAMES, REF_NAMES), aux_blocks(layout)[:2]):
+        out.append(aux[:, block] if block is not None else
+                   np.hstack([aux[:, getattr(layout, f"AUX_{n}_SLICE")] for n in names]))
+    return out[0], out[1]
+
+
+def satellite_aux(table: SatelliteTable, f_b: np.ndarray, layout) -> np.ndarray:
+    """(n, NAUX) aux blocks: satellite states, reference states (zeros if none), f_b (n, 3)."""
+    L = layout
+    sat_block, ref_block, whole = aux_blocks(L)
+    if whole and table.ref_ecef is not None:   # the generated layout [sat r v a | ref r v a | f_b]: one copy
+        return np.concatenate([table.sat_ecef, table.ref_ecef, f_b], axis=1)
+    aux = np.zeros((table.t.size, L.NAUX))
+    for state, names, block in ((table.sat_ecef, SAT_NAMES, sat_block), (table.ref_ecef, REF_NAMES, ref_block)):
+        if state is None:
+            continue
+        if block is not None:
+            aux[:, block] = state
+        else:
+            for name, cols in zip(names, (SAT_R_M, SAT_V_MPS, SAT_A_MPS2)):
+                aux[:, getattr(L, f"AUX_{name}_SLICE")] = state[:, cols]
+    aux[:, L.AUX_F_B_SLICE] = f_b
+    return aux
+
+
+def satellite_records(table: SatelliteTable, imu: ImuTable, f_b_avg: np.ndarray, f_b_span_s: float,
+                      params: np.ndarray, nav: navfuncs.NavFunctions) -> np.ndarray:
+    """Records of a satellite table; f_b_avg, f_b_span_s: `averaged_specific_force` of `imu`."""
+    if not table.t.size:
+        return np.zeros(0, records.RECORD_DTYPE)
+    aux = satellite_aux(table, f_b_avg[latest_sample(imu, table.t)], nav.layout)
+    if table.KIND == "doppler_rate":
+        R = doppler_rate_variance(table.sigma, f_b_span_s, params, nav)
+    else:
+        R = np.asarray(table.sigma) ** 2 if np.ndim(table.sigma) else table.sigma ** 2
+    return records.measurement_records(table.t, nav.kind_id(table.KIND), table.z, R, aux, table.sat_id)

@@ -1,0 +1,46 @@
+"""Replay a recorded session through the generated filter: fix+imu, leo-alpha+imu, fix+leo-alpha+imu.
+
+Pipeline (`replay_session`), one module per step:
+1. `hardware.session.decode_session` re-decodes gnss.raw / imu.raw with their chunk stamps.
+2. `timebase.py`: one time axis, the host monotonic stamps mapped to UTC by the session's
+   GNSS time map (RMC/NAV-PVT tags; without tags, the host wall clock of session.json,
+   flagged in `notes`). t = 0 is the first IMU sample; every record time is s since it.
+3. `timebase.py`: the IMU table (WitMotion sample times fitted on their index; mean rates
+   over each interval -> increments, body FLU) and the WT901 profile plus quantization noise.
+4. `gnss_table.py`: GNSS fixes (GGA/NAV-PVT, sigmas from GST/NAV-PVT/HDOP) -> ENU fix table.
+5. `beacon_table.py`: the beacon pipeline on sdr.cu8 -> Doppler-rate table with SGP4
+   satellite states, carrier f_c from the capture's RF centre.
+6. `run.py`: the tables go the one road into the filter (`leonav_runtime.inputs.assemble`):
+   records (Doppler-rate aux and R as in the simulator: averaged specific force and its
+   noise), start at the first usable fix (`inputs.FirstFixPrior`: position and velocity of
+   the fix, roll/pitch from the WitMotion angles, yaw from `--yaw-deg` or the sensor), P0
+   from `inputs.prior_sigmas`; every mode runs on the same inputs.
+7. `scoring.py`: errors against truth.csv when present (synthetic sessions), else the GNSS
+   fixes (position only; then fix+imu is compared with its own input, which flatters it);
+   `report.py`/`plots.py`: metrics.json, CSVs, PNGs.
+`direct.py` runs a synthetic session's floats through the same road without the bytes.
+"""
+from __future__ import annotations
+
+from leonav_runtime.replay.beacon_table import (BeaconMeasurements, beacon_measurements, capture_carrier,
+                                                doppler_rate_table)
+from leonav_runtime.replay.direct import compare_replay_direct, direct_inputs
+from leonav_runtime.replay.gnss_table import DEFAULT_UERE_M, fix_height_m, fix_table, usable_fix
+from leonav_runtime.replay.options import (MODE_ALIASES, MODE_STREAMS, MODES, ReplayOptions, canonical_modes,
+                                           check_options)
+from leonav_runtime.replay.report import write_outputs
+from leonav_runtime.replay.run import (SessionInputs, decode_inputs, replay_session, run_modes, session_inputs,
+                                       skip_reasons)
+from leonav_runtime.replay.scoring import Reference, evaluate, fix_reference, mode_metrics, truth_reference
+from leonav_runtime.replay.timebase import filter_profile, imu_table, mono_to_utc_function, regular_sample_times
+
+__all__ = [
+    "BeaconMeasurements", "beacon_measurements", "capture_carrier", "doppler_rate_table",
+    "compare_replay_direct", "direct_inputs",
+    "DEFAULT_UERE_M", "fix_height_m", "fix_table", "usable_fix",
+    "MODE_ALIASES", "MODE_STREAMS", "MODES", "ReplayOptions", "canonical_modes", "check_options",
+    "write_outputs",
+    "SessionInputs", "decode_inputs", "replay_session", "run_modes", "session_inputs", "skip_reasons",
+    "Reference", "evaluate", "fix_reference", "mode_metrics", "truth_reference",
+    "filter_profile", "imu_table", "mono_to_utc_function", "regular_sample_times",
+]

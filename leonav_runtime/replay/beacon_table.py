@@ -1,0 +1,166 @@
+"""The session's beacon capture -> Doppler-rate measurements -> `inputs.DopplerRateTable`.
+
+`beacon_measurements` runs `beacons.pipeline.process_capture` on sdr.cu8 with the capture
+start from its monotonic stamp through the time map (SigMF core:datetime is the host
+clock); each associated ridge epoch becomes one measurement (t s on the replay axis, NORAD
+id, row in the element set, Doppler-rate z Hz/s and its fit sigma Hz/s). The carrier f_c
+(of the pipeline's predictions and of the filter's model) is the capture's RF centre
+(SigMF leonav:rf_center_hz = core:frequency + leonav:lnb_lo_hz: the recorder tunes the
+beacon to baseband 0); without a readable Ku-band value, `STARLINK_BEACON_HZ` with a note.
+
+`doppler_rate_table` adds each satellite's SGP4 ECEF state and acceleration at the
+measurement times and floors the sigma (`ReplayOptions.doppler_rate_sigma_floor_hz_s`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import json
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from leonav_runtime.errors import UserInputError
+from leonav_runtime.gen.constants import KU_DOWNLINK_MAX_HZ, KU_DOWNLINK_MIN_HZ, STARLINK_BEACON_HZ
+from leonav_runtime.inputs import SAT_A_MPS2, SAT_R_M, SAT_V_MPS, DopplerRateTable
+from leonav_runtime.replay.timebase import utc_of
+
+KU_DOWNLINK_HZ = (KU_DOWNLINK_MIN_HZ, KU_DOWNLINK_MAX_HZ)  # a capture RF centre outside is not a beacon carrier
+
+
+@dataclasses.dataclass
+class BeaconMeasurements:
+    """Doppler-rate measurements of the capture: t (n,) s on the replay axis, norad_id (n,),
+    sat_index (n,) row in the element set, z_hz_s (n,), sigma_hz_s (n,) the fit's 1-sigma."""
+
+    t: np.ndarray
+    norad_id: np.ndarray
+    sat_index: np.ndarray
+    z_hz_s: np.ndarray
+    sigma_hz_s: np.ndarray
+
+    @classmethod
+    def empty(cls) -> "BeaconMeasurements":
+        z = np.zeros(0)
+        return cls(z, z.astype(int), z.astype(int), z, z)
+
+
+def _sigmf_mono_start(folder: Path) -> float | None:
+    meta = folder / "sdr.sigmf-meta"
+    if not meta.is_file():
+        return None
+    try:
+        glob = json.loads(meta.read_text()).get("global", {})
+    except json.JSONDecodeError:
+        return None          # open_capture reports the bad metadata with its line
+    v = glob.get("leonav:t_mono_start_s")
+    return float(v) if isinstance(v, (int, float)) else None
+
+
+def capture_carrier(info) -> tuple[float, str]:
+    """Beacon carrier f_c (Hz) of a capture and where it came from.
+
+    `leonav record` tunes the beacon to baseband 0, so f_c is the capture's RF centre
+    (`CaptureInfo.rf_center_hz`: SigMF leonav:rf_center_hz = core:frequency +
+    leonav:lnb_lo_hz). A value outside the Ku downlink band (`KU_DOWNLINK_HZ`, e.g. a
+    capture without an LNB LO) falls back to `STARLINK_BEACON_HZ`."""
+    rf = float(info.rf_center_hz)
+    if math.isfinite(rf) and KU_DOWNLINK_HZ[0] <= rf <= KU_DOWNLINK_HZ[1]:
+        return rf, f"capture metadata ({info.source or info.path}: RF centre = tuned frequency + LNB LO)"
+    return STARLINK_BEACON_HZ, (f"default {STARLINK_BEACON_HZ / 1e9:g} GHz: the capture's RF centre "
+                                f"{rf / 1e9:.6g} GHz (tuned {info.center_freq_hz / 1e9:.6g} GHz + LNB LO "
+                                f"{info.lnb_lo_hz / 1e9:.6g} GHz) is outside the Ku downlink band "
+                                f"{KU_DOWNLINK_HZ[0] / 1e9:g}-{KU_DOWNLINK_HZ[1] / 1e9:g} GHz")
+
+
+def default_carrier(reason: str) -> dict:
+    return {"f_c_hz": STARLINK_BEACON_HZ, "f_c_source": f"default {STARLINK_BEACON_HZ / 1e9:g} GHz: {reason}"}
+
+
+def default_elements(start_utc: _dt.datetime, notes: list[str]):
+    """The built-in Walker Starlink set of synthetic sessions (`session_synth.builtin_starlink`)."""
+    from leonav_runtime.session_synth import builtin_starlink
+
+    notes.append("beacons: no --tle given: built-in Walker Starlink constellation at the UTC minute nearest the "
+                 "capture start (right for synthetic sessions only; give real element sets for a real capture)")
+    return builtin_starlink(start_utc)
+
+
+def beacon_measurements(folder: Path, out_dir: Path | None, to_utc, time_source_ok: bool, epoch: float, origin,
+                        elements, notes: list[str], progress=None) -> tuple[BeaconMeasurements, dict, object]:
+    """Run the beacon pipeline on the session's capture; returns (measurements, summary, elements).
+
+    summary["f_c_hz"], ["f_c_source"]: the carrier f_c (`capture_carrier`, else the default)."""
+    from leonav_runtime.beacons import capture_io, pipeline
+    from leonav_runtime.beacons.predict import Site
+
+    data = folder / "sdr.cu8"
+    if not data.exists():
+        return BeaconMeasurements.empty(), {"reason_empty": "no sdr.cu8 in the session"} | default_carrier(
+            "no capture in the session"), elements
+    try:
+        info = capture_io.open_capture(data)
+    except UserInputError as exc:
+        return BeaconMeasurements.empty(), {"reason_empty": str(exc)} | default_carrier(
+            f"capture metadata unreadable ({exc})"), elements
+    f_c_hz, f_c_src = capture_carrier(info)
+    carrier = {"f_c_hz": f_c_hz, "f_c_source": f_c_src}
+    mono = _sigmf_mono_start(folder)
+    if mono is not None and time_source_ok:
+        info.start_utc = utc_of(float(to_utc(mono)))
+        start_src = "leonav:t_mono_start_s through the GNSS time map"
+    else:
+        start_src = "SigMF core:datetime (host wall clock)"
+        notes.append("beacons: capture start from the host wall clock (no monotonic stamp or no GNSS time map)")
+    if info.start_utc is None:
+        return BeaconMeasurements.empty(), {"reason_empty": f"{data}: capture start time unknown"} | carrier, elements
+    if elements is None:
+        elements = default_elements(info.start_utc, notes)
+    site = Site(*origin)
+    cfg = pipeline.PipelineConfig(tone_rf_hz=f_c_hz, band_hz=min(1.2e6, info.sample_rate_hz))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = pipeline.process_capture(info, elements, site, cfg, progress)
+    for w in {str(w.message) for w in caught}:
+        notes.append(f"beacons: {w}")
+    if out_dir is not None:
+        pipeline.write_outputs(res, out_dir / "beacons")
+    summ = pipeline.summary(res)
+    summary = {"capture_start_utc": info.start_utc, "capture_start_source": start_src,
+               "counts": summ["counts"], "rate_residual_abs_hz_s": summ["rate_residual_abs_hz_s"],
+               "reason_empty": summ["reason_empty"], **carrier,
+               "associations": [{k: a[k] for k in ("ridge_id", "status", "norad_id", "name", "reason")}
+                                for a in summ["associations"]]}
+    t0 = info.start_utc.timestamp() - epoch
+    rows = []
+    for ridge, m, a in zip(res.ridges, res.measurements, res.associations):
+        if a.status != "associated" or m.t_s.size == 0:
+            continue
+        idx = int(res.predictions.sat_index[a.sat_row])
+        for k in range(m.t_s.size):
+            rows.append((t0 + m.t_s[k], a.norad_id, idx, m.rate_hz_s[k], m.sigma_rate_hz_s[k]))
+    rows.sort()
+    if not rows:
+        return BeaconMeasurements.empty(), summary, elements
+    arr = list(zip(*rows))
+    return (BeaconMeasurements(np.array(arr[0]), np.array(arr[1], int), np.array(arr[2], int), np.array(arr[3]),
+                               np.array(arr[4])), summary, elements)
+
+
+def doppler_rate_table(meas: BeaconMeasurements, elements, epoch_utc: _dt.datetime,
+                       sigma_floor_hz_s: float) -> DopplerRateTable:
+    """The measurements with each satellite's SGP4 ECEF state and acceleration at their times
+    (t s since `epoch_utc`) and 1-sigma max(fit sigma, floor) (Hz/s)."""
+    from leonav_runtime.orbits import propagate_ecef
+
+    sat = np.zeros((meas.t.size, 9))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")     # staleness is reported by the beacon step
+        for idx in np.unique(meas.sat_index):
+            sel = meas.sat_index == idx
+            st = propagate_ecef(elements.select([int(idx)]), epoch_utc, meas.t[sel])
+            sat[sel, SAT_R_M], sat[sel, SAT_V_MPS], sat[sel, SAT_A_MPS2] = (st.r_ecef_m[0], st.v_ecef_mps[0],
+                                                                           st.a_ecef_mps2[0])
+    return DopplerRateTable(meas.t, meas.norad_id, meas.z_hz_s, np.maximum(meas.sigma_hz_s, sigma_floor_hz_s), sat)

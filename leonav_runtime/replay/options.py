@@ -1,0 +1,57 @@
+"""Replay modes and options.
+
+Modes name what the filter fuses with the IMU: `fix+imu` (GNSS position fixes),
+`leo-alpha+imu` (Starlink Doppler-rate, the paper's name), `fix+leo-alpha+imu` (both).
+`gps+imu` means GPS *pseudoranges* everywhere else (scenarios, sweeps), so the replay's
+position-fix modes say `fix`; the old names `gps+imu` and `gps+leo-alpha+imu` are
+accepted as aliases with a note.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from leonav_runtime import filter as lfilter
+from leonav_runtime.errors import UserInputError
+
+MODES = ("fix+imu", "leo-alpha+imu", "fix+leo-alpha+imu")
+MODE_STREAMS = {"fix+imu": ("fix",), "leo-alpha+imu": ("doppler_rate",), "fix+leo-alpha+imu": ("fix", "doppler_rate")}
+"""Record streams (`inputs.STREAMS`) each mode merges with the IMU records."""
+MODE_ALIASES = {"gps+imu": "fix+imu", "gps+leo-alpha+imu": "fix+leo-alpha+imu"}
+"""Old replay mode names (they meant position fixes) -> the current ones."""
+DOPPLER_RATE_SIGMA_FLOOR_HZ_S = 0.5   # the fit sigma can be optimistic for short ridges
+
+
+@dataclasses.dataclass
+class ReplayOptions:
+    modes: tuple[str, ...] = MODES
+    origin_deg: tuple[float, float, float] | None = None   # lat deg, lon deg, ellipsoidal height m
+    yaw_deg: float | None = None                           # initial heading, from East towards North
+    doppler_rate_sigma_floor_hz_s: float = DOPPLER_RATE_SIGMA_FLOOR_HZ_S
+    gate_nis: float = lfilter.CHI2_1DOF_999
+    use_truth: bool = True
+    gnss_latency_s: float = 0.0     # receiver output latency (epoch -> first byte), if measured (PPS)
+
+
+def canonical_modes(modes) -> tuple[tuple[str, ...], list[str]]:
+    """Modes with the old names replaced, and one note per replaced name."""
+    out, notes = [], []
+    for m in modes:
+        if m in MODE_ALIASES:
+            notes.append(f"mode {m!r} is now {MODE_ALIASES[m]!r} (position fixes; 'gps+imu' means GPS "
+                         "pseudoranges in scenarios)")
+            m = MODE_ALIASES[m]
+        if m not in out:
+            out.append(m)
+    return tuple(out), notes
+
+
+def check_options(options: ReplayOptions) -> ReplayOptions:
+    """The options with canonical mode names, or a UserInputError naming the bad one."""
+    modes, _ = canonical_modes(options.modes)
+    bad = [m for m in modes if m not in MODES]
+    if bad:
+        raise UserInputError(f"--modes: {bad[0]!r}: expected some of {', '.join(MODES)}")
+    if options.origin_deg is not None and not all(math.isfinite(v) for v in options.origin_deg):
+        raise UserInputError(f"--origin: {options.origin_deg}: expected finite LAT LON H")
+    return dataclasses.replace(options, modes=modes)

@@ -1,0 +1,200 @@
+"""A recorded session through the filter: session -> tables -> `inputs.assemble` -> modes -> scores.
+
+`decode_inputs` (steps 1-6 of the package doc) builds the tables of one session and hands
+them to the road into the filter; `replay_session` runs every mode on the same inputs,
+scores them (`scoring.py`) and writes the outputs (`report.py`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from leonav_runtime import filter as lfilter
+from leonav_runtime import navfuncs
+from leonav_runtime.errors import UserInputError
+from leonav_runtime.inputs import DopplerRateTable, FilterInputs, FirstFixPrior, FixTable, assemble, filter_params
+from leonav_runtime.replay.beacon_table import (BeaconMeasurements, beacon_measurements, default_carrier,
+                                                doppler_rate_table)
+from leonav_runtime.replay.gnss_table import fix_height_m, fix_table, usable_fix
+from leonav_runtime.replay.options import MODE_STREAMS, ReplayOptions, canonical_modes, check_options
+from leonav_runtime.replay.timebase import device_baud, filter_profile, imu_table, mono_to_utc_function, utc_of
+
+WITMOTION_ATTITUDE = "WitMotion angle output"
+RMC_VELOCITY = "initializing fix's RMC speed/course (NAV-PVT velocity)"
+
+
+@dataclasses.dataclass
+class SessionInputs(FilterInputs):
+    """`FilterInputs` of a session plus the replay's extras: the beacon step's summary and
+    measurements (before satellite states), and the modes that cannot run, with reasons."""
+
+    beacons: dict = dataclasses.field(default_factory=dict)
+    beacon_measurements: BeaconMeasurements = dataclasses.field(default_factory=BeaconMeasurements.empty)
+    skipped: dict[str, str] = dataclasses.field(default_factory=dict)   # mode -> reason
+
+    @classmethod
+    def of(cls, inputs: FilterInputs, **extra) -> "SessionInputs":
+        return cls(**{f.name: getattr(inputs, f.name) for f in dataclasses.fields(FilterInputs)}, **extra)
+
+    @property
+    def doppler_rate(self) -> DopplerRateTable:
+        """The Doppler-rate table as used (inside the IMU span)."""
+        return self.satellites.get("doppler_rate") or DopplerRateTable.empty()
+
+
+def replay_prior(options: ReplayOptions, profile) -> FirstFixPrior:
+    """The replay's start rule: the first usable fix, the WitMotion angles, `--yaw-deg`."""
+    return FirstFixPrior(profile, yaw_rad=None if options.yaw_deg is None else math.radians(options.yaw_deg),
+                         attitude_source=WITMOTION_ATTITUDE, yaw_given_source="--yaw-deg",
+                         velocity_source=RMC_VELOCITY)
+
+
+def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurements, elements, options,
+                   profile, nav: navfuncs.NavFunctions, notes: list[str], f_c_hz: float) -> SessionInputs:
+    """The road into the filter for one session's tables (also used by the direct simulation)."""
+    doppler_rate = doppler_rate_table(meas, elements, epoch_utc, options.doppler_rate_sigma_floor_hz_s)
+    inputs = assemble(imu, filter_params(origin, profile, f_c_hz), replay_prior(options, profile),
+                      fixes=fixes, satellites=[doppler_rate], nav=nav, notes=notes, epoch_utc=epoch_utc,
+                      origin=origin)
+    out = SessionInputs.of(inputs, beacon_measurements=meas)
+    out.counts["doppler_rate_satellites"] = int(np.unique(out.doppler_rate.sat_id).size)
+    return out
+
+
+def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: Path | None = None,
+                  nav: navfuncs.NavFunctions | None = None, progress=None) -> SessionInputs:
+    """Decode a session folder into SessionInputs (package doc, steps 1-6)."""
+    import hardware.session
+
+    _, mode_notes = canonical_modes(options.modes)
+    options = check_options(options)
+    nav = nav or navfuncs.NavFunctions()
+    folder = Path(folder)
+    dec = hardware.session.decode_session(folder)
+    notes: list[str] = list(mode_notes)
+    if not (folder / "imu.raw").exists():
+        raise UserInputError(f"{folder}: no imu.raw: every replay mode propagates with the IMU")
+    if not dec.imu_samples:
+        raise UserInputError(f"{folder / 'imu.raw'}: no complete WitMotion cycle decoded "
+                             f"(rejected: {dec.imu_summary.get('rejected')})")
+    to_utc, time_src = mono_to_utc_function(dec, options.gnss_latency_s)
+    if not dec.time_map.valid:
+        notes.append(f"time: {time_src}")
+    imu, epoch, counts = imu_table(dec.imu_samples, to_utc, notes, device_baud(dec, "imu"))
+    epoch_utc = utc_of(epoch)
+    from hardware.records import GnssFix
+
+    any_fix = any(isinstance(r, GnssFix) for r in dec.gnss_records)
+    first_fix = next((r for r in dec.gnss_records if isinstance(r, GnssFix) and usable_fix(r)), None)
+    if options.origin_deg is not None:
+        lat, lon, h = options.origin_deg
+        origin = (math.radians(lat), math.radians(lon), float(h))
+        origin_src = "--origin"
+    elif first_fix is not None:
+        origin = (first_fix.lat_rad, first_fix.lon_rad, fix_height_m(first_fix))
+        origin_src = "first GNSS fix with a finite latitude, longitude and height"
+    else:
+        origin = None
+        origin_src = "none"
+    fixes, fcounts = fix_table(dec.gnss_records, to_utc, epoch, origin, notes) if origin else (FixTable.empty(),
+                                                                                               {"gnss_fixes": 0})
+    meas, bsum, elements = (beacon_measurements(folder, out_dir, to_utc, dec.time_map.valid, epoch, origin, elements,
+                                                notes, progress) if origin else
+                            (BeaconMeasurements.empty(), {"reason_empty": "no position to predict satellites from "
+                                                          "(no GNSS fix; give --origin)"}
+                             | default_carrier("no beacon processing"), elements))
+    if bsum["f_c_source"].startswith("default") and (folder / "sdr.cu8").exists():
+        notes.append(f"beacons: carrier f_c = {bsum['f_c_source']}")
+    profile = filter_profile(counts["imu_period_s"], quantized=True)
+    if origin is None:
+        # nothing can run: keep a valid (empty) result with the reasons
+        origin = (0.0, 0.0, 0.0)
+    inputs = session_inputs(epoch_utc, origin, imu, fixes, meas, elements, options, profile, nav, notes,
+                            bsum["f_c_hz"])
+    inputs.counts |= counts | fcounts | {"gnss_decoder": dec.gnss_summary, "imu_decoder": dec.imu_summary}
+    inputs.beacons = bsum
+    inputs.init |= {"origin": origin_src, "origin_deg": [math.degrees(origin[0]), math.degrees(origin[1]), origin[2]],
+                    "time_axis": time_src, "epoch_utc": epoch_utc}
+    if origin_src == "--origin":
+        inputs.init["origin_given"] = True
+    for mode in options.modes:
+        if "fix" in MODE_STREAMS[mode] and fixes.t.size == 0:
+            inputs.skipped[mode] = ("no GNSS fix in gnss.raw" if not any_fix else
+                                    "no GNSS fix with a finite latitude, longitude and height in gnss.raw"
+                                    if first_fix is None else "no GNSS fix inside the IMU time span")
+        elif origin_src == "none":
+            inputs.skipped[mode] = "no initial position: no GNSS fix (give --origin LAT LON H)"
+    for mode, reason in skip_reasons(inputs, options.modes).items():
+        inputs.skipped.setdefault(mode, reason)
+    return inputs
+
+
+def skip_reasons(inputs: SessionInputs, modes) -> dict[str, str]:
+    """Modes that cannot run on these inputs, with the reason."""
+    out = {}
+    for mode in modes:
+        if "fix" in MODE_STREAMS[mode] and inputs.records["fix"].size == 0:
+            out[mode] = "no GNSS fix inside the IMU time span"
+        elif "doppler_rate" in MODE_STREAMS[mode] and inputs.records["doppler_rate"].size == 0:
+            out[mode] = "no associated Doppler-rate measurement: " + str(
+                inputs.beacons.get("reason_empty") or "no ridge was associated with a satellite")
+    return out
+
+
+def run_modes(inputs: FilterInputs, modes, gate_nis: float, nav: navfuncs.NavFunctions,
+              skipped: dict | None = None) -> dict:
+    """{mode: (records, RunResult, seconds)} for every mode not skipped (default: inputs.skipped)."""
+    skipped = getattr(inputs, "skipped", {}) if skipped is None else skipped
+    out = {}
+    for mode in modes:
+        if mode in skipped:
+            continue
+        recs = inputs.merged(MODE_STREAMS[mode])
+        ekf = lfilter.EKF(inputs.x0, inputs.P0, inputs.params, gate=gate_nis or None, library=nav.library)
+        t0 = time.perf_counter()
+        res = ekf.run(recs)
+        out[mode] = (recs, res, time.perf_counter() - t0)
+    return out
+
+
+def replay_session(folder: str | Path, out_dir: str | Path, options: ReplayOptions | None = None, elements=None,
+                   progress=None, nav: navfuncs.NavFunctions | None = None,
+                   inputs: SessionInputs | None = None) -> dict:
+    """Decode, run the modes, score against truth.csv or the fixes, write the outputs; returns metrics.
+
+    inputs: the session already decoded by `decode_inputs` with the same options and
+    out_dir (its beacon outputs are there), so a caller that needs them decodes only once."""
+    from leonav_runtime.replay import report, scoring
+
+    given = options or ReplayOptions()
+    options = check_options(given)
+    folder, out_dir = Path(folder), Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    nav = nav or navfuncs.NavFunctions()
+    if inputs is None:
+        inputs = decode_inputs(folder, given, elements, out_dir, nav, progress)
+    nav.params = inputs.params
+    runs = run_modes(inputs, options.modes, options.gate_nis, nav)
+    truth = folder / "truth.csv"
+    ref = None
+    if options.use_truth and truth.is_file():
+        ref = scoring.truth_reference(truth, inputs.epoch_utc, inputs.origin, nav)
+    elif inputs.fixes.t.size:
+        ref = scoring.fix_reference(inputs.fixes)
+        inputs.notes.append("reference = the GNSS fixes: fix+imu is compared with its own input (optimistic); "
+                            "velocity and attitude have no reference")
+    scored = scoring.evaluate(inputs, runs, ref, nav)
+    metrics = {
+        "session": str(folder), "reference": ref.kind if ref else None,
+        "modes": scoring.mode_metrics(runs, scored, nav),
+        "skipped_modes": inputs.skipped, "counts": inputs.counts, "initialization": inputs.init,
+        "beacons": inputs.beacons, "notes": inputs.notes,
+        "f_c_hz": inputs.f_c_hz, "f_c_source": inputs.beacons.get("f_c_source"),
+        "doppler_rate_sigma_floor_hz_s": options.doppler_rate_sigma_floor_hz_s, "gate_nis": options.gate_nis,
+    }
+    report.write_outputs(out_dir, inputs, scored, metrics, ref, nav)
+    return metrics
