@@ -256,12 +256,12 @@ def test_command_writes_table_figures_and_json(tmp_path, capsys):
                "--scenario", "none", "--draws", "1", "--out", str(tmp_path)])
     assert rc == 0
     text = capsys.readouterr().out
-    assert "gnss-fix+imu" in text and "dtheta_z (yaw)" in text
+    assert "fix+imu" in text and "dtheta_z (yaw)" in text
     with open(tmp_path / "structural.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert [(r["mode"], r["motion"]) for r in rows] == [(ro.GNSS_FIX_MODE, "static"),
                                                         (ro.GNSS_FIX_MODE, "accelerating")]
     assert rows[0]["rank"] == "12" and rows[1]["rank"] == "15"
-    for name in ("structural_index.csv", "observability.json", "index_gnss-fix_imu.png"):
+    for name in ("structural_index.csv", "observability.json", "index_fix_imu.png"):
         assert (tmp_path / name).stat().st_size > 0
     assert main(["observability", "--modes", "no-such-mode", "--out", str(tmp_path)]) == 2
