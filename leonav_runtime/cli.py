@@ -114,6 +114,7 @@ def _toml_error_types() -> tuple[type, ...]:
 def _os_error_text(exc: OSError) -> str:
     """'<file>: <what went wrong>' for an OSError, with a hint for the common cases."""
     what = exc.strerror or str(exc) or type(exc).__name__
+    custom = bool(exc.strerror) and exc.errno is not None and exc.strerror != os.strerror(exc.errno)
     hints = {
         errno.ENOENT: "no such file or folder",
         errno.EISDIR: "is a directory, expected a file",
@@ -124,7 +125,7 @@ def _os_error_text(exc: OSError) -> str:
         errno.EROFS: "read-only file system",
         errno.EEXIST: "already exists",
     }
-    if exc.errno in hints:
+    if exc.errno in hints and not custom:  # a message the code wrote is kept as it is
         what = hints[exc.errno]
     where = exc.filename
     if where is None:

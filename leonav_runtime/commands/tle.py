@@ -1,6 +1,6 @@
 """`leonav tle`: fetch element sets from CelesTrak, inspect an element file, write built-ins.
 
-    leonav tle fetch GROUP [--cache DIR] [--url-base URL] [--timeout S]
+    leonav tle fetch GROUP [--cache DIR] [--url-base URL] [--timeout S] [--max-mb MB] [--force]
     leonav tle info FILE [--epoch ISO-UTC] [--stale-days D] [--out DIR]
     leonav tle builtin {starlink,gps} [--epoch ISO-UTC] [--out DIR]
 """
@@ -25,12 +25,19 @@ def _parse_epoch(text: str | None) -> _dt.datetime:
 
 
 def _cmd_fetch(args: argparse.Namespace) -> int:
+    import math
+
     from leonav_runtime.orbits.fetch import fetch_group
 
-    path = fetch_group(args.group, cache_dir=args.cache, url_base=args.url_base, timeout_s=args.timeout)
+    if not (math.isfinite(args.max_mb) and args.max_mb > 0):
+        raise UserInputError(f"--max-mb: {args.max_mb!r}: expected a positive number of megabytes")
+    path = fetch_group(args.group, cache_dir=args.cache, url_base=args.url_base, timeout_s=args.timeout,
+                       max_bytes=max(1, int(args.max_mb * 1e6)), force=args.force)
     meta = json.loads(path.with_suffix(".json").read_text())
     print(f"{meta['count']} element sets of group {args.group!r} -> {path} "
           f"(epochs {meta['epoch_min_utc']} .. {meta['epoch_max_utc']}, {meta['rejected']} rejected)")
+    for problem in meta.get("problems") or []:
+        print(f"  accepted with --force despite: {problem}")
     return 0
 
 
@@ -103,7 +110,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        help="cache folder (default $XDG_CACHE_HOME/leonav/tle or ~/.cache/leonav/tle)")
     fetch.add_argument("--url-base", metavar="URL", default=None,
                        help="GP query URL (default https://celestrak.org/NORAD/elements/gp.php)")
-    fetch.add_argument("--timeout", metavar="S", type=float, default=20.0, help="network timeout, s (default 20)")
+    fetch.add_argument("--timeout", metavar="S", type=float, default=20.0,
+                       help="deadline of the whole download (connect, redirects, reading), s (default 20)")
+    fetch.add_argument("--max-mb", metavar="MB", type=float, default=64.0,
+                       help="largest reply accepted, MB (default 64; CelesTrak's groups are a few MB)")
+    fetch.add_argument("--force", action="store_true",
+                       help="replace the cache even when the reply has rejected entries or fewer than 90%% of "
+                            "the cached group's element sets (by default such a reply is refused as a likely "
+                            "truncated download)")
     fetch.set_defaults(func=_cmd_fetch)
 
     info = actions.add_parser("info", help="count, epoch range, ages and rejected entries of an element file")
