@@ -164,6 +164,8 @@ def classify_error(exc: BaseException) -> tuple[int, str]:
     toml = _toml_error_types()
     if toml and isinstance(exc, toml):
         return EXIT_BAD_INPUT, f"not valid TOML: {_first_line(exc)}"
+    if isinstance(exc, OverflowError):  # a number or date in the input beyond what can be represented
+        return EXIT_BAD_INPUT, f"a value is out of range ({_first_line(exc)})"
     if isinstance(exc, RecursionError):
         return EXIT_BAD_INPUT, "input nested too deeply (recursion limit reached); expected a flat file"
     if isinstance(exc, OSError):
