@@ -190,6 +190,7 @@ class WaterfallImage:
         if not self.rows:
             return np.zeros(0), self.f_hz, np.zeros((0, self.f_hz.size), np.float32)
         img = np.stack(self.rows)
+        self.rows = list(img)  # views into img: the rows are not held twice
         t = np.asarray(self.t_s, float)
         g = max(1, int(np.ceil(img.shape[0] / max_rows)))
         nr = img.shape[0] // g
