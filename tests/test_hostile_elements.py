@@ -13,6 +13,7 @@ import time
 import warnings
 from contextlib import contextmanager
 
+import numpy as np
 import pytest
 
 from leonav_runtime.cli import main as leonav_main
@@ -184,3 +185,22 @@ def test_cli_reports_hostile_element_files_in_one_line(tmp_path, capsys):
             rc = leonav_main(["tle", "info", str(path), "--out", str(tmp_path / "o")])
         err = capsys.readouterr().err.strip().splitlines()
         assert rc == 2 and len(err) == 1 and err[0].startswith(f"leonav tle info: error: {path}"), err
+
+
+def test_sky_counts_non_finite_positions_as_sgp4_failures():
+    # defence behind the element checks: a propagator that returns NaN with no error code
+    from leonav_runtime import sky
+    from tests.test_sky import EPOCH, SITE, T_S, FakeElements, fake_propagate, fixed
+
+    def nan_propagate(elements, epoch_utc, t_s):
+        states = fake_propagate(elements, epoch_utc, t_s)
+        states.r_ecef_m[0, 3:] = np.nan  # satellite 0 goes NaN at epoch 3, "ok" all along
+        return states
+
+    starlink = FakeElements(["NAN-SAT", "FINE"], [fixed(0, 80), fixed(90, 60)])
+    view = sky.sky_view({"starlink": starlink}, SITE, EPOCH, T_S, propagate=nan_propagate)
+    s = sky.summarize(view)
+    assert s["satellites"]["starlink"]["sgp4_failed"] == 1
+    failure = s["left_out"]["starlink"]["sgp4_failures"][0]
+    assert failure["name"] == "NAN-SAT" and "non-finite position" in failure["reason"] and "t = 30 s" in failure["reason"]
+    assert list(view.constellations["starlink"].count) == [2, 2, 2, 1, 1, 1, 1]
