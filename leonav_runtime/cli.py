@@ -123,7 +123,7 @@ def _os_error_text(exc: OSError) -> str:
         errno.EPERM: "operation not permitted",
         errno.ENOSPC: "no space left on the device",
         errno.EROFS: "read-only file system",
-        errno.EEXIST: "already exists",
+        errno.EEXIST: "already exists (a file where a folder is expected?)",
     }
     if exc.errno in hints and not custom:  # a message the code wrote is kept as it is
         what = hints[exc.errno]

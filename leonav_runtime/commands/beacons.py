@@ -124,10 +124,26 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _progress(total: int, desc: str):
-    from tqdm import tqdm
+class _LazyBar:
+    """A tqdm bar created at the first tick: an error before any sample leaves no bar behind."""
 
-    bar = tqdm(total=total, unit="S", unit_scale=True, desc=desc, leave=False)
+    def __init__(self, total: int, desc: str):
+        self.total, self.desc, self.bar = total, desc, None
+
+    def update(self, n: int) -> None:
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=self.total, unit="S", unit_scale=True, desc=self.desc, leave=False)
+        self.bar.update(n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _progress(total: int, desc: str):
+    bar = _LazyBar(total, desc)
     return bar, bar.update
 
 
