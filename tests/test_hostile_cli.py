@@ -115,3 +115,19 @@ def test_console_script_exit_status_in_a_real_process(tmp_path):
     proc = subprocess.run([sys.executable, "-c", code, "tle", "info", str(tmp_path / "none.tle")],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == EXIT_BAD_INPUT and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("args,option", [
+    (["sky", "--start", "9999-12-31T23:59:00Z"], "--start"),
+    (["sky", "--start", "0001-01-01T00:00:00+01:00"], "--start"),
+    (["beacons", "x.cu8", "--simulate", "--start", "0001-01-01T00:00:00+01:00"], "--start"),
+    (["beacons", "x.cu8", "--simulate", "--start", "9999-12-31T23:59:00Z"], "--start"),
+    (["tle", "info", "{gps}", "--stale-days", "nan"], "--stale-days"),
+    (["tle", "info", "{gps}", "--epoch", "0001-01-01T00:00:00+01:00"], "--epoch"),
+])
+def test_times_and_ages_out_of_range_are_one_line_before_any_work(tmp_path, capsys, args, option):
+    gps = str(shared_file("tle/gps-ops_2026-03-09.txt"))
+    args = [a.replace("{gps}", gps).replace("x.cu8", str(tmp_path / "x.cu8")) for a in args]
+    assert main(args + ["--out", str(tmp_path / "o")]) == EXIT_BAD_INPUT
+    assert option in _one_line(capsys, " ".join(args[:2]) if args[0] == "tle" else args[0])
+    assert not (tmp_path / "x.cu8").exists()

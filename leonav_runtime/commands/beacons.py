@@ -156,7 +156,13 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.alt) and -11_000 <= args.alt <= 1e6):
         raise UserInputError(f"--alt: {args.alt!r} out of range; expected metres in [-11000, 1e6]")
     site = Site.from_degrees(args.lat, args.lon, args.alt)
-    start = capture_io.parse_utc(args.start, "--start") if args.start else None
+    try:
+        start = capture_io.parse_utc(args.start, "--start") if args.start else None
+    except OverflowError:  # e.g. year 1 with a positive UTC offset
+        start = _dt.datetime.min.replace(tzinfo=_dt.timezone.utc)
+    if start is not None and not 1900 <= start.year < 2200:
+        raise UserInputError(f"--start: {args.start!r} is outside 1900..2200; expected a time such as "
+                             "2026-02-23T06:00:00Z")
     cfg = pipeline.PipelineConfig(tone_rf_hz=args.tone_freq, band_hz=args.band, fft_size=args.fft_size,
                                   dc_notch_hz=args.dc_notch, meas_interval_s=args.interval, mask_deg=args.mask)
     cfg.association.remove_drift = not args.keep_drift

@@ -21,7 +21,11 @@ from leonav_runtime.output import add_out_argument, results_dir, write_json
 def _parse_epoch(text: str | None) -> _dt.datetime:
     if text is None:
         return _dt.datetime.now(_dt.timezone.utc)
-    return parse_utc(text, "--epoch")
+    try:
+        return parse_utc(text, "--epoch")
+    except OverflowError:  # e.g. year 1 with a positive UTC offset
+        raise UserInputError(f"--epoch: {text!r} is out of the representable range; "
+                             "expected e.g. 2026-02-23T12:00:00Z") from None
 
 
 def _cmd_fetch(args: argparse.Namespace) -> int:
@@ -68,6 +72,10 @@ def element_info(path: str | Path, epoch_utc: _dt.datetime, stale_after_days: fl
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
+    import math
+
+    if not (math.isfinite(args.stale_days) and args.stale_days >= 0):
+        raise UserInputError(f"--stale-days: {args.stale_days!r}; expected a number of days >= 0")
     epoch = _parse_epoch(args.epoch)
     info = element_info(args.file, epoch, args.stale_days)
     out = results_dir(args.out, "tle-info")
