@@ -43,9 +43,14 @@ exit status:
 Errors are one line `leonav COMMAND: error: ...`; add --debug (anywhere) or set
 LEONAV_DEBUG=1 to also print the Python traceback.
 
-limits on untrusted input (raise them when a real file needs more):
-  element files (TLE/3LE/OMM)  64 MB, LEONAV_MAX_ELEMENT_MB
-  leonav tle fetch replies     64 MB, --max-mb; --timeout is the deadline of the whole download
+limits on untrusted input:
+  element files (TLE/3LE/OMM)   64 MB; raise with LEONAV_MAX_ELEMENT_MB=<megabytes>
+  leonav tle fetch replies      64 MB; raise with --max-mb; --timeout (default 60 s) is the
+                                deadline of the whole download; a reply with rejected entries
+                                or < 90 % of the cached group's satellites needs --force
+  leonav beacons                metadata files 16 MB, sample rates 1e3..1e9 S/s, captures up
+                                to 6 h, --fft-size 16..4194304, --interval 0.05..3600 s,
+                                --simulate up to 3600 s and the free disk space
 """
 
 

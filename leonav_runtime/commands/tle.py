@@ -118,8 +118,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        help="cache folder (default $XDG_CACHE_HOME/leonav/tle or ~/.cache/leonav/tle)")
     fetch.add_argument("--url-base", metavar="URL", default=None,
                        help="GP query URL (default https://celestrak.org/NORAD/elements/gp.php)")
-    fetch.add_argument("--timeout", metavar="S", type=float, default=20.0,
-                       help="deadline of the whole download (connect, redirects, reading), s (default 20)")
+    fetch.add_argument("--timeout", metavar="S", type=float, default=60.0,
+                       help="deadline of the whole download (connect, redirects, reading), s (default 60)")
     fetch.add_argument("--max-mb", metavar="MB", type=float, default=64.0,
                        help="largest reply accepted, MB (default 64; CelesTrak's groups are a few MB)")
     fetch.add_argument("--force", action="store_true",

@@ -47,7 +47,7 @@ CELESTRAK_URL_BASE = "https://celestrak.org/NORAD/elements/gp.php"
 KNOWN_GROUPS = ("starlink", "gps-ops", "gnss", "oneweb", "iridium-NEXT", "stations", "active")
 _GROUP_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
-DEFAULT_TIMEOUT_S = 20.0
+DEFAULT_TIMEOUT_S = 60.0
 MAX_TIMEOUT_S = 3600.0
 DEFAULT_MAX_BYTES = 64_000_000
 MIN_KEEP_FRACTION = 0.9
@@ -149,7 +149,7 @@ def _download(url: str, timeout_s: float, max_bytes: int) -> bytes:
                 raise FetchError(f"{url}: HTTP {reply.status} {reply.reason} "
                                  f"(is the group a CelesTrak group?)")
             declared = reply.getheader("Content-Length")
-            length = int(declared) if declared and declared.strip().isdigit() else None
+            length = int(declared) if declared and declared.strip().isdigit() and not reply.chunked else None
             if length is not None and length > max_bytes:
                 raise FetchError(f"{url}: reply of {length / 1e6:.1f} MB is larger than the limit of "
                                  f"{max_bytes / 1e6:g} MB (raise it with --max-mb)")
