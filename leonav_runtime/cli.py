@@ -34,10 +34,11 @@ EPILOG = """\
 exit status:
   0    success
   1    unexpected internal error (a bug: rerun with --debug and report the traceback)
-  2    bad input: a file, field or option value is not what was expected, or a download
-       failed; the message names the file/line/field and what was expected
-  3    I/O error: a file or folder cannot be read or written (missing, a directory given
-       as a file, permissions, disk full)
+  2    bad input: a file, field or option value is not what was expected (an input file
+       that is missing or a directory included), or a download failed; the message names
+       the file/line/field and what was expected
+  3    I/O error: a file or folder cannot be read or written by the system (permissions,
+       disk full, --out or the cache is a file, a path the command did not check itself)
   4    the generated C filter could not be built or loaded (check $CC and the compiler)
   130  interrupted (Ctrl-C)
 Errors are one line `leonav COMMAND: error: ...`; add --debug (anywhere) or set
