@@ -21,7 +21,6 @@ import json
 import signal
 import warnings
 from contextlib import contextmanager
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -237,7 +236,7 @@ def _omm_texts(recs) -> dict[str, tuple[bytes, list[int]]]:
         writer.writerow([r[k] for k in _OMM_KEYS])
         ends.append(len(buf.getvalue()))
     out["csv"] = (buf.getvalue().encode(), ends)
-    parts, ends, text = [], [], "[\n"
+    ends, text = [], "[\n"
     for i, r in enumerate(recs):
         text += json.dumps(r) + (",\n" if i < len(recs) - 1 else "\n")
         ends.append(len(text))

@@ -299,10 +299,10 @@ class RidgeTracker:
             t_first, t_last = ridges[i].t_s[0], ridges[i].t_s[-1]
             while t_last - t_first >= 0.2:
                 # successors starting in (t_last, t_last + join_gap_s]: a range of the sorted starts
-                # (one index wider than needed, then tested exactly as before)
+                # (a little wider than needed against rounding, then tested exactly as before)
                 lo = int(np.searchsorted(starts, t_last, "left"))
-                hi = int(np.searchsorted(starts, t_last + cfg.join_gap_s, "right"))
-                js = np.arange(lo, min(hi + 1, n))
+                hi = int(np.searchsorted(starts, t_last + cfg.join_gap_s + 1e-9 * (1.0 + abs(t_last)), "right"))
+                js = np.arange(lo, hi)
                 gaps = starts[js] - t_last
                 ok = alive[js] & (js != i) & (gaps > 0) & (gaps <= cfg.join_gap_s)
                 js, gaps = js[ok], gaps[ok]
