@@ -56,16 +56,19 @@ def test_non_utf8_input_is_bad_input_in_one_line(tmp_path, capsys):
 
 def test_bad_compiler_is_a_build_error_in_one_line(tmp_path, capsys, monkeypatch):
     from leonav_runtime import compiled
+    from leonav_runtime.beacons import predict
 
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
     monkeypatch.setenv("LEONAV_BUILD_DIR", str(tmp_path / "build"))
     compiled.clear_process_cache()
+    predict._nav.cache_clear()  # the beacon predictions keep their loaded library per process
     try:
         rc = main(["beacons", str(tmp_path / "s.cu8"), "--simulate", "--duration", "1", "--sim-rate", "1e5",
                    "--band", "1e5", "--tle", str(shared_file("tle/starlink_2026-02-23.txt")),
                    "--start", "2026-02-23T06:00:00Z", "--out", str(tmp_path / "o")])
     finally:
         compiled.clear_process_cache()
+        predict._nav.cache_clear()
     assert rc == EXIT_BUILD
     line = _one_line(capsys, "beacons")
     assert "cannot build the C filter: no C compiler found" in line and "no-such-cc" in line
