@@ -3,15 +3,56 @@
 Each subcommand lives in its own module under `leonav_runtime/commands/` and exposes
 `register(subparsers) -> None`, which adds a parser whose `func(args) -> int` does the
 work. Modules are discovered here, so adding a command never edits this file.
+
+Errors are turned into one line `leonav CMD: error: ...` and a documented exit status
+here, in one place (`report_error`); `--debug` (anywhere on the command line, or
+LEONAV_DEBUG=1) prints the traceback as well.
 """
 from __future__ import annotations
 
 import argparse
+import csv
+import errno
 import importlib
+import json
+import os
 import pkgutil
 import sys
+import traceback
 
 from leonav_runtime import commands as _commands_pkg
+from leonav_runtime.errors import UserInputError
+
+EXIT_OK = 0
+EXIT_INTERNAL = 1       # an unexpected error: a bug (rerun with --debug and report the traceback)
+EXIT_BAD_INPUT = 2      # a file, field or option value is not what was expected
+EXIT_IO = 3             # a file or folder cannot be read or written (missing, permissions, disk full)
+EXIT_BUILD = 4          # the generated C could not be compiled or loaded ($CC, compiler errors)
+EXIT_INTERRUPTED = 130  # Ctrl-C
+
+EPILOG = """\
+exit status:
+  0    success
+  1    unexpected internal error (a bug: rerun with --debug and report the traceback)
+  2    bad input: a file, field or option value is not what was expected (an input file
+       that is missing or a directory included), or a download failed; the message names
+       the file/line/field and what was expected
+  3    I/O error: a file or folder cannot be read or written by the system (permissions,
+       disk full, --out or the cache is a file, a path the command did not check itself)
+  4    the generated C filter could not be built or loaded (check $CC and the compiler)
+  130  interrupted (Ctrl-C)
+Errors are one line `leonav COMMAND: error: ...`; add --debug (anywhere) or set
+LEONAV_DEBUG=1 to also print the Python traceback.
+
+limits on untrusted input:
+  element files (TLE/3LE/OMM)   64 MB; raise with LEONAV_MAX_ELEMENT_MB=<megabytes>
+  leonav tle fetch replies      64 MB; raise with --max-mb; --timeout (default 60 s) is the
+                                deadline of the whole download; a reply with rejected entries
+                                or < 90 % of the cached group's satellites needs --force
+  leonav beacons                metadata files 16 MB, sample rates 1e3..1e9 S/s, captures up
+                                to 6 h, --fft-size 16..4194304, --interval 0.05..3600 s,
+                                --simulate up to 3600 s and the free disk space
+"""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -22,7 +63,11 @@ def build_parser() -> argparse.ArgumentParser:
             "LEO-aided 9D navigation (position, velocity, attitude): IMU + GPS + passive "
             "Starlink Doppler-rate in a generated-C error-state EKF, with its PCRB."
         ),
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    parser.add_argument("--debug", action="store_true",
+                        help="print the Python traceback of an error (also accepted after the command)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for info in sorted(pkgutil.iter_modules(_commands_pkg.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):
@@ -32,24 +77,138 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _split_debug(argv: list[str]) -> tuple[list[str], bool]:
+    """Remove `--debug` from anywhere before a `--` separator; (remaining argv, debug?)."""
+    out, debug, literal = [], False, False
+    for arg in argv:
+        if not literal and arg == "--debug":
+            debug = True
+            continue
+        if arg == "--":
+            literal = True
+        out.append(arg)
+    return out, debug
+
+
+def _command_name(args: argparse.Namespace) -> str:
+    words = [str(args.command)]
+    for key in ("tle_action", "session_command"):
+        value = getattr(args, key, None)
+        if isinstance(value, str):
+            words.append(value)
+    return " ".join(words)
+
+
+def _build_error_types() -> tuple[type, ...]:
+    """Exception types of the C build (only when the build module was imported at all)."""
+    module = sys.modules.get("leonav_runtime.compiled")
+    if module is None:
+        return ()
+    return tuple(t for t in (getattr(module, "CompilerError", None), getattr(module, "LayoutMismatchError", None))
+                 if isinstance(t, type))
+
+
+def _toml_error_types() -> tuple[type, ...]:
+    types = []
+    for name in ("tomllib", "tomli"):
+        module = sys.modules.get(name)
+        if module is not None and isinstance(getattr(module, "TOMLDecodeError", None), type):
+            types.append(module.TOMLDecodeError)
+    return tuple(types)
+
+
+def _os_error_text(exc: OSError) -> str:
+    """'<file>: <what went wrong>' for an OSError, with a hint for the common cases."""
+    what = exc.strerror or str(exc) or type(exc).__name__
+    custom = bool(exc.strerror) and exc.errno is not None and exc.strerror != os.strerror(exc.errno)
+    hints = {
+        errno.ENOENT: "no such file or folder",
+        errno.EISDIR: "is a directory, expected a file",
+        errno.ENOTDIR: "a part of the path is a file, expected a folder",
+        errno.EACCES: "permission denied",
+        errno.EPERM: "operation not permitted",
+        errno.ENOSPC: "no space left on the device",
+        errno.EROFS: "read-only file system",
+        errno.EEXIST: "already exists (a file where a folder is expected?)",
+    }
+    if exc.errno in hints and not custom:  # a message the code wrote is kept as it is
+        what = hints[exc.errno]
+    where = exc.filename
+    if where is None:
+        return what if exc.strerror else str(exc) or type(exc).__name__
+    text = f"{os.fsdecode(where) if isinstance(where, (bytes, os.PathLike)) else where}: {what}"
+    if getattr(exc, "filename2", None):
+        text += f" (and {exc.filename2})"
+    return text
+
+
+def _first_line(text: str) -> str:
+    lines = [ln for ln in str(text).splitlines() if ln.strip()]
+    if not lines:
+        return ""
+    more = f" (+{len(lines) - 1} more lines; --debug shows everything)" if len(lines) > 1 else ""
+    return lines[0].strip() + more
+
+
+def classify_error(exc: BaseException) -> tuple[int, str]:
+    """(exit status, one-line message) of an exception raised by a command."""
+    if isinstance(exc, KeyboardInterrupt):
+        return EXIT_INTERRUPTED, "interrupted"
+    build = _build_error_types()
+    if build and isinstance(exc, build):
+        return EXIT_BUILD, f"cannot build the C filter: {_first_line(exc)}"
+    if isinstance(exc, UserInputError):
+        return EXIT_BAD_INPUT, _first_line(exc)
+    if isinstance(exc, UnicodeError):
+        where = f" at byte {exc.start}" if isinstance(exc, UnicodeDecodeError) else ""
+        return EXIT_BAD_INPUT, (f"text is not valid {getattr(exc, 'encoding', 'UTF-8')}{where} "
+                                f"({getattr(exc, 'reason', exc)}); expected a UTF-8 text file")
+    if isinstance(exc, json.JSONDecodeError):
+        return EXIT_BAD_INPUT, f"not valid JSON: line {exc.lineno}, column {exc.colno}: {exc.msg}"
+    if isinstance(exc, csv.Error):
+        return EXIT_BAD_INPUT, f"not valid CSV: {exc}"
+    toml = _toml_error_types()
+    if toml and isinstance(exc, toml):
+        return EXIT_BAD_INPUT, f"not valid TOML: {_first_line(exc)}"
+    if isinstance(exc, OverflowError):  # a number or date in the input beyond what can be represented
+        return EXIT_BAD_INPUT, f"a value is out of range ({_first_line(exc)})"
+    if isinstance(exc, RecursionError):
+        return EXIT_BAD_INPUT, "input nested too deeply (recursion limit reached); expected a flat file"
+    if isinstance(exc, OSError):
+        return EXIT_IO, _os_error_text(exc)
+    if isinstance(exc, MemoryError):
+        return EXIT_INTERNAL, "out of memory (the input is larger than this machine can hold)"
+    frames = traceback.extract_tb(exc.__traceback__)
+    at = f" at {os.path.relpath(frames[-1].filename) if frames else '?'}:{frames[-1].lineno}" if frames else ""
+    return EXIT_INTERNAL, (f"internal error {type(exc).__name__}: {_first_line(exc) or '(no message)'}{at}; "
+                           "rerun with --debug and report the traceback")
+
+
+def report_error(command: str, exc: BaseException, debug: bool = False) -> int:
+    """Print the one-line message of `exc` (and the traceback when `debug`); return the exit status."""
+    status, message = classify_error(exc)
+    if debug:
+        traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
+    label = "" if status == EXIT_INTERRUPTED else "error: "
+    print(f"leonav {command}: {label}{message}", file=sys.stderr)
+    return status
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `leonav` console script; returns the process exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    argv, debug = _split_debug(argv)
+    debug = debug or os.environ.get("LEONAV_DEBUG", "") not in ("", "0")
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
-        return 2
+        return EXIT_BAD_INPUT
     try:
         return int(args.func(args) or 0)
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
-    except UserInputError as exc:  # bad file/field/value: one clear line, no traceback
-        print(f"leonav {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    except (KeyboardInterrupt, Exception) as exc:  # noqa: BLE001 (one place turns every error into one line)
+        return report_error(_command_name(args), exc, debug)
 
-
-from leonav_runtime.errors import UserInputError  # noqa: E402  (after main for readability)
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -143,8 +143,18 @@ def _view_one(
         subset = elements if idx.size == n else elements.select(idx)
         states = propagate(subset, epoch_utc, t_s)
         failures.extend(states.failures)
+        ok = np.broadcast_to(np.asarray(states.ok, dtype=bool).reshape(idx.size, -1), (idx.size, t_s.size))
+        # SGP4 can return NaN/inf with error code 0 (elements out of its domain): never a silent
+        # "not visible", always a counted failure
+        finite = np.isfinite(np.asarray(states.r_ecef_m, dtype=float)).all(axis=-1).reshape(idx.size, -1)
+        silent = np.nonzero(ok.all(axis=1) & ~finite.all(axis=1))[0]
+        for i in silent:
+            first = int(np.argmax(~finite[i]))
+            failures.append((subset.names[i], int(subset.norad_ids[i]),
+                             f"SGP4 returned a non-finite position without an error code; first at "
+                             f"t = {t_s[first]:g} s (elements outside SGP4's domain?)"))
+        ok = ok & finite
         az, el, rng = geometry.az_el_range(states.r_ecef_m, r_rx, site.lat_rad, site.lon_rad)
-        ok = np.broadcast_to(np.asarray(states.ok, dtype=bool).reshape(idx.size, -1), el.shape)
         vis = geometry.visible_mask(el, mask_rad) & ok
         s_local, k = np.nonzero(vis)
         parts.append((idx[s_local], k, az[s_local, k], el[s_local, k], rng[s_local, k]))

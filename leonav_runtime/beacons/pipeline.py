@@ -25,7 +25,7 @@ from leonav_runtime.beacons.lo_fit import LoEstimate
 from leonav_runtime.beacons.doppler import RidgeMeasurements, ridge_measurements
 from leonav_runtime.beacons.predict import DEFAULT_MASK_DEG, TONE_RF_HZ, Predictions, Site, predict_visible
 from leonav_runtime.beacons.ridges import Ridge, TrackerConfig, TrackStats, RidgeTracker
-from leonav_runtime.beacons.waterfall import StftConfig, WaterfallImage, band_bins, iter_spectra
+from leonav_runtime.beacons.waterfall import StftConfig, WaterfallImage, band_bins, iter_spectra, n_slices
 
 PAPER_RESIDUALS_HZ_S = {"median": 0.8, "mean": 1.46, "max": 3.4}  # paper, five matched beacons
 
@@ -55,6 +55,13 @@ MEASUREMENT_COLUMNS = [
 ]
 
 
+MIN_FFT_SIZE = 16
+MAX_FFT_SIZE = 1 << 22
+MIN_BAND_BINS = 8
+MIN_INTERVAL_S, MAX_INTERVAL_S = 0.05, 3600.0
+MAX_CAPTURE_S = 6 * 3600.0  # one LO offset and drift per capture; longer recordings are split
+
+
 @dataclasses.dataclass
 class PipelineConfig:
     tone_rf_hz: float = TONE_RF_HZ
@@ -68,6 +75,43 @@ class PipelineConfig:
     chunk_samples: int = 1 << 20
     tracker: TrackerConfig = dataclasses.field(default_factory=TrackerConfig)
     association: AssociationConfig = dataclasses.field(default_factory=AssociationConfig)
+    max_duration_s: float = MAX_CAPTURE_S
+
+
+def _finite_in(value, lo: float, hi: float) -> bool:
+    try:
+        return math.isfinite(float(value)) and lo <= float(value) <= hi
+    except (TypeError, ValueError):
+        return False
+
+
+def validate_config(cfg: PipelineConfig, sample_rate_hz: float | None = None) -> None:
+    """UserInputError naming the `leonav beacons` option when a setting cannot work.
+
+    With `sample_rate_hz`, also checks that the band keeps enough FFT bins to track in.
+    """
+    if cfg.fft_size is not None and not (isinstance(cfg.fft_size, (int, np.integer))
+                                         and MIN_FFT_SIZE <= cfg.fft_size <= MAX_FFT_SIZE):
+        raise UserInputError(f"--fft-size: {cfg.fft_size!r}; expected a whole number of samples in "
+                             f"{MIN_FFT_SIZE}..{MAX_FFT_SIZE} (default: about 16 ms of samples)")
+    if cfg.band_hz is not None and not _finite_in(cfg.band_hz, 1e-300, math.inf):
+        raise UserInputError(f"--band: {cfg.band_hz!r} Hz; expected a positive width, e.g. 1.2e6")
+    checks = (("--interval", cfg.meas_interval_s, MIN_INTERVAL_S, MAX_INTERVAL_S, "s"),
+              ("--dc-notch", cfg.dc_notch_hz, 0.0, math.inf, "Hz"),
+              ("--mask", cfg.mask_deg, -90.0, 90.0, "deg"),
+              ("--tone-freq", cfg.tone_rf_hz, 1.0, capture_io.MAX_FREQ_HZ, "Hz"),
+              ("fit_half_window_s", cfg.fit_half_window_s, 0.01, 600.0, "s"),
+              ("overlap", cfg.overlap, 0.0, 0.95, ""))
+    for name, value, lo, hi, unit in checks:
+        if not _finite_in(value, lo, hi):
+            raise UserInputError(f"{name}: {value!r} {unit}".rstrip() + f"; expected a number in [{lo:g}, {hi:g}]")
+    if sample_rate_hz is not None:
+        stft = StftConfig.for_rate(sample_rate_hz, cfg.band_hz, cfg.fft_size, cfg.overlap, cfg.dc_notch_hz)
+        n_bins = band_bins(stft, sample_rate_hz)[0].size
+        if n_bins < MIN_BAND_BINS:
+            raise UserInputError(
+                f"--band: {stft.band_hz:g} Hz keeps {n_bins} FFT bins of {sample_rate_hz / stft.fft_size:g} Hz; "
+                f"expected at least {MIN_BAND_BINS} (widen --band or use a larger --fft-size)")
 
 
 @dataclasses.dataclass
@@ -96,10 +140,11 @@ class PipelineResult:
 def extract_ridges(info: capture_io.CaptureInfo, cfg: PipelineConfig,
                    progress: Callable[[int], None] | None = None):
     """Stream the capture through the STFT and the tracker: (ridges, stats, stft cfg, waterfall image)."""
+    validate_config(cfg, info.sample_rate_hz)
     stft = StftConfig.for_rate(info.sample_rate_hz, cfg.band_hz, cfg.fft_size, cfg.overlap, cfg.dc_notch_hz)
     _, f_hz = band_bins(stft, info.sample_rate_hz)
     tracker = RidgeTracker(f_hz, cfg.tracker)
-    image = WaterfallImage(f_hz)
+    image = WaterfallImage(f_hz, total_rows=n_slices(info.n_samples, stft))  # memory flat in capture length
 
     def blocks():
         for b in capture_io.iter_chunks(info, cfg.chunk_samples):
@@ -118,6 +163,11 @@ def process_capture(info: capture_io.CaptureInfo, elements, site: Site, cfg: Pip
                     progress: Callable[[int], None] | None = None) -> PipelineResult:
     """Run the whole pipeline on one capture (see module docstring)."""
     cfg = cfg or PipelineConfig()
+    validate_config(cfg, info.sample_rate_hz)
+    if info.duration_s > cfg.max_duration_s:
+        raise UserInputError(f"{info.path}: capture lasts {info.duration_s:.0f} s, more than the "
+                             f"{cfg.max_duration_s:g} s processed as one recording (one LO offset and drift); "
+                             "split it into shorter files")
     stft = StftConfig.for_rate(info.sample_rate_hz, cfg.band_hz, cfg.fft_size, cfg.overlap, cfg.dc_notch_hz)
     empty_img = (np.zeros(0), np.zeros(0), np.zeros((0, 0)))
     if info.n_samples < stft.fft_size:

@@ -83,9 +83,11 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
     """Stream STFT slices from consecutive complex64 sample blocks.
 
     Samples are buffered so slices straddle block boundaries; memory is bounded by
-    `slices_per_block * fft_size` samples.
+    `slices_per_block * fft_size` samples (fewer slices per block above 2^15-sample FFTs).
     """
     n, hop = cfg.fft_size, cfg.hop
+    # long FFTs: fewer slices per block, so a block stays near 2^21 samples (tens of MB)
+    slices_per_block = max(1, min(slices_per_block, (1 << 21) // n))
     idx, f_hz = band_bins(cfg, sample_rate_hz)
     notch = np.abs(f_hz) < cfg.dc_notch_hz
     window = np.hanning(n).astype(np.float32)
@@ -117,31 +119,82 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
         yield emit(buf, buf_start)
 
 
-class WaterfallImage:
-    """Down-sampled waterfall (dB) kept for the PNG: max over frequency groups, mean over time."""
+def n_slices(n_samples: int, cfg: StftConfig) -> int:
+    """STFT slices `iter_spectra` makes of a capture of `n_samples` samples."""
+    return 0 if n_samples < cfg.fft_size else 1 + (n_samples - cfg.fft_size) // cfg.hop
 
-    def __init__(self, f_hz: np.ndarray, max_cols: int = 2048):
+
+class WaterfallImage:
+    """Down-sampled waterfall (dB) kept for the PNG: max over frequency groups, mean over time.
+
+    Memory does not grow with the capture: with `total_rows` (the number of slices that
+    will be added, `n_slices`) every `g = ceil(total_rows / max_rows)` consecutive rows are
+    averaged as they arrive and only the averages are kept (at most `max_rows`); the result
+    equals averaging the whole image afterwards. Without it, rows are averaged in pairs
+    whenever more than `2 * max_rows` are held.
+    """
+
+    def __init__(self, f_hz: np.ndarray, max_cols: int = 2048, total_rows: int | None = None,
+                 max_rows: int = 800):
         self.group = max(1, int(np.ceil(f_hz.size / max_cols)))
         ncol = f_hz.size // self.group
         self.f_hz = f_hz[: ncol * self.group].reshape(ncol, self.group).mean(axis=1)
-        self.rows: list[np.ndarray] = []
-        self.t_s: list[np.ndarray] = []
+        self.max_rows = max_rows
+        self.total_rows = total_rows
+        self.g = max(1, int(np.ceil(total_rows / max_rows))) if total_rows else 1
+        self.n_out = (total_rows // self.g) if total_rows else None  # rows of the final image
+        self.rows: list[np.ndarray] = []   # finished (averaged) rows
+        self.t_s: list[float] = []
+        self._pend_rows: list[np.ndarray] = []  # rows of the group being filled
+        self._pend_t: list[np.ndarray] = []
+        self._pending = 0
 
     def add(self, blk: SpectrumBlock) -> None:
         ncol = self.f_hz.size
         p = blk.power[:, : ncol * self.group].reshape(blk.power.shape[0], ncol, self.group).max(axis=2)
-        self.rows.append((10 * np.log10(p / blk.noise_mean[:, None] + 1e-12)).astype(np.float32))
-        self.t_s.append(blk.t_s)
+        db = (10 * np.log10(p / blk.noise_mean[:, None] + 1e-12)).astype(np.float32)
+        self._pend_rows.append(db)
+        self._pend_t.append(np.asarray(blk.t_s, float))
+        self._pending += db.shape[0]
+        self._flush()
 
-    def image(self, max_rows: int = 800) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _flush(self) -> None:
+        g = self.g
+        if self._pending < g:
+            return
+        rows = np.concatenate(self._pend_rows) if len(self._pend_rows) > 1 else self._pend_rows[0]
+        ts = np.concatenate(self._pend_t) if len(self._pend_t) > 1 else self._pend_t[0]
+        full = (rows.shape[0] // g) * g
+        for k in range(0, full, g):
+            if self.n_out is not None and len(self.rows) >= self.n_out:
+                break  # the tail beyond whole groups is dropped, as averaging afterwards does
+            self.rows.append(rows[k: k + g].mean(axis=0) if g > 1 else rows[k])
+            self.t_s.append(float(ts[k: k + g].mean()) if g > 1 else float(ts[k]))
+        self._pend_rows, self._pend_t = [rows[full:]], [ts[full:]]
+        self._pending = rows.shape[0] - full
+        if self.total_rows is None and len(self.rows) > 2 * self.max_rows:
+            self._halve()
+
+    def _halve(self) -> None:
+        n = len(self.rows) // 2 * 2
+        img = np.stack(self.rows[:n])
+        t = np.asarray(self.t_s[:n])
+        self.rows = list(img.reshape(n // 2, 2, -1).mean(axis=1)) + self.rows[n:]
+        self.t_s = list(t.reshape(n // 2, 2).mean(axis=1)) + self.t_s[n:]
+        self.g *= 2
+        self._pend_rows, self._pend_t, self._pending = [], [], 0  # a partial group is dropped
+
+    def image(self, max_rows: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(t_s, f_hz, dB above the noise floor) with at most `max_rows` rows."""
+        max_rows = max_rows or self.max_rows
         if not self.rows:
             return np.zeros(0), self.f_hz, np.zeros((0, self.f_hz.size), np.float32)
-        img = np.concatenate(self.rows)
-        t = np.concatenate(self.t_s)
+        img = np.stack(self.rows)
+        self.rows = list(img)  # views into img: the rows are not held twice
+        t = np.asarray(self.t_s, float)
         g = max(1, int(np.ceil(img.shape[0] / max_rows)))
         nr = img.shape[0] // g
-        if nr == 0:
+        if g == 1:
             return t, self.f_hz, img
         return (t[: nr * g].reshape(nr, g).mean(axis=1), self.f_hz,
                 img[: nr * g].reshape(nr, g, -1).mean(axis=1))

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import math
+import shutil
 import warnings
 from pathlib import Path
 
@@ -13,6 +14,38 @@ from leonav_runtime.gen.constants import STARLINK_BEACON_HZ, STARLINK_MASK_DEG
 from leonav_runtime.orbits.elements import load_element_files
 
 ROCHESTER_DEG = (43.0848638, -77.6786127, 170.0)  # the paper's site
+MAX_SIM_DURATION_S = 3600.0
+MAX_SIM_SATELLITES = 100
+_SIM_BYTES_PER_SAMPLE = {"cu8": 2, "sigmf": 2, "cf32": 8}
+
+
+def _check_range(name: str, value, lo: float, hi: float, unit: str = "") -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
+        raise UserInputError(f"{name}: {value!r}{' ' + unit if unit else ''} is out of range; "
+                             f"expected a number in [{lo:g}, {hi:g}]")
+
+
+def _check_simulation(args: argparse.Namespace) -> None:
+    """Refuse a synthetic capture that cannot be made, before anything is computed or written."""
+    from leonav_runtime.beacons import capture_io
+
+    _check_range("--duration", args.duration, 1e-3, MAX_SIM_DURATION_S, "s")
+    _check_range("--sim-rate", args.sim_rate, capture_io.MIN_SAMPLE_RATE_HZ, capture_io.MAX_SAMPLE_RATE_HZ, "Hz")
+    _check_range("--n-sats", args.n_sats, 1, MAX_SIM_SATELLITES)
+    _check_range("--cn0", args.cn0, -50.0, 150.0, "dB-Hz")
+    _check_range("--lo-offset", args.lo_offset, -capture_io.MAX_FREQ_HZ, capture_io.MAX_FREQ_HZ, "Hz")
+    _check_range("--lo-drift", args.lo_drift, -1e6, 1e6, "Hz/s")
+    _check_range("--seed", args.seed, 0, 2**63 - 1)
+    if not 1 <= args.tones <= 9:
+        raise UserInputError(f"--tones: expected 1..9 tones per satellite, got {args.tones}")
+    need = args.duration * args.sim_rate * _SIM_BYTES_PER_SAMPLE[args.sim_format]
+    folder = Path(args.capture).resolve().parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    free = shutil.disk_usage(folder).free
+    if need > 0.9 * free:
+        raise UserInputError(f"--duration/--sim-rate: the synthetic capture would take {need / 1e9:.3g} GB; "
+                             f"{free / 1e9:.3g} GB are free in {folder}")
 
 
 def register(subparsers) -> None:
@@ -91,10 +124,26 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _progress(total: int, desc: str):
-    from tqdm import tqdm
+class _LazyBar:
+    """A tqdm bar created at the first tick: an error before any sample leaves no bar behind."""
 
-    bar = tqdm(total=total, unit="S", unit_scale=True, desc=desc, leave=False)
+    def __init__(self, total: int, desc: str):
+        self.total, self.desc, self.bar = total, desc, None
+
+    def update(self, n: int) -> None:
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=self.total, unit="S", unit_scale=True, desc=self.desc, leave=False)
+        self.bar.update(n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _progress(total: int, desc: str):
+    bar = _LazyBar(total, desc)
     return bar, bar.update
 
 
@@ -102,10 +151,25 @@ def run(args: argparse.Namespace) -> int:
     from leonav_runtime.beacons import capture_io, pipeline, synth
     from leonav_runtime.beacons.predict import Site
 
-    site = Site.from_degrees(args.lat, args.lon, args.alt)
+    _check_range("--lat", args.lat, -90.0, 90.0, "deg")
+    _check_range("--lon", args.lon, -180.0, 360.0, "deg")
     if not (math.isfinite(args.alt) and -11_000 <= args.alt <= 1e6):
         raise UserInputError(f"--alt: {args.alt!r} out of range; expected metres in [-11000, 1e6]")
-    start = capture_io.parse_utc(args.start, "--start") if args.start else None
+    site = Site.from_degrees(args.lat, args.lon, args.alt)
+    try:
+        start = capture_io.parse_utc(args.start, "--start") if args.start else None
+    except OverflowError:  # e.g. year 1 with a positive UTC offset
+        start = _dt.datetime.min.replace(tzinfo=_dt.timezone.utc)
+    if start is not None and not 1900 <= start.year < 2200:
+        raise UserInputError(f"--start: {args.start!r} is outside 1900..2200; expected a time such as "
+                             "2026-02-23T06:00:00Z")
+    cfg = pipeline.PipelineConfig(tone_rf_hz=args.tone_freq, band_hz=args.band, fft_size=args.fft_size,
+                                  dc_notch_hz=args.dc_notch, meas_interval_s=args.interval, mask_deg=args.mask)
+    cfg.association.remove_drift = not args.keep_drift
+    pipeline.validate_config(cfg)  # option values, before any file is read or written
+    if args.simulate:
+        _check_simulation(args)
+        pipeline.validate_config(cfg, args.sim_rate)
     out_dir = output.results_dir(args.out, "beacons")
     if args.tle:
         elements = load_element_files(args.tle)
@@ -123,24 +187,22 @@ def run(args: argparse.Namespace) -> int:
         if start is None:
             newest = max(elements.epochs_utc)
             start = newest.replace(microsecond=0) + _dt.timedelta(seconds=1)
-        if not 1 <= args.tones <= 9:
-            raise UserInputError(f"--tones: expected 1..9 tones per satellite, got {args.tones}")
-        for name, v in (("--duration", args.duration), ("--sim-rate", args.sim_rate)):
-            if not (math.isfinite(v) and v > 0):
-                raise UserInputError(f"{name}: expected a positive number, got {v!r}")
-        cfg = synth.SynthConfig(duration_s=args.duration, sample_rate_hz=args.sim_rate, cn0_dbhz=args.cn0,
+        sim_cfg = synth.SynthConfig(duration_s=args.duration, sample_rate_hz=args.sim_rate, cn0_dbhz=args.cn0,
                                 lo_offset_hz=args.lo_offset, lo_drift_hz_s=args.lo_drift,
                                 n_satellites=args.n_sats, seed=args.seed, tone_rf_hz=args.tone_freq,
                                 tones_per_satellite=args.tones, full_comb_in_band=False)
-        bar, tick = _progress(int(cfg.duration_s * cfg.sample_rate_hz), "synthesizing")
+        bar, tick = _progress(int(sim_cfg.duration_s * sim_cfg.sample_rate_hz), "synthesizing")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # stale-element warnings are reported in summary.json
             try:
-                info, truth = synth.write_synthetic_capture(args.capture, elements, site, start, cfg,
+                info, truth = synth.write_synthetic_capture(args.capture, elements, site, start, sim_cfg,
                                                             args.sim_format, progress=tick)
+            except UserInputError:
+                raise
             except ValueError as exc:
                 raise UserInputError(f"--simulate: {exc}") from None
-        bar.close()
+            finally:
+                bar.close()
         print(f"synthetic capture: {info.path} ({info.n_samples} samples, {info.duration_s:g} s) with "
               f"{', '.join(f'{n} ({i})' for n, i in zip(truth.names, truth.norad_ids))}")
         output.write_json(out_dir / "synthetic_truth.json", truth.describe())
@@ -153,19 +215,22 @@ def run(args: argparse.Namespace) -> int:
     if info.start_utc is None:
         raise UserInputError(f"{info.path}: capture start time unknown; give --start ISO-UTC "
                              "(or core:datetime / start_utc in the metadata)")
-    cfg = pipeline.PipelineConfig(tone_rf_hz=args.tone_freq, band_hz=args.band, fft_size=args.fft_size,
-                                  dc_notch_hz=args.dc_notch, meas_interval_s=args.interval, mask_deg=args.mask)
-    cfg.association.remove_drift = not args.keep_drift
+    pipeline.validate_config(cfg, info.sample_rate_hz)
     bar, tick = _progress(info.n_samples, "processing")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        res = pipeline.process_capture(info, elements, site, cfg, progress=tick)
-    bar.close()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            res = pipeline.process_capture(info, elements, site, cfg, progress=tick)
+    finally:
+        bar.close()
     paths = pipeline.write_outputs(res, out_dir)
     s = pipeline.summary(res)
-    if caught:
-        s["warnings"] = sorted({str(w.message) for w in caught})
+    notes = res.track_stats.notes()
+    if caught or notes:
+        s["warnings"] = sorted({str(w.message) for w in caught}) + notes
         output.write_json(paths["summary"], s)
+    for note in notes:
+        print(f"note: {note}")
     c, r = s["counts"], s["rate_residual_abs_hz_s"]
     print(f"{info.path.name}: {info.duration_s:.1f} s at {info.sample_rate_hz / 1e6:g} MS/s, "
           f"{s['candidates_above_mask']} satellites above {args.mask:g} deg")

@@ -62,6 +62,22 @@ def _round_to_second(t: _dt.datetime) -> _dt.datetime:
     return (t + _dt.timedelta(microseconds=500_000)).replace(microsecond=0)
 
 
+EARLIEST_UTC = _dt.datetime(1900, 1, 1, tzinfo=_dt.timezone.utc)
+LATEST_UTC = _dt.datetime(2200, 1, 1, tzinfo=_dt.timezone.utc)
+
+
+def _start_time(text: str) -> _dt.datetime:
+    """--start as UTC, within the years element sets can describe (so the window end exists)."""
+    try:
+        start = parse_utc(text, "--start")
+    except OverflowError:
+        start = None
+    if start is None or not EARLIEST_UTC <= start <= LATEST_UTC:
+        raise UserInputError(f"--start: {text!r} is outside {EARLIEST_UTC.year}..{LATEST_UTC.year}; "
+                             "expected a time such as 2026-02-23T12:00:00Z")
+    return start
+
+
 def _check_args(args) -> None:
     checks = [
         ("--lat", args.lat, -90.0, 90.0),
@@ -106,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
         if not any(len(es) for es in elements.values()):
             raise UserInputError(f"--tle: no usable element sets in {', '.join(args.tle)}")
         if args.start:
-            start, start_source = parse_utc(args.start, "--start"), "--start"
+            start, start_source = _start_time(args.start), "--start"
         else:
             newest = max(max(es.epochs_utc) for es in elements.values() if len(es))
             start, start_source = _round_to_second(newest), "newest element-set epoch in the --tle files"
@@ -114,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
         from leonav_runtime.orbits import default_elements
 
         if args.start:
-            start, start_source = parse_utc(args.start, "--start"), "--start"
+            start, start_source = _start_time(args.start), "--start"
         else:
             start, start_source = _round_to_second(_dt.datetime.now(_dt.timezone.utc)), "now"
         elements = default_elements(start)

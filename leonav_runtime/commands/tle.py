@@ -1,6 +1,6 @@
 """`leonav tle`: fetch element sets from CelesTrak, inspect an element file, write built-ins.
 
-    leonav tle fetch GROUP [--cache DIR] [--url-base URL] [--timeout S]
+    leonav tle fetch GROUP [--cache DIR] [--url-base URL] [--timeout S] [--max-mb MB] [--force]
     leonav tle info FILE [--epoch ISO-UTC] [--stale-days D] [--out DIR]
     leonav tle builtin {starlink,gps} [--epoch ISO-UTC] [--out DIR]
 """
@@ -21,16 +21,27 @@ from leonav_runtime.output import add_out_argument, results_dir, write_json
 def _parse_epoch(text: str | None) -> _dt.datetime:
     if text is None:
         return _dt.datetime.now(_dt.timezone.utc)
-    return parse_utc(text, "--epoch")
+    try:
+        return parse_utc(text, "--epoch")
+    except OverflowError:  # e.g. year 1 with a positive UTC offset
+        raise UserInputError(f"--epoch: {text!r} is out of the representable range; "
+                             "expected e.g. 2026-02-23T12:00:00Z") from None
 
 
 def _cmd_fetch(args: argparse.Namespace) -> int:
+    import math
+
     from leonav_runtime.orbits.fetch import fetch_group
 
-    path = fetch_group(args.group, cache_dir=args.cache, url_base=args.url_base, timeout_s=args.timeout)
+    if not (math.isfinite(args.max_mb) and args.max_mb > 0):
+        raise UserInputError(f"--max-mb: {args.max_mb!r}: expected a positive number of megabytes")
+    path = fetch_group(args.group, cache_dir=args.cache, url_base=args.url_base, timeout_s=args.timeout,
+                       max_bytes=max(1, int(args.max_mb * 1e6)), force=args.force)
     meta = json.loads(path.with_suffix(".json").read_text())
     print(f"{meta['count']} element sets of group {args.group!r} -> {path} "
           f"(epochs {meta['epoch_min_utc']} .. {meta['epoch_max_utc']}, {meta['rejected']} rejected)")
+    for problem in meta.get("problems") or []:
+        print(f"  accepted with --force despite: {problem}")
     return 0
 
 
@@ -61,6 +72,10 @@ def element_info(path: str | Path, epoch_utc: _dt.datetime, stale_after_days: fl
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
+    import math
+
+    if not (math.isfinite(args.stale_days) and args.stale_days >= 0):
+        raise UserInputError(f"--stale-days: {args.stale_days!r}; expected a number of days >= 0")
     epoch = _parse_epoch(args.epoch)
     info = element_info(args.file, epoch, args.stale_days)
     out = results_dir(args.out, "tle-info")
@@ -103,7 +118,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        help="cache folder (default $XDG_CACHE_HOME/leonav/tle or ~/.cache/leonav/tle)")
     fetch.add_argument("--url-base", metavar="URL", default=None,
                        help="GP query URL (default https://celestrak.org/NORAD/elements/gp.php)")
-    fetch.add_argument("--timeout", metavar="S", type=float, default=20.0, help="network timeout, s (default 20)")
+    fetch.add_argument("--timeout", metavar="S", type=float, default=60.0,
+                       help="deadline of the whole download (connect, redirects, reading), s (default 60)")
+    fetch.add_argument("--max-mb", metavar="MB", type=float, default=64.0,
+                       help="largest reply accepted, MB (default 64; CelesTrak's groups are a few MB)")
+    fetch.add_argument("--force", action="store_true",
+                       help="replace the cache even when the reply has rejected entries or fewer than 90%% of "
+                            "the cached group's element sets (by default such a reply is refused as a likely "
+                            "truncated download)")
     fetch.set_defaults(func=_cmd_fetch)
 
     info = actions.add_parser("info", help="count, epoch range, ages and rejected entries of an element file")

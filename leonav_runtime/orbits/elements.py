@@ -4,11 +4,20 @@ A file with some bad entries loads the good ones; every bad entry becomes a
 `RejectedEntry` (file, line, name, reason) and is announced once per file through
 `warnings` (category `RejectedElementsWarning`) and the `leonav.orbits` logger. A file with
 nothing valid raises `UserInputError` naming the file and the first problems.
+
+Limits on hostile input: an element file larger than `max_element_bytes()` (64 MB by
+default; raise it with the environment variable LEONAV_MAX_ELEMENT_MB) is refused before
+it is read (a TLE entry costs about 1.3 kB of memory once loaded, so 64 MB of 3LE text is
+about 400,000 satellites and 0.6 GB). Fields that decode to NaN or infinity are rejected
+with the field named; deeply nested JSON/XML and unreadable CSV rows are rejected and
+counted (see `omm`).
 """
 from __future__ import annotations
 
 import datetime as _dt
 import logging
+import math
+import os
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,6 +33,9 @@ from leonav_runtime.orbits import tle as _tle
 log = logging.getLogger("leonav.orbits")
 
 DEFAULT_STALE_AFTER_DAYS = 3.0
+DEFAULT_MAX_ELEMENT_MB = 64.0
+MAX_ELEMENT_MB_ENV = "LEONAV_MAX_ELEMENT_MB"
+_NAME_CHARS = 80  # names are at most 24 characters in a 3LE; longer text is cut in reports
 CONSTELLATIONS = ("starlink", "gps", "unknown")
 
 
@@ -158,6 +170,49 @@ def julian_date_split(epoch_utc: _dt.datetime) -> tuple[float, float]:
     return float(whole), float(frac)
 
 
+def max_element_bytes() -> int:
+    """Largest element file read, bytes: $LEONAV_MAX_ELEMENT_MB megabytes, default 64."""
+    text = os.environ.get(MAX_ELEMENT_MB_ENV, "").strip()
+    if not text:
+        return int(DEFAULT_MAX_ELEMENT_MB * 1e6)
+    try:
+        mb = float(text)
+    except ValueError:
+        mb = math.nan
+    if not (math.isfinite(mb) and mb > 0):
+        raise UserInputError(f"{MAX_ELEMENT_MB_ENV}={text!r}: expected a positive number of megabytes")
+    return int(mb * 1e6)
+
+
+def _too_large(source: str, size: int, limit: int) -> UserInputError:
+    return UserInputError(
+        f"{source}: {size / 1e6:.1f} MB is more than the element-file limit of {limit / 1e6:g} MB "
+        f"(expected a TLE/3LE/OMM file; set {MAX_ELEMENT_MB_ENV} to a larger number of megabytes to read it)")
+
+
+# Decoded TLE fields that are floats, with where they are written (line, columns).
+_TLE_FLOAT_FIELDS = (
+    ("ndot_revday2", "mean-motion derivative", 1, "34-43"),
+    ("nddot_revday3", "mean-motion second derivative", 1, "45-52"),
+    ("bstar_per_earth_radius", "B*", 1, "54-61"),
+    ("inclination_deg", "inclination", 2, "9-16"),
+    ("raan_deg", "right ascension of the ascending node", 2, "18-25"),
+    ("eccentricity", "eccentricity", 2, "27-33"),
+    ("arg_perigee_deg", "argument of perigee", 2, "35-42"),
+    ("mean_anomaly_deg", "mean anomaly", 2, "44-51"),
+    ("mean_motion_revday", "mean motion", 2, "53-63"),
+)
+
+
+def _check_finite(fields: "_tle.TLEFields") -> None:
+    """TLEFieldError naming the first field that decoded to NaN or infinity ('nan' passes float())."""
+    for attr, label, which, cols in _TLE_FLOAT_FIELDS:
+        value = getattr(fields, attr)
+        if not math.isfinite(value):
+            raise _tle.TLEFieldError(f"field {label} (line {which}, columns {cols}) is {value!r}; "
+                                     "expected a finite number", which)
+
+
 # --------------------------------------------------------------------------- parsing
 
 
@@ -192,7 +247,7 @@ def _parse_tle_text(text: str, source: str, strict_checksum: bool = True
                 reject(name_line, f"name line is not followed by element lines (line {line_no} is text)")
             swallow_next_line2 = False
             text_name = line.strip()
-            name = text_name[2:].strip() if text_name.startswith("0 ") else text_name
+            name = (text_name[2:].strip() if text_name.startswith("0 ") else text_name)[:_NAME_CHARS]
             name_line, name_waiting = line_no, True
             continue
         name_waiting = False
@@ -213,6 +268,7 @@ def _parse_tle_text(text: str, source: str, strict_checksum: bool = True
             pending = None
             try:
                 fields = _tle.parse_fields(l1, line, verify_checksum=strict_checksum)
+                _check_finite(fields)
                 satrec = Satrec.twoline2rv(l1[:69], line[:69], WGS72)
             except _tle.TLEFieldError as exc:
                 reject(line_no if exc.which_line == 2 else l1_no, str(exc))
@@ -249,12 +305,15 @@ def _parse_omm_text(text: str, fmt: str, source: str) -> tuple[list[tuple], list
     rejected: list[RejectedEntry] = []
     try:
         for record in _omm.iter_records(text, fmt):
+            prefix = "" if fmt == "csv" else f"{record.where}: "
+            name = record.fields.get("OBJECT_NAME", "")[:_NAME_CHARS]
+            if record.problem:
+                rejected.append(RejectedEntry(source, record.line, name, f"OMM {fmt.upper()} {record.problem}"))
+                continue
             try:
                 name, norad_id, epoch, satrec = _omm.record_to_satrec(record.fields)
             except _omm.OMMRecordError as exc:
-                prefix = "" if fmt == "csv" else f"{record.where}: "
-                rejected.append(RejectedEntry(source, record.line, record.fields.get("OBJECT_NAME", ""),
-                                              f"OMM {fmt.upper()} {prefix}{exc}"))
+                rejected.append(RejectedEntry(source, record.line, name, f"OMM {fmt.upper()} {prefix}{exc}"))
             else:
                 entries.append((name, norad_id, epoch, satrec, f"{source}:{record.line}"))
     except _omm.OMMRecordError as exc:
@@ -278,6 +337,9 @@ def parse_elements_text(
     entries whose checksum is wrong but are otherwise valid (hand-edited test sets such as
     Vallado's SGP4-VER.TLE), with a warning listing their lines.
     """
+    limit = max_element_bytes()
+    if len(text) > limit:
+        raise _too_large(source, len(text), limit)
     if not text.strip():
         raise UserInputError(f"{source}: empty element file (expected TLE/3LE lines or an OMM XML/JSON/CSV file)")
     fmt = _omm.detect_omm_format(text)
@@ -321,12 +383,21 @@ def load_elements(
 ) -> ElementSet:
     """Load a TLE / 3LE / OMM (XML, JSON, CSV) file; see `parse_elements_text`."""
     path = Path(path)
+    limit = max_element_bytes()
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        with open(path, "rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+            if size > limit:
+                raise _too_large(str(path), size, limit)
+            data = fh.read(limit + 1)  # bounded also for pipes and devices, whose size says nothing
     except FileNotFoundError:
         raise UserInputError(f"{path}: element file not found") from None
     except IsADirectoryError:
         raise UserInputError(f"{path}: is a directory, expected a TLE/3LE/OMM file") from None
+    if len(data) > limit:
+        raise _too_large(str(path), len(data), limit)
+    text = data.decode("utf-8", errors="replace")  # bad bytes become U+FFFD: their entries are rejected
+    del data
     return parse_elements_text(text, str(path), stale_after_days=stale_after_days, constellation=constellation,
                                strict_checksum=strict_checksum)
 
