@@ -92,14 +92,14 @@ def plot_trajectories(scn, res, path: Path) -> None:
 
 def plot_visibility(scn, path: Path) -> dict:
     """Visible satellites per constellation over the scenario window (the paper's Fig. 2)."""
-    from leonav_runtime import simulate, sky
+    from leonav_runtime import simulate, sky, sky_plot
 
     elements = simulate.scenario_elements(scn)
     step = 1.0 if scn.duration_s <= 600 else 10.0
     t = np.arange(0.0, scn.duration_s + 1e-9, step)
     masks = {"gps": scn.gps["elevation_mask_rad"], "starlink": scn.starlink["elevation_mask_rad"]}
     view = sky.sky_view(elements, sky.Site(scn.lat_rad, scn.lon_rad, scn.alt_m), scn.epoch_utc, t, masks)
-    sky.plot(view, path)
+    sky_plot.plot(view, path)
     return {name: {"min": int(c.min()), "max": int(c.max())} for name, c in view.counts().items()}
 
 

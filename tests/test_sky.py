@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from leonav_runtime import geometry, sky
+from leonav_runtime import geometry, sky, sky_plot
 from leonav_runtime.orbits import RejectedEntry
 
 EPOCH = dt.datetime(2026, 2, 23, 12, 0, 0, tzinfo=dt.timezone.utc)
@@ -193,7 +193,7 @@ def test_plot_writes_png(tmp_path):
     gps = FakeElements(["G"], [fixed(200, 20)], "gps")
     view = sky.sky_view({"starlink": starlink, "gps": gps}, SITE, EPOCH, T_S, propagate=fake_propagate)
     out = tmp_path / "sky.png"
-    sky.plot(view, out)
+    sky_plot.plot(view, out)
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 10_000
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import geometry, output, sky
+from leonav_runtime import geometry, output, sky, sky_plot
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.utc import parse_utc
 
@@ -153,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
         ["t_s", *[f"visible_{n}" for n in names]],
         ([float(t), *[int(view.constellations[n].count[k]) for n in names]] for k, t in enumerate(t_s)),
     )
-    sky.plot(view, out_dir / "sky.png")
+    sky_plot.plot(view, out_dir / "sky.png")
     _print_summary(summary)
     print(f"wrote sky.json, visible_counts.csv, sky.png to {out_dir}")
     return 0
