@@ -23,6 +23,7 @@ from leonav_runtime.params import params_array
 from leonav_runtime.gen.constants import STARLINK_BEACON_HZ, STARLINK_MASK_DEG
 
 DEFAULT_MASK_DEG = STARLINK_MASK_DEG
+VISIBILITY_STEP_S = 30.0  # s, spacing of the coarse visibility samples over a capture
 TONE_RF_HZ = STARLINK_BEACON_HZ  # central beacon tone of the 11.325 GHz channel
 
 
@@ -110,8 +111,9 @@ def predict_visible(elements, site: Site, start_utc: _dt.datetime, duration_s: f
     n = int(np.ceil((duration_s + 2 * margin_s) / step_s)) + 1
     t = -margin_s + step_s * np.arange(max(n, 4))
     r_rx = np.asarray(geodetic_to_ecef(site.lat_rad, site.lon_rad, site.h_m), float)
-    # coarse visibility pass over the whole set, then states with acceleration for the few
-    t_vis = np.linspace(0.0, max(duration_s, 0.0), 3)
+    # coarse visibility pass over the whole set (every <= VISIBILITY_STEP_S: a pass above the
+    # mask lasts minutes), then states with acceleration for the few
+    t_vis = np.linspace(0.0, max(duration_s, 0.0), max(3, int(np.ceil(duration_s / VISIBILITY_STEP_S)) + 1))
     coarse = propagate_ecef(elements, start_utc, t_vis, acceleration=False)
     _, el, _ = az_el_range(coarse.r_ecef_m, r_rx, site.lat_rad, site.lon_rad)
     ok = np.asarray(coarse.ok, bool)

@@ -220,14 +220,17 @@ def propagate_ecef(
         if a_ecef is not None:
             acceleration_ecef_mps2(r_ecef_m[rows], v_ecef_mps[rows], out=a_ecef[rows])
 
-    bad = err != 0
+    # a state that is not finite without an SGP4 error code (e.g. elements that decode to
+    # extreme values) is a failure too, never a silent NaN downstream
+    bad = (err != 0) | ~np.isfinite(r_ecef_m).all(axis=-1) | ~np.isfinite(v_ecef_mps).all(axis=-1)
     ok = ~bad.any(axis=1)
     failures: list[tuple[str, int, str]] = []
     if not ok.all():
         for i in np.flatnonzero(~ok):
             j = int(np.argmin(np.where(bad[i], t_s, np.inf)))  # earliest failing time
             code = int(err[i, j])
-            words = SGP4_ERROR_WORDS.get(code, SGP4_ERRORS.get(code, f"SGP4 error {code}"))
+            words = (SGP4_ERROR_WORDS.get(code, SGP4_ERRORS.get(code, f"SGP4 error {code}")) if code
+                     else "non-finite position or velocity without an SGP4 error code (check the element set)")
             failures.append((elements.names[i], int(elements.norad_ids[i]),
                              f"SGP4 error {code}: {words}; first at t = {t_s[j]:g} s "
                              f"({int(bad[i].sum())} of {nt} epochs)"))
