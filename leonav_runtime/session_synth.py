@@ -200,7 +200,7 @@ def _write_iq(folder: Path, cfg: SynthSessionConfig, elements, progress) -> tupl
     start = cfg.epoch_utc + _dt.timedelta(seconds=cfg.sdr_start_s)
     duration = cfg.seconds - cfg.sdr_start_s - 0.05
     scfg = synth.SynthConfig(duration_s=duration, sample_rate_hz=cfg.sdr_rate_hz, center_freq_hz=settings.if_hz,
-                             lnb_lo_hz=settings.lnb_lo_hz, tone_rf_hz=cfg.f_c_hz, cn0_dbhz=cfg.cn0_dbhz,
+                             lnb_lo_hz=settings.lnb_lo_hz, f_c_hz=cfg.f_c_hz, cn0_dbhz=cfg.cn0_dbhz,
                              lo_offset_hz=cfg.lo_offset_hz,
                              n_satellites=cfg.n_satellites, seed=cfg.seed)
     site = Site(math.radians(cfg.lat_deg), math.radians(cfg.lon_deg), cfg.alt_m)

@@ -40,7 +40,7 @@ def test_symbolic_prediction_matches_numerical_derivatives_of_range(elements):
         st = propagate_ecef(sub, START, t, acceleration=False)
     r_rx = np.asarray(geodetic_to_ecef(SITE.lat_rad, SITE.lon_rad, SITE.h_m))
     rho = np.linalg.norm(st.r_ecef_m - r_rx, axis=2)
-    f = predict.TONE_RF_HZ
+    f = predict.STARLINK_BEACON_HZ
     d_num = -(f / C) * (rho[:, 2] - rho[:, 0]) / (2 * h)
     a_num = -(f / C) * (rho[:, 2] - 2 * rho[:, 1] + rho[:, 0]) / h**2
     d, a = pred.at(np.array([5.0]))

@@ -105,7 +105,7 @@ def test_local_fit_rate_and_its_sigma_are_calibrated():
 def test_measurements_refer_doppler_to_the_tone():
     t = np.arange(0, 6.005, 0.01)
     r = Ridge(t, 5e3 - 1000 * t, np.full(t.size, 20.0), 0)
-    m = doppler.ridge_measurements(r, rf_center_hz=11.325e9 + 2e3, tone_rf_hz=11.325e9, interval_s=1.0)
+    m = doppler.ridge_measurements(r, rf_center_hz=11.325e9 + 2e3, f_c_hz=11.325e9, interval_s=1.0)
     np.testing.assert_allclose(m.t_s, [1, 2, 3, 4, 5])
     np.testing.assert_allclose(m.doppler_hz, 7e3 - 1000 * m.t_s, atol=1e-6)
     np.testing.assert_allclose(m.rate_hz_s, -1000, atol=1e-6)

@@ -100,20 +100,6 @@ class CaptureAssociation:
     filter_measurements: dict[int, RidgeMeasurements]  # carrier ridge id -> measurement (associated combs)
 
 
-def candidate_costs(meas: RidgeMeasurements, pred: Predictions, cfg: AssociationConfig):
-    """(cost (nsat,), offset (nsat,), r_f (nsat, nk), r_a (nsat, nk)) of one ridge."""
-    D, A = pred.at(meas.t_s)
-    diff = meas.doppler_hz[None, :] - D
-    b = diff.mean(axis=1)
-    r_f = diff - b[:, None]
-    r_a = meas.rate_hz_s[None, :] - A
-    s_f = max(cfg.doppler_floor_hz, float(np.median(meas.sigma_doppler_hz)))
-    s_a = max(cfg.rate_floor_hz_s, float(np.median(meas.sigma_rate_hz_s)))
-    cost = np.sqrt((np.mean(r_f**2, axis=1) / s_f**2 + np.mean(r_a**2, axis=1) / s_a**2) / 2)
-    return cost, b, r_f, r_a
-
-
-
 @dataclasses.dataclass
 class _CombCosts:
     cost: np.ndarray        # (nsat,)

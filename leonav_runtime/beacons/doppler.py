@@ -38,9 +38,9 @@ class RidgeMeasurements:
     snr_db: np.ndarray       # median per-bin SNR in each window
 
 
-def doppler_trajectory(ridge: Ridge, rf_center_hz: float, tone_rf_hz: float) -> np.ndarray:
+def doppler_trajectory(ridge: Ridge, rf_center_hz: float, f_c_hz: float) -> np.ndarray:
     """Measured Doppler (Hz, LO offset included) of every ridge point."""
-    return ridge.f_hz + (rf_center_hz - tone_rf_hz)
+    return ridge.f_hz + (rf_center_hz - f_c_hz)
 
 
 def finite_difference_rate(t_s: np.ndarray, f_hz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -72,14 +72,14 @@ def local_poly_fit(t_s: np.ndarray, f_hz: np.ndarray, t_k: float, half_window_s:
     return float(coef[0]), float(np.sqrt(cov[0, 0])), float(coef[1]), float(np.sqrt(cov[1, 1])), n
 
 
-def ridge_measurements(ridge: Ridge, rf_center_hz: float, tone_rf_hz: float, interval_s: float = 1.0,
+def ridge_measurements(ridge: Ridge, rf_center_hz: float, f_c_hz: float, interval_s: float = 1.0,
                        half_window_s: float = 1.0, min_fill: float = 0.6) -> RidgeMeasurements:
     """Doppler and Doppler-rate at epochs on the global grid k*interval_s inside the ridge.
 
     An epoch is kept when its window is covered by the ridge and holds at least
     `min_fill` of the points the ridge's median spacing predicts.
     """
-    t, fd = ridge.t_s, doppler_trajectory(ridge, rf_center_hz, tone_rf_hz)
+    t, fd = ridge.t_s, doppler_trajectory(ridge, rf_center_hz, f_c_hz)
     step = float(np.median(np.diff(t))) if t.size > 1 else 1.0
     expected = 2 * half_window_s / step
     k0 = np.ceil((t[0] + half_window_s) / interval_s)

@@ -23,7 +23,7 @@ from leonav_runtime.beacons.associate import Association, AssociationConfig, ass
 from leonav_runtime.beacons.comb import Comb
 from leonav_runtime.beacons.lo_fit import LoEstimate
 from leonav_runtime.beacons.doppler import RidgeMeasurements, ridge_measurements
-from leonav_runtime.beacons.predict import DEFAULT_MASK_DEG, TONE_RF_HZ, Predictions, Site, predict_visible
+from leonav_runtime.beacons.predict import DEFAULT_MASK_DEG, STARLINK_BEACON_HZ, Predictions, Site, predict_visible
 from leonav_runtime.beacons.ridges import Ridge, TrackerConfig, TrackStats, RidgeTracker
 from leonav_runtime.beacons.waterfall import StftConfig, WaterfallImage, band_bins, iter_spectra, n_slices
 
@@ -64,7 +64,7 @@ MAX_CAPTURE_S = 6 * 3600.0  # one LO offset and drift per capture; longer record
 
 @dataclasses.dataclass
 class PipelineConfig:
-    tone_rf_hz: float = TONE_RF_HZ
+    f_c_hz: float = STARLINK_BEACON_HZ
     band_hz: float | None = 1.2e6        # tones region kept around the centre (Doppler + LO offset)
     fft_size: int | None = None          # default: 2^k closest to fs * 16 ms (waterfall.default_fft_size)
     overlap: float = 0.5
@@ -99,7 +99,7 @@ def validate_config(cfg: PipelineConfig, sample_rate_hz: float | None = None) ->
     checks = (("--interval", cfg.meas_interval_s, MIN_INTERVAL_S, MAX_INTERVAL_S, "s"),
               ("--dc-notch", cfg.dc_notch_hz, 0.0, math.inf, "Hz"),
               ("--mask", cfg.mask_deg, -90.0, 90.0, "deg"),
-              ("--tone-freq", cfg.tone_rf_hz, 1.0, capture_io.MAX_FREQ_HZ, "Hz"),
+              ("--tone-freq", cfg.f_c_hz, 1.0, capture_io.MAX_FREQ_HZ, "Hz"),
               ("fit_half_window_s", cfg.fit_half_window_s, 0.01, 600.0, "s"),
               ("overlap", cfg.overlap, 0.0, 0.95, ""))
     for name, value, lo, hi, unit in checks:
@@ -131,7 +131,7 @@ class PipelineResult:
     ridge_measurements: list[RidgeMeasurements] = dataclasses.field(default_factory=list)
     combs: list[Comb] = dataclasses.field(default_factory=list)
     lo: LoEstimate = dataclasses.field(default_factory=LoEstimate)
-    tone_rf_hz: float = TONE_RF_HZ  # beacon carrier the Doppler is referred to (Hz)
+    f_c_hz: float = STARLINK_BEACON_HZ  # beacon carrier the Doppler is referred to (Hz)
 
     def by_ridge(self) -> dict[int, tuple[Ridge, RidgeMeasurements, Association]]:
         return {r.ridge_id: (r, m, a) for r, m, a in zip(self.ridges, self.measurements, self.associations)}
@@ -174,7 +174,7 @@ def process_capture(info: capture_io.CaptureInfo, elements, site: Site, cfg: Pip
         return PipelineResult(info, stft, [], TrackStats(), [], None, [], empty_img,
                               f"capture holds {info.n_samples} samples, fewer than one FFT of {stft.fft_size}")
     ridges, stats, stft, image = extract_ridges(info, cfg, progress)
-    meas = [ridge_measurements(r, info.rf_center_hz, cfg.tone_rf_hz, cfg.meas_interval_s, cfg.fit_half_window_s)
+    meas = [ridge_measurements(r, info.rf_center_hz, cfg.f_c_hz, cfg.meas_interval_s, cfg.fit_half_window_s)
             for r in ridges]
     if not ridges:
         return PipelineResult(info, stft, [], stats, [], None, [], image,
@@ -183,12 +183,12 @@ def process_capture(info: capture_io.CaptureInfo, elements, site: Site, cfg: Pip
     if info.start_utc is None:
         raise UserInputError(f"{info.path}: capture start time unknown: association needs it (give --start)")
     pred = predict_visible(elements, site, info.start_utc, info.duration_s, mask_deg=cfg.mask_deg,
-                           tone_rf_hz=cfg.tone_rf_hz)
+                           f_c_hz=cfg.f_c_hz)
     ca = associate_capture(meas, pred, cfg.association)
     filt = [m if a.status != "associated" else ca.filter_measurements[m.ridge_id] if a.carrier else _empty(m)
             for m, a in zip(meas, ca.associations)]
     return PipelineResult(info, stft, ridges, stats, filt, pred, ca.associations, image, "", meas, ca.combs, ca.lo,
-                          cfg.tone_rf_hz)
+                          cfg.f_c_hz)
 
 
 def _empty(m: RidgeMeasurements) -> RidgeMeasurements:
@@ -275,7 +275,7 @@ def write_outputs(res: PipelineResult, out_dir: Path) -> dict[str, Path]:
             for k in range(m.t_s.size):
                 rows_m.append([m.t_s[k], _iso(start, m.t_s[k]), a.norad_id, a.name, m.rate_hz_s[k],
                                m.sigma_rate_hz_s[k], m.doppler_hz[k], m.sigma_doppler_hz[k], lo_t[k],
-                               pr[k], m.rate_hz_s[k] - pr[k], m.snr_db[k], ridge.ridge_id, res.tone_rf_hz,
+                               pr[k], m.rate_hz_s[k] - pr[k], m.snr_db[k], ridge.ridge_id, res.f_c_hz,
                                drift, a.comb_id, int(nt[k])])
         if m0.t_s.size == 0:
             rows_a.append([math.nan, "", ridge.ridge_id, a.status, a.name, a.norad_id, math.nan, math.nan,

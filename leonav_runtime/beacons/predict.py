@@ -24,7 +24,6 @@ from leonav_runtime.gen.constants import STARLINK_BEACON_HZ, STARLINK_MASK_DEG
 
 DEFAULT_MASK_DEG = STARLINK_MASK_DEG
 VISIBILITY_STEP_S = 30.0  # s, spacing of the coarse visibility samples over a capture
-TONE_RF_HZ = STARLINK_BEACON_HZ  # central beacon tone of the 11.325 GHz channel
 
 
 @functools.lru_cache(maxsize=4)
@@ -41,7 +40,7 @@ def _static_receiver(nav: NavFunctions, p: np.ndarray) -> tuple[np.ndarray, np.n
     return x, -nav.gravity_enu(np.zeros(3), p)
 
 
-def model_params(lat_rad: float, lon_rad: float, h_m: float, f_c_hz: float = TONE_RF_HZ) -> np.ndarray:
+def model_params(lat_rad: float, lon_rad: float, h_m: float, f_c_hz: float = STARLINK_BEACON_HZ) -> np.ndarray:
     """Parameter vector p for the site (WGS84 rad, rad, m) and carrier (Hz)."""
     return params_array(lat_rad, lon_rad, h_m, f_c_hz=f_c_hz)
 
@@ -99,7 +98,7 @@ def _element_meta(elements, index: np.ndarray) -> tuple[list[str], np.ndarray]:
 
 def predict_visible(elements, site: Site, start_utc: _dt.datetime, duration_s: float,
                     step_s: float = 0.5, mask_deg: float = DEFAULT_MASK_DEG,
-                    tone_rf_hz: float = TONE_RF_HZ, margin_s: float = 2.0) -> Predictions:
+                    f_c_hz: float = STARLINK_BEACON_HZ, margin_s: float = 2.0) -> Predictions:
     """Predict curves of the satellites above `mask_deg` at some time in [0, duration_s].
 
     The grid spans [-margin_s, duration_s + margin_s] with `step_s` spacing (cubic
@@ -124,6 +123,6 @@ def predict_visible(elements, site: Site, start_utc: _dt.datetime, duration_s: f
         return Predictions(start_utc, t, [], ids, empty, empty, empty, vis)
     st = propagate_ecef(elements.select(vis), start_utc, t, acceleration=True)
     _, el_fine, _ = az_el_range(st.r_ecef_m, r_rx, site.lat_rad, site.lon_rad)
-    p = model_params(site.lat_rad, site.lon_rad, site.h_m, tone_rf_hz)
+    p = model_params(site.lat_rad, site.lon_rad, site.h_m, f_c_hz)
     d, r = evaluate_model(st.r_ecef_m, st.v_ecef_mps, st.a_ecef_mps2, p)
     return Predictions(start_utc, t, names, ids, d, r, el_fine, vis)

@@ -34,7 +34,7 @@ from __future__ import annotations
 import dataclasses
 from array import array
 from bisect import bisect_left, bisect_right
-from typing import Iterable
+
 
 import numpy as np
 
@@ -336,11 +336,3 @@ def _tail(pieces: list[Ridge], t_from: float) -> tuple[np.ndarray, np.ndarray]:
     f = np.concatenate([p.f_hz for p in pieces[k:]]) if k < len(pieces) - 1 else pieces[k].f_hz
     keep = t >= t_from
     return t[keep], f[keep]
-
-
-def track_ridges(blocks: Iterable[SpectrumBlock], f_hz: np.ndarray, cfg: TrackerConfig | None = None) -> tuple[list[Ridge], TrackStats]:
-    """Run the tracker over all spectrum blocks; returns (ridges, statistics)."""
-    tracker = RidgeTracker(f_hz, cfg)
-    for blk in blocks:
-        tracker.add_block(blk)
-    return tracker.finish(), tracker.stats

@@ -32,7 +32,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from leonav_runtime.beacons import capture_io
-from leonav_runtime.beacons.predict import Predictions, Site, TONE_RF_HZ, predict_visible
+from leonav_runtime.beacons.predict import Predictions, Site, STARLINK_BEACON_HZ, predict_visible
 
 from leonav_runtime.beacons.comb import COMB_SPACING_HZ  # noqa: F401  (re-exported: spacing of the ~9 tones)
 from leonav_runtime.gen.constants import STARLINK_MASK_DEG
@@ -44,7 +44,7 @@ class SynthConfig:
     sample_rate_hz: float = 2.4e6
     center_freq_hz: float = 1.575e9       # SDR tuning (IF)
     lnb_lo_hz: float = 9.75e9             # nominal LNB LO
-    tone_rf_hz: float = TONE_RF_HZ
+    f_c_hz: float = STARLINK_BEACON_HZ
     cn0_dbhz: float | Sequence[float] = 40.0
     lo_offset_hz: float = 35e3            # LNB LO error at t = 0
     lo_drift_hz_s: float = 0.3            # linear LO drift
@@ -83,7 +83,7 @@ def choose_satellites(pred: Predictions, cfg: SynthConfig, rf_center_hz: float,
                       rng: np.random.Generator) -> np.ndarray:
     """Rows of `pred` whose tone stays in the band and above the mask all window long."""
     inside = (pred.t_s >= 0) & (pred.t_s <= cfg.duration_s)
-    bb = pred.doppler_hz[:, inside] + cfg.tone_rf_hz - rf_center_hz - cfg.lo_offset_hz
+    bb = pred.doppler_hz[:, inside] + cfg.f_c_hz - rf_center_hz - cfg.lo_offset_hz
     half = cfg.band_fraction * cfg.sample_rate_hz / 2
     if cfg.full_comb_in_band:
         half -= (cfg.tones_per_satellite // 2) * COMB_SPACING_HZ
@@ -99,7 +99,7 @@ def build_truth(elements, site: Site, start_utc: _dt.datetime, cfg: SynthConfig,
     """Pick satellites (or use `sat_index`) and compute their true curves and the LO error."""
     rng = np.random.default_rng(cfg.seed)
     pred = predict_visible(elements, site, start_utc, cfg.duration_s, step_s=0.25, mask_deg=mask_deg,
-                           tone_rf_hz=cfg.tone_rf_hz, margin_s=1.0)
+                           f_c_hz=cfg.f_c_hz, margin_s=1.0)
     rf_center = cfg.center_freq_hz + cfg.lnb_lo_hz
     if sat_index is None:
         rows = choose_satellites(pred, cfg, rf_center, rng)
@@ -115,7 +115,7 @@ def build_truth(elements, site: Site, start_utc: _dt.datetime, cfg: SynthConfig,
         steps = rng.normal(0.0, np.sqrt(cfg.lo_rw_hz2_s * np.diff(t)))
         lo = lo + np.concatenate([[0.0], np.cumsum(steps)])
     cn0 = np.broadcast_to(np.asarray(cfg.cn0_dbhz, float), (rows.size,)).copy()
-    bb = pred.doppler_hz[rows] + cfg.tone_rf_hz - rf_center - lo[None, :]
+    bb = pred.doppler_hz[rows] + cfg.f_c_hz - rf_center - lo[None, :]
     return SynthTruth(start_utc, pred.sat_index[rows], [pred.names[i] for i in rows], pred.norad_ids[rows],
                       cn0, t, pred.doppler_hz[rows], pred.rate_hz_s[rows], lo, bb)
 

@@ -163,7 +163,7 @@ def run(args: argparse.Namespace) -> int:
     if start is not None and not 1900 <= start.year < 2200:
         raise UserInputError(f"--start: {args.start!r} is outside 1900..2200; expected a time such as "
                              "2026-02-23T06:00:00Z")
-    cfg = pipeline.PipelineConfig(tone_rf_hz=args.tone_freq, band_hz=args.band, fft_size=args.fft_size,
+    cfg = pipeline.PipelineConfig(f_c_hz=args.tone_freq, band_hz=args.band, fft_size=args.fft_size,
                                   dc_notch_hz=args.dc_notch, meas_interval_s=args.interval, mask_deg=args.mask)
     cfg.association.remove_drift = not args.keep_drift
     pipeline.validate_config(cfg)  # option values, before any file is read or written
@@ -189,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
             start = newest.replace(microsecond=0) + _dt.timedelta(seconds=1)
         sim_cfg = synth.SynthConfig(duration_s=args.duration, sample_rate_hz=args.sim_rate, cn0_dbhz=args.cn0,
                                 lo_offset_hz=args.lo_offset, lo_drift_hz_s=args.lo_drift,
-                                n_satellites=args.n_sats, seed=args.seed, tone_rf_hz=args.tone_freq,
+                                n_satellites=args.n_sats, seed=args.seed, f_c_hz=args.tone_freq,
                                 tones_per_satellite=args.tones, full_comb_in_band=False)
         bar, tick = _progress(int(sim_cfg.duration_s * sim_cfg.sample_rate_hz), "synthesizing")
         with warnings.catch_warnings():

@@ -119,7 +119,7 @@ def beacon_measurements(folder: Path, out_dir: Path | None, to_utc, time_source_
     if elements is None:
         elements = default_elements(info.start_utc, notes)
     site = Site(*origin)
-    cfg = pipeline.PipelineConfig(tone_rf_hz=f_c_hz, band_hz=min(1.2e6, info.sample_rate_hz))
+    cfg = pipeline.PipelineConfig(f_c_hz=f_c_hz, band_hz=min(1.2e6, info.sample_rate_hz))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = pipeline.process_capture(info, elements, site, cfg, progress)
