@@ -38,7 +38,7 @@ MODULES = {
     "filter": {"files": ["leonav_runtime/filter.py"],
                "tests": ["tests/test_filter_api.py", "tests/test_runtime_filter.py"]},
     "models": {"files": ["models/"],
-               "tests": ["tests/test_models_physics.py", "tests/test_models_frames.py",
+               "tests": ["tests/test_filter_api.py", "tests/test_models_physics.py", "tests/test_models_frames.py",
                          "tests/test_models_jacobians.py", "tests/test_models_doppler_rate_sgp4.py",
                          "tests/test_models_pcrb.py", "tests/test_runtime_filter.py", "tests/test_simulate.py"]},
 }

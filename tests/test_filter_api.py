@@ -97,3 +97,35 @@ def test_pcrb_checks_the_linearisation_states(lib, params):
     with pytest.raises(ValueError, match="B0: expected shape"):
         lf.pcrb(recs, np.tile(x_rest(), (recs.size, 1)), np.eye(5), params, library=lib)
     assert records.KIND_IMU < 0
+
+
+def test_clock_and_lo_process_noise_is_the_exact_discretization(lib, params):
+    """Q of the clock (bias, drift) block equals Van Loan's matrix-exponential discretization of
+    d(c_dt)/dt = c_ddt + w1, d(c_ddt)/dt = w2; the LO offset's is q_blo dt; the bias integrates the drift."""
+    linalg = pytest.importorskip("scipy.linalg")
+    lay = lib.layout
+    x = x_rest()
+    x[lay.X_C_DDT] = 3.0
+    ekf = lf.EKF(x, P0(), params, library=lib)
+    dt = 0.5
+    ekf.predict(lf.stationary_imu(x, dt, params, lib), dt)
+    assert ekf.x[lay.X_C_DT] == pytest.approx(3.0 * dt) and ekf.x[lay.X_C_DDT] == 3.0
+    F = np.array([[0.0, 1.0], [0.0, 0.0]])
+    Qc = np.diag([params[lay.P_Q_CDT], params[lay.P_Q_CDDT]])
+    M = linalg.expm(np.block([[-F, Qc], [np.zeros((2, 2)), F.T]]) * dt)
+    Qd = M[2:, 2:].T @ M[:2, 2:]
+    i, j = lay.DX_DC_DT, lay.DX_DC_DDT
+    np.testing.assert_allclose(ekf.Q[np.ix_([i, j], [i, j])], Qd, rtol=1e-12, atol=0)
+    assert ekf.Q[lay.DX_DB_LO, lay.DX_DB_LO] == pytest.approx(params[lay.P_Q_BLO] * dt, rel=1e-12)
+
+
+def test_update_covariance_is_the_kalman_one(lib, params):
+    """For the optimal gain the Joseph form equals P - P H^T H P / S."""
+    ekf = lf.EKF(x_rest(), P0(), params, gate=None, library=lib)
+    aux = gps_aux()[2]
+    h, H = ekf.h("pseudorange", aux)
+    ekf.update("pseudorange", h + 2.0, 4.0, aux)
+    b = ekf.P_prior @ H
+    S = H @ b + 4.0
+    np.testing.assert_allclose(ekf.P_post, ekf.P_prior - np.outer(b, b) / S, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(ekf.x_post[:3] - ekf.x_prior[:3], (b / S * 2.0)[:3], rtol=1e-9, atol=1e-12)
