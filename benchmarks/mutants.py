@@ -214,7 +214,7 @@ mutant("simulate-11", SIM, "first measurement epoch at t = 0", ("return np.arang
 mutant("simulate-12", SIM, "clock and LO enter with the wrong sign", ("z += s.H[rows, dx_off] * x_true[k, off]", "z -= s.H[rows, dx_off] * x_true[k, off]"))
 mutant("simulate-13", SIM, "noise added to noise-free trials", ("z += g * sigma * noise[rows]", "z += sigma * noise[rows]"))
 mutant("simulate-14", SIM, "Doppler-rate R without the specific-force noise",
-       ("            R = doppler_rate_variance(sigma, setup.params[L.P_F_C_HZ], prof.vrw, f_b_span_s)\n", ""))
+       ("R = doppler_rate_variance(sigma, setup.params[L.P_F_C_HZ], prof.vrw, f_b_span_s)", "R = sigma**2"))
 mutant("simulate-15", SIM, "GPS outages keep only the outage", ("keep &= ~((s.t_s >= a) & (s.t_s < b))", "keep &= ((s.t_s >= a) & (s.t_s < b))"))
 mutant("simulate-16", SIM, "aux keeps the true instead of the measured specific force",
        ("        aux[:, L.AUX_F_B:L.AUX_F_B + 3] = f_b_avg[k]  # measured, averaged specific force\n", ""))

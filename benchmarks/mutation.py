@@ -73,6 +73,10 @@ def apply(text: str, m: Mutant) -> str:
         if n != 1:
             raise ValueError(f"mutant {m.id}: {find!r} occurs {n} times in {m.path} (need exactly 1)")
         text = text.replace(find, repl)
+    try:  # a mutant must be a program, not a syntax error that any import would catch
+        compile(text, m.path, "exec")
+    except SyntaxError as exc:
+        raise ValueError(f"mutant {m.id}: the edit makes {m.path} invalid Python ({exc.msg}, line {exc.lineno})")
     return text
 
 
