@@ -92,7 +92,10 @@ mutant("gnss-28", NMEA, "NMEA checksum is a sum instead of XOR", ("value ^= byte
 mutant("gnss-29", NMEA, "'*hh' length check dropped", ("if star < 0 or len(text) - star != 3:", "if star < 0:"))
 mutant("gnss-30", NMEA, "'*hh' hex check dropped",
        ("        int(text[star + 1:], 16)\n    except ValueError:", "        pass\n    except ValueError:"))
-mutant("gnss-31", NMEA, "pynmea2 no longer verifies the checksum", ("pynmea2.parse(decoded, check=True)", "pynmea2.parse(decoded, check=False)"))
+mutant("gnss-31", NMEA, "pynmea2 no longer verifies the checksum", ("pynmea2.parse(decoded, check=True)", "pynmea2.parse(decoded, check=False)"),
+       equivalent="pynmea2 verifies a checksum that is present whatever `check` says (check=True only makes a missing one an "
+                  "error), and parse_sentence passes it only sentences ending in '*' and two hex digits; a wrong "
+                  "checksum is still rejected (tests/test_nmea_fields.py)")
 mutant("gnss-32", NMEA, "GGA ellipsoidal height = hMSL - separation", ("height_m=(hmsl + sep)", "height_m=(hmsl - sep)"))
 mutant("gnss-33", NMEA, "GGA after midnight gets the previous day", ("date = date + _dt.timedelta(days=1)", "date = date"))
 mutant("gnss-34", NMEA, "ZDA day and month swapped",

@@ -281,3 +281,13 @@ def test_gps_time_to_utc_subtracts_leap_seconds():
     # GPS week 2268, TOW 226350 s (Wednesday 14:52:30 GPS) is 14:52:12 UTC with 18 leap seconds
     assert ubx.gps_to_utc(2268, 3 * 86400 + 14 * 3600 + 52 * 60 + 30, 18) == dt.datetime(2023, 6, 28, 14, 52, 12,
                                                                                           tzinfo=UTC)
+
+
+def test_measx_time_of_week_accuracy_scale():
+    """gpsTOWacc is in 2^-4 ms: 1.5 ms is 24 counts (the real log only has zeros)."""
+    msg = pyubx2.UBXMessage("RXM", "RXM-MEASX", pyubx2.GET, version=1, gpsTOW=436762000, gloTOW=447544000,
+                            bdsTOW=436748000, qzssTOW=436762000, gpsTOWacc=1.5, numSv=0, towSet=1)
+    x = _decode(msg)
+    assert x.gps_tow_acc_s == pytest.approx(1.5e-3) and x.tow_set == 1 and x.satellites == []
+    assert (x.gps_tow_s, x.glo_tow_s, x.bds_tow_s, x.qzss_tow_s) == pytest.approx((436762.0, 447544.0, 436748.0,
+                                                                                   436762.0))
