@@ -238,11 +238,21 @@ def test_fewest_visible_satellites_is_the_worst_epoch(long_setup):
 
 
 def test_measurement_rate_must_divide_the_imu_rate_and_gps_needs_four():
-    with pytest.raises(UserInputError, match=r"measurement rate 3.0 Hz must divide the IMU rate 10.0 Hz"):
-        simulate.prepare(_scenario(time__duration_s=1.0, imu__rate_hz=10.0, gps__rate_hz=3.0, monte_carlo__modes=["gps+imu"]))
-    with pytest.raises(UserInputError, match=r"only \d GPS satellites above the mask"):
-        simulate.prepare(_scenario(time__duration_s=1.0, imu__rate_hz=10.0, gps__elevation_mask_deg=70.0,
-                                   monte_carlo__modes=["gps+imu"]))
+    import warnings
+
+    from tests.conftest import shared_file
+
+    gps_only = dict(imu__rate_hz=10.0, time__duration_s=1.0, time__epoch="2026-03-09T12:00:00Z",
+                    monte_carlo__modes=["gps+imu"], elements__source="files",
+                    elements__files=[str(shared_file("tle/gps-ops_2026-03-09.txt"))])   # 32 real GPS sets: fast
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # two of the sets are 6 days old: irrelevant here
+        with pytest.raises(UserInputError, match=r"measurement rate 3.0 Hz must divide the IMU rate 10.0 Hz"):
+            simulate.prepare(_scenario(gps__rate_hz=3.0, **gps_only))
+        # two satellites above 60 deg at this epoch: a position needs four
+        with pytest.raises(UserInputError, match=r"only 2 GPS satellites above the mask"):
+            simulate.prepare(_scenario(gps__elevation_mask_deg=60.0, gps__max_satellites=4, **gps_only))
+        assert simulate.prepare(_scenario(gps__rate_hz=5.0, **gps_only)).visible_min["gps"] >= 4
 
 
 def test_noise_free_trial_adds_the_clock_and_lo_offset_with_their_signs(paper_setup):
