@@ -15,6 +15,7 @@ see, reason given there) are run but not counted in the score.
     python benchmarks/mutation.py --tests-rev REV     # tests/ as in git revision REV
                                                       # ("before" scores of older tests)
     python benchmarks/mutation.py --only gnss-03      # one mutant (by id)
+    python benchmarks/mutation.py --only simulate-01 --show   # ... and the failure it causes
 
 Not part of the normal test run. It takes a few minutes per module on two cores;
 run it under `nice`. Real data: `LEONAV_SHARED_DATA` (default ../shared/data beside the
@@ -113,6 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tests-rev", default=None, help="take tests/ from this git revision")
     ap.add_argument("--list", action="store_true", help="print the catalogue and exit")
     ap.add_argument("--json", default=None, help="write the per-mutant results here")
+    ap.add_argument("--show", action="store_true", help="print the end of pytest's output for every mutant")
     args = ap.parse_args(argv)
 
     modules = args.module or list(MODULES)
@@ -178,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
                 mark = "killed" if killed else ("SURVIVED" if outcome == "pass" else outcome.upper())
                 eq = "  (equivalent)" if m.equivalent else ""
                 print(f"  {m.id:12s} {mark:9s} {secs:6.1f} s  {m.what}{eq}", flush=True)
-                if outcome == "error":
+                if outcome == "error" or args.show:
                     print("    " + tail.replace("\n", "\n    "))
                 results.append(dict(id=m.id, module=module, what=m.what, outcome=outcome, killed=killed,
                                     equivalent=bool(m.equivalent), seconds=round(secs, 1)))
