@@ -111,16 +111,18 @@ def test_trials_share_random_numbers_across_modes_and_executors(paper_setup):
 
 # ---- measurement geometry against skyfield (independent SGP4 frames, time scales, light time) -----
 
-sf_api = pytest.importorskip("skyfield.api", reason="skyfield (independent reference) is in the test extra")
-from skyfield.framelib import itrs  # noqa: E402,F401
 
 F_C = 11.325e9
+sf_api = itrs = None   # skyfield.api and its ITRS frame, imported by the `sky` fixture (skip without skyfield)
 
 
 @pytest.fixture(scope="module")
 def sky(paper_setup):
     """Skyfield objects of the scenario: time scale with UT1 = UTC (as the simulator's SGP4 frames),
     the site, and every satellite of the built-in element sets by NORAD id."""
+    global sf_api, itrs
+    sf_api = pytest.importorskip("skyfield.api", reason="skyfield (independent reference) is in the test extra")
+    itrs = pytest.importorskip("skyfield.framelib").itrs
     scn, _, _ = paper_setup
     # constant Delta T = TT - UTC (32.184 s + 37 leap seconds): UT1 = UTC, the simulator's assumption
     ts = sf_api.load.timescale(delta_t=69.184)
