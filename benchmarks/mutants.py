@@ -271,6 +271,57 @@ mutant("models-13", "models/measurements/ofdm_range_difference.py", "OFDM differ
         "return ca.norm_2(aux[AUX[\"r_ref_ecef\"].slice] - r_U) - ca.norm_2(aux[AUX[\"r_S_ecef\"].slice] - r_U)"))
 mutant("models-14", "models/ekf.py", "LO random walk noise not scaled by dt", ('diag_extra[DX["db_lo"].offset] = par("q_blo") * dt', 'diag_extra[DX["db_lo"].offset] = par("q_blo")'))
 
+# ---------------------------------------------------------------- second batch
+# Written after the tests above, without looking at which of them would fail: a check on
+# how far the tests generalise beyond the mutants they were written against.
+mutant("gnss-39", UBX, "NAV-PVT lat and lon swapped", ("lon, lat, height, hmsl, h_acc, v_acc = struct", "lat, lon, height, hmsl, h_acc, v_acc = struct"))
+mutant("gnss-40", UBX, "RXM-RAWX sigId and freqId swapped",
+       ("(pr, cp, do, gnss_id, sv_id, sig_id, freq_id, lock_ms, cno,", "(pr, cp, do, gnss_id, sv_id, freq_id, sig_id, lock_ms, cno,"))
+mutant("gnss-41", UBX, "RXM-RAWX payload length not checked", ("    if len(p) != 16 + 32 * num_meas:\n        raise", "    if False:\n        raise"))
+mutant("gnss-42", UBX, "NAV-PVT short payload accepted", ("if len(p) < 84:", "if len(p) < 78:"))
+mutant("gnss-43", UBX, "NAV-TIMEGPS long payload accepted", ("    if len(p) != 16:\n", "    if len(p) < 16:\n"))
+mutant("gnss-44", UBX, "ACK-NAK reported as acknowledged", ("frame.msg_id == 0x01, frame.payload[0]", "frame.msg_id == 0x00, frame.payload[0]"))
+mutant("gnss-45", UBX, "RXM-MEASX dopplerHz scaled 0.02", ("dop_hz * 0.2", "dop_hz * 0.02"))
+mutant("gnss-46", NMEA, "rollover uses minutes for hours", ("self._date_tod_s = tod.hour * 3600 + tod.minute * 60", "self._date_tod_s = tod.hour * 60 + tod.minute * 60"))
+mutant("gnss-47", NMEA, "south latitude not negated", ('if hemisphere in ("S", "W")', 'if hemisphere in ("W",)'))
+mutant("tle-24", TLE, "classification read from column 7", ("classification=line1[7],", "classification=line1[6],"))
+mutant("tle-25", TLE, "international designator loses its last column", ("intl_designator=_field(line1, 10, 17)", "intl_designator=_field(line1, 10, 16)"))
+mutant("tle-26", TLE, "element-set number loses its thousands digit", ('_int(line1, 65, 68, "element-set number")', '_int(line1, 66, 68, "element-set number")'))
+mutant("tle-27", TLE, "epoch day loses its last decimal", ('_float(line1, 21, 32, "epoch day")', '_float(line1, 21, 31, "epoch day")'))
+mutant("tle-28", TLE, "writer: eccentricity not range-checked", ("if not 0 <= ecc_digits <= 9999999:", "if False:"))
+mutant("beacons-24", ASC, "Doppler scale takes the smaller of floor and sigma",
+       ("    s_f = max(cfg.doppler_floor_hz, float(np.median(m.sigma_doppler_hz)))\n    s_a = max(cfg.rate_floor_hz_s, float(np.median(m.sigma_rate_hz_s)))\n    terms",
+        "    s_f = min(cfg.doppler_floor_hz, float(np.median(m.sigma_doppler_hz)))\n    s_a = max(cfg.rate_floor_hz_s, float(np.median(m.sigma_rate_hz_s)))\n    terms"))
+mutant("beacons-25", ASC, "offset reported pinned when only bounded", ("pinned = lo == hi", "pinned = lo <= hi"))
+mutant("beacons-26", LOF, "offset sigma without the floor", ("sig_off = float(np.hypot(offset_floor_hz, time_sigma_s", "sig_off = float(np.hypot(0.0, time_sigma_s"))
+mutant("beacons-27", LOF, "circular offset sigma 1/sum(w)", ("return centre, float(1.0 / np.sqrt(np.sum(w))), inl", "return centre, float(1.0 / np.sum(w)), inl"))
+mutant("beacons-28", LOF, "rate-mean sigma without the overlap factor", ("sig_rate = float(np.sqrt(2 * np.mean(sigma_rate_hz_s**2) / t_s.size))", "sig_rate = float(np.sqrt(np.mean(sigma_rate_hz_s**2) / t_s.size))"))
+mutant("beacons-29", ASC, "joint_lo=False ignored", ("if not cfg.joint_lo or new == assign:", "if new == assign:"))
+mutant("scenario-19", SCN, "a count of 1 rejected", ("and not isinstance(c, bool) and c >= 1 for c in counts)", "and not isinstance(c, bool) and c > 1 for c in counts)"))
+mutant("scenario-20", SCN, "unknown top-level keys accepted", ("if key not in SCHEMA and not (key in SCHEMA[\"\"]):", "if False:"))
+mutant("scenario-21", SCN, "an outage may start at its end", ("if not 0 <= a < b <= duration:", "if not 0 <= a <= b <= duration:"))
+mutant("scenario-22", SCN, "pitch amplitude left in degrees", ('traj["pitch_amplitude_rad"] = math.radians(traj.pop("pitch_amplitude_deg"))', 'traj["pitch_amplitude_rad"] = traj.pop("pitch_amplitude_deg")'))
+mutant("simulate-21", SIM, "specific force of the next interval at each sample", ("f_b = np.vstack([u_true[:1, 3:], u_true[:, 3:]]) / dt", "f_b = np.vstack([u_true[:, 3:], u_true[-1:, 3:]]) / dt"))
+mutant("simulate-22", SIM, "one light-time iteration instead of two", ("            for _ in range(2):\n                r_tx", "            for _ in range(1):\n                r_tx"),
+       equivalent="the first iteration already puts the satellite within ~1 mm of its transmit-time position "
+                  "(tau error ~ rho_dot tau / c ~ 2e-7 s): far below the metres of pseudorange noise")
+mutant("simulate-23", SIM, "outage end included", ("keep &= ~((s.t_s >= a) & (s.t_s < b))", "keep &= ~((s.t_s >= a) & (s.t_s <= b))"))
+mutant("simulate-24", SIM, "clock bias and drift prior sigmas swapped", ("sig[L.DX_DC_DT] = CLOCK_BIAS_SIGMA_M\n    sig[L.DX_DC_DDT] = CLOCK_DRIFT_SIGMA_MPS",
+                                                                          "sig[L.DX_DC_DT] = CLOCK_DRIFT_SIGMA_MPS\n    sig[L.DX_DC_DDT] = CLOCK_BIAS_SIGMA_M"))
+mutant("simulate-25", SIM, "noise drawn only for the mode's observables",
+       ("        noise = rng.standard_normal(s.t_s.size)  # drawn for every series: common numbers\n        if kind_name not in MODE_OBSERVABLES[mode]:\n            continue\n",
+        "        if kind_name not in MODE_OBSERVABLES[mode]:\n            continue\n        noise = rng.standard_normal(s.t_s.size)\n"))
+mutant("filter-15", FIL, "record stream not checked", ("        records.check_records(recs, len(self.lib.meas_ids))\n        n = recs.size\n        gates", "        n = recs.size\n        gates"))
+mutant("filter-16", FIL, "applied and gated counts swapped", ("int(out.n_imu), int(out.n_applied), int(out.n_gated),", "int(out.n_imu), int(out.n_gated), int(out.n_applied),"))
+mutant("filter-17", FIL, "a number as gate ignored", ("return np.full(n, float(gate))", "return np.full(n, CHI2_1DOF_999)"))
+mutant("filter-18", FIL, "PCRB 9x9 blocks not transposed", ("return PcrbResult(recs[\"t\"].copy(), B_diag, B_nav.transpose(0, 2, 1), B)", "return PcrbResult(recs[\"t\"].copy(), B_diag, B_nav, B)"),
+       equivalent="the PCRB blocks are symmetric (information-form recursion mirrored as P), so a block and its transpose are identical")
+mutant("models-15", "models/gravity.py", "height term with the wrong sign", ("return g0 * (1 - 2 / a *", "return g0 * (1 + 2 / a *"))
+mutant("models-16", "models/ekf.py", "gyro noise uses the velocity random walk",
+       ('ca.repmat(p[P["arw"].offset] ** 2 * dt, U["dtheta_b"].size, 1)', 'ca.repmat(p[P["vrw"].offset] ** 2 * dt, U["dtheta_b"].size, 1)'))
+mutant("models-17", "models/measurements/gnss_fix.py", "north velocity reads the east component", ('    """North velocity (m/s)."""\n    return x[_V + 1]', '    """North velocity (m/s)."""\n    return x[_V + 0]'))
+mutant("models-18", "models/ekf.py", "information update adds H H^T R", ("return J + ca.mtimes(H.T, H) / R", "return J + ca.mtimes(H.T, H) * R"))
+
 MUTANTS: list[Mutant] = _M
 _ids = [m.id for m in MUTANTS]
 assert len(set(_ids)) == len(_ids), "duplicate mutant id"
