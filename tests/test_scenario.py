@@ -103,6 +103,7 @@ def test_scenario_reference_doc_matches_the_schema():
     ("[gps]\noutages_s = [[nan, 5.0]]\n", "outages_s[0] = [nan, 5.0]"),
     ("[starlink]\ncounts = [5, true]\n", "counts = [5, True]: expected a non-empty list of integers >= 1"),
     ("[starlink]\ncounts = []\n", "counts = []: expected a non-empty list"),
+    ("[gps]\noutages_s = [[5.0, 5.0]]\n", "outages_s[0] = [5.0, 5.0]: expected 0 <= start < end"),
     ("[elements]\nsource = 'files'\n", "[elements] source = 'files' but files is empty"),
     ("[site]\nlat_deg = 90.000001\n", "expected deg in [-90, 90]"),
     ("[site]\nlat_deg = -90.000001\n", "expected deg in [-90, 90]"),
@@ -150,6 +151,11 @@ def test_integers_are_accepted_for_float_fields_and_units_converted(tmp_path):
 
 
 def test_lists_are_normalised_and_paths_relative_to_the_file(tmp_path):
+    assert _load(tmp_path, "[starlink]\ncounts = [1]\n").starlink["counts"] == [1]
+    path = tmp_path / "typo.toml"
+    path.write_text('nmae = "x"\n[time]\nepoch = "2026-02-23T12:00:00Z"\nduration_s = 20.0\n')
+    with pytest.raises(UserInputError, match="unknown section or key 'nmae'"):
+        load_scenario(path)
     s = _load(tmp_path, "[starlink]\ncounts = [10, 5, 10]\n[monte_carlo]\n"
                         "modes = ['leo-alpha+imu', 'gps+imu', 'leo-alpha+imu']\n"
                         "[elements]\nsource = 'files'\nfiles = ['sub/gps.tle', '/abs/sl.tle']\n")

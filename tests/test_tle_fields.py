@@ -214,3 +214,23 @@ def test_writer_implied_exponent_round_trips(value):
     s = Satrec.twoline2rv(l1, l2)
     assert f.bstar_per_earth_radius == pytest.approx(value, rel=5e-5, abs=1e-20) == s.bstar
     assert f.ndot_revday2 == pytest.approx(-1.234e-5) and f.norad_id == 225678 == s.satnum
+
+
+def test_eight_character_designator_and_four_digit_element_number():
+    l1 = _edit(_edit(mod10(ISS_1), 10, "98067ABC"), 65, "1234")
+    f = parse_fields(l1, mod10(ISS_2))
+    s = Satrec.twoline2rv(l1, mod10(ISS_2))
+    assert f.intl_designator == "98067ABC" == s.intldesg and f.element_number == 1234 == s.elnum
+    w1, w2 = tle.format_tle(norad_id=25544, epoch_utc=dt.datetime(2026, 1, 1, tzinfo=UTC), inclination_deg=51.6,
+                            raan_deg=0.0, eccentricity=0.0, arg_perigee_deg=0.0, mean_anomaly_deg=0.0,
+                            mean_motion_revday=15.5, element_number=9876, rev_number=54321, intl_designator="98067ABC")
+    g = parse_fields(w1, w2)
+    assert (g.element_number, g.rev_number, g.intl_designator) == (9876, 54321, "98067ABC")
+
+
+@pytest.mark.parametrize("ecc", [1.0000001, -1e-7, 1.5])
+def test_writer_rejects_eccentricity_outside_0_1(ecc):
+    with pytest.raises(ValueError, match="eccentricity"):
+        tle.format_tle(norad_id=1, epoch_utc=dt.datetime(2026, 1, 1, tzinfo=UTC), inclination_deg=10.0,
+                       raan_deg=0.0, eccentricity=ecc, arg_perigee_deg=0.0, mean_anomaly_deg=0.0,
+                       mean_motion_revday=15.5)

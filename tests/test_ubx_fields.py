@@ -291,3 +291,27 @@ def test_measx_time_of_week_accuracy_scale():
     assert x.gps_tow_acc_s == pytest.approx(1.5e-3) and x.tow_set == 1 and x.satellites == []
     assert (x.gps_tow_s, x.glo_tow_s, x.bds_tow_s, x.qzss_tow_s) == pytest.approx((436762.0, 447544.0, 436748.0,
                                                                                    436762.0))
+
+
+@pytest.mark.parametrize("cls, mid, size, needle", [
+    (0x01, 0x07, 80, "NAV-PVT payload is 80 bytes"),
+    (0x01, 0x20, 20, "NAV-TIMEGPS payload is 20 bytes"),
+    (0x01, 0x20, 12, "NAV-TIMEGPS payload is 12 bytes"),
+    (0x05, 0x01, 3, "ACK payload is 3 bytes"),
+])
+def test_wrong_payload_sizes_are_errors(cls, mid, size, needle):
+    with pytest.raises(ValueError, match=needle):
+        ubx.decode_frame(UbxFrame(0.0, cls, mid, bytes(size)))
+
+
+def test_rawx_and_measx_sizes_must_match_their_counts():
+    head = bytearray(16)
+    head[11] = 2                                   # numMeas = 2: 16 + 64 bytes
+    with pytest.raises(ValueError, match=r"RXM-RAWX payload is 48 bytes, expected 16 \+ 32\*2"):
+        ubx.decode_frame(UbxFrame(0.0, 0x02, 0x15, bytes(head) + bytes(32)))
+    with pytest.raises(ValueError, match=r"RXM-RAWX payload is 112 bytes"):
+        ubx.decode_frame(UbxFrame(0.0, 0x02, 0x15, bytes(head) + bytes(96)))
+    head = bytearray(44)
+    head[34] = 1                                   # numSV = 1: 44 + 24 bytes
+    with pytest.raises(ValueError, match=r"RXM-MEASX payload is 44 bytes, expected 44 \+ 24\*1"):
+        ubx.decode_frame(UbxFrame(0.0, 0x02, 0x14, bytes(head)))
