@@ -216,3 +216,20 @@ def test_comb_residual_takes_the_more_precise_drift_estimate():
                              100.0 - 0.5 * t, 0.1, 50.0, 0.02)
     assert r.slope_hz_s == pytest.approx(1.8)
     assert r.mean_t_s == 1.0 and r.intercept(1.8) == pytest.approx(8.0 - 1.8)
+    # the rates of neighbouring epochs share half their fit window: sigma of their mean is sqrt(2) larger
+    sig_rate = np.sqrt(2 * 0.1**2 / 3)
+    assert r.sigma_slope_hz_s == pytest.approx(np.sqrt(sig_rate**2 + (0.5 * 0.1) ** 2 + 0.02**2))
+    # offset sigma: the 50 Hz floor and alpha * sigma_t (rms predicted rate 99.5 Hz/s), plus the fit
+    rms_rate = np.sqrt(np.mean((100.0 - 0.5 * t) ** 2))
+    assert r.sigma_offset_hz == pytest.approx(np.hypot(np.hypot(50.0, 0.1 * rms_rate), 20.0 / np.sqrt(3)))
+
+
+def test_combs_without_all_tones_leave_the_offset_ambiguous_by_the_spacing(pred):
+    """5 of the 9 tones per satellite: the channel index is not fixed, the offset is known modulo the spacing."""
+    t = np.arange(1.0, 16.0)
+    D, A = pred.at(t)
+    tones = [(r, k) for r in ROWS[:3] for k in range(-2, 3)]
+    ms = [_meas(i, t, D[r] + 20e3 + k * SPACING, A[r]) for i, (r, k) in enumerate(tones)]
+    res = associate.associate_capture(ms, pred)
+    assert not res.lo.pinned and "modulo the tone spacing" in res.lo.note
+    assert abs(lo_fit.wrap(res.lo.offset_hz - 20e3, SPACING)) < 3.0

@@ -129,3 +129,35 @@ def test_update_covariance_is_the_kalman_one(lib, params):
     S = H @ b + 4.0
     np.testing.assert_allclose(ekf.P_post, ekf.P_prior - np.outer(b, b) / S, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(ekf.x_post[:3] - ekf.x_prior[:3], (b / S * 2.0)[:3], rtol=1e-9, atol=1e-12)
+
+
+def test_run_checks_the_record_stream(lib, params):
+    rng = np.random.default_rng(1)
+    recs = static_stream(lib, params, 0.1, rng, fix_sigma=2.0)
+    ekf = lf.EKF(x_rest(), P0(), params, library=lib)
+    bad = recs.copy()
+    bad["kind"][3] = 99
+    with pytest.raises(ValueError, match="record 3: kind 99"):
+        ekf.run(bad)
+    bad = recs.copy()
+    bad["t"][4] = np.nan
+    with pytest.raises(ValueError, match="record 4: t is not finite"):
+        ekf.run(bad)
+    with pytest.raises(ValueError, match="dtype"):
+        ekf.run(np.zeros(3))
+
+
+def test_fix_observables_read_their_own_component(lib, params):
+    """pos_e/n/u and vel_e/n/u measure the matching state and nothing else (H a unit row)."""
+    lay = lib.layout
+    x = x_rest()
+    x[lay.X_P_ENU:lay.X_P_ENU + 3] = [1.5, -2.5, 3.5]
+    x[lay.X_V_ENU:lay.X_V_ENU + 3] = [0.25, -0.75, 1.25]
+    ekf = lf.EKF(x, P0(), params, library=lib)
+    for i, axis in enumerate("enu"):
+        for name, off, dx in (("pos", lay.X_P_ENU, lay.DX_DP), ("vel", lay.X_V_ENU, lay.DX_DV)):
+            h, H = ekf.h(f"{name}_{axis}")
+            assert h == pytest.approx(x[off + i])
+            expected = np.zeros(lay.NDX)
+            expected[dx + i] = 1.0
+            np.testing.assert_allclose(H, expected, atol=1e-12)

@@ -308,11 +308,13 @@ def test_noisy_trial_records_specific_force_noise_and_outages(paper_setup):
 
 
 def test_doppler_rate_of_a_moving_receiver_matches_the_second_difference_of_range():
-    """A vessel at 20 m/s due East on a straight line: the noise-free Doppler rate, whose receiver
-    acceleration the model rebuilds from the specific force (gravity and Coriolis removed), equals
-    -(f/c) times the second difference of the range between the truth trajectory and the satellite."""
+    """A vessel at 20 m/s due East that starts to accelerate (3 m/s^2) at t = 2 s: the noise-free
+    Doppler rate, whose receiver acceleration the model rebuilds from the specific force (gravity
+    and Coriolis removed), equals -(f/c) times the second difference of the range between the truth
+    trajectory and the satellite. At t = 2 s the measurement reflects the IMU interval that ends
+    there (no acceleration yet): the receiver's next position is taken on its straight line."""
     scn = _scenario("maritime-outage", time__duration_s=3.0, trajectory__attitude_deg=[0.0, 0.0, 0.0],
-                    trajectory__speed_mps=20.0, trajectory__maneuvers=[[3.0, 0.0, 0.0]],
+                    trajectory__speed_mps=20.0, trajectory__maneuvers=[[2.0, 0.0, 0.0], [1.0, 3.0, 0.0]],
                     trajectory__roll_amplitude_deg=0.0, trajectory__pitch_amplitude_deg=0.0,
                     gps__outages_s=[], starlink__counts=[10], monte_carlo__modes=["leo-alpha+imu"])
     setup, nav = mc.setup_for(scn)
@@ -320,17 +322,35 @@ def test_doppler_rate_of_a_moving_receiver_matches_the_second_difference_of_rang
     a = setup.series["doppler_rate"]
     dt = 1.0 / scn.imu_rate_hz
     r0 = geometry.geodetic_to_ecef(scn.lat_rad, scn.lon_rad, scn.alt_m)
-    assert np.all(np.abs(setup.x_true[:, L.X_V_ENU] - 20.0) < 1e-6)
+    k2 = int(round(2.0 / dt))
+    assert np.all(np.abs(setup.x_true[:k2 + 1, L.X_V_ENU] - 20.0) < 1e-6) and setup.x_true[-1, L.X_V_ENU] > 22.9
     checked = 0
     for i in range(a.t_s.size):
         k = int(round(a.t_s[i] / dt))
         if k + 1 >= setup.t_imu.size:
             continue
         checked += 1
-        p = geometry.enu_to_ecef(setup.x_true[k - 1:k + 2, L.X_P_ENU:L.X_P_ENU + 3], r0, scn.lat_rad, scn.lon_rad)
+        p = geometry.enu_to_ecef(setup.x_true[k - 1:k + 1, L.X_P_ENU:L.X_P_ENU + 3], r0, scn.lat_rad, scn.lon_rad)
+        p = np.vstack([p, 2 * p[1] - p[0]])        # straight on over the next interval
         r, v, acc = (a.aux[i, off:off + 3] for off in (L.AUX_R_S_ECEF, L.AUX_V_S_ECEF, L.AUX_A_S_ECEF))
         s = np.array([r + v * d + 0.5 * acc * d * d for d in (-dt, 0.0, dt)])
         rho = np.linalg.norm(s - p, axis=1)
         rho_ddot = (rho[0] - 2 * rho[1] + rho[2]) / dt**2
         assert a.z_true[i] == pytest.approx(-F_C / C * rho_ddot, abs=0.01)    # Hz/s (Coriolis here: ~0.2)
     assert checked == 20
+
+
+def test_filter_prior_is_the_documented_one(paper_setup):
+    """P0: the scenario's navigation sigmas, the IMU profile's bias sigmas, clock 1 us (300 m) and
+    1 m/s, LO 50 kHz."""
+    scn, setup, nav = paper_setup
+    L, prof = nav.layout, setup.imu_profile
+    sd = np.sqrt(np.diag(setup.P0))
+    f = scn.filter
+    assert sd[L.DX_DP:L.DX_DP + 3] == pytest.approx([f["initial_position_sigma_m"]] * 3)
+    assert sd[L.DX_DV:L.DX_DV + 3] == pytest.approx([f["initial_velocity_sigma_mps"]] * 3)
+    assert sd[L.DX_DTHETA:L.DX_DTHETA + 3] == pytest.approx([math.radians(1.0)] * 3)
+    assert sd[L.DX_DB_A:L.DX_DB_A + 3] == pytest.approx(np.broadcast_to(prof.acc_bias_sigma, 3))
+    assert sd[L.DX_DB_G:L.DX_DB_G + 3] == pytest.approx(np.broadcast_to(prof.gyro_bias_sigma, 3))
+    assert sd[L.DX_DC_DT] == pytest.approx(C * 1e-6, rel=1e-3) and sd[L.DX_DC_DDT] == 1.0
+    assert sd[L.DX_DB_LO] == 50e3 and np.count_nonzero(setup.P0 - np.diag(np.diag(setup.P0))) == 0
