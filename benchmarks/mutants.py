@@ -240,7 +240,8 @@ mutant("filter-08", FIL, "P0 shape not checked", ("        if arr.shape != (self
 mutant("filter-09", FIL, "vector length not checked", ("        if arr.size != n:\n            raise ValueError", "        if False:\n            raise ValueError"))
 mutant("filter-10", FIL, "chi-square gate at 99 % (6.63)", ("CHI2_1DOF_999 = 10.827566170662733", "CHI2_1DOF_999 = 6.634896601021214"))
 mutant("filter-11", FIL, "full P blocks returned transposed", ("p_hist = p_hist.transpose(0, 2, 1)  # each block was written column-major", "pass"),
-       equivalent="P is symmetric (the generated update and predict form only the upper triangle and mirror it), so a block and its transpose are identical")
+       equivalent="P is exactly symmetric (the generated predict and update form the upper triangle and mirror it; "
+                  "every block of a run equals its transpose bit for bit), so the transpose changes nothing")
 mutant("filter-12", FIL, "x_prior not saved after predict", ("        self.status = int(status)\n        self.x_prior, self.P_prior = self.x.copy(), self.P.copy(order=\"F\")\n        return self.status",
                                                              "        self.status = int(status)\n        return self.status"))
 mutant("filter-13", FIL, "pcrb x_lin shape not checked", ("    if x_lin.shape != (n, nx):\n", "    if False:\n"))
@@ -315,7 +316,8 @@ mutant("filter-15", FIL, "record stream not checked", ("        records.check_re
 mutant("filter-16", FIL, "applied and gated counts swapped", ("int(out.n_imu), int(out.n_applied), int(out.n_gated),", "int(out.n_imu), int(out.n_gated), int(out.n_applied),"))
 mutant("filter-17", FIL, "a number as gate ignored", ("return np.full(n, float(gate))", "return np.full(n, CHI2_1DOF_999)"))
 mutant("filter-18", FIL, "PCRB 9x9 blocks not transposed", ("return PcrbResult(recs[\"t\"].copy(), B_diag, B_nav.transpose(0, 2, 1), B)", "return PcrbResult(recs[\"t\"].copy(), B_diag, B_nav, B)"),
-       equivalent="the PCRB blocks are symmetric (information-form recursion mirrored as P), so a block and its transpose are identical")
+       equivalent="the PCRB blocks are exactly symmetric (every block of a run equals its transpose bit for bit), "
+                  "so the transpose changes nothing")
 mutant("models-15", "models/gravity.py", "height term with the wrong sign", ("return g0 * (1 - 2 / a *", "return g0 * (1 + 2 / a *"))
 mutant("models-16", "models/ekf.py", "gyro noise uses the velocity random walk",
        ('ca.repmat(p[P["arw"].offset] ** 2 * dt, U["dtheta_b"].size, 1)', 'ca.repmat(p[P["vrw"].offset] ** 2 * dt, U["dtheta_b"].size, 1)'))
