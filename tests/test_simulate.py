@@ -176,7 +176,8 @@ def test_gps_selection_is_the_highest_satellites_seen_by_skyfield(paper_setup, s
     gps = {n: sats[n] for n in groups["gps"]}
     for t in epochs[::20]:
         tt = _times(ts, scn, t)
-        el = {n: (sf_api.EarthSatellite.from_satrec(rec, ts) - site).at(tt).altaz()[0].degrees for n, rec in gps.items()}
+        el = {n: (sf_api.EarthSatellite.from_satrec(rec, ts) - site).at(tt).altaz()[0].degrees
+              for n, rec in gps.items()}
         top = sorted((n for n in el if el[n] >= 10.0), key=lambda n: -el[n])[: scn.gps["max_satellites"]]
         at = s.t_s == t
         assert list(s.sat_id[at][np.argsort(s.rank[at])]) == top

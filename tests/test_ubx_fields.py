@@ -156,7 +156,8 @@ def test_rxm_rawx_every_field_matches_pyubx2(log):
     seen = {"half": False, "no_half": False, "cp_std": set(), "do_std": set(), "pr_std": set()}
     for e, m in pairs:
         assert e.rcv_tow_s == m.rcvTow and e.week == m.week and e.leap_s == m.leapS
-        assert e.leap_valid == bool(m.leapSec) and e.clk_reset == bool(m.clkReset) and e.version == m.reserved1 & 0xFF  # pyubx2 folds version into reserved1
+        assert e.leap_valid == bool(m.leapSec) and e.clk_reset == bool(m.clkReset)
+        assert e.version == m.reserved1 & 0xFF   # pyubx2 reads the version byte as part of reserved1
         assert len(e.measurements) == m.numMeas
         for n, r in enumerate(e.measurements, 1):
             f = lambda name: getattr(m, f"{name}_{n:02d}")  # noqa: E731
@@ -190,7 +191,8 @@ def test_rxm_measx_every_field_matches_pyubx2():
         assert len(x.satellites) == m.numSv
         for n, s in enumerate(x.satellites, 1):
             f = lambda name: getattr(m, f"{name}_{n:02d}")  # noqa: E731
-            assert (s.gnss_id, s.sv_id, s.cno_dbhz, s.mpath_indic) == (f("gnssId"), f("svId"), f("cNo"), f("mpathIndic"))
+            assert (s.gnss_id, s.sv_id, s.cno_dbhz, s.mpath_indic) == (
+                f("gnssId"), f("svId"), f("cNo"), f("mpathIndic"))
             assert s.doppler_mps == pytest.approx(f("dopplerMS"), abs=1e-9)
             assert s.doppler_hz == pytest.approx(f("dopplerHz"), abs=1e-9)
             assert (s.whole_chips, s.frac_chips, s.int_code_phase_ms, s.pseu_range_rms_err) == (
