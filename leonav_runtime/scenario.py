@@ -217,7 +217,7 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
         if key not in SCHEMA and not (key in SCHEMA[""]):
             raise UserInputError(
                 f"{source}: unknown section or key {key!r}; expected one of "
-                f"{', '.join(sorted(k for k in SCHEMA if k) | set(SCHEMA['']))}"
+                f"{', '.join(sorted({k for k in SCHEMA if k} | set(SCHEMA[''])))}"
             )
     for section, fields in SCHEMA.items():
         given = data if section == "" else data.get(section, {})

@@ -56,10 +56,7 @@ def test_pseudoranges_match_an_independent_range_with_light_time_and_sagnac(pape
     sagnac = W_E / C * (r_tx[:, 0] * r_rx[1] - r_tx[:, 1] * r_rx[0])
     assert np.max(np.abs(s.z_true - (rho + sagnac))) < 1e-3
     assert np.all(s.H[:, L.DX_DC_DT] == pytest.approx(1.0))
-    # transmit time: the satellite at t - rho/c, not at t (a 70 ms shift is ~270 m for GPS)
-    v = s.aux[:, L.AUX_V_S_ECEF:L.AUX_V_S_ECEF + 3]
-    r_rx_time = r_tx + v * rho[:, None] / C
-    assert np.all(np.linalg.norm(r_rx_time - r_tx, axis=1) > 100.0)
+    # the transmit time itself is checked against skyfield in test_pseudorange_is_the_light_time_range_of_skyfield
     per_epoch = np.unique(s.t_s, return_counts=True)[1]
     assert np.all(per_epoch == scn.gps["max_satellites"])
 
@@ -110,3 +107,251 @@ def test_trials_share_random_numbers_across_modes_and_executors(paper_setup):
     assert np.array_equal(imu_a["u"], imu_b["u"]) and np.array_equal(a.x0, b.x0)
     c = simulate.trial_records(setup, "gps+imu", 5, mc.trial_rng(1, 4), nav)
     assert not np.array_equal(a.x0, c.x0)
+
+
+# ---- measurement geometry against skyfield (independent SGP4 frames, time scales, light time) -----
+
+
+F_C = 11.325e9
+sf_api = itrs = None   # skyfield.api and its ITRS frame, imported by the `sky` fixture (skip without skyfield)
+
+
+@pytest.fixture(scope="module")
+def sky(paper_setup):
+    """Skyfield objects of the scenario: time scale with UT1 = UTC (as the simulator's SGP4 frames),
+    the site, and every satellite of the built-in element sets by NORAD id."""
+    global sf_api, itrs
+    sf_api = pytest.importorskip("skyfield.api", reason="skyfield (independent reference) is in the test extra")
+    itrs = pytest.importorskip("skyfield.framelib").itrs
+    scn, _, _ = paper_setup
+    # constant Delta T = TT - UTC (32.184 s + 37 leap seconds): UT1 = UTC, the simulator's assumption
+    ts = sf_api.load.timescale(delta_t=69.184)
+    site = sf_api.wgs84.latlon(math.degrees(scn.lat_rad), math.degrees(scn.lon_rad), scn.alt_m)
+    sats, groups = {}, {}
+    for name, es in simulate.scenario_elements(scn).items():
+        for norad, rec in zip(es.norad_ids, es.satrecs):
+            sats[int(norad)] = rec
+            groups.setdefault(name, []).append(int(norad))
+    return ts, site, sats, groups
+
+
+def _times(ts, scn, t_s, shift_s=0.0):
+    t = ts.from_datetime(scn.epoch_utc)   # two-part Julian date: a 1 ms step must not be rounded
+    return ts.tt_jd(t.whole, t.tt_fraction + (np.asarray(t_s, float) - shift_s) / 86400.0)
+
+
+def _sat(sky, norad):
+    ts, _, sats, _ = sky
+    return sf_api.EarthSatellite.from_satrec(sats[norad], ts)
+
+
+def test_pseudorange_is_the_light_time_range_of_skyfield(paper_setup, sky):
+    """Noise-free pseudorange (clock at zero) = c * tau, tau the signal's flight time between the
+    satellite at transmit time t - tau and the receiver at t, both in skyfield's inertial GCRS;
+    aux carries the satellite's ECEF position and velocity at the transmit time."""
+    scn, setup, nav = paper_setup
+    ts, site, _, _ = sky
+    s, L = setup.series["pseudorange"], nav.layout
+    rows = np.flatnonzero(s.t_s <= np.unique(s.t_s)[2])      # three epochs, every satellite
+    assert rows.size == 3 * scn.gps["max_satellites"]
+    for i in rows:
+        sat = _sat(sky, int(s.sat_id[i]))
+        t_rx = _times(ts, scn, s.t_s[i])
+        r_rx = site.at(t_rx).position.m
+        tau = 0.07
+        for _ in range(4):
+            tau = np.linalg.norm(sat.at(_times(ts, scn, s.t_s[i], tau)).position.m - r_rx) / C
+        assert s.z_true[i] == pytest.approx(C * tau, abs=0.02)               # m
+        r_e, v_e = sat.at(_times(ts, scn, s.t_s[i], tau)).frame_xyz_and_velocity(itrs)
+        assert np.linalg.norm(s.aux[i, L.AUX_R_S_ECEF:L.AUX_R_S_ECEF + 3] - r_e.m) < 0.2
+        assert np.linalg.norm(s.aux[i, L.AUX_V_S_ECEF:L.AUX_V_S_ECEF + 3] - v_e.m_per_s) < 5e-3
+
+
+def test_gps_selection_is_the_highest_satellites_seen_by_skyfield(paper_setup, sky):
+    scn, setup, _ = paper_setup
+    ts, site, sats, groups = sky
+    s = setup.series["pseudorange"]
+    epochs = np.unique(s.t_s)
+    assert epochs == pytest.approx(np.arange(1, epochs.size + 1) / scn.gps["rate_hz"])   # first epoch after 0
+    gps = {n: sats[n] for n in groups["gps"]}
+    for t in epochs[::20]:
+        tt = _times(ts, scn, t)
+        el = {n: (sf_api.EarthSatellite.from_satrec(rec, ts) - site).at(tt).altaz()[0].degrees
+              for n, rec in gps.items()}
+        top = sorted((n for n in el if el[n] >= 10.0), key=lambda n: -el[n])[: scn.gps["max_satellites"]]
+        at = s.t_s == t
+        assert list(s.sat_id[at][np.argsort(s.rank[at])]) == top
+
+
+def test_doppler_and_ofdm_match_skyfield_ranges(paper_setup, sky):
+    """Doppler = -(f/c) d(rho)/dt (LO at zero; range rate from skyfield's Earth-fixed satellite
+    velocity) and OFDM = rho_i - rho_ref with the reference the highest satellite of the epoch."""
+    scn, setup, nav = paper_setup
+    ts, site, _, _ = sky
+    d, o = setup.series["doppler"], setup.series["ofdm_range_diff"]
+    r_rx = site.itrs_xyz.m
+    t0 = np.unique(d.t_s)[1]
+
+    def itrs_state(norad):
+        r, v = _sat(sky, norad).at(_times(ts, scn, t0)).frame_xyz_and_velocity(itrs)
+        return r.m - r_rx, v.m_per_s
+
+    at = np.flatnonzero(d.t_s == t0)
+    el = np.array([(_sat(sky, int(n)) - site).at(_times(ts, scn, t0)).altaz()[0].degrees for n in d.sat_id[at]])
+    ref = int(d.sat_id[at][np.argmax(el)])
+    rho_ref = np.linalg.norm(itrs_state(ref)[0])
+    for i in at[:15]:
+        los, v = itrs_state(int(d.sat_id[i]))
+        assert d.z_true[i] == pytest.approx(-F_C / C * (los @ v) / np.linalg.norm(los), abs=0.01)   # Hz
+    for i in np.flatnonzero(o.t_s == t0)[:15]:
+        rho = np.linalg.norm(itrs_state(int(o.sat_id[i]))[0])
+        assert o.z_true[i] == pytest.approx(rho - rho_ref, abs=0.01)    # m
+
+
+@pytest.fixture(scope="module")
+def long_setup():
+    """Ten minutes at 1/20 Hz: GPS and Starlink satellites rise and set during the run."""
+    scn = _scenario(time__duration_s=600.0, imu__rate_hz=1.0, gps__rate_hz=0.05, starlink__rate_hz=0.05,
+                    starlink__counts=[5], monte_carlo__modes=["gps+imu", "leo-alpha+imu"])
+    return scn, simulate.prepare(scn)
+
+
+def _visible_counts(scn, es, t_s, mask_deg):
+    from leonav_runtime.orbits import propagate_ecef
+
+    st = propagate_ecef(es, scn.epoch_utc, t_s, acceleration=False)
+    r_rx = geometry.geodetic_to_ecef(scn.lat_rad, scn.lon_rad, scn.alt_m)
+    up = np.array([math.cos(scn.lat_rad) * math.cos(scn.lon_rad), math.cos(scn.lat_rad) * math.sin(scn.lon_rad),
+                   math.sin(scn.lat_rad)])
+    los = st.r_ecef_m - r_rx
+    sin_el = (los @ up) / np.linalg.norm(los, axis=-1)
+    return np.sum(sin_el >= math.sin(math.radians(mask_deg)), axis=0)
+
+
+def test_fewest_visible_satellites_is_the_worst_epoch(long_setup):
+    scn, setup = long_setup
+    es = simulate.scenario_elements(scn)
+    t = np.arange(1, 31) * 20.0
+    gps = _visible_counts(scn, es["gps"], t, 10.0)
+    star = _visible_counts(scn, es["starlink"], t, 28.0)
+    assert gps.min() < gps.max() and star.min() < star.max()   # the counts do change over the run
+    assert setup.visible_min == {"gps": gps.min(), "starlink": star.min()}
+    per_epoch = np.unique(setup.series["pseudorange"].t_s, return_counts=True)[1]
+    assert np.all(per_epoch == 8)
+
+
+def test_measurement_rate_must_divide_the_imu_rate_and_gps_needs_four():
+    import warnings
+
+    from tests.conftest import shared_file
+
+    gps_only = dict(imu__rate_hz=10.0, time__duration_s=1.0, time__epoch="2026-03-09T12:00:00Z",
+                    monte_carlo__modes=["gps+imu"], elements__source="files",
+                    elements__files=[str(shared_file("tle/gps-ops_2026-03-09.txt"))])   # 32 real GPS sets: fast
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # two of the sets are 6 days old: irrelevant here
+        with pytest.raises(UserInputError, match=r"measurement rate 3.0 Hz must divide the IMU rate 10.0 Hz"):
+            simulate.prepare(_scenario(gps__rate_hz=3.0, **gps_only))
+        # two satellites above 60 deg at this epoch: a position needs four
+        with pytest.raises(UserInputError, match=r"only 2 GPS satellites above the mask"):
+            simulate.prepare(_scenario(gps__elevation_mask_deg=60.0, gps__max_satellites=4, **gps_only))
+        assert simulate.prepare(_scenario(gps__rate_hz=5.0, **gps_only)).visible_min["gps"] >= 4
+
+
+def test_noise_free_trial_adds_the_clock_and_lo_offset_with_their_signs(paper_setup):
+    scn, setup, nav = paper_setup
+    L = nav.layout
+    trial = simulate.trial_records(setup, "gps+leo-alpha+imu", 45, np.random.default_rng(2), nav, noise_free=True)
+    assert trial.x_true[:, L.X_B_LO] == pytest.approx(scn.starlink["lo_offset_hz"])
+    t = setup.t_imu
+    assert trial.x_true[:, L.X_C_DT] == pytest.approx(scn.gps["clock_bias_m"] + scn.gps["clock_drift_mps"] * t)
+    rec = trial.records
+    pr = rec[rec["kind"] == setup.series["pseudorange"].kind]
+    s = setup.series["pseudorange"]
+    assert pr["z"] - s.z_true == pytest.approx(scn.gps["clock_bias_m"] + scn.gps["clock_drift_mps"] * s.t_s)
+    assert np.all(pr["R"] == scn.gps["pseudorange_sigma_m"] ** 2)
+    trial = simulate.trial_records(setup, "leo-doppler+alpha+imu", 45, np.random.default_rng(2), nav,
+                                   noise_free=True)
+    d = setup.series["doppler"]
+    dop = trial.records[trial.records["kind"] == d.kind]
+    assert dop["z"] - d.z_true == pytest.approx(scn.starlink["lo_offset_hz"])   # measured = predicted + b_lo
+
+
+def test_noisy_trial_records_specific_force_noise_and_outages(paper_setup):
+    import dataclasses
+
+    from models.input_noise import doppler_rate_variance
+
+    scn, setup, nav = paper_setup
+    L = nav.layout
+    trial = simulate.trial_records(setup, "gps+leo-alpha+imu", 45, np.random.default_rng(3), nav)
+    rec = trial.records
+    imu = rec[rec["kind"] < 0]
+    a = rec[rec["kind"] == setup.series["doppler_rate"].kind]
+    dt = 1.0 / scn.imu_rate_hz
+    n_avg = int(round(simulate.F_B_AVERAGE_S / dt))
+    sigma = scn.starlink["doppler_rate_sigma_hz_s"]
+    R = doppler_rate_variance(sigma, setup.params[L.P_F_C_HZ], setup.imu_profile.vrw, n_avg * dt)
+    assert R > sigma**2 and np.all(a["R"] == pytest.approx(R))
+    for r in a[::37]:   # aux f_b: the measured velocity increments of the last 0.1 s, averaged
+        k = int(round(r["t"] / dt))
+        f = imu["u"][k - n_avg:k, 3:].sum(axis=0) / (n_avg * dt)
+        assert r["aux"][L.AUX_F_B:L.AUX_F_B + 3] == pytest.approx(f, abs=1e-12)
+    z = a["z"] - setup.series["doppler_rate"].z_true[setup.series["doppler_rate"].rank < 45]
+    assert 0.5 * sigma < np.std(z) < 2.0 * sigma
+    # a GPS outage removes exactly the epochs inside [start, end)
+    out_scn = _scenario(time__duration_s=6.0, starlink__counts=[5, 45], gps__outages_s=[[2.0, 4.0]])
+    out = dataclasses.replace(setup, scn=out_scn)
+    rec = simulate.trial_records(out, "gps+imu", 5, np.random.default_rng(3), nav).records
+    t = rec["t"][rec["kind"] == setup.series["pseudorange"].kind]
+    assert not np.any((t >= 2.0 - 1e-9) & (t < 4.0 - 1e-9))
+    assert np.unique(t).size == np.unique(setup.series["pseudorange"].t_s).size - 20
+
+
+def test_doppler_rate_of_a_moving_receiver_matches_the_second_difference_of_range():
+    """A vessel at 20 m/s due East that starts to accelerate (3 m/s^2) at t = 2 s: the noise-free
+    Doppler rate, whose receiver acceleration the model rebuilds from the specific force (gravity
+    and Coriolis removed), equals -(f/c) times the second difference of the range between the truth
+    trajectory and the satellite. At t = 2 s the measurement reflects the IMU interval that ends
+    there (no acceleration yet): the receiver's next position is taken on its straight line."""
+    scn = _scenario("maritime-outage", time__duration_s=3.0, trajectory__attitude_deg=[0.0, 0.0, 0.0],
+                    trajectory__speed_mps=20.0, trajectory__maneuvers=[[2.0, 0.0, 0.0], [1.0, 3.0, 0.0]],
+                    trajectory__roll_amplitude_deg=0.0, trajectory__pitch_amplitude_deg=0.0,
+                    gps__outages_s=[], starlink__counts=[10], monte_carlo__modes=["leo-alpha+imu"])
+    setup, nav = mc.setup_for(scn)
+    L = nav.layout
+    a = setup.series["doppler_rate"]
+    dt = 1.0 / scn.imu_rate_hz
+    r0 = geometry.geodetic_to_ecef(scn.lat_rad, scn.lon_rad, scn.alt_m)
+    k2 = int(round(2.0 / dt))
+    assert np.all(np.abs(setup.x_true[:k2 + 1, L.X_V_ENU] - 20.0) < 1e-6) and setup.x_true[-1, L.X_V_ENU] > 22.9
+    checked = 0
+    for i in range(a.t_s.size):
+        k = int(round(a.t_s[i] / dt))
+        if k + 1 >= setup.t_imu.size:
+            continue
+        checked += 1
+        p = geometry.enu_to_ecef(setup.x_true[k - 1:k + 1, L.X_P_ENU:L.X_P_ENU + 3], r0, scn.lat_rad, scn.lon_rad)
+        p = np.vstack([p, 2 * p[1] - p[0]])        # straight on over the next interval
+        r, v, acc = (a.aux[i, off:off + 3] for off in (L.AUX_R_S_ECEF, L.AUX_V_S_ECEF, L.AUX_A_S_ECEF))
+        s = np.array([r + v * d + 0.5 * acc * d * d for d in (-dt, 0.0, dt)])
+        rho = np.linalg.norm(s - p, axis=1)
+        rho_ddot = (rho[0] - 2 * rho[1] + rho[2]) / dt**2
+        assert a.z_true[i] == pytest.approx(-F_C / C * rho_ddot, abs=0.01)    # Hz/s (Coriolis here: ~0.2)
+    assert checked == 20
+
+
+def test_filter_prior_is_the_documented_one(paper_setup):
+    """P0: the scenario's navigation sigmas, the IMU profile's bias sigmas, clock 1 us (300 m) and
+    1 m/s, LO 50 kHz."""
+    scn, setup, nav = paper_setup
+    L, prof = nav.layout, setup.imu_profile
+    sd = np.sqrt(np.diag(setup.P0))
+    f = scn.filter
+    assert sd[L.DX_DP:L.DX_DP + 3] == pytest.approx([f["initial_position_sigma_m"]] * 3)
+    assert sd[L.DX_DV:L.DX_DV + 3] == pytest.approx([f["initial_velocity_sigma_mps"]] * 3)
+    assert sd[L.DX_DTHETA:L.DX_DTHETA + 3] == pytest.approx([math.radians(1.0)] * 3)
+    assert sd[L.DX_DB_A:L.DX_DB_A + 3] == pytest.approx(np.broadcast_to(prof.acc_bias_sigma, 3))
+    assert sd[L.DX_DB_G:L.DX_DB_G + 3] == pytest.approx(np.broadcast_to(prof.gyro_bias_sigma, 3))
+    assert sd[L.DX_DC_DT] == pytest.approx(C * 1e-6, rel=1e-3) and sd[L.DX_DC_DDT] == 1.0
+    assert sd[L.DX_DB_LO] == 50e3 and np.count_nonzero(setup.P0 - np.diag(np.diag(setup.P0))) == 0
