@@ -7,10 +7,8 @@ turns a hang into a failure).
 from __future__ import annotations
 
 import json
-import signal
 import time
 import tracemalloc
-from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -20,23 +18,10 @@ from leonav_runtime.beacons.ridges import Ridge, RidgeTracker, TrackerConfig
 from leonav_runtime.cli import main
 from leonav_runtime.errors import UserInputError
 from tests.conftest import shared_file
+from tests.timebox import bounded
 
 FS = 250e3
 
-
-@contextmanager
-def bounded(seconds: float):
-    """Fail (TimeoutError) when the block runs longer than `seconds` of wall time."""
-    def _alarm(signum, frame):
-        raise TimeoutError(f"took longer than {seconds} s")
-
-    old = signal.signal(signal.SIGALRM, _alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
 
 
 def _cu8(path, x, fs=FS, start="2026-02-23T06:00:00Z"):

@@ -8,10 +8,7 @@ from __future__ import annotations
 
 import json
 import os
-import signal
-import time
 import warnings
-from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -22,23 +19,8 @@ from leonav_runtime.orbits import load_elements, parse_elements_text
 from leonav_runtime.orbits import tle as tle_mod
 MAX_ELEMENT_MB_ENV = "LEONAV_MAX_ELEMENT_MB"  # documented in orbits/elements.py and `leonav --help`
 from tests.conftest import shared_file
+from tests.timebox import bounded
 
-
-@contextmanager
-def bounded(seconds: float):
-    """Fail (TimeoutError) when the block runs longer than `seconds` of wall time."""
-    def _alarm(signum, frame):
-        raise TimeoutError(f"took longer than {seconds} s")
-
-    old = signal.signal(signal.SIGALRM, _alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    start = time.monotonic()
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
-    assert time.monotonic() - start < seconds
 
 
 def _omm_csv() -> tuple[str, list[str], list[str]]:

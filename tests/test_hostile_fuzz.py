@@ -18,9 +18,7 @@ import csv
 import datetime as dt
 import io
 import json
-import signal
 import warnings
-from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -30,25 +28,10 @@ from leonav_runtime.errors import UserInputError
 from leonav_runtime.orbits import load_elements, parse_elements_text
 from leonav_runtime.orbits import tle as tle_mod
 from tests.conftest import shared_file
+from tests.timebox import bounded
 
 T0 = dt.datetime(2026, 2, 23, 6, 0, tzinfo=dt.timezone.utc)
 
-
-@contextmanager
-def bounded(seconds: float):
-    def _alarm(signum, frame):
-        raise TimeoutError(f"fuzz run took longer than {seconds} s")
-
-    old = signal.signal(signal.SIGALRM, _alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
-
-
-# ------------------------------------------------------------------ mutations
 
 
 def _line_starts(data: bytes) -> list[int]:
