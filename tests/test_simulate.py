@@ -42,7 +42,7 @@ def test_static_truth_stays_put_and_vessel_truth_follows_its_manoeuvres(paper_se
     x = sea_setup.x_true
     assert np.max(np.abs(x[:, 3:6] - m.v_enu_mps)) < 1e-9
     rpy = sea_nav.euler_from_quat(x[:, 6:10])
-    assert np.max(np.abs(np.angle(np.exp(1j * (rpy - m.euler_rad))))) < 1e-9
+    assert np.max(np.abs(np.angle(np.exp(1j * (rpy - m.rpy_rad))))) < 1e-9
     assert np.max(np.abs(x[:, 0:3] - m.p_enu_m)) < 5e-3  # mechanization's trapezoid vs fine integral
 
 
@@ -118,14 +118,16 @@ sf_api = itrs = None   # skyfield.api and its ITRS frame, imported by the `sky` 
 
 @pytest.fixture(scope="module")
 def sky(paper_setup):
-    """Skyfield objects of the scenario: time scale with UT1 = UTC (as the simulator's SGP4 frames),
-    the site, and every satellite of the built-in element sets by NORAD id."""
+    """Skyfield objects of the scenario: time scale with the simulator's Earth orientation (UT1-UTC
+    and polar motion from the same IERS table), the site, and every satellite of the built-in
+    element sets by NORAD id."""
     global sf_api, itrs
     sf_api = pytest.importorskip("skyfield.api", reason="skyfield (independent reference) is in the test extra")
     itrs = pytest.importorskip("skyfield.framelib").itrs
     scn, _, _ = paper_setup
-    # constant Delta T = TT - UTC (32.184 s + 37 leap seconds): UT1 = UTC, the simulator's assumption
-    ts = sf_api.load.timescale(delta_t=69.184)
+    from tests.eop_reference import skyfield_timescale_same_eop
+
+    ts = skyfield_timescale_same_eop()
     site = sf_api.wgs84.latlon(math.degrees(scn.lat_rad), math.degrees(scn.lon_rad), scn.alt_m)
     sats, groups = {}, {}
     for name, es in simulate.scenario_elements(scn).items():
@@ -192,9 +194,18 @@ def test_doppler_and_ofdm_match_skyfield_ranges(paper_setup, sky):
     r_rx = site.itrs_xyz.m
     t0 = np.unique(d.t_s)[1]
 
+    # skyfield's ITRS velocity removes the Earth-rotation term w x r about the ITRS z axis only;
+    # the rotation pole sits at (x_p, -y_p, 1) in ITRS (polar motion), so the rest of w x r,
+    # w_E (x_p, -y_p, 0) x r, is removed here (about 1 mm/s, 0.04 Hz at 11.3 GHz for Starlink)
+    from leonav_runtime.gen.constants import OMEGA_EARTH_TEME_RADPS
+    from leonav_runtime.orbits.eop import default_table
+
+    pm = default_table().at(scn.epoch_utc, t0)
+    w_tilt = OMEGA_EARTH_TEME_RADPS * np.array([pm.xp_rad[0], -pm.yp_rad[0], 0.0])
+
     def itrs_state(norad):
         r, v = _sat(sky, norad).at(_times(ts, scn, t0)).frame_xyz_and_velocity(itrs)
-        return r.m - r_rx, v.m_per_s
+        return r.m - r_rx, v.m_per_s - np.cross(w_tilt, r.m)
 
     at = np.flatnonzero(d.t_s == t0)
     el = np.array([(_sat(sky, int(n)) - site).at(_times(ts, scn, t0)).altaz()[0].degrees for n in d.sat_id[at]])
