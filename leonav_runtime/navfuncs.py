@@ -102,6 +102,7 @@ class NavFunctions:
         self._euler_from_q = GeneratedFunction(lib, "leonav_euler_from_q")
         self._gravity = GeneratedFunction(lib, "leonav_gravity_enu")
         self._transmit = GeneratedFunction(lib, "leonav_transmit_state")
+        self._receiver_ecef = GeneratedFunction(lib, "leonav_receiver_ecef")
         self._level = GeneratedFunction(lib, "leonav_level")
         self._dr_variance = GeneratedFunction(lib, "leonav_doppler_rate_variance")
         self._h = {kid: GeneratedFunction(lib, f"leonav_h_{name}")
@@ -202,6 +203,11 @@ class NavFunctions:
         if rc != L.OK:
             raise RuntimeError(f"leonav_boxplus_many returned {compiled.code_name(rc, L)}")
         return out
+
+    def receiver_ecef(self, x: np.ndarray, params: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Receiver ECEF position (m) and Earth-relative velocity (m/s) of state x."""
+        r, v = self._receiver_ecef(x, self.params if params is None else params)
+        return r[:, 0], v[:, 0]
 
     def gravity_enu(self, p_enu: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
         """Normal gravity vector (m/s^2, origin ENU axes) at p_enu (m)."""
