@@ -156,7 +156,7 @@ def test_cli_writes_pos_csv_and_compares(tmp_path, capsys):
 
     o = shared_file("gnss_rinex/07590920.05o")
     n = shared_file("gnss_rinex/07590920.05n")
-    rc = main(["spp", str(o), "--nav", str(n), "--iono", "off", "--tropo", "off", "--ekf",
+    rc = main(["spp", str(o), "--nav", str(n), "--iono", "off", "--tropo", "off", "--ekf", "--residuals",
                "--compare", str(FIXTURES / "07590920.05.pos"), "--out", str(tmp_path)])
     assert rc == 0
     printed = capsys.readouterr().out

@@ -2,12 +2,12 @@
 
     leonav spp OBS [OBS...] --nav NAV [NAV...] [--elevation-mask DEG] [--cn0-mask DBHZ]
                [--iono klobuchar|off] [--tropo saastamoinen|off] [--systems GECJ] [--no-raim]
-               [--ekf [--q-acc Q]] [--compare REF.pos ...] [--out DIR]
+               [--residuals] [--ekf [--q-acc Q]] [--compare REF.pos ...] [--out DIR]
 
 Per OBS file: `<name>.pos` (RTKLIB's format), `<name>.csv` (per epoch: time, latitude,
 longitude, height, ECEF, clock, inter-system biases, satellites, DOPs, sigmas, chi-square,
-status), `<name>_satellites.csv` (per satellite and epoch: elevation, azimuth, atmosphere
-terms, residual, sigma, status), with --ekf `<name>_ekf.pos` / `<name>_ekf.csv` (GNSS-only
+status), with --residuals `<name>_satellites.csv` (per satellite and epoch: elevation, azimuth,
+atmosphere terms, residual, sigma, status), with --ekf `<name>_ekf.pos` / `<name>_ekf.csv` (GNSS-only
 EKF with the constant-velocity model), and `spp.json` (options, counts of rejected rows by
 reason, per-file figures). Equations: docs/gnss.md.
 """
@@ -116,7 +116,8 @@ def process(obs_path: Path, nav_paths: list[str], args, nav_funcs, out: Path, re
     solution_io.write_pos(out / f"{stem}.pos", res.t_gps_s[ok], res.r_ecef_m[ok], res.cov_enu_m2[ok], res.ns[ok],
                           res.clock_m[ok], inputs=inputs, options=options)
     _write_epochs_csv(out / f"{stem}.csv", res)
-    _write_satellites_csv(out / f"{stem}_satellites.csv", res)
+    if args.residuals:
+        _write_satellites_csv(out / f"{stem}_satellites.csv", res)
     from leonav_runtime.gnss.spp import EPOCH_STATUS
     summary = {
         "obs": str(obs_path), "nav": [str(p) for p in nav_paths], "epochs": int(res.t_gps_s.size),
@@ -260,6 +261,9 @@ def register(subparsers) -> None:
                    help="constellations to use: G GPS, E Galileo, C BeiDou, J QZSS (default GECJ)")
     p.add_argument("--no-raim", action="store_true",
                    help="no exclusion: an epoch failing the chi-square test gets no solution (as rnx2rtkp)")
+    p.add_argument("--residuals", action="store_true",
+                   help="also write <name>_satellites.csv: elevation, azimuth, atmosphere terms, residual, sigma "
+                        "and status of every satellite at every epoch")
     p.add_argument("--ekf", action="store_true",
                    help="also run the GNSS-only EKF (constant-velocity model, no IMU)")
     p.add_argument("--q-acc", type=float, default=1e-10, metavar="M2PS3",
@@ -269,3 +273,24 @@ def register(subparsers) -> None:
                         "differences and how often the satellite counts agree")
     add_out_argument(p)
     p.set_defaults(func=_run)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`python -m leonav_runtime.commands.spp ...`: the same command without loading the other
+    `leonav` subcommands (some import SciPy and the simulator): a lean entry for scripts."""
+    import sys
+
+    from leonav_runtime.errors import UserInputError as _UIE
+
+    parser = argparse.ArgumentParser(prog="leonav")
+    register(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["spp", *(sys.argv[1:] if argv is None else argv)])
+    try:
+        return int(args.func(args) or 0)
+    except _UIE as exc:
+        print(f"leonav spp: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

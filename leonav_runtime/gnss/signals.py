@@ -119,7 +119,12 @@ class GnssRows:
 
     @property
     def sat(self) -> np.ndarray:
-        return np.char.add(self.system, np.char.zfill(self.prn.astype(str), 2))
+        """'G07'-style names (computed once)."""
+        cached = self.__dict__.get("_sat")
+        if cached is None or cached.size != self.t_gps_s.size:
+            cached = np.array([f"{s}{p:02d}" for s, p in zip(self.system.tolist(), self.prn.tolist())], dtype="U4")
+            self.__dict__["_sat"] = cached
+        return cached
 
     def take(self, index) -> "GnssRows":
         cols = {n: getattr(self, n)[index] for n in ("t_gps_s", "system", "prn", "signal", "pseudorange_m",

@@ -108,8 +108,21 @@ class SppResult:
 
     def used_sats(self, e: int) -> list[str]:
         """Satellites used in epoch e ('G07', ...)."""
-        k = np.flatnonzero((self.epoch_index == e) & (self.row_status == 0))
-        return sorted(self.rows.sat[k].tolist())
+        return self.used_sats_per_epoch()[e]
+
+    def used_sats_per_epoch(self) -> list[list[str]]:
+        """Satellites used in every epoch (computed once)."""
+        cached = getattr(self, "_used_cache", None)
+        if cached is None:
+            k = np.flatnonzero(self.row_status == 0)
+            sats = self.rows.sat[k].tolist()
+            cached = [[] for _ in range(self.t_gps_s.size)]
+            for e, s in zip(self.epoch_index[k].tolist(), sats):
+                cached[e].append(s)
+            for lst in cached:
+                lst.sort()
+            self._used_cache = cached
+        return cached
 
 
 def _start_position(rows: GnssRows, approx_ecef_m) -> np.ndarray:
@@ -147,17 +160,19 @@ class _Batch:
         return np.add.reduceat(values, self.starts, axis=0)
 
     def evaluate(self, full: bool):
-        """(terms, h, A, used, var) at the current states; full: atmosphere and mask on."""
+        """(terms, h, A, used, var) at the current states; full: atmosphere, mask and the
+        elevation-dependent weights on (else terms is None and every satellite weighs as at
+        zenith)."""
         aux = self.aux_full if full else self.aux_plain
         xr = self.X[self.ep]
-        terms = self.nav.gnss_terms(xr, aux, self.p)
         h, H = self.nav.h_many("gnss_pseudorange", xr, aux, self.p)
+        used = np.isfinite(h) & ~self.excluded
+        if not full:
+            return None, h, H[:, COLS], used, pseudorange_variance(np.pi / 2, self.ura, 0.0, False, False)
+        terms = self.nav.gnss_terms(xr, aux, self.p)
         el = terms[:, 0]
-        used = np.isfinite(h) & np.isfinite(el) & ~self.excluded
-        if full:
-            used &= el >= self.mask_rad
-        iono_on, tropo_on = (self.rows.iono_on, self.rows.tropo_on) if full else (False, False)
-        var = pseudorange_variance(np.where(full, el, np.pi / 2), self.ura, terms[:, 2], iono_on, tropo_on)
+        used &= np.isfinite(el) & (el >= self.mask_rad)
+        var = pseudorange_variance(el, self.ura, terms[:, 2], self.rows.iono_on, self.rows.tropo_on)
         return terms, h, H[:, COLS], used, var
 
     def normal_equations(self, A, v, used, var):
@@ -209,7 +224,7 @@ def solve(rows: GnssRows, opts: SppOptions | None = None, *, approx_ecef_m=None,
     converged = batch.iterate(True, CONVERGED_M, active)
 
     status = np.full(E, SOLVED, np.int8)
-    for _round in range(40):  # RAIM: at most one exclusion per epoch and round
+    for _round in range(41):  # RAIM: at most one exclusion per epoch and round
         terms, h, A, used, var = batch.evaluate(True)
         v = batch.z - h
         N, b, n_used, n_unknown, present = batch.normal_equations(A, v, used, var)
@@ -218,7 +233,7 @@ def solve(rows: GnssRows, opts: SppOptions | None = None, *, approx_ecef_m=None,
         limit = np.array([chi2_upper(int(d), opts.chi2_alpha) if d >= 1 else np.inf for d in dof])
         failing = (dof >= 1) & (chi2 > limit) & (n_used >= n_unknown)
         retry = failing & (dof >= 2) if opts.raim else np.zeros(E, bool)
-        if not retry.any():
+        if not retry.any() or _round == 40:
             break
         Ninv = np.linalg.inv(N)
         q = np.einsum("ni,nij,nj->n", A, Ninv[batch.ep], A)
@@ -232,12 +247,7 @@ def solve(rows: GnssRows, opts: SppOptions | None = None, *, approx_ecef_m=None,
         again = batch.iterate(True, CONVERGED_M, retry)
         converged[retry] = again[retry]
 
-    terms, h, A, used, var = batch.evaluate(True)
-    v = batch.z - h
-    N, b, n_used, n_unknown, present = batch.normal_equations(A, v, used, var)
-    dof = n_used - n_unknown
-    chi2 = batch._sum(np.where(used, v * v / var, 0.0))
-    limit = np.array([chi2_upper(int(d), opts.chi2_alpha) if d >= 1 else np.inf for d in dof])
+    # (terms, h, A, used, var, v, N, n_used, dof, chi2, limit: at the final states, from the last round)
     # DOP from elevation and azimuth (E, N, U, one clock), used satellites only
     el, az = terms[:, 0], terms[:, 1]
     G = np.c_[np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el), np.ones(el.size)]
@@ -259,8 +269,9 @@ def solve(rows: GnssRows, opts: SppOptions | None = None, *, approx_ecef_m=None,
     status[enough & converged & ~(dop[:, 0] <= opts.max_gdop)] = GDOP_FAILED
     solved = (status == SOLVED) | (status == SOLVED_RAIM)
 
-    # results per epoch: ECEF through the generated receiver position, local-ENU covariance
-    r = np.array([nav_receiver(nav, x, params) for x in batch.X])
+    # results per epoch: ECEF (r0 + C_n_e p_enu, geometry.py's twin of the generated
+    # leonav_receiver_ecef, vectorized), local-ENU covariance
+    r = geometry.enu_to_ecef(batch.X[:, L.X_P_ENU_SLICE], start_r0(lat0, lon0, h0), lat0, lon0)
     lat, lon, hgt = geometry.ecef_to_geodetic(r)
     C0 = geometry.C_enu_ecef(lat0, lon0)
     C1 = geometry.C_enu_ecef(lat, lon)
@@ -297,9 +308,9 @@ def solve(rows: GnssRows, opts: SppOptions | None = None, *, approx_ecef_m=None,
                      out["sigma"], row_status, epoch_index, batch.X, params, counts)
 
 
-def nav_receiver(nav: NavFunctions, x: np.ndarray, params: np.ndarray) -> np.ndarray:
-    """Receiver ECEF position (m) of state x through the generated leonav_receiver_ecef."""
-    return nav.receiver_ecef(x, params)[0]
+def start_r0(lat0: float, lon0: float, h0: float) -> np.ndarray:
+    """ECEF of the ENU origin (m)."""
+    return np.asarray(geometry.geodetic_to_ecef(lat0, lon0, h0), float)
 
 
 __all__ = ["SppOptions", "SppResult", "solve", "EPOCH_STATUS", "ISB_INDEX"]
