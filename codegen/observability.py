@@ -57,6 +57,7 @@ from models import ekf, frames, kinematics
 from models import state as S
 from models.constants import WGS84_A_M, WGS84_GM_M3PS2
 from models.measurements import models as measurement_models
+from models.measurements.geometry import receiver_ecef
 from leonav_runtime.params import build_params
 
 # --- scaling and thresholds ----------------------------------------------------------------
@@ -139,12 +140,12 @@ def components() -> list[Component]:
 
 def observable_units() -> dict[str, str]:
     """Observable function suffix -> unit, from `models.state.MEASUREMENTS`."""
-    return {suffix: unit for _, suffix, unit in S.MEASUREMENTS}
+    return {m.suffix: m.unit for m in S.MEASUREMENTS}
 
 
 def position_fix_observables() -> tuple[str, ...]:
     """The GNSS position-fix observables of `models.state.MEASUREMENTS` (suffix pos_*)."""
-    return tuple(suffix for _, suffix, _ in S.MEASUREMENTS if suffix.startswith("pos_"))
+    return tuple(m.suffix for m in S.MEASUREMENTS if m.suffix.startswith("pos_"))
 
 
 def default_modes() -> dict[str, tuple[str, ...]]:
@@ -185,7 +186,7 @@ class Symbolic:
         self.invert = ca.Function("obs_invert", [x, u, xt, dt, p], [r, ca.jacobian(r, u)])
         rpy = ca.SX.sym("rpy", 3)
         self.q_from_euler = ca.Function("obs_q", [rpy], [frames.quat_from_euler(rpy)])
-        r_U = kinematics.position_ecef(x[S.X["p_enu"].slice], p)
+        r_U, _ = receiver_ecef(x, p)
         C = kinematics.origin(p)[4]
         self.receiver = ca.Function("obs_rx", [x, p], [r_U, C @ x[S.X["v_enu"].slice]])
         self.boxplus = ca.Function("obs_boxplus", [x, dx], [frames.boxplus(x, dx)])

@@ -122,6 +122,10 @@ TROPO_MAX_HEIGHT_M = _const("TROPO_MAX_HEIGHT_M", 1.0e4, "m",
                             "above this ellipsoidal height the troposphere term is 0 (standard atmosphere "
                             "below the tropopause only)")
 
+ISB_RW_PSD_M2PS = _const("ISB_RW_PSD_M2PS", 1e-6, "m^2/s",
+                         "random-walk PSD of the receiver inter-system biases (hardware delays drifting with "
+                         "temperature: 6 cm in an hour); a constant until the parameter vector carries one")
+
 # --- GNSS pseudorange error model (single point and GNSS records): RTKLIB's defaults -------
 # var = PR_ERR_A^2 + PR_ERR_B^2 / sin(el) + URA^2 + PR_ERR_CODE_BIAS^2 + var_iono + var_tropo,
 # var_iono = PR_ERR_IONO_OFF^2 without a correction, (PR_ERR_BRDC_IONO_FACTOR * I)^2 with

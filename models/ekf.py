@@ -19,6 +19,7 @@ import casadi as ca
 
 from models import frames, kinematics
 from models.clock import clock_qd
+from models.constants import ISB_RW_PSD_M2PS
 from models.state import DX, NDX, P, U, X
 
 def _at_zero(expr, sym):
@@ -155,8 +156,8 @@ def random_walk_noise(dt, p):
     """Discrete noise (NDX x NDX) of the bias random walks, the clock and the LO offset over dt.
 
     Bias random walks: acc_bias_rw^2 dt, gyro_bias_rw^2 dt on their blocks (first order).
-    Clock: exact two-state discretization; LO offset: q_blo dt. Inter-system biases: none
-    (receiver hardware delays, random constants over a session).
+    Clock: exact two-state discretization; LO offset: q_blo dt. Inter-system biases: a slow
+    random walk, ISB_RW_PSD_M2PS dt (receiver hardware delays drifting with temperature).
     """
     def par(name):
         return p[P[name].offset]
@@ -164,6 +165,7 @@ def random_walk_noise(dt, p):
     diag_extra[DX["db_a"].slice] = par("acc_bias_rw") ** 2 * dt
     diag_extra[DX["db_g"].slice] = par("gyro_bias_rw") ** 2 * dt
     diag_extra[DX["db_lo"].offset] = par("q_blo") * dt
+    diag_extra[DX["disb"].slice] = ISB_RW_PSD_M2PS * dt
     Q = ca.diag(diag_extra)
     q11, q12, q22 = clock_qd(par("q_cdt"), par("q_cddt"), dt)
     i, j = DX["dc_dt"].offset, DX["dc_ddt"].offset

@@ -50,6 +50,8 @@ def test_generated_cv_step_is_the_constant_velocity_model():
     Q_ref[c, c], Q_ref[c, d], Q_ref[d, c], Q_ref[d, d] = Q_CDT * dt + Q_CDDT * dt**3 / 3, Q_CDDT * dt**2 / 2, \
         Q_CDDT * dt**2 / 2, Q_CDDT * dt
     Q_ref[L.DX_DB_LO, L.DX_DB_LO] = PARAMS[L.P_Q_BLO] * dt
+    from leonav_runtime.gen.constants import ISB_RW_PSD_M2PS
+    Q_ref[L.DX_DISB_SLICE, L.DX_DISB_SLICE] = np.eye(2) * ISB_RW_PSD_M2PS * dt
     np.testing.assert_allclose(Qd, Q_ref, rtol=1e-14, atol=1e-18)
     np.testing.assert_allclose(P_next, F_ref @ P @ F_ref.T + Q_ref, rtol=1e-13)
 

@@ -1,8 +1,8 @@
 """The GNSS states and records leave the old modes untouched.
 
 The inter-system biases (`isb`, 2 states) were added to the one layout with no coupling to
-the other states: the IMU predict holds them (F = I, Qd = 0 on them), no older observable
-reads them. So a run of an older mode computes exactly what it computed before, except for
+the other states: the IMU predict holds them (F = I, their own slow random walk in Qd, no
+cross terms), no older observable reads them. So a run of an older mode computes exactly what it computed before, except for
 one thing outside the filter: `simulate.trial_records` draws the initial error dx0 with
 `Generator.multivariate_normal` over all NDX error states, and NumPy's SVD-based draw orders
 the components of equal variance differently for a 20 x 20 than for an 18 x 18 prior, so
@@ -67,4 +67,6 @@ def test_inter_system_biases_are_uncoupled_in_the_imu_predict():
     np.testing.assert_array_equal(x_next[L.X_ISB_SLICE, 0], [3.0, -5.0])
     np.testing.assert_array_equal(F[isb, isb], np.eye(2))
     assert not F[isb][:, rest].any() and not F[rest][:, isb].any()
-    assert not Qd[isb].any() and not Qd[:, isb].any()
+    from leonav_runtime.gen.constants import ISB_RW_PSD_M2PS
+    np.testing.assert_array_equal(Qd[isb, isb], np.eye(2) * ISB_RW_PSD_M2PS * 0.01)  # their own slow walk
+    assert not Qd[isb][:, rest].any() and not Qd[rest][:, isb].any()

@@ -56,6 +56,7 @@
 #define LEONAV_STD_REL_HUMIDITY (0.7)  /* -: relative humidity assumed for the wet delay */
 #define LEONAV_TROPO_MIN_HEIGHT_M (-100.0)  /* m: below this ellipsoidal height the troposphere term is 0 (outside the model) */
 #define LEONAV_TROPO_MAX_HEIGHT_M (10000.0)  /* m: above this ellipsoidal height the troposphere term is 0 (standard atmosphere below the tropopause only) */
+#define LEONAV_ISB_RW_PSD_M2PS (1e-06)  /* m^2/s: random-walk PSD of the receiver inter-system biases (hardware delays drifting with temperature: 6 cm in an hour); a constant until the parameter vector carries one */
 #define LEONAV_PR_ERR_A_M (0.3)  /* m: code noise, elevation-independent part */
 #define LEONAV_PR_ERR_B_M (0.3)  /* m: code noise, part that grows as 1/sqrt(sin el) */
 #define LEONAV_PR_ERR_CODE_BIAS_M (0.3)  /* m: code bias error (uncorrected inter-signal bias) */

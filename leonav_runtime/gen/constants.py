@@ -161,6 +161,9 @@ TROPO_MIN_HEIGHT_M = -100.0
 TROPO_MAX_HEIGHT_M = 10000.0
 """m: above this ellipsoidal height the troposphere term is 0 (standard atmosphere below the tropopause only)"""
 
+ISB_RW_PSD_M2PS = 1e-06
+"""m^2/s: random-walk PSD of the receiver inter-system biases (hardware delays drifting with temperature: 6 cm in an hour); a constant until the parameter vector carries one"""
+
 PR_ERR_A_M = 0.3
 """m: code noise, elevation-independent part"""
 

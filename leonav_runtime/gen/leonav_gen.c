@@ -8572,10 +8572,13 @@ static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][376]=a218;
   if (res[1]!=0) res[1][377]=a288;
   a288=arg[1]? arg[1][378] : 0;
+  a218=9.9999999999999995e-07;
+  a218=(a218*a007);
+  a288=(a288+a218);
   if (res[1]!=0) res[1][378]=a288;
   a288=arg[1]? arg[1][398] : 0;
-  a218=arg[1]? arg[1][379] : 0;
-  a288=(a288+a218);
+  a114=arg[1]? arg[1][379] : 0;
+  a288=(a288+a114);
   a288=(a288/a009);
   if (res[1]!=0) res[1][379]=a288;
   if (res[1]!=0) res[1][380]=a163;
@@ -8598,6 +8601,7 @@ static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][397]=a073;
   if (res[1]!=0) res[1][398]=a288;
   a288=arg[1]? arg[1][399] : 0;
+  a288=(a288+a218);
   if (res[1]!=0) res[1][399]=a288;
   a288=(a007*a131);
   a288=(a033*a288);
@@ -9584,7 +9588,7 @@ static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[3]!=0) res[3][375]=a040;
   if (res[3]!=0) res[3][376]=a040;
   if (res[3]!=0) res[3][377]=a040;
-  if (res[3]!=0) res[3][378]=a040;
+  if (res[3]!=0) res[3][378]=a218;
   if (res[3]!=0) res[3][379]=a040;
   if (res[3]!=0) res[3][380]=a040;
   if (res[3]!=0) res[3][381]=a040;
@@ -9605,7 +9609,7 @@ static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[3]!=0) res[3][396]=a040;
   if (res[3]!=0) res[3][397]=a040;
   if (res[3]!=0) res[3][398]=a040;
-  if (res[3]!=0) res[3][399]=a040;
+  if (res[3]!=0) res[3][399]=a218;
   return 0;
 }
 
@@ -11538,10 +11542,13 @@ static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][376]=a095;
   if (res[1]!=0) res[1][377]=a011;
   a011=arg[1]? arg[1][378] : 0;
+  a095=9.9999999999999995e-07;
+  a095=(a095*a002);
+  a011=(a011+a095);
   if (res[1]!=0) res[1][378]=a011;
   a011=arg[1]? arg[1][398] : 0;
-  a095=arg[1]? arg[1][379] : 0;
-  a011=(a011+a095);
+  a013=arg[1]? arg[1][379] : 0;
+  a011=(a011+a013);
   a011=(a011/a007);
   if (res[1]!=0) res[1][379]=a011;
   if (res[1]!=0) res[1][380]=a057;
@@ -11564,6 +11571,7 @@ static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][397]=a015;
   if (res[1]!=0) res[1][398]=a011;
   a011=arg[1]? arg[1][399] : 0;
+  a011=(a011+a095);
   if (res[1]!=0) res[1][399]=a011;
   if (res[2]!=0) res[2][0]=a030;
   if (res[2]!=0) res[2][1]=a027;
@@ -12343,7 +12351,7 @@ static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[3]!=0) res[3][375]=a027;
   if (res[3]!=0) res[3][376]=a027;
   if (res[3]!=0) res[3][377]=a027;
-  if (res[3]!=0) res[3][378]=a027;
+  if (res[3]!=0) res[3][378]=a095;
   if (res[3]!=0) res[3][379]=a027;
   if (res[3]!=0) res[3][380]=a027;
   if (res[3]!=0) res[3][381]=a027;
@@ -12364,7 +12372,7 @@ static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[3]!=0) res[3][396]=a027;
   if (res[3]!=0) res[3][397]=a027;
   if (res[3]!=0) res[3][398]=a027;
-  if (res[3]!=0) res[3][399]=a027;
+  if (res[3]!=0) res[3][399]=a095;
   return 0;
 }
 
