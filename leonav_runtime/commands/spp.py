@@ -169,12 +169,14 @@ def _write_epochs_csv(path: Path, res) -> None:
               "clock_m", "isb_gal_m", "isb_bds_m", "ns", "gdop", "pdop", "hdop", "vdop", "sdn_m", "sde_m", "sdu_m",
               "chi2", "dof", "n_excluded", "status", "satellites"]
     rows = []
+    weeks, tows = gtime.week_tow(res.t_gps_s)
+    lat_deg, lon_deg = np.degrees(res.lat_rad), np.degrees(res.lon_rad)
     for e in range(res.t_gps_s.size):
-        week, tow = gtime.week_tow(res.t_gps_s[e])
+        week, tow = weeks[e], tows[e]
         c = res.cov_enu_m2[e]
         sd = [math.sqrt(c[1, 1]), math.sqrt(c[0, 0]), math.sqrt(c[2, 2])] if np.all(np.isfinite(c)) else [math.nan] * 3
-        rows.append([f"{res.t_gps_s[e]:.3f}", int(week), f"{float(tow):.3f}", f"{math.degrees(res.lat_rad[e]):.9f}",
-                     f"{math.degrees(res.lon_rad[e]):.9f}", f"{res.height_m[e]:.4f}",
+        rows.append([f"{res.t_gps_s[e]:.3f}", int(week), f"{float(tow):.3f}", f"{lat_deg[e]:.9f}",
+                     f"{lon_deg[e]:.9f}", f"{res.height_m[e]:.4f}",
                      *(f"{v:.4f}" for v in res.r_ecef_m[e]), f"{res.clock_m[e]:.4f}",
                      *(f"{v:.4f}" for v in res.isb_m[e]), int(res.ns[e]), *(f"{v:.3f}" for v in res.dop[e]),
                      *(f"{v:.4f}" for v in sd), f"{res.chi2[e]:.3f}", int(res.dof[e]), int(res.n_excluded[e]),

@@ -73,16 +73,16 @@ def write_pos(path: str | Path, t_gps_s, r_ecef_m, cov_enu_m2, ns, clock_m, *, i
     lines += [f"% {name:<9} : {value}" for name, value in options.items()]
     lines += ["%", "% (lat/lon/height=WGS84/ellipsoidal,Q=1:fix,2:float,3:sbas,4:dgps,5:single,6:ppp,"
               "ns=# of satellites)", POS_COLUMNS]
+    weeks, tows = gtime.week_tow(t - np.asarray(clock_m, float) / C_LIGHT_MPS)
+    lat_deg, lon_deg = np.degrees(lat), np.degrees(lon)
     for i in range(t.size):
-        ts = t[i] - clock_m[i] / C_LIGHT_MPS
-        week, tow = gtime.week_tow(ts)
-        week, tow = int(week), float(tow)
+        week, tow = int(weeks[i]), float(tows[i])
         if round(tow, 3) >= 604800.0:
             week, tow = week + 1, tow - 604800.0
         c = cov_enu_m2[i]
         sd = (math.sqrt(max(c[1, 1], 0.0)), math.sqrt(max(c[0, 0], 0.0)), math.sqrt(max(c[2, 2], 0.0)),
               _sqvar(c[1, 0]), _sqvar(c[0, 2]), _sqvar(c[2, 1]))
-        lines.append(f"{week:4d} {tow:10.3f} {math.degrees(lat[i]):14.9f} {math.degrees(lon[i]):14.9f} "
+        lines.append(f"{week:4d} {tow:10.3f} {lat_deg[i]:14.9f} {lon_deg[i]:14.9f} "
                      f"{h[i]:10.4f} {q:3d} {int(ns[i]):3d} " + " ".join(f"{v:8.4f}" for v in sd)
                      + f" {0.0:6.2f} {0.0:6.1f}")
     path.write_text("\n".join(lines) + "\n")
