@@ -15,8 +15,9 @@
   (models.constants STD_*), e the water-vapour pressure at the assumed relative humidity
   (saturation pressure 6.108 exp((17.15 T - 4684) / (T - 38.45)) hPa, T in K). Mapping:
   1 / sin(el) for both parts (the simple form single-point software such as RTKLIB uses;
-  Niell's mapping function differs from it by ~1 % at 15 deg and ~10 % at 5 deg, below the
-  model's own error at the masks used for single point). Zero outside
+  Niell's hydrostatic mapping function is below it by ~1.6 % at 15 deg, ~3.6 % at 10 deg and
+  ~13 % at 5 deg, the order of the standard atmosphere's own error at single-point masks;
+  docs/gnss.md). Zero outside
   TROPO_MIN_HEIGHT_M..TROPO_MAX_HEIGHT_M and for el <= 0.
 
 Units: rad, m, s, hPa, K. The ICD's own constants (0.0137, 0.11, 0.416, 1.617, 50400 s,
