@@ -131,7 +131,7 @@ class NumpyEKF:
         pos_pred = pos + (vel + vel_pred) * dt / 2
         vel_next = vel + dv_sf + (a0 + a_gc(pos_pred, vel_pred)) * dt / 2
         pos_next = pos + (vel + vel_next) * dt / 2
-        clock = np.stack([X[:, L.X_C_DT] + X[:, L.X_C_DDT] * dt, X[:, L.X_C_DDT], X[:, L.X_B_LO]], -1)
+        clock = np.column_stack([X[:, L.X_C_DT] + X[:, L.X_C_DDT] * dt, X[:, L.X_C_DDT:]])  # c_ddt and later: held
         return np.hstack([pos_next, vel_next, q_next, b_a, b_g, clock])
 
     @staticmethod

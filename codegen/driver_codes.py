@@ -29,17 +29,17 @@ RETURN_CODES = (
     Code("GATED", 1, "update rejected: nis above the gate; x and P unchanged"),
     Code("FAILED", 2, "numerical failure (non-finite input or result, R < 0, S <= 0, dt < 0); x and P unchanged"),
     Code("ERR_WORK", -1, "workspace NULL, too small or not initialised"),
-    Code("ERR_KIND", -2, "record kind is neither IMU nor a LEONAV_MEAS_* id"),
+    Code("ERR_KIND", -2, "record kind is neither IMU, CV nor a LEONAV_MEAS_* id"),
     Code("ERR_LAYOUT", -3, "a generated function's shape does not match state_layout.h"),
     Code("ERR_ARG", -4, "a required pointer is NULL or n < 0"),
     Code("ERR_NUMERIC", -5, "PCRB / boxminus: a generated step failed, S not positive and finite, or R <= 0"),
 )
 
 RECORD_STATUSES = (
-    Code("STATUS_IMU", -1, "IMU record: predicted"),
+    Code("STATUS_IMU", -1, "IMU or constant-velocity record: predicted"),
     Code("STATUS_APPLIED", 0, "measurement record: applied"),
     Code("STATUS_GATED", 1, "measurement record: rejected by the gate (x, P unchanged)"),
-    Code("STATUS_FAILED", 2, "IMU or measurement record: numerical failure (x, P unchanged)"),
+    Code("STATUS_FAILED", 2, "IMU, constant-velocity or measurement record: numerical failure (x, P unchanged)"),
 )
 
 _ret = {c.name: c.value for c in RETURN_CODES}

@@ -8,6 +8,7 @@ from __future__ import annotations
 import casadi as ca
 
 from models import ekf, frames, input_noise, kinematics
+from models.measurements import gnss_code
 from models.measurements import models as measurement_models
 from models.measurements.geometry import receiver_ecef, transmit_state
 from models.state import NAUX, NDX, NP, NU, NX
@@ -61,6 +62,10 @@ def build_functions() -> list[ca.Function]:
     out.append(_fn("leonav_predict", {"x": x, "P": P, "u": u, "dt": dt, "p": p},
                    {"x_next": x_next, "P_next": P_next, "F": F, "Qd": Qd},
                    "error-state EKF predict: P_next = F P F^T + Qd"))
+    x_cv, P_cv, F_cv, Qd_cv = ekf.cv_predict(x, P, dt, p)
+    out.append(_fn("leonav_predict_cv", {"x": x, "P": P, "dt": dt, "p": p},
+                   {"x_next": x_cv, "P_next": P_cv, "F": F_cv, "Qd": Qd_cv},
+                   "constant-velocity predict (no IMU): white acceleration of PSD vrw^2, clock, P_next = F P F^T + Qd"))
     # update_k = innovation_k (h, H and b = P H^T on H's non-zeros, SX) followed by one
     # shared SX Joseph function: its O(n^2) code is compiled once, not once per observable
     # (ten inlined copies took `cc -O2` from ~9 to ~20 s for ~0.14 us less per update).
@@ -131,4 +136,9 @@ def build_functions() -> list[ca.Function]:
                    {"R": input_noise.doppler_rate_variance(sigma, p[P_BLOCK["f_c_hz"].offset], p[P_BLOCK["vrw"].offset], span)},
                    "Doppler-rate variance (Hz^2/s^2): beacon noise sigma plus the accelerometer noise of "
                    "the specific force averaged over f_b_span_s (s) that enters the model"))
+    el, az, iono, tropo = gnss_code.delay_terms(x, aux, p)
+    out.append(_fn("leonav_gnss_terms", {"x": x, "aux": aux, "p": p},
+                   {"el_az_iono_tropo": ca.vertcat(el, az, iono, tropo)},
+                   "GNSS signal at the receiver: elevation, azimuth (rad), ionosphere and troposphere "
+                   "delays (m) as the GNSS pseudorange model adds them"))
     return out

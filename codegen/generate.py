@@ -51,6 +51,7 @@ def _c_header_layout() -> str:
         define(f"LEONAV_P_{b.name.upper()}", b.offset, f"{b.unit}: {b.doc}")
     lines.append("")
     define("LEONAV_MEAS_IMU", S.KIND_IMU, "record kind of an IMU interval")
+    define("LEONAV_KIND_CV", S.KIND_CV, "record kind of a constant-velocity predict over dt (no IMU)")
     for i, m in enumerate(S.MEASUREMENTS):
         define(f"LEONAV_MEAS_{m.name}", i, m.unit)
     define("LEONAV_NMEAS", S.NMEAS)
@@ -94,6 +95,7 @@ def _py_layout() -> str:
         lines.append(f"P_{b.name.upper()} = {b.offset}  # {b.unit}: {b.doc}")
     lines.append("")
     lines.append(f"MEAS_IMU = {S.KIND_IMU}  # record kind of an IMU interval")
+    lines.append(f"KIND_CV = {S.KIND_CV}  # record kind of a constant-velocity predict over dt (no IMU)")
     for i, m in enumerate(S.MEASUREMENTS):
         lines.append(f"MEAS_{m.name} = {i}  # {m.unit}")
     lines.append(f"NMEAS = {S.NMEAS}")

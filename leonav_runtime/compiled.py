@@ -222,6 +222,9 @@ def expected_shapes(layout: ModuleType) -> dict[str, tuple[list[tuple[int, int]]
     shapes = {
         "leonav_mech": ([x, u, s, p], [x]),
         "leonav_predict": ([x, P, u, s, p], [x, P, P, P]),
+        "leonav_predict_cv": ([x, P, s, p], [x, P, P, P]),
+        "leonav_boxplus": ([x, (ndx, 1)], [x]),
+        "leonav_gnss_terms": ([x, aux, p], [(4, 1)]),
         "leonav_boxminus": ([x, x], [(ndx, 1)]),
         "leonav_pcrb_update": ([P, (1, ndx), s], [P, s]),
     }
@@ -276,6 +279,10 @@ def _declare(lib: ctypes.CDLL) -> None:
         "leonav_mech_step": (i, [dp, dp, d, dp, vp]),
         "leonav_boxminus_many": (i, [lng, dp, dp, dp, vp]),
         "leonav_predict_step": (i, [dp, dp, dp, d, dp, dp, dp, vp]),
+        "leonav_predict_cv_step": (i, [dp, dp, d, dp, dp, dp, vp]),
+        "leonav_h_many": (i, [i, lng, dp, dp, dp, dp, dp, ctypes.POINTER(ctypes.c_int32), vp]),
+        "leonav_gnss_terms_many": (i, [lng, dp, dp, dp, dp, vp]),
+        "leonav_boxplus_many": (i, [lng, dp, dp, dp, vp]),
         "leonav_update_step": (i, [dp, dp, i, d, d, dp, dp, d, dp, vp]),
         "leonav_h_step": (i, [i, dp, dp, dp, dp, dp, vp]),
         "leonav_run": (i, [dp, dp, dp, vp, lng, dp, ctypes.POINTER(RunOut), vp]),
@@ -298,7 +305,7 @@ class RunOut(ctypes.Structure):
         ("y", _c_double_p), ("S", _c_double_p), ("nis", _c_double_p),
         ("status", ctypes.POINTER(ctypes.c_int32)),
         ("n_done", ctypes.c_long), ("n_imu", ctypes.c_long), ("n_applied", ctypes.c_long),
-        ("n_gated", ctypes.c_long), ("n_failed", ctypes.c_long),
+        ("n_gated", ctypes.c_long), ("n_failed", ctypes.c_long), ("n_cv", ctypes.c_long),
     ]
 
 

@@ -44,8 +44,9 @@ class RunResult:
     """Per-record results of `EKF.run` (row i belongs to record i).
 
     t (s), kind, sat_id, x (n, NX), P_diag (n, NDX), P (n, NDX, NDX) or None, y, S,
-    nis (NaN on IMU records and where not computed), status (per-record: STATUS_IMU -1 IMU
-    predicted, STATUS_APPLIED 0, STATUS_GATED 1, STATUS_FAILED 2 numerical failure), and counts.
+    nis (NaN on predict records and where not computed), status (per-record: STATUS_IMU -1
+    IMU or constant-velocity record predicted, STATUS_APPLIED 0, STATUS_GATED 1,
+    STATUS_FAILED 2 numerical failure), and counts (n_cv: constant-velocity predicts).
     """
 
     t: np.ndarray
@@ -62,6 +63,7 @@ class RunResult:
     n_applied: int
     n_gated: int
     n_failed: int
+    n_cv: int = 0
 
 
 class EKF:
@@ -127,6 +129,21 @@ class EKF:
             _ptr(self.F), _ptr(self.Q), self._work.ctypes.data)
         if rc < 0:
             raise RuntimeError(f"leonav_predict_step returned {compiled.code_name(rc)}")
+        self.status = STATUS_IMU if rc == _codes.OK else STATUS_FAILED
+        self.x_prior, self.P_prior = self.x.copy(), self.P.copy(order="F")
+        return self.status
+
+    def predict_cv(self, dt: float) -> int:
+        """Constant-velocity predict over dt (s), for a receiver without IMU (record kind
+        LEONAV_KIND_CV): p += v dt, c_dt += c_ddt dt, white acceleration of PSD vrw^2.
+
+        Returns STATUS_IMU (-1, predicted) or STATUS_FAILED (2: x, P unchanged).
+        """
+        rc = self.lib.lib.leonav_predict_cv_step(
+            _ptr(self.x), _ptr(self.P), float(dt), _ptr(self.params), _ptr(self.F), _ptr(self.Q),
+            self._work.ctypes.data)
+        if rc < 0:
+            raise RuntimeError(f"leonav_predict_cv_step returned {compiled.code_name(rc)}")
         self.status = STATUS_IMU if rc == _codes.OK else STATUS_FAILED
         self.x_prior, self.P_prior = self.x.copy(), self.P.copy(order="F")
         return self.status
@@ -206,7 +223,7 @@ class EKF:
             p_hist = p_hist.transpose(0, 2, 1)  # each block was written column-major
         return RunResult(recs["t"].copy(), recs["kind"].copy(), recs["sat_id"].copy(), x_hist, pd_hist, p_hist,
                          y, S, nis, status, int(out.n_imu), int(out.n_applied), int(out.n_gated),
-                         int(out.n_failed))
+                         int(out.n_failed), int(out.n_cv))
 
 
 @dataclass

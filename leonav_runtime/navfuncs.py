@@ -102,6 +102,7 @@ class NavFunctions:
         self._euler_from_q = GeneratedFunction(lib, "leonav_euler_from_q")
         self._gravity = GeneratedFunction(lib, "leonav_gravity_enu")
         self._transmit = GeneratedFunction(lib, "leonav_transmit_state")
+        self._receiver_ecef = GeneratedFunction(lib, "leonav_receiver_ecef")
         self._level = GeneratedFunction(lib, "leonav_level")
         self._dr_variance = GeneratedFunction(lib, "leonav_doppler_rate_variance")
         self._h = {kid: GeneratedFunction(lib, f"leonav_h_{name}")
@@ -137,6 +138,77 @@ class NavFunctions:
         p = self.params if params is None else params
         return np.array([f(x, a, p)[0][0, 0] for a in np.atleast_2d(aux_rows)])
 
+    def _workspace(self):
+        if self._work is None:
+            self._work = self.library.new_workspace()
+        return self._work
+
+    def h_many(self, kind: int | str, x_rows: np.ndarray, aux_rows: np.ndarray, params: np.ndarray | None = None,
+               jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+        """Predictions (n,) and Jacobians (n, NDX) of observable `kind` for n rows, each with its
+        own state (x_rows (n, NX), or one (NX,) state for every row) and aux (n, NAUX); one
+        call into the driver's loop over the generated `leonav_h_<kind>`. A row whose result is
+        not finite gets NaN."""
+        L = self.layout
+        aux = np.ascontiguousarray(np.atleast_2d(aux_rows), dtype=np.float64)
+        n = aux.shape[0]
+        x = np.asarray(x_rows, dtype=np.float64)
+        x = np.ascontiguousarray(np.broadcast_to(x, (n, L.NX)) if x.ndim == 1 else x)
+        if x.shape != (n, L.NX) or aux.shape[1] != L.NAUX:
+            raise ValueError(f"h_many: expected x ({n}, {L.NX}) and aux ({n}, {L.NAUX}), got {x.shape}, {aux.shape}")
+        p = np.ascontiguousarray(self.params if params is None else params, dtype=np.float64)
+        h = np.empty(n)
+        H = np.empty((n, L.NDX)) if jacobian else None
+        with self._work_lock:
+            rc = self.library.lib.leonav_h_many(self.kind_id(kind), n, x.ctypes.data_as(_dp), aux.ctypes.data_as(_dp),
+                                                p.ctypes.data_as(_dp), h.ctypes.data_as(_dp),
+                                                None if H is None else H.ctypes.data_as(_dp), None,
+                                                self._workspace().ctypes.data)
+        if rc != L.OK:
+            raise RuntimeError(f"leonav_h_many returned {compiled.code_name(rc, L)}")
+        return h, H
+
+    def gnss_terms(self, x_rows: np.ndarray, aux_rows: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
+        """(n, 4) [elevation (rad), azimuth (rad), ionosphere (m), troposphere (m)] of n GNSS
+        signals (generated leonav_gnss_terms: the terms of the GNSS pseudorange model), one call;
+        x_rows (n, NX) or one (NX,) state, aux (n, NAUX)."""
+        L = self.layout
+        aux = np.ascontiguousarray(np.atleast_2d(aux_rows), dtype=np.float64)
+        n = aux.shape[0]
+        x = np.asarray(x_rows, dtype=np.float64)
+        x = np.ascontiguousarray(np.broadcast_to(x, (n, L.NX)) if x.ndim == 1 else x)
+        if x.shape != (n, L.NX) or aux.shape[1] != L.NAUX:
+            raise ValueError(f"gnss_terms: expected x ({n}, {L.NX}) and aux ({n}, {L.NAUX}), got {x.shape}, {aux.shape}")
+        p = np.ascontiguousarray(self.params if params is None else params, dtype=np.float64)
+        out = np.empty((n, 4))
+        with self._work_lock:
+            rc = self.library.lib.leonav_gnss_terms_many(n, x.ctypes.data_as(_dp), aux.ctypes.data_as(_dp),
+                                                         p.ctypes.data_as(_dp), out.ctypes.data_as(_dp),
+                                                         self._workspace().ctypes.data)
+        if rc != L.OK:
+            raise RuntimeError(f"leonav_gnss_terms_many returned {compiled.code_name(rc, L)}")
+        return out
+
+    def boxplus_many(self, x_rows: np.ndarray, dx_rows: np.ndarray) -> np.ndarray:
+        """x [+] dx row-wise for (n, NX) states and (n, NDX) errors (one call into the driver)."""
+        L = self.layout
+        x = np.ascontiguousarray(np.atleast_2d(x_rows), dtype=np.float64)
+        dx = np.ascontiguousarray(np.atleast_2d(dx_rows), dtype=np.float64)
+        if x.shape[1] != L.NX or dx.shape != (x.shape[0], L.NDX):
+            raise ValueError(f"boxplus_many: expected (n, {L.NX}) and (n, {L.NDX}), got {x.shape}, {dx.shape}")
+        out = np.empty_like(x)
+        with self._work_lock:
+            rc = self.library.lib.leonav_boxplus_many(x.shape[0], x.ctypes.data_as(_dp), dx.ctypes.data_as(_dp),
+                                                      out.ctypes.data_as(_dp), self._workspace().ctypes.data)
+        if rc != L.OK:
+            raise RuntimeError(f"leonav_boxplus_many returned {compiled.code_name(rc, L)}")
+        return out
+
+    def receiver_ecef(self, x: np.ndarray, params: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Receiver ECEF position (m) and Earth-relative velocity (m/s) of state x."""
+        r, v = self._receiver_ecef(x, self.params if params is None else params)
+        return r[:, 0], v[:, 0]
+
     def gravity_enu(self, p_enu: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
         """Normal gravity vector (m/s^2, origin ENU axes) at p_enu (m)."""
         return self._gravity(p_enu, self.params if params is None else params)[0][:, 0]
@@ -167,10 +239,8 @@ class NavFunctions:
             raise ValueError(f"boxminus: expected two (n, {self.layout.NX}) arrays, got {a.shape} and {b.shape}")
         out = np.empty((a.shape[0], self.layout.NDX))
         with self._work_lock:
-            if self._work is None:
-                self._work = self.library.new_workspace()
             rc = self.library.lib.leonav_boxminus_many(a.shape[0], a.ctypes.data_as(_dp), b.ctypes.data_as(_dp),
-                                                      out.ctypes.data_as(_dp), self._work.ctypes.data)
+                                                      out.ctypes.data_as(_dp), self._workspace().ctypes.data)
         if rc != self.layout.OK:
             raise RuntimeError(f"leonav_boxminus_many returned {compiled.code_name(rc, self.layout)}")
         return out[0] if single else out

@@ -1,15 +1,17 @@
 """Time-ordered record streams for the C filter loop.
 
 `RECORD_DTYPE` is the NumPy twin of the C struct `leonav_record` (csrc/leonav_driver.h):
-`t` (s since the scenario epoch), `kind` (-1 IMU, else a LEONAV_MEAS_* id), `sat_id`
-(-1 if none), `z` (unit of the observable), `R` (unit^2), `dt` (s, IMU interval),
+`t` (s since the scenario epoch), `kind` (-1 IMU, -2 constant-velocity predict, else a
+LEONAV_MEAS_* id), `sat_id` (-1 if none), `z` (unit of the observable), `R` (unit^2), `dt`
+(s, IMU or constant-velocity interval),
 `u` (dtheta_b rad x3, dvel_b m/s x3, body FLU), `aux` (NAUX, see docs/design.md).
 
-An IMU record at `t` carries the increments integrated over `(t - dt, t]`.
+An IMU record at `t` carries the increments integrated over `(t - dt, t]`; a
+constant-velocity (CV) record at `t` predicts a receiver without IMU over `(t - dt, t]`.
 
-Tie rule of `merge_records`: at equal `t`, IMU records come before measurements (the
-IMU sample brings the state to `t`, where the measurement is then applied); records of
-the same class keep their input order (arrays in argument order, then index).
+Tie rule of `merge_records`: at equal `t`, predict records (IMU, CV) come before
+measurements (the predict brings the state to `t`, where the measurement is then applied);
+records of the same class keep their input order (arrays in argument order, then index).
 """
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ from leonav_runtime.compiled import GEN_DIR, load_layout
 
 _LAYOUT = load_layout(GEN_DIR)  # the generated layout the library is built from
 KIND_IMU = int(_LAYOUT.MEAS_IMU)  # record kind of an IMU interval (LEONAV_MEAS_IMU)
+KIND_CV = int(_LAYOUT.KIND_CV)  # record kind of a constant-velocity predict (LEONAV_KIND_CV)
 NU = int(_LAYOUT.NU)
 NAUX = int(_LAYOUT.NAUX)
 
@@ -71,6 +74,17 @@ def imu_records(t_s, dtheta_b, dvel_b, dt_s=None) -> np.ndarray:
     return rec
 
 
+def cv_records(t_s, dt_s) -> np.ndarray:
+    """Constant-velocity predict records (a receiver without IMU): each brings the state from
+    t - dt to t (s). t_s (N,), dt_s scalar or (N,) (s, >= 0)."""
+    t = np.asarray(t_s, dtype=np.float64).reshape(-1)
+    rec = np.zeros(t.size, dtype=RECORD_DTYPE)
+    rec["t"], rec["kind"], rec["sat_id"] = t, KIND_CV, -1
+    rec["dt"] = _column("dt_s", dt_s, t.size, np.float64)
+    rec["z"], rec["R"] = np.nan, np.nan
+    return rec
+
+
 def measurement_records(t_s, kind: int, z, R, aux=None, sat_id=-1) -> np.ndarray:
     """Measurement records of one observable `kind` (a LEONAV_MEAS_* id).
 
@@ -104,7 +118,7 @@ def merge_records(*arrays: np.ndarray) -> np.ndarray:
     if not arrays:
         return np.zeros(0, dtype=RECORD_DTYPE)
     rec = np.concatenate(arrays)
-    order = np.argsort(rec["kind"] != KIND_IMU, kind="stable")   # IMU first ...
+    order = np.argsort(rec["kind"] >= 0, kind="stable")          # IMU / CV predicts first ...
     order = order[np.argsort(rec["t"][order], kind="stable")]     # ... within equal t
     return rec[order]
 
@@ -114,10 +128,10 @@ def check_records(rec: np.ndarray, n_meas: int) -> None:
     if rec.dtype != RECORD_DTYPE:
         raise ValueError(f"records: dtype {rec.dtype}, expected RECORD_DTYPE")
     kinds = rec["kind"]
-    bad = np.flatnonzero((kinds < KIND_IMU) | (kinds >= n_meas))
+    bad = np.flatnonzero((kinds < KIND_CV) | (kinds >= n_meas))
     if bad.size:
         i = int(bad[0])
-        raise ValueError(f"record {i}: kind {int(kinds[i])}, expected -1 (IMU) or 0..{n_meas - 1}")
+        raise ValueError(f"record {i}: kind {int(kinds[i])}, expected -1 (IMU), -2 (CV) or 0..{n_meas - 1}")
     t = rec["t"]
     if not np.all(np.isfinite(t)):
         i = int(np.flatnonzero(~np.isfinite(t))[0])

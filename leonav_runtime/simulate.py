@@ -387,7 +387,12 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
         z += g * sigma * noise[rows]
         tables.append(_table(kind_name, s, rows, z, sigma))
 
-    dx0 = np.zeros(L.NDX) if noise_free else rng.multivariate_normal(np.zeros(L.NDX), setup.P0)
+    # the initial error is drawn over the states with a prior (not states a scenario leaves at
+    # zero), so adding an uncoupled state to the layout leaves every draw unchanged
+    live = np.flatnonzero(np.diag(setup.P0) > 0)
+    dx0 = np.zeros(L.NDX)
+    if not noise_free:
+        dx0[live] = rng.multivariate_normal(np.zeros(live.size), setup.P0[np.ix_(live, live)])
     x0 = nav.boxplus(x_true[0], dx0)
     # the road every source takes: tables -> records (aux f_b averaged from these IMU increments)
     inputs = assemble(imu, setup.params, Prior(x0, setup.P0), satellites=tables, nav=nav)

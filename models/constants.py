@@ -109,6 +109,41 @@ GAL_EPH_VALIDITY_S = _const("GAL_EPH_VALIDITY_S", 4.0 * 3600.0, "s",
 BDS_EPH_VALIDITY_S = _const("BDS_EPH_VALIDITY_S", 2.0 * 3600.0, "s",
                             "span over which a BeiDou ephemeris is used (hourly uploads; +-1 h around toe)")
 
+# --- GNSS signal propagation: the models of models/measurements/gnss_atmosphere.py ----------
+# Standard atmosphere that drives the Saastamoinen model when no meteorological data are
+# given (the usual choice of single-point software; RTKLIB's tropmodel uses the same).
+STD_PRESSURE_HPA = _const("STD_PRESSURE_HPA", 1013.25, "hPa", "standard-atmosphere pressure at height 0")
+STD_TEMPERATURE_K = _const("STD_TEMPERATURE_K", 288.15, "K", "standard-atmosphere temperature at height 0 (15 C)")
+STD_LAPSE_RATE_KPM = _const("STD_LAPSE_RATE_KPM", 6.5e-3, "K/m", "standard-atmosphere temperature lapse rate")
+STD_REL_HUMIDITY = _const("STD_REL_HUMIDITY", 0.7, "-", "relative humidity assumed for the wet delay")
+TROPO_MIN_HEIGHT_M = _const("TROPO_MIN_HEIGHT_M", -100.0, "m",
+                            "below this ellipsoidal height the troposphere term is 0 (outside the model)")
+TROPO_MAX_HEIGHT_M = _const("TROPO_MAX_HEIGHT_M", 1.0e4, "m",
+                            "above this ellipsoidal height the troposphere term is 0 (standard atmosphere "
+                            "below the tropopause only)")
+
+ISB_RW_PSD_M2PS = _const("ISB_RW_PSD_M2PS", 1e-6, "m^2/s",
+                         "random-walk PSD of the receiver inter-system biases (hardware delays drifting with "
+                         "temperature: 6 cm in an hour); a constant until the parameter vector carries one")
+
+# --- GNSS pseudorange error model (single point and GNSS records): RTKLIB's defaults -------
+# var = PR_ERR_A^2 + PR_ERR_B^2 / sin(el) + URA^2 + PR_ERR_CODE_BIAS^2 + var_iono + var_tropo,
+# var_iono = PR_ERR_IONO_OFF^2 without a correction, (PR_ERR_BRDC_IONO_FACTOR * I)^2 with
+# Klobuchar; var_tropo = PR_ERR_TROPO_OFF^2 without, (PR_ERR_SAAS / (sin el + 0.1))^2 with.
+PR_ERR_A_M = _const("PR_ERR_A_M", 0.3, "m", "code noise, elevation-independent part")
+PR_ERR_B_M = _const("PR_ERR_B_M", 0.3, "m", "code noise, part that grows as 1/sqrt(sin el)")
+PR_ERR_CODE_BIAS_M = _const("PR_ERR_CODE_BIAS_M", 0.3, "m", "code bias error (uncorrected inter-signal bias)")
+PR_ERR_IONO_OFF_M = _const("PR_ERR_IONO_OFF_M", 5.0, "m", "1-sigma of the ionosphere when it is not corrected")
+PR_ERR_TROPO_OFF_M = _const("PR_ERR_TROPO_OFF_M", 3.0, "m", "1-sigma of the troposphere when it is not corrected")
+PR_ERR_BRDC_IONO_FACTOR = _const("PR_ERR_BRDC_IONO_FACTOR", 0.5, "-",
+                                 "1-sigma of the Klobuchar residual as a fraction of the correction")
+PR_ERR_SAAS_M = _const("PR_ERR_SAAS_M", 0.3, "m", "1-sigma of the Saastamoinen residual at zenith (/(sin el + 0.1))")
+RANGE_RATE_SIGMA_MPS = _const("RANGE_RATE_SIGMA_MPS", 0.1, "m/s",
+                              "default 1-sigma of a Doppler-derived range rate (about 0.5 Hz at L1)")
+SPP_CHI2_ALPHA = _const("SPP_CHI2_ALPHA", 1e-3, "-",
+                        "false-alarm probability of the single-point chi-square residual test (RTKLIB's table)")
+SPP_MAX_GDOP = _const("SPP_MAX_GDOP", 30.0, "-", "single-point solutions with a larger GDOP are rejected")
+
 # --- Starlink beacons --------------------------------------------------------------------
 STARLINK_BEACON_HZ = _const("STARLINK_BEACON_HZ", 11.325e9, "Hz",
                             "Starlink Ku-band beacon carrier used in the paper (central tone of the channel)")

@@ -19,7 +19,8 @@ import casadi as ca
 
 from models import frames, kinematics
 from models.clock import clock_qd
-from models.state import DX, NDX, P, U
+from models.constants import ISB_RW_PSD_M2PS
+from models.state import DX, NDX, P, U, X
 
 def _at_zero(expr, sym):
     return ca.substitute(expr, sym, ca.DM.zeros(sym.shape))
@@ -155,7 +156,8 @@ def random_walk_noise(dt, p):
     """Discrete noise (NDX x NDX) of the bias random walks, the clock and the LO offset over dt.
 
     Bias random walks: acc_bias_rw^2 dt, gyro_bias_rw^2 dt on their blocks (first order).
-    Clock: exact two-state discretization; LO offset: q_blo dt.
+    Clock: exact two-state discretization; LO offset: q_blo dt. Inter-system biases: a slow
+    random walk, ISB_RW_PSD_M2PS dt (receiver hardware delays drifting with temperature).
     """
     def par(name):
         return p[P[name].offset]
@@ -163,6 +165,7 @@ def random_walk_noise(dt, p):
     diag_extra[DX["db_a"].slice] = par("acc_bias_rw") ** 2 * dt
     diag_extra[DX["db_g"].slice] = par("gyro_bias_rw") ** 2 * dt
     diag_extra[DX["db_lo"].offset] = par("q_blo") * dt
+    diag_extra[DX["disb"].slice] = ISB_RW_PSD_M2PS * dt
     Q = ca.diag(diag_extra)
     q11, q12, q22 = clock_qd(par("q_cdt"), par("q_cddt"), dt)
     i, j = DX["dc_dt"].offset, DX["dc_ddt"].offset
@@ -285,6 +288,50 @@ def nav_predict(x, P_, u, dt, p):
     P_next = congruence(T, symmetric_from_upper(n, lambda i, j: B_pre[i, j] + Q_pre[i, j]))
     Qd = congruence(T, Q_pre) + Q_rw
     return x_next, P_next + Q_rw, F, Qd
+
+
+def cv_step(x, dt):
+    """Nominal constant-velocity step over dt (s), the motion model of a receiver without IMU:
+    p_enu += v_enu dt, c_dt += c_ddt dt, every other block (velocity, attitude, biases, LO
+    offset, inter-system biases) held."""
+    x_next = ca.SX(x)
+    pos, vel = X["p_enu"].slice, X["v_enu"].slice
+    x_next[pos] = x[pos] + x[vel] * dt
+    x_next[X["c_dt"].offset] = x[X["c_dt"].offset] + x[X["c_ddt"].offset] * dt
+    return x_next
+
+
+def cv_process_noise(dt, p):
+    """Discrete process noise (NDX x NDX) of the constant-velocity model over dt.
+
+    White acceleration of PSD q = vrw^2 (m^2/s^3; the parameter `vrw` is the velocity random
+    walk of the receiver's motion, as it is for an IMU's accelerometer noise) on each ENU
+    axis: q dt^3/3 (dp), q dt^2/2 (dp dv), q dt (dv); plus `random_walk_noise` (clock, LO
+    offset; the IMU bias walks, which nothing observes without an IMU). Attitude: none.
+    """
+    q = p[P["vrw"].offset] ** 2
+    Q = random_walk_noise(dt, p)
+    for k in range(DX["dp"].size):
+        i, j = DX["dp"].offset + k, DX["dv"].offset + k
+        Q[i, i] += q * dt**3 / 3
+        Q[i, j] += q * dt**2 / 2
+        Q[j, i] += q * dt**2 / 2
+        Q[j, j] += q * dt
+    return Q
+
+
+def cv_predict(x, P_, dt, p):
+    """(x_next, P_next, F, Qd) of the constant-velocity model over dt (SX).
+
+    F = d[cv_step(x [+] dx) [-] cv_step(x)]/d dx (identity plus the dt couplings p <- v and
+    c_dt <- c_ddt), P_next = F P F^T + Qd on F's structural non-zeros (`congruence`).
+    """
+    x_next = cv_step(x, dt)
+    F = error_jacobian(lambda xx: cv_step(xx, dt), x, frames.boxplus, frames.boxminus, NDX)
+    Qd = cv_process_noise(dt, p)
+    FPF = congruence(F, symmetric_part(P_))
+    P_next = symmetric_from_upper(NDX, lambda i, j: FPF[i, j] + Qd[i, j])
+    return x_next, P_next, F, Qd
 
 
 def nav_h(h: Callable, x, aux, p):

@@ -86,8 +86,8 @@ def trapezoid_position(pos, vel, vel_next, dt):
 def mech(x, u, dt, p):
     """Nominal state after one IMU interval `dt` (s) with increments u = [dtheta_b (rad), dvel_b (m/s)].
 
-    Biases, clock and LO offset follow their noise-free dynamics (constant biases,
-    c_dt += c_ddt dt). See the module docstring for the integration scheme.
+    Biases, clock, LO offset and inter-system biases follow their noise-free dynamics
+    (constants, c_dt += c_ddt dt). See the module docstring for the integration scheme.
     """
     return mech_corrected(x, corrected_increments(x, u, dt), dt, p)
 
@@ -121,7 +121,8 @@ def mech_corrected(x, w, dt, p, gravity=None):
     pos_next = trapezoid_position(pos, vel, vel_next, dt)
 
     c_dt, c_ddt = x[X["c_dt"].offset], x[X["c_ddt"].offset]
-    return ca.vertcat(pos_next, vel_next, q_next, b_a, b_g, c_dt + c_ddt * dt, c_ddt, x[X["b_lo"].offset])
+    return ca.vertcat(pos_next, vel_next, q_next, b_a, b_g, c_dt + c_ddt * dt, c_ddt, x[X["b_lo"].offset],
+                      x[X["isb"].slice])
 
 
 def receiver_accel_ecef(x, aux, p):

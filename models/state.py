@@ -41,6 +41,7 @@ X_BLOCKS = _blocks([
     ("c_dt", 1, "m", "receiver clock bias times c"),
     ("c_ddt", 1, "m/s", "receiver clock drift times c"),
     ("b_lo", 1, "Hz", "beacon front-end frequency offset at baseband"),
+    ("isb", 2, "m", "inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c"),
 ])
 # Error state dx (attitude as a body-frame rotation vector)
 DX_BLOCKS = _blocks([
@@ -52,6 +53,7 @@ DX_BLOCKS = _blocks([
     ("dc_dt", 1, "m", "clock bias error"),
     ("dc_ddt", 1, "m/s", "clock drift error"),
     ("db_lo", 1, "Hz", "LO offset error"),
+    ("disb", 2, "m", "inter-system bias errors [Galileo - GPS, BeiDou - GPS]"),
 ])
 # Parameters p
 P_NAMES = (
@@ -77,6 +79,15 @@ AUX_BLOCKS = _blocks([
     ("v_ref_ecef", 3, "m/s", "reference satellite velocity, ECEF"),
     ("a_ref_ecef", 3, "m/s^2", "reference satellite acceleration, ECEF"),
     ("f_b", 3, "m/s^2", "latest specific force, body (receiver acceleration)"),
+    # GNSS observables (GNSS_PSEUDORANGE, GNSS_RANGE_RATE); zeros for every other observable
+    ("sat_clock", 2, "m, m/s", "satellite clock offset c dt_sv (relativistic term and the signal's group "
+     "delay included) and drift c d(dt_sv)/dt"),
+    ("t_sod", 1, "s", "GPS time of day of reception (Klobuchar local time)"),
+    ("iono_scale", 1, "-", "(f_L1 / f)^2 of the signal: scales the Klobuchar L1 delay; 0 = no ionosphere term"),
+    ("tropo_scale", 1, "-", "1 = Saastamoinen troposphere applied, 0 = not"),
+    ("isb_select", 2, "-", "[1 if Galileo, 1 if BeiDou]: which inter-system bias the signal carries"),
+    ("klobuchar", 8, "s, s/sc, s/sc^2, s/sc^3, s, s/sc, s/sc^2, s/sc^3",
+     "GPS broadcast ionosphere alpha0..3, beta0..3 (IS-GPS-200 20.3.3.5.1.7)"),
 ])
 # IMU input u
 U_BLOCKS = _blocks([
@@ -111,9 +122,13 @@ MEASUREMENTS = (
     Observable("DOPPLER_RATE", "doppler_rate", 1, "Hz/s"),
     Observable("DOPPLER", "doppler", 1, "Hz"),
     Observable("OFDM_RANGE_DIFF", "ofdm_range_diff", 1, "m"),
+    Observable("GNSS_PSEUDORANGE", "gnss_pseudorange", 1, "m"),
+    Observable("GNSS_RANGE_RATE", "gnss_range_rate", 1, "m/s"),
 )
-# Record kind of an IMU interval (measurement records carry their observable's index).
+# Record kinds that are not observables (measurement records carry their observable's index):
+# an IMU interval (strapdown predict) and a constant-velocity predict (no IMU).
 KIND_IMU = -1
+KIND_CV = -2
 
 
 def _total(blocks: tuple[Block, ...]) -> int:
@@ -137,5 +152,5 @@ AUX = {b.name: b for b in AUX_BLOCKS}
 U = {b.name: b for b in U_BLOCKS}
 NNAV = sum(DX[name].size for name in NAV_BLOCKS)
 
-assert (NX, NDX, NP, NAUX, NU, NNAV) == (19, 18, 11, 21, 6, 9), "layout drifted from docs/design.md"
+assert (NX, NDX, NP, NAUX, NU, NNAV) == (21, 20, 11, 36, 6, 9), "layout drifted from docs/design.md"
 assert [DX[name].offset for name in NAV_BLOCKS] == [0, 3, 6], "the 9D block must lead dx"

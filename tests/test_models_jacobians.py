@@ -22,6 +22,7 @@ def _state(rng):
     x[L.X_B_A_SLICE] = rng.normal(size=3) * 0.05
     x[L.X_B_G_SLICE] = rng.normal(size=3) * 1e-3
     x[[L.X_C_DT, L.X_C_DDT, L.X_B_LO]] = [300.0, -2.0, 1500.0]
+    x[L.X_ISB_SLICE] = [4.0, -7.0]
     return x
 
 
@@ -38,8 +39,16 @@ def _aux(rng, r_sat_m):
     r_s = site + r_sat_m * (up + 0.5 * rng.normal(size=3))
     r_ref = site + r_sat_m * (up + 0.5 * rng.normal(size=3))
     v = rng.normal(size=3) * 7000
-    return np.r_[r_s, v, rng.normal(size=3) * 8, r_ref, rng.normal(size=3) * 7000, rng.normal(size=3) * 8,
-                 [0.3, -0.2, 9.9]]
+    aux = np.zeros(L.NAUX)
+    aux[:21] = np.r_[r_s, v, rng.normal(size=3) * 8, r_ref, rng.normal(size=3) * 7000, rng.normal(size=3) * 8,
+                     [0.3, -0.2, 9.9]]
+    # GNSS block: satellite clock, time of day, both atmosphere terms on, a Galileo signal, and
+    # Klobuchar coefficients of the GEONET 0759 nav header (2005-04-02)
+    aux[L.AUX_SAT_CLOCK_SLICE] = [1.2e5, 0.03]
+    aux[L.AUX_T_SOD], aux[L.AUX_IONO_SCALE], aux[L.AUX_TROPO_SCALE] = 40000.0 + 9000 * rng.random(), 1.0, 1.0
+    aux[L.AUX_ISB_SELECT_SLICE] = [1.0, 0.0]
+    aux[L.AUX_KLOBUCHAR_SLICE] = [1.118e-08, 1.49e-08, -5.96e-08, -5.96e-08, 8.806e04, 1.638e04, -1.966e05, -1.311e05]
+    return aux
 
 
 def _fd(fun, x, step):
@@ -55,7 +64,7 @@ def _fd(fun, x, step):
 
 STEP = np.zeros(NDX)  # finite-difference step per error-state block
 for _name, _step in (("DP", 1e-2), ("DV", 1e-3), ("DTHETA", 1e-4), ("DB_A", 1e-3), ("DB_G", 1e-4),
-                     ("DC_DT", 1e-2), ("DC_DDT", 1e-3), ("DB_LO", 1e-3)):
+                     ("DC_DT", 1e-2), ("DC_DDT", 1e-3), ("DB_LO", 1e-3), ("DISB", 1e-2)):
     STEP[getattr(L, f"DX_{_name}_SLICE")] = _step
 
 
@@ -79,7 +88,7 @@ def test_F_matches_finite_differences(seed):
 def test_H_matches_finite_differences(suffix, seed):
     rng = np.random.default_rng(seed)
     x = _state(rng)
-    aux = _aux(rng, 2.0e7 if suffix == "pseudorange" else 6.0e5)
+    aux = _aux(rng, 2.0e7 if "pseudorange" in suffix or "range_rate" in suffix else 6.0e5)
     h = FNS[f"leonav_h_{suffix}"]
     H = np.array(h(x, aux, P_VEC)[1]).ravel()
     H_fd = _fd(lambda xx: float(h(xx, aux, P_VEC)[0]), x, STEP).ravel()

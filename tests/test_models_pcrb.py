@@ -32,7 +32,7 @@ def test_information_recursion_equals_kalman_covariance():
     sats = [site + 6e5 * (site / np.linalg.norm(site) + 0.6 * rng.normal(size=3)) for _ in range(4)]
     P = np.zeros((NDX, NDX))
     for name, var in (("DP", 25.0), ("DV", 1.0), ("DTHETA", 1e-3), ("DB_A", 1e-2), ("DB_G", 1e-4), ("DC_DT", 1e6),
-                      ("DC_DDT", 100.0), ("DB_LO", 1e4)):
+                      ("DC_DDT", 100.0), ("DB_LO", 1e4), ("DISB", 1e4)):
         block = getattr(L, f"DX_{name}_SLICE")
         P[block, block] = np.eye(block.stop - block.start) * var
     J = np.linalg.inv(P)

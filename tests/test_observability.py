@@ -39,6 +39,9 @@ def single_state_nulls(c: ob.CaseResult) -> set[str]:
     return {d["leading"] for d in c.null_directions if len(d["terms"]) == 1}
 
 
+# inter-system bias components (not seen by the paper's GPS-only observables)
+ISB = {c.name for c in ob.components() if c.name.startswith("disb")}
+
 # --- the lists come from models/state.py --------------------------------------------------------
 
 def test_states_and_observables_are_enumerated_from_the_models():
@@ -71,7 +74,7 @@ def test_renamed_state_block_is_followed(monkeypatch):
     renamed = tuple(S.Block("dlnb" if b.name == "db_lo" else b.name, b.offset, b.size, b.unit, b.doc)
                     for b in S.DX_BLOCKS)
     monkeypatch.setattr(S, "DX_BLOCKS", renamed)
-    assert ob.components()[-1].name == "dlnb"
+    assert ob.components()[S.DX["db_lo"].offset].name == "dlnb"
 
 
 def test_new_observable_needs_no_analysis_change():
@@ -103,33 +106,34 @@ def test_position_fixes_static_yaw_unobservable_until_the_vehicle_accelerates():
         d = next(d for d in static.null_directions if d["leading"] == lead)
         coef = next(t["coefficient"] for t in d["terms"] if t["component"] == bias)
         assert abs(abs(coef) - G) < 0.05 * G
-    assert single_state_nulls(static) == {"dc_dt", "dc_ddt", "db_lo"}
-    assert static.rank == S.NDX - 6 and static.decision.clear and static.draws_agree
+    assert single_state_nulls(static) == {"dc_dt", "dc_ddt", "db_lo"} | ISB
+    assert static.rank == S.NDX - 6 - len(ISB) and static.decision.clear and static.draws_agree
 
     moving = case(ro.GNSS_FIX_MODE, "accelerating")
-    assert moving.rank == S.NDX - 3 and moving.draws_agree
-    assert null_components(moving) == {"dc_dt", "dc_ddt", "db_lo"}
+    assert moving.rank == S.NDX - 3 - len(ISB) and moving.draws_agree
+    assert null_components(moving) == {"dc_dt", "dc_ddt", "db_lo"} | ISB
     assert "dtheta_z" in moving.classes["observable"]
 
 
 def test_pseudoranges_from_four_satellites_under_acceleration_observe_everything_but_the_lo():
     c = case("gps+imu", "accelerating", n_sats=4)
-    assert c.rank == S.NDX - 1 and c.decision.clear and c.draws_agree and c.decision.n_weak == 0
-    assert c.classes["unobservable"] == ["db_lo"]
-    assert c.classes["observable"] == [x.name for x in ob.components() if x.name != "db_lo"]
+    # the paper's GPS pseudorange: the Galileo/BeiDou inter-system biases are not seen either
+    assert c.rank == S.NDX - 1 - len(ISB) and c.decision.clear and c.draws_agree and c.decision.n_weak == 0
+    assert c.classes["unobservable"] == ["db_lo", *sorted(ISB)]
+    assert c.classes["observable"] == [x.name for x in ob.components() if x.name not in {"db_lo"} | ISB]
 
 
 def test_doppler_rate_only_leaves_the_receiver_clock_unobservable():
     for motion in ("static", "accelerating"):
         c = case("leo-alpha+imu", motion)
         assert {"dc_dt", "dc_ddt", "db_lo"} <= single_state_nulls(c)
-    assert case("leo-alpha+imu", "accelerating").rank == S.NDX - 3
+    assert case("leo-alpha+imu", "accelerating").rank == S.NDX - 3 - len(ISB)
 
 
 def test_ofdm_range_difference_cancels_the_clock_bias():
     c = case("leo-ofdm+imu", "accelerating")
     assert "dc_dt" in c.classes["unobservable"] and "dc_ddt" in c.classes["unobservable"]
-    assert c.rank == S.NDX - 3
+    assert c.rank == S.NDX - 3 - len(ISB)
 
 
 def test_lo_offset_observable_only_with_doppler():

@@ -76,7 +76,7 @@ def test_layout_mismatch_is_reported():
     wrong = types.SimpleNamespace(**{k: getattr(lib.layout, k) for k in ("NX", "NDX", "NP", "NAUX", "NU",
                                                                          "MEAS_TABLE")})
     wrong.NAUX += 1
-    with pytest.raises(compiled.LayoutMismatchError, match=r"leonav_h_pseudorange: input 1 is 21x1, expected 22x1"):
+    with pytest.raises(compiled.LayoutMismatchError, match=r"leonav_h_pseudorange: input 1 is 36x1, expected 37x1"):
         compiled.check_layout(lib.lib, wrong)
     wrong.NAUX -= 1
     Observable = type(wrong.MEAS_TABLE[0])

@@ -37,7 +37,7 @@ def x_rest() -> np.ndarray:
 
 def P0() -> np.ndarray:
     sd = {"DP": 10.0, "DV": 0.5, "DTHETA": 0.01, "DB_A": 0.05, "DB_G": 1e-4, "DC_DT": 100.0, "DC_DDT": 1.0,
-          "DB_LO": 10.0}  # prior standard deviation per error-state block (SI)
+          "DB_LO": 10.0, "DISB": 10.0}  # prior standard deviation per error-state block (SI)
     P = np.zeros((L.NDX, L.NDX))
     for name, s in sd.items():
         block = getattr(L, f"DX_{name}_SLICE")

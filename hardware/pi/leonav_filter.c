@@ -70,7 +70,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "out of memory or bad workspace\n");
         return 2;
     }
-    leonav_run_out out = {xs, pd, NULL, NULL, y, S, nis, status, 0, 0, 0, 0, 0};
+    leonav_run_out out = {xs, pd, NULL, NULL, y, S, nis, status, 0, 0, 0, 0, 0, 0};
     int rc = leonav_run(x, P, p, rec, n, gates, &out, work);
 
     FILE *f = fopen(argv[3], "w");
@@ -92,6 +92,7 @@ int main(int argc, char **argv)
     fclose(f);
     fprintf(stderr, "%ld records: %ld IMU, %ld applied, %ld gated, %ld failed\n", out.n_done, out.n_imu,
             out.n_applied, out.n_gated, out.n_failed);
+    if (out.n_cv) fprintf(stderr, "  %ld constant-velocity predicts\n", out.n_cv);
     long applied[LEONAV_NMEAS] = {0};
     for (long i = 0; i < out.n_done; ++i)
         if (rec[i].kind >= 0 && rec[i].kind < LEONAV_NMEAS && status[i] == LEONAV_STATUS_APPLIED) applied[rec[i].kind]++;

@@ -52,6 +52,9 @@ typedef char meas_dims_are_scalar[(1 LEONAV_MEAS_TABLE(MEAS_SCALAR)) ? 1 : -1];
 
 static const gen_fn MECH = GEN_FN(leonav_mech);
 static const gen_fn PREDICT = GEN_FN(leonav_predict);
+static const gen_fn PREDICT_CV = GEN_FN(leonav_predict_cv);    /* constant-velocity predict (no IMU) */
+static const gen_fn BOXPLUS = GEN_FN(leonav_boxplus);
+static const gen_fn GNSS_TERMS = GEN_FN(leonav_gnss_terms);     /* el, az, iono, tropo of a GNSS signal */
 static const gen_fn BOXMINUS = GEN_FN(leonav_boxminus);
 static const gen_fn PCRB_UPDATE = GEN_FN(leonav_pcrb_update);  /* B - B H^T H B / S, any observable */
 
@@ -89,6 +92,9 @@ static work_sizes all_sizes(void)
     work_sizes m = {MAX_IN, MAX_OUT, 0, 0};
     max_sizes(&MECH, &m);
     max_sizes(&PREDICT, &m);
+    max_sizes(&PREDICT_CV, &m);
+    max_sizes(&BOXPLUS, &m);
+    max_sizes(&GNSS_TERMS, &m);
     max_sizes(&BOXMINUS, &m);
     max_sizes(&PCRB_UPDATE, &m);
     for (int k = 0; k < LEONAV_NMEAS; ++k) {
@@ -127,7 +133,9 @@ static int h_is_scalar(const gen_fn *f)
 int leonav_work_init(void *work, size_t nbytes)
 {
     if (!work || nbytes < leonav_work_size()) return LEONAV_ERR_WORK;
-    if (!outputs_fit(&MECH) || !outputs_fit(&PREDICT) || !outputs_fit(&PCRB_UPDATE)) return LEONAV_ERR_LAYOUT;
+    if (!outputs_fit(&MECH) || !outputs_fit(&PREDICT) || !outputs_fit(&PREDICT_CV) || !outputs_fit(&PCRB_UPDATE) ||
+        !outputs_fit(&BOXPLUS) || !outputs_fit(&GNSS_TERMS))
+        return LEONAV_ERR_LAYOUT;
     for (int k = 0; k < LEONAV_NMEAS; ++k)
         if (!outputs_fit(&MEAS[k].h) || !outputs_fit(&MEAS[k].update) || !h_is_scalar(&MEAS[k].h))
             return LEONAV_ERR_LAYOUT;
@@ -237,6 +245,17 @@ static int predict_into(workspace *ws, const double *x, const double *P, const d
     return LEONAV_OK;
 }
 
+/* Constant-velocity predict of (x, P) over dt into (x_out, P_out); the inputs are left as they are. */
+static int predict_cv_into(workspace *ws, const double *x, const double *P, double dt, const double *p,
+                           double *x_out, double *P_out, double *F, double *Qd)
+{
+    if (!isfinite(dt) || dt < 0.0) return LEONAV_FAILED;
+    const double *in[4] = {x, P, &dt, p};
+    double *out[4] = {x_out, P_out, F, Qd};
+    if (call_gen(ws, &PREDICT_CV, in, 4, out, 4) != 0 || !state_finite(x_out, P_out)) return LEONAV_FAILED;
+    return LEONAV_OK;
+}
+
 /* Scalar update of (x, P) into (x_out, P_out); returns LEONAV_OK, _GATED or _FAILED and
  * writes y, S, nis into ysn (NaN where not computed). */
 static int update_into(workspace *ws, const double *x, const double *P, int kind, double z, double R,
@@ -261,6 +280,18 @@ int leonav_predict_step(double *x, double *P, const double *u, double dt, const 
     workspace *ws = get_ws(work);
     if (!ws) return LEONAV_ERR_WORK;
     int status = predict_into(ws, x, P, u, dt, p, ws->x_tmp, ws->P_tmp, F, Qd);
+    if (status == LEONAV_OK) {
+        memcpy(x, ws->x_tmp, sizeof(double) * NX);
+        memcpy(P, ws->P_tmp, sizeof(double) * NMAT);
+    }
+    return status;
+}
+
+int leonav_predict_cv_step(double *x, double *P, double dt, const double *p, double *F, double *Qd, void *work)
+{
+    workspace *ws = get_ws(work);
+    if (!ws) return LEONAV_ERR_WORK;
+    int status = predict_cv_into(ws, x, P, dt, p, ws->x_tmp, ws->P_tmp, F, Qd);
     if (status == LEONAV_OK) {
         memcpy(x, ws->x_tmp, sizeof(double) * NX);
         memcpy(P, ws->P_tmp, sizeof(double) * NMAT);
@@ -297,6 +328,55 @@ int leonav_h_step(int kind, const double *x, const double *aux, const double *p,
     return LEONAV_OK;
 }
 
+int leonav_h_many(int kind, long n, const double *x, const double *aux, const double *p, double *h,
+                  double *H, int32_t *status, void *work)
+{
+    workspace *ws = get_ws(work);
+    if (!ws) return LEONAV_ERR_WORK;
+    if (kind < 0 || kind >= LEONAV_NMEAS) return LEONAV_ERR_KIND;
+    if (n < 0 || (n > 0 && (!x || !aux || !p || !h))) return LEONAV_ERR_ARG;
+    for (long i = 0; i < n; ++i) {
+        double *Hi = H ? H + i * NDX : NULL;
+        int rc = leonav_h_step(kind, x + i * NX, aux + i * LEONAV_NAUX, p, h + i, Hi, work);
+        if (rc < 0) return rc;
+        if (rc != LEONAV_OK) {
+            h[i] = NAN;
+            if (Hi)
+                for (int j = 0; j < NDX; ++j) Hi[j] = NAN;
+        }
+        if (status) status[i] = rc;
+    }
+    return LEONAV_OK;
+}
+
+int leonav_gnss_terms_many(long n, const double *x, const double *aux, const double *p, double *terms, void *work)
+{
+    workspace *ws = get_ws(work);
+    if (!ws) return LEONAV_ERR_WORK;
+    if (n < 0 || (n > 0 && (!x || !aux || !p || !terms))) return LEONAV_ERR_ARG;
+    for (long i = 0; i < n; ++i) {
+        const double *in[3] = {x + i * NX, aux + i * LEONAV_NAUX, p};
+        double *out[1] = {terms + 4 * i};
+        if (call_gen(ws, &GNSS_TERMS, in, 3, out, 1) != 0 || !all_finite(terms + 4 * i, 4))
+            for (int j = 0; j < 4; ++j) terms[4 * i + j] = NAN;
+    }
+    return LEONAV_OK;
+}
+
+int leonav_boxplus_many(long n, const double *x, const double *dx, double *x_out, void *work)
+{
+    workspace *ws = get_ws(work);
+    if (!ws) return LEONAV_ERR_WORK;
+    if (n < 0 || (n > 0 && (!x || !dx || !x_out))) return LEONAV_ERR_ARG;
+    for (long i = 0; i < n; ++i) {
+        const double *in[2] = {x + i * NX, dx + i * NDX};
+        double *out[1] = {ws->x_tmp};
+        if (call_gen(ws, &BOXPLUS, in, 2, out, 1) != 0) return LEONAV_ERR_NUMERIC;
+        memcpy(x_out + i * NX, ws->x_tmp, sizeof(double) * NX);  /* x_out may alias x */
+    }
+    return LEONAV_OK;
+}
+
 const char *leonav_code_name(int rc)
 {
 #define CODE_CASE(name) case LEONAV_##name: return "LEONAV_" #name;
@@ -320,7 +400,7 @@ static void diag(const double *M, double *d)
 static int32_t record_status(int kind, int rc)
 {
     if (rc == LEONAV_FAILED) return LEONAV_STATUS_FAILED;
-    if (kind == LEONAV_MEAS_IMU) return LEONAV_STATUS_IMU;
+    if (kind == LEONAV_MEAS_IMU || kind == LEONAV_KIND_CV) return LEONAV_STATUS_IMU;
     return rc == LEONAV_GATED ? LEONAV_STATUS_GATED : LEONAV_STATUS_APPLIED;
 }
 
@@ -329,7 +409,7 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
 {
     if (!x || !P || !p || !out || (n > 0 && !rec) || n < 0) return LEONAV_ERR_ARG;
     out->n_done = 0;
-    out->n_imu = out->n_applied = out->n_gated = out->n_failed = 0;
+    out->n_imu = out->n_applied = out->n_gated = out->n_failed = out->n_cv = 0;
     workspace *ws = get_ws(work);
     if (!ws) return LEONAV_ERR_WORK;
     /* The state lives in one of two buffers (the caller's, the workspace's); a step writes
@@ -344,6 +424,9 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
         if (r->kind == LEONAV_MEAS_IMU) {
             step = predict_into(ws, xc, Pc, r->u, r->dt, p, xn, Pn, NULL, NULL);
             if (step == LEONAV_OK) out->n_imu++;
+        } else if (r->kind == LEONAV_KIND_CV) {
+            step = predict_cv_into(ws, xc, Pc, r->dt, p, xn, Pn, NULL, NULL);
+            if (step == LEONAV_OK) out->n_cv++;
         } else if (r->kind >= 0 && r->kind < LEONAV_NMEAS) {
             double gate = gate_nis ? gate_nis[r->kind] : 0.0;
             step = update_into(ws, xc, Pc, r->kind, r->z, r->R, r->aux, p, gate, ysn, xn, Pn);
@@ -392,6 +475,11 @@ int leonav_pcrb_run(double *B, const double *p, const leonav_record *rec, long n
             double x_copy[NX];
             memcpy(x_copy, xi, sizeof x_copy);
             if (leonav_predict_step(x_copy, B, r->u, r->dt, p, NULL, NULL, work) != LEONAV_OK)
+                return LEONAV_ERR_NUMERIC;
+        } else if (r->kind == LEONAV_KIND_CV) {
+            double x_copy[NX];
+            memcpy(x_copy, xi, sizeof x_copy);
+            if (leonav_predict_cv_step(x_copy, B, r->dt, p, NULL, NULL, work) != LEONAV_OK)
                 return LEONAV_ERR_NUMERIC;
         } else if (r->kind >= 0 && r->kind < LEONAV_NMEAS) {
             /* H of leonav_h_<kind> at xi, then the generated Sherman-Morrison step on B */

@@ -45,21 +45,22 @@ extern "C" {
  * so `rc < 0` is always an error and `rc == LEONAV_OK` always success.
  *
  * leonav_run also writes a status per record (leonav_run_out.status), its own enum:
- *   LEONAV_STATUS_IMU (-1) IMU record predicted, LEONAV_STATUS_APPLIED (0),
+ *   LEONAV_STATUS_IMU (-1) IMU or CV record predicted, LEONAV_STATUS_APPLIED (0),
  *   LEONAV_STATUS_GATED (1), LEONAV_STATUS_FAILED (2) (IMU or measurement record).
  * A measurement record stores its update's return code; these values are never returned.
  *
- * Record kinds: LEONAV_MEAS_IMU (-1) for an IMU interval, else a LEONAV_MEAS_* id; the
+ * Record kinds: LEONAV_MEAS_IMU (-1) for an IMU interval, LEONAV_KIND_CV (-2) for a
+ * constant-velocity predict over dt (receivers without IMU), else a LEONAV_MEAS_* id; the
  * observables are listed by the generated X-macro LEONAV_MEAS_TABLE. */
 
 /* One record of a time-ordered stream. Mirrored by RECORD_DTYPE in records.py. */
 typedef struct leonav_record {
     double t;                  /* s since the scenario epoch */
-    int32_t kind;              /* LEONAV_MEAS_IMU or LEONAV_MEAS_* */
+    int32_t kind;              /* LEONAV_MEAS_IMU, LEONAV_KIND_CV or LEONAV_MEAS_* */
     int32_t sat_id;            /* satellite id, -1 if none */
     double z;                  /* measurement, unit of its observable */
     double R;                  /* measurement noise variance, unit^2 */
-    double dt;                 /* IMU interval, s (unused for measurements) */
+    double dt;                 /* IMU or CV interval, s (unused for measurements) */
     double u[LEONAV_NU];       /* IMU increments: dtheta_b (rad, 3), dvel_b (m/s, 3), body FLU */
     double aux[LEONAV_NAUX];   /* satellite / reference / specific force block, see design.md */
 } leonav_record;
@@ -76,7 +77,8 @@ typedef struct leonav_run_out {
     double *nis;      /* n  normalised innovation squared y^2 / S */
     int32_t *status;  /* n  LEONAV_STATUS_* (per-record enum above) */
     long n_done;      /* records processed (== n unless an error code was returned) */
-    long n_imu, n_applied, n_gated, n_failed;  /* counts; n_failed includes IMU failures */
+    long n_imu, n_applied, n_gated, n_failed;  /* counts; n_failed includes IMU and CV failures */
+    long n_cv;        /* constant-velocity predicts applied */
 } leonav_run_out;
 
 /* Workspace size in bytes (maximum over every generated function's work sizes). */
@@ -96,6 +98,12 @@ int leonav_mech_step(double *x, const double *u, double dt, const double *p, voi
 int leonav_predict_step(double *x, double *P, const double *u, double dt, const double *p,
                         double *F, double *Qd, void *work);
 
+/* Constant-velocity predict (record kind LEONAV_KIND_CV: a receiver without IMU) of x and P
+ * in place over dt (generated leonav_predict_cv: p += v dt, c_dt += c_ddt dt, white
+ * acceleration of PSD vrw^2). F, Qd written when not NULL. Returns LEONAV_OK, LEONAV_FAILED
+ * (x, P unchanged: non-finite dt or result, dt < 0) or LEONAV_ERR_WORK. */
+int leonav_predict_cv_step(double *x, double *P, double dt, const double *p, double *F, double *Qd, void *work);
+
 /* dx[i] = x1[i] [-] x0[i] for i < n (rows of NX, results rows of NDX), with the generated
  * boxminus (attitude: body-frame rotation vector). Used to score estimates against truth.
  * Returns LEONAV_OK, LEONAV_ERR_WORK / _ARG / _NUMERIC. */
@@ -113,6 +121,21 @@ int leonav_update_step(double *x, double *P, int kind, double z, double R, const
 int leonav_h_step(int kind, const double *x, const double *aux, const double *p, double *h,
                   double *H, void *work);
 
+/* Batch of leonav_h_step for n rows: x (n * NX, one state per row), aux (n * NAUX), one p;
+ * h (n), H (n * NDX, row i at H + i * NDX; may be NULL), status (n, may be NULL: each row's
+ * leonav_h_step code). A failing row gets NaN in h and H. Returns LEONAV_OK, LEONAV_ERR_WORK,
+ * _KIND or _ARG. */
+int leonav_h_many(int kind, long n, const double *x, const double *aux, const double *p, double *h,
+                  double *H, int32_t *status, void *work);
+
+/* terms (n * 4) = [el (rad), az (rad), iono (m), tropo (m)] of the generated leonav_gnss_terms
+ * for n rows (x n * NX, aux n * NAUX); NaN for a row whose result is not finite. Returns
+ * LEONAV_OK, LEONAV_ERR_WORK or _ARG. */
+int leonav_gnss_terms_many(long n, const double *x, const double *aux, const double *p, double *terms, void *work);
+
+/* x_out[i] = x[i] [+] dx[i] for n rows (NX, NDX; x_out may be x). LEONAV_OK, _WORK, _ARG, _NUMERIC. */
+int leonav_boxplus_many(long n, const double *x, const double *dx, double *x_out, void *work);
+
 /* "LEONAV_OK", "LEONAV_ERR_KIND", ... for a return code (generated list); "LEONAV_?" if unknown. */
 const char *leonav_code_name(int rc);
 
@@ -124,7 +147,7 @@ const char *leonav_meas_unit(int kind);
 /* Run the filter over n time-ordered records, updating x and P in place (final state).
  * gate_nis: LEONAV_NMEAS thresholds indexed by kind (<= 0 disables), or NULL for no
  * gating. Measurement failures are discarded and counted; the loop continues. An IMU
- * failure skips that predict (status LEONAV_STATUS_FAILED) and the loop continues.
+ * (or CV) failure skips that predict (status LEONAV_STATUS_FAILED) and the loop continues.
  * Returns LEONAV_OK, or LEONAV_ERR_KIND / _ERR_ARG / _ERR_WORK with out->n_done = index
  * of the bad record. */
 int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, long n,
@@ -133,7 +156,7 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
 /* Posterior Cramer-Rao bound B = J^-1 along a given trajectory, B updated in place.
  * x_lin (n * NX): state at which record i is linearised: for an IMU record the true
  * state at the start of its interval (t - dt), for a measurement the true state at t.
- * IMU: B <- F B F^T + Qd (leonav_predict). Measurement: B <- B - B H^T H B / (H B H^T + R),
+ * IMU: B <- F B F^T + Qd (leonav_predict); CV record: the same with leonav_predict_cv. Measurement: B <- B - B H^T H B / (H B H^T + R),
  * the generated leonav_pcrb_update with H of leonav_h_<kind> at x_lin (R must be > 0). Outputs per record
  * (each may be NULL): B_diag (n * NDX), B_nav (n * NNAV^2, the NNAV x NNAV block of dp dv
  * dtheta, column-major), B_full (n * NDX * NDX).

@@ -50,6 +50,23 @@
 #define LEONAV_GPS_FIT_INTERVAL_DEFAULT_S (14400.0)  /* s: GPS curve-fit interval when the fit flag is 0 or unknown (IS-GPS-200, 20.3.3.4.3.1) */
 #define LEONAV_GAL_EPH_VALIDITY_S (14400.0)  /* s: span over which a Galileo ephemeris is used (nominal validity; OS SIS ICD 5.1.1 lists 4 h) */
 #define LEONAV_BDS_EPH_VALIDITY_S (7200.0)  /* s: span over which a BeiDou ephemeris is used (hourly uploads; +-1 h around toe) */
+#define LEONAV_STD_PRESSURE_HPA (1013.25)  /* hPa: standard-atmosphere pressure at height 0 */
+#define LEONAV_STD_TEMPERATURE_K (288.15)  /* K: standard-atmosphere temperature at height 0 (15 C) */
+#define LEONAV_STD_LAPSE_RATE_KPM (0.0065)  /* K/m: standard-atmosphere temperature lapse rate */
+#define LEONAV_STD_REL_HUMIDITY (0.7)  /* -: relative humidity assumed for the wet delay */
+#define LEONAV_TROPO_MIN_HEIGHT_M (-100.0)  /* m: below this ellipsoidal height the troposphere term is 0 (outside the model) */
+#define LEONAV_TROPO_MAX_HEIGHT_M (10000.0)  /* m: above this ellipsoidal height the troposphere term is 0 (standard atmosphere below the tropopause only) */
+#define LEONAV_ISB_RW_PSD_M2PS (1e-06)  /* m^2/s: random-walk PSD of the receiver inter-system biases (hardware delays drifting with temperature: 6 cm in an hour); a constant until the parameter vector carries one */
+#define LEONAV_PR_ERR_A_M (0.3)  /* m: code noise, elevation-independent part */
+#define LEONAV_PR_ERR_B_M (0.3)  /* m: code noise, part that grows as 1/sqrt(sin el) */
+#define LEONAV_PR_ERR_CODE_BIAS_M (0.3)  /* m: code bias error (uncorrected inter-signal bias) */
+#define LEONAV_PR_ERR_IONO_OFF_M (5.0)  /* m: 1-sigma of the ionosphere when it is not corrected */
+#define LEONAV_PR_ERR_TROPO_OFF_M (3.0)  /* m: 1-sigma of the troposphere when it is not corrected */
+#define LEONAV_PR_ERR_BRDC_IONO_FACTOR (0.5)  /* -: 1-sigma of the Klobuchar residual as a fraction of the correction */
+#define LEONAV_PR_ERR_SAAS_M (0.3)  /* m: 1-sigma of the Saastamoinen residual at zenith (/(sin el + 0.1)) */
+#define LEONAV_RANGE_RATE_SIGMA_MPS (0.1)  /* m/s: default 1-sigma of a Doppler-derived range rate (about 0.5 Hz at L1) */
+#define LEONAV_SPP_CHI2_ALPHA (0.001)  /* -: false-alarm probability of the single-point chi-square residual test (RTKLIB's table) */
+#define LEONAV_SPP_MAX_GDOP (30.0)  /* -: single-point solutions with a larger GDOP are rejected */
 #define LEONAV_STARLINK_BEACON_HZ (11325000000.0)  /* Hz: Starlink Ku-band beacon carrier used in the paper (central tone of the channel) */
 #define LEONAV_KU_DOWNLINK_MIN_HZ (10700000000.0)  /* Hz: lower edge of the Ku downlink; a capture RF centre below it is not a beacon carrier */
 #define LEONAV_KU_DOWNLINK_MAX_HZ (12750000000.0)  /* Hz: upper edge of the Ku downlink; a capture RF centre above it is not a beacon carrier */

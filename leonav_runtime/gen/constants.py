@@ -143,6 +143,57 @@ GAL_EPH_VALIDITY_S = 14400.0
 BDS_EPH_VALIDITY_S = 7200.0
 """s: span over which a BeiDou ephemeris is used (hourly uploads; +-1 h around toe)"""
 
+STD_PRESSURE_HPA = 1013.25
+"""hPa: standard-atmosphere pressure at height 0"""
+
+STD_TEMPERATURE_K = 288.15
+"""K: standard-atmosphere temperature at height 0 (15 C)"""
+
+STD_LAPSE_RATE_KPM = 0.0065
+"""K/m: standard-atmosphere temperature lapse rate"""
+
+STD_REL_HUMIDITY = 0.7
+"""-: relative humidity assumed for the wet delay"""
+
+TROPO_MIN_HEIGHT_M = -100.0
+"""m: below this ellipsoidal height the troposphere term is 0 (outside the model)"""
+
+TROPO_MAX_HEIGHT_M = 10000.0
+"""m: above this ellipsoidal height the troposphere term is 0 (standard atmosphere below the tropopause only)"""
+
+ISB_RW_PSD_M2PS = 1e-06
+"""m^2/s: random-walk PSD of the receiver inter-system biases (hardware delays drifting with temperature: 6 cm in an hour); a constant until the parameter vector carries one"""
+
+PR_ERR_A_M = 0.3
+"""m: code noise, elevation-independent part"""
+
+PR_ERR_B_M = 0.3
+"""m: code noise, part that grows as 1/sqrt(sin el)"""
+
+PR_ERR_CODE_BIAS_M = 0.3
+"""m: code bias error (uncorrected inter-signal bias)"""
+
+PR_ERR_IONO_OFF_M = 5.0
+"""m: 1-sigma of the ionosphere when it is not corrected"""
+
+PR_ERR_TROPO_OFF_M = 3.0
+"""m: 1-sigma of the troposphere when it is not corrected"""
+
+PR_ERR_BRDC_IONO_FACTOR = 0.5
+"""-: 1-sigma of the Klobuchar residual as a fraction of the correction"""
+
+PR_ERR_SAAS_M = 0.3
+"""m: 1-sigma of the Saastamoinen residual at zenith (/(sin el + 0.1))"""
+
+RANGE_RATE_SIGMA_MPS = 0.1
+"""m/s: default 1-sigma of a Doppler-derived range rate (about 0.5 Hz at L1)"""
+
+SPP_CHI2_ALPHA = 0.001
+"""-: false-alarm probability of the single-point chi-square residual test (RTKLIB's table)"""
+
+SPP_MAX_GDOP = 30.0
+"""-: single-point solutions with a larger GDOP are rejected"""
+
 STARLINK_BEACON_HZ = 11325000000.0
 """Hz: Starlink Ku-band beacon carrier used in the paper (central tone of the channel)"""
 

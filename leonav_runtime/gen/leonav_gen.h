@@ -55,6 +55,24 @@ int leonav_predict_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int
 #define leonav_predict_SZ_RES 4
 #define leonav_predict_SZ_IW 0
 #define leonav_predict_SZ_W 0
+int leonav_predict_cv(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_predict_cv_checkout(void);
+void leonav_predict_cv_release(int mem);
+void leonav_predict_cv_incref(void);
+void leonav_predict_cv_decref(void);
+casadi_int leonav_predict_cv_n_in(void);
+casadi_int leonav_predict_cv_n_out(void);
+casadi_real leonav_predict_cv_default_in(casadi_int i);
+const char* leonav_predict_cv_name_in(casadi_int i);
+const char* leonav_predict_cv_name_out(casadi_int i);
+const casadi_int* leonav_predict_cv_sparsity_in(casadi_int i);
+const casadi_int* leonav_predict_cv_sparsity_out(casadi_int i);
+int leonav_predict_cv_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_predict_cv_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_predict_cv_SZ_ARG 4
+#define leonav_predict_cv_SZ_RES 4
+#define leonav_predict_cv_SZ_IW 0
+#define leonav_predict_cv_SZ_W 0
 int leonav_h_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_h_pseudorange_checkout(void);
 void leonav_h_pseudorange_release(int mem);
@@ -90,7 +108,7 @@ int leonav_update_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_res,
 #define leonav_update_pseudorange_SZ_ARG 12
 #define leonav_update_pseudorange_SZ_RES 8
 #define leonav_update_pseudorange_SZ_IW 0
-#define leonav_update_pseudorange_SZ_W 465
+#define leonav_update_pseudorange_SZ_W 566
 int leonav_pcrb_info_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_pseudorange_checkout(void);
 void leonav_pcrb_info_pseudorange_release(int mem);
@@ -108,7 +126,7 @@ int leonav_pcrb_info_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_r
 #define leonav_pcrb_info_pseudorange_SZ_ARG 8
 #define leonav_pcrb_info_pseudorange_SZ_RES 3
 #define leonav_pcrb_info_pseudorange_SZ_IW 0
-#define leonav_pcrb_info_pseudorange_SZ_W 706
+#define leonav_pcrb_info_pseudorange_SZ_W 862
 int leonav_h_pos_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_h_pos_e_checkout(void);
 void leonav_h_pos_e_release(int mem);
@@ -144,7 +162,7 @@ int leonav_update_pos_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_pos_e_SZ_ARG 12
 #define leonav_update_pos_e_SZ_RES 8
 #define leonav_update_pos_e_SZ_IW 0
-#define leonav_update_pos_e_SZ_W 465
+#define leonav_update_pos_e_SZ_W 566
 int leonav_pcrb_info_pos_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_pos_e_checkout(void);
 void leonav_pcrb_info_pos_e_release(int mem);
@@ -162,7 +180,7 @@ int leonav_pcrb_info_pos_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, ca
 #define leonav_pcrb_info_pos_e_SZ_ARG 8
 #define leonav_pcrb_info_pos_e_SZ_RES 3
 #define leonav_pcrb_info_pos_e_SZ_IW 0
-#define leonav_pcrb_info_pos_e_SZ_W 702
+#define leonav_pcrb_info_pos_e_SZ_W 860
 int leonav_h_pos_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_h_pos_n_checkout(void);
 void leonav_h_pos_n_release(int mem);
@@ -198,7 +216,7 @@ int leonav_update_pos_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_pos_n_SZ_ARG 12
 #define leonav_update_pos_n_SZ_RES 8
 #define leonav_update_pos_n_SZ_IW 0
-#define leonav_update_pos_n_SZ_W 465
+#define leonav_update_pos_n_SZ_W 566
 int leonav_pcrb_info_pos_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_pos_n_checkout(void);
 void leonav_pcrb_info_pos_n_release(int mem);
@@ -216,7 +234,7 @@ int leonav_pcrb_info_pos_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, ca
 #define leonav_pcrb_info_pos_n_SZ_ARG 8
 #define leonav_pcrb_info_pos_n_SZ_RES 3
 #define leonav_pcrb_info_pos_n_SZ_IW 0
-#define leonav_pcrb_info_pos_n_SZ_W 702
+#define leonav_pcrb_info_pos_n_SZ_W 860
 int leonav_h_pos_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_h_pos_u_checkout(void);
 void leonav_h_pos_u_release(int mem);
@@ -252,7 +270,7 @@ int leonav_update_pos_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_pos_u_SZ_ARG 12
 #define leonav_update_pos_u_SZ_RES 8
 #define leonav_update_pos_u_SZ_IW 0
-#define leonav_update_pos_u_SZ_W 465
+#define leonav_update_pos_u_SZ_W 566
 int leonav_pcrb_info_pos_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_pos_u_checkout(void);
 void leonav_pcrb_info_pos_u_release(int mem);
@@ -270,7 +288,7 @@ int leonav_pcrb_info_pos_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, ca
 #define leonav_pcrb_info_pos_u_SZ_ARG 8
 #define leonav_pcrb_info_pos_u_SZ_RES 3
 #define leonav_pcrb_info_pos_u_SZ_IW 0
-#define leonav_pcrb_info_pos_u_SZ_W 702
+#define leonav_pcrb_info_pos_u_SZ_W 860
 int leonav_h_vel_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_h_vel_e_checkout(void);
 void leonav_h_vel_e_release(int mem);
@@ -306,7 +324,7 @@ int leonav_update_vel_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_vel_e_SZ_ARG 12
 #define leonav_update_vel_e_SZ_RES 8
 #define leonav_update_vel_e_SZ_IW 0
-#define leonav_update_vel_e_SZ_W 465
+#define leonav_update_vel_e_SZ_W 566
 int leonav_pcrb_info_vel_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_vel_e_checkout(void);
 void leonav_pcrb_info_vel_e_release(int mem);
@@ -324,7 +342,7 @@ int leonav_pcrb_info_vel_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, ca
 #define leonav_pcrb_info_vel_e_SZ_ARG 8
 #define leonav_pcrb_info_vel_e_SZ_RES 3
 #define leonav_pcrb_info_vel_e_SZ_IW 0
-#define leonav_pcrb_info_vel_e_SZ_W 702
+#define leonav_pcrb_info_vel_e_SZ_W 860
 int leonav_h_vel_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_h_vel_n_checkout(void);
 void leonav_h_vel_n_release(int mem);
@@ -360,7 +378,7 @@ int leonav_update_vel_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_vel_n_SZ_ARG 12
 #define leonav_update_vel_n_SZ_RES 8
 #define leonav_update_vel_n_SZ_IW 0
-#define leonav_update_vel_n_SZ_W 465
+#define leonav_update_vel_n_SZ_W 566
 int leonav_pcrb_info_vel_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_vel_n_checkout(void);
 void leonav_pcrb_info_vel_n_release(int mem);
@@ -378,7 +396,7 @@ int leonav_pcrb_info_vel_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, ca
 #define leonav_pcrb_info_vel_n_SZ_ARG 8
 #define leonav_pcrb_info_vel_n_SZ_RES 3
 #define leonav_pcrb_info_vel_n_SZ_IW 0
-#define leonav_pcrb_info_vel_n_SZ_W 702
+#define leonav_pcrb_info_vel_n_SZ_W 860
 int leonav_h_vel_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_h_vel_u_checkout(void);
 void leonav_h_vel_u_release(int mem);
@@ -414,7 +432,7 @@ int leonav_update_vel_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_vel_u_SZ_ARG 12
 #define leonav_update_vel_u_SZ_RES 8
 #define leonav_update_vel_u_SZ_IW 0
-#define leonav_update_vel_u_SZ_W 465
+#define leonav_update_vel_u_SZ_W 566
 int leonav_pcrb_info_vel_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_vel_u_checkout(void);
 void leonav_pcrb_info_vel_u_release(int mem);
@@ -432,7 +450,7 @@ int leonav_pcrb_info_vel_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, ca
 #define leonav_pcrb_info_vel_u_SZ_ARG 8
 #define leonav_pcrb_info_vel_u_SZ_RES 3
 #define leonav_pcrb_info_vel_u_SZ_IW 0
-#define leonav_pcrb_info_vel_u_SZ_W 702
+#define leonav_pcrb_info_vel_u_SZ_W 860
 int leonav_h_doppler_rate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_h_doppler_rate_checkout(void);
 void leonav_h_doppler_rate_release(int mem);
@@ -468,7 +486,7 @@ int leonav_update_doppler_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res
 #define leonav_update_doppler_rate_SZ_ARG 12
 #define leonav_update_doppler_rate_SZ_RES 8
 #define leonav_update_doppler_rate_SZ_IW 0
-#define leonav_update_doppler_rate_SZ_W 465
+#define leonav_update_doppler_rate_SZ_W 566
 int leonav_pcrb_info_doppler_rate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_doppler_rate_checkout(void);
 void leonav_pcrb_info_doppler_rate_release(int mem);
@@ -486,7 +504,7 @@ int leonav_pcrb_info_doppler_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_
 #define leonav_pcrb_info_doppler_rate_SZ_ARG 8
 #define leonav_pcrb_info_doppler_rate_SZ_RES 3
 #define leonav_pcrb_info_doppler_rate_SZ_IW 0
-#define leonav_pcrb_info_doppler_rate_SZ_W 777
+#define leonav_pcrb_info_doppler_rate_SZ_W 933
 int leonav_h_doppler(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_h_doppler_checkout(void);
 void leonav_h_doppler_release(int mem);
@@ -522,7 +540,7 @@ int leonav_update_doppler_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, cas
 #define leonav_update_doppler_SZ_ARG 12
 #define leonav_update_doppler_SZ_RES 8
 #define leonav_update_doppler_SZ_IW 0
-#define leonav_update_doppler_SZ_W 465
+#define leonav_update_doppler_SZ_W 566
 int leonav_pcrb_info_doppler(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_doppler_checkout(void);
 void leonav_pcrb_info_doppler_release(int mem);
@@ -540,7 +558,7 @@ int leonav_pcrb_info_doppler_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, 
 #define leonav_pcrb_info_doppler_SZ_ARG 8
 #define leonav_pcrb_info_doppler_SZ_RES 3
 #define leonav_pcrb_info_doppler_SZ_IW 0
-#define leonav_pcrb_info_doppler_SZ_W 708
+#define leonav_pcrb_info_doppler_SZ_W 864
 int leonav_h_ofdm_range_diff(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_h_ofdm_range_diff_checkout(void);
 void leonav_h_ofdm_range_diff_release(int mem);
@@ -576,7 +594,7 @@ int leonav_update_ofdm_range_diff_work_bytes(casadi_int *sz_arg, casadi_int* sz_
 #define leonav_update_ofdm_range_diff_SZ_ARG 12
 #define leonav_update_ofdm_range_diff_SZ_RES 8
 #define leonav_update_ofdm_range_diff_SZ_IW 0
-#define leonav_update_ofdm_range_diff_SZ_W 465
+#define leonav_update_ofdm_range_diff_SZ_W 566
 int leonav_pcrb_info_ofdm_range_diff(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_info_ofdm_range_diff_checkout(void);
 void leonav_pcrb_info_ofdm_range_diff_release(int mem);
@@ -594,7 +612,115 @@ int leonav_pcrb_info_ofdm_range_diff_work_bytes(casadi_int *sz_arg, casadi_int* 
 #define leonav_pcrb_info_ofdm_range_diff_SZ_ARG 8
 #define leonav_pcrb_info_ofdm_range_diff_SZ_RES 3
 #define leonav_pcrb_info_ofdm_range_diff_SZ_IW 0
-#define leonav_pcrb_info_ofdm_range_diff_SZ_W 703
+#define leonav_pcrb_info_ofdm_range_diff_SZ_W 860
+int leonav_h_gnss_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_h_gnss_pseudorange_checkout(void);
+void leonav_h_gnss_pseudorange_release(int mem);
+void leonav_h_gnss_pseudorange_incref(void);
+void leonav_h_gnss_pseudorange_decref(void);
+casadi_int leonav_h_gnss_pseudorange_n_in(void);
+casadi_int leonav_h_gnss_pseudorange_n_out(void);
+casadi_real leonav_h_gnss_pseudorange_default_in(casadi_int i);
+const char* leonav_h_gnss_pseudorange_name_in(casadi_int i);
+const char* leonav_h_gnss_pseudorange_name_out(casadi_int i);
+const casadi_int* leonav_h_gnss_pseudorange_sparsity_in(casadi_int i);
+const casadi_int* leonav_h_gnss_pseudorange_sparsity_out(casadi_int i);
+int leonav_h_gnss_pseudorange_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_h_gnss_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_h_gnss_pseudorange_SZ_ARG 3
+#define leonav_h_gnss_pseudorange_SZ_RES 2
+#define leonav_h_gnss_pseudorange_SZ_IW 0
+#define leonav_h_gnss_pseudorange_SZ_W 0
+int leonav_update_gnss_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_update_gnss_pseudorange_checkout(void);
+void leonav_update_gnss_pseudorange_release(int mem);
+void leonav_update_gnss_pseudorange_incref(void);
+void leonav_update_gnss_pseudorange_decref(void);
+casadi_int leonav_update_gnss_pseudorange_n_in(void);
+casadi_int leonav_update_gnss_pseudorange_n_out(void);
+casadi_real leonav_update_gnss_pseudorange_default_in(casadi_int i);
+const char* leonav_update_gnss_pseudorange_name_in(casadi_int i);
+const char* leonav_update_gnss_pseudorange_name_out(casadi_int i);
+const casadi_int* leonav_update_gnss_pseudorange_sparsity_in(casadi_int i);
+const casadi_int* leonav_update_gnss_pseudorange_sparsity_out(casadi_int i);
+int leonav_update_gnss_pseudorange_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_update_gnss_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_update_gnss_pseudorange_SZ_ARG 12
+#define leonav_update_gnss_pseudorange_SZ_RES 8
+#define leonav_update_gnss_pseudorange_SZ_IW 0
+#define leonav_update_gnss_pseudorange_SZ_W 575
+int leonav_pcrb_info_gnss_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_pcrb_info_gnss_pseudorange_checkout(void);
+void leonav_pcrb_info_gnss_pseudorange_release(int mem);
+void leonav_pcrb_info_gnss_pseudorange_incref(void);
+void leonav_pcrb_info_gnss_pseudorange_decref(void);
+casadi_int leonav_pcrb_info_gnss_pseudorange_n_in(void);
+casadi_int leonav_pcrb_info_gnss_pseudorange_n_out(void);
+casadi_real leonav_pcrb_info_gnss_pseudorange_default_in(casadi_int i);
+const char* leonav_pcrb_info_gnss_pseudorange_name_in(casadi_int i);
+const char* leonav_pcrb_info_gnss_pseudorange_name_out(casadi_int i);
+const casadi_int* leonav_pcrb_info_gnss_pseudorange_sparsity_in(casadi_int i);
+const casadi_int* leonav_pcrb_info_gnss_pseudorange_sparsity_out(casadi_int i);
+int leonav_pcrb_info_gnss_pseudorange_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_pcrb_info_gnss_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_pcrb_info_gnss_pseudorange_SZ_ARG 8
+#define leonav_pcrb_info_gnss_pseudorange_SZ_RES 3
+#define leonav_pcrb_info_gnss_pseudorange_SZ_IW 0
+#define leonav_pcrb_info_gnss_pseudorange_SZ_W 973
+int leonav_h_gnss_range_rate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_h_gnss_range_rate_checkout(void);
+void leonav_h_gnss_range_rate_release(int mem);
+void leonav_h_gnss_range_rate_incref(void);
+void leonav_h_gnss_range_rate_decref(void);
+casadi_int leonav_h_gnss_range_rate_n_in(void);
+casadi_int leonav_h_gnss_range_rate_n_out(void);
+casadi_real leonav_h_gnss_range_rate_default_in(casadi_int i);
+const char* leonav_h_gnss_range_rate_name_in(casadi_int i);
+const char* leonav_h_gnss_range_rate_name_out(casadi_int i);
+const casadi_int* leonav_h_gnss_range_rate_sparsity_in(casadi_int i);
+const casadi_int* leonav_h_gnss_range_rate_sparsity_out(casadi_int i);
+int leonav_h_gnss_range_rate_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_h_gnss_range_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_h_gnss_range_rate_SZ_ARG 3
+#define leonav_h_gnss_range_rate_SZ_RES 2
+#define leonav_h_gnss_range_rate_SZ_IW 0
+#define leonav_h_gnss_range_rate_SZ_W 0
+int leonav_update_gnss_range_rate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_update_gnss_range_rate_checkout(void);
+void leonav_update_gnss_range_rate_release(int mem);
+void leonav_update_gnss_range_rate_incref(void);
+void leonav_update_gnss_range_rate_decref(void);
+casadi_int leonav_update_gnss_range_rate_n_in(void);
+casadi_int leonav_update_gnss_range_rate_n_out(void);
+casadi_real leonav_update_gnss_range_rate_default_in(casadi_int i);
+const char* leonav_update_gnss_range_rate_name_in(casadi_int i);
+const char* leonav_update_gnss_range_rate_name_out(casadi_int i);
+const casadi_int* leonav_update_gnss_range_rate_sparsity_in(casadi_int i);
+const casadi_int* leonav_update_gnss_range_rate_sparsity_out(casadi_int i);
+int leonav_update_gnss_range_rate_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_update_gnss_range_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_update_gnss_range_rate_SZ_ARG 12
+#define leonav_update_gnss_range_rate_SZ_RES 8
+#define leonav_update_gnss_range_rate_SZ_IW 0
+#define leonav_update_gnss_range_rate_SZ_W 566
+int leonav_pcrb_info_gnss_range_rate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_pcrb_info_gnss_range_rate_checkout(void);
+void leonav_pcrb_info_gnss_range_rate_release(int mem);
+void leonav_pcrb_info_gnss_range_rate_incref(void);
+void leonav_pcrb_info_gnss_range_rate_decref(void);
+casadi_int leonav_pcrb_info_gnss_range_rate_n_in(void);
+casadi_int leonav_pcrb_info_gnss_range_rate_n_out(void);
+casadi_real leonav_pcrb_info_gnss_range_rate_default_in(casadi_int i);
+const char* leonav_pcrb_info_gnss_range_rate_name_in(casadi_int i);
+const char* leonav_pcrb_info_gnss_range_rate_name_out(casadi_int i);
+const casadi_int* leonav_pcrb_info_gnss_range_rate_sparsity_in(casadi_int i);
+const casadi_int* leonav_pcrb_info_gnss_range_rate_sparsity_out(casadi_int i);
+int leonav_pcrb_info_gnss_range_rate_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_pcrb_info_gnss_range_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_pcrb_info_gnss_range_rate_SZ_ARG 8
+#define leonav_pcrb_info_gnss_range_rate_SZ_RES 3
+#define leonav_pcrb_info_gnss_range_rate_SZ_IW 0
+#define leonav_pcrb_info_gnss_range_rate_SZ_W 870
 int leonav_pcrb_update(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_update_checkout(void);
 void leonav_pcrb_update_release(int mem);
@@ -612,7 +738,7 @@ int leonav_pcrb_update_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi
 #define leonav_pcrb_update_SZ_ARG 6
 #define leonav_pcrb_update_SZ_RES 3
 #define leonav_pcrb_update_SZ_IW 0
-#define leonav_pcrb_update_SZ_W 702
+#define leonav_pcrb_update_SZ_W 860
 int leonav_boxplus(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_boxplus_checkout(void);
 void leonav_boxplus_release(int mem);
@@ -811,6 +937,24 @@ int leonav_doppler_rate_variance_work_bytes(casadi_int *sz_arg, casadi_int* sz_r
 #define leonav_doppler_rate_variance_SZ_RES 1
 #define leonav_doppler_rate_variance_SZ_IW 0
 #define leonav_doppler_rate_variance_SZ_W 0
+int leonav_gnss_terms(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_gnss_terms_checkout(void);
+void leonav_gnss_terms_release(int mem);
+void leonav_gnss_terms_incref(void);
+void leonav_gnss_terms_decref(void);
+casadi_int leonav_gnss_terms_n_in(void);
+casadi_int leonav_gnss_terms_n_out(void);
+casadi_real leonav_gnss_terms_default_in(casadi_int i);
+const char* leonav_gnss_terms_name_in(casadi_int i);
+const char* leonav_gnss_terms_name_out(casadi_int i);
+const casadi_int* leonav_gnss_terms_sparsity_in(casadi_int i);
+const casadi_int* leonav_gnss_terms_sparsity_out(casadi_int i);
+int leonav_gnss_terms_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_gnss_terms_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_gnss_terms_SZ_ARG 3
+#define leonav_gnss_terms_SZ_RES 1
+#define leonav_gnss_terms_SZ_IW 0
+#define leonav_gnss_terms_SZ_W 0
 void leonav_gen_casadi_version(int* major, int* minor, int* patch);
 int leonav_gen_casadi_int_size(void);
 int leonav_gen_casadi_real_size(void);

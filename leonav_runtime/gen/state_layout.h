@@ -3,10 +3,10 @@
 #ifndef LEONAV_STATE_LAYOUT_H
 #define LEONAV_STATE_LAYOUT_H
 
-#define LEONAV_NX 19
-#define LEONAV_NDX 18
+#define LEONAV_NX 21
+#define LEONAV_NDX 20
 #define LEONAV_NP 11
-#define LEONAV_NAUX 21
+#define LEONAV_NAUX 36
 #define LEONAV_NU 6
 #define LEONAV_NNAV 9  /* the 9D navigation error (dp, dv, dtheta) = dx[0:NNAV] */
 
@@ -26,6 +26,8 @@
 #define LEONAV_X_C_DDT_SIZE 1
 #define LEONAV_X_B_LO 18  /* Hz: beacon front-end frequency offset at baseband */
 #define LEONAV_X_B_LO_SIZE 1
+#define LEONAV_X_ISB 19  /* m: inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c */
+#define LEONAV_X_ISB_SIZE 2
 
 #define LEONAV_DX_DP 0  /* m: position error, ENU */
 #define LEONAV_DX_DP_SIZE 3
@@ -43,6 +45,8 @@
 #define LEONAV_DX_DC_DDT_SIZE 1
 #define LEONAV_DX_DB_LO 17  /* Hz: LO offset error */
 #define LEONAV_DX_DB_LO_SIZE 1
+#define LEONAV_DX_DISB 18  /* m: inter-system bias errors [Galileo - GPS, BeiDou - GPS] */
+#define LEONAV_DX_DISB_SIZE 2
 
 #define LEONAV_AUX_R_S_ECEF 0  /* m: satellite position, ECEF (pseudorange: at transmit time, ECEF of transmit epoch) */
 #define LEONAV_AUX_R_S_ECEF_SIZE 3
@@ -58,6 +62,18 @@
 #define LEONAV_AUX_A_REF_ECEF_SIZE 3
 #define LEONAV_AUX_F_B 18  /* m/s^2: latest specific force, body (receiver acceleration) */
 #define LEONAV_AUX_F_B_SIZE 3
+#define LEONAV_AUX_SAT_CLOCK 21  /* m, m/s: satellite clock offset c dt_sv (relativistic term and the signal's group delay included) and drift c d(dt_sv)/dt */
+#define LEONAV_AUX_SAT_CLOCK_SIZE 2
+#define LEONAV_AUX_T_SOD 23  /* s: GPS time of day of reception (Klobuchar local time) */
+#define LEONAV_AUX_T_SOD_SIZE 1
+#define LEONAV_AUX_IONO_SCALE 24  /* -: (f_L1 / f)^2 of the signal: scales the Klobuchar L1 delay; 0 = no ionosphere term */
+#define LEONAV_AUX_IONO_SCALE_SIZE 1
+#define LEONAV_AUX_TROPO_SCALE 25  /* -: 1 = Saastamoinen troposphere applied, 0 = not */
+#define LEONAV_AUX_TROPO_SCALE_SIZE 1
+#define LEONAV_AUX_ISB_SELECT 26  /* -: [1 if Galileo, 1 if BeiDou]: which inter-system bias the signal carries */
+#define LEONAV_AUX_ISB_SELECT_SIZE 2
+#define LEONAV_AUX_KLOBUCHAR 28  /* s, s/sc, s/sc^2, s/sc^3, s, s/sc, s/sc^2, s/sc^3: GPS broadcast ionosphere alpha0..3, beta0..3 (IS-GPS-200 20.3.3.5.1.7) */
+#define LEONAV_AUX_KLOBUCHAR_SIZE 8
 
 #define LEONAV_U_DTHETA_B 0  /* rad: gyro angle increment over dt, body FLU */
 #define LEONAV_U_DTHETA_B_SIZE 3
@@ -77,6 +93,7 @@
 #define LEONAV_P_F_C_HZ 10  /* Hz: beacon carrier frequency */
 
 #define LEONAV_MEAS_IMU (-1)  /* record kind of an IMU interval */
+#define LEONAV_KIND_CV (-2)  /* record kind of a constant-velocity predict over dt (no IMU) */
 #define LEONAV_MEAS_PSEUDORANGE 0  /* m */
 #define LEONAV_MEAS_POS_E 1  /* m */
 #define LEONAV_MEAS_POS_N 2  /* m */
@@ -87,7 +104,9 @@
 #define LEONAV_MEAS_DOPPLER_RATE 7  /* Hz/s */
 #define LEONAV_MEAS_DOPPLER 8  /* Hz */
 #define LEONAV_MEAS_OFDM_RANGE_DIFF 9  /* m */
-#define LEONAV_NMEAS 10
+#define LEONAV_MEAS_GNSS_PSEUDORANGE 10  /* m */
+#define LEONAV_MEAS_GNSS_RANGE_RATE 11  /* m/s */
+#define LEONAV_NMEAS 12
 
 /* Observables: X(kind id, function suffix, dimension of z, name, unit of z), in kind-id order.
  * The driver builds its dispatch table from this list (leonav_h_<suffix>, leonav_update_<suffix>),
@@ -102,7 +121,9 @@
     X(LEONAV_MEAS_VEL_U, vel_u, 1, "VEL_U", "m/s") \
     X(LEONAV_MEAS_DOPPLER_RATE, doppler_rate, 1, "DOPPLER_RATE", "Hz/s") \
     X(LEONAV_MEAS_DOPPLER, doppler, 1, "DOPPLER", "Hz") \
-    X(LEONAV_MEAS_OFDM_RANGE_DIFF, ofdm_range_diff, 1, "OFDM_RANGE_DIFF", "m")
+    X(LEONAV_MEAS_OFDM_RANGE_DIFF, ofdm_range_diff, 1, "OFDM_RANGE_DIFF", "m") \
+    X(LEONAV_MEAS_GNSS_PSEUDORANGE, gnss_pseudorange, 1, "GNSS_PSEUDORANGE", "m") \
+    X(LEONAV_MEAS_GNSS_RANGE_RATE, gnss_range_rate, 1, "GNSS_RANGE_RATE", "m/s")
 
 /* Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome,
  * < 0 an error (codegen/driver_codes.py). */
@@ -110,7 +131,7 @@
 #define LEONAV_GATED 1  /* update rejected: nis above the gate; x and P unchanged */
 #define LEONAV_FAILED 2  /* numerical failure (non-finite input or result, R < 0, S <= 0, dt < 0); x and P unchanged */
 #define LEONAV_ERR_WORK (-1)  /* workspace NULL, too small or not initialised */
-#define LEONAV_ERR_KIND (-2)  /* record kind is neither IMU nor a LEONAV_MEAS_* id */
+#define LEONAV_ERR_KIND (-2)  /* record kind is neither IMU, CV nor a LEONAV_MEAS_* id */
 #define LEONAV_ERR_LAYOUT (-3)  /* a generated function's shape does not match state_layout.h */
 #define LEONAV_ERR_ARG (-4)  /* a required pointer is NULL or n < 0 */
 #define LEONAV_ERR_NUMERIC (-5)  /* PCRB / boxminus: a generated step failed, S not positive and finite, or R <= 0 */
@@ -119,9 +140,9 @@
 
 /* Per-record status written by leonav_run into leonav_run_out.status (its own enum:
  * a measurement record stores its update's return code, an IMU record STATUS_IMU). */
-#define LEONAV_STATUS_IMU (-1)  /* IMU record: predicted */
+#define LEONAV_STATUS_IMU (-1)  /* IMU or constant-velocity record: predicted */
 #define LEONAV_STATUS_APPLIED 0  /* measurement record: applied */
 #define LEONAV_STATUS_GATED 1  /* measurement record: rejected by the gate (x, P unchanged) */
-#define LEONAV_STATUS_FAILED 2  /* IMU or measurement record: numerical failure (x, P unchanged) */
+#define LEONAV_STATUS_FAILED 2  /* IMU, constant-velocity or measurement record: numerical failure (x, P unchanged) */
 
 #endif  /* LEONAV_STATE_LAYOUT_H */

@@ -3,10 +3,10 @@
 """State, parameter, aux and observable layout, driver codes (twin of state_layout.h). No casadi."""
 from collections import namedtuple
 
-NX = 19
-NDX = 18
+NX = 21
+NDX = 20
 NP = 11
-NAUX = 21
+NAUX = 36
 NU = 6
 NNAV = 9  # the 9D navigation error (dp, dv, dtheta) = dx[DX_NAV9_SLICE]
 
@@ -34,6 +34,9 @@ X_C_DDT_SLICE = slice(17, 18)
 X_B_LO = 18  # Hz: beacon front-end frequency offset at baseband
 X_B_LO_SIZE = 1
 X_B_LO_SLICE = slice(18, 19)
+X_ISB = 19  # m: inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c
+X_ISB_SIZE = 2
+X_ISB_SLICE = slice(19, 21)
 
 DX_DP = 0  # m: position error, ENU
 DX_DP_SIZE = 3
@@ -59,6 +62,9 @@ DX_DC_DDT_SLICE = slice(16, 17)
 DX_DB_LO = 17  # Hz: LO offset error
 DX_DB_LO_SIZE = 1
 DX_DB_LO_SLICE = slice(17, 18)
+DX_DISB = 18  # m: inter-system bias errors [Galileo - GPS, BeiDou - GPS]
+DX_DISB_SIZE = 2
+DX_DISB_SLICE = slice(18, 20)
 
 AUX_R_S_ECEF = 0  # m: satellite position, ECEF (pseudorange: at transmit time, ECEF of transmit epoch)
 AUX_R_S_ECEF_SIZE = 3
@@ -81,6 +87,24 @@ AUX_A_REF_ECEF_SLICE = slice(15, 18)
 AUX_F_B = 18  # m/s^2: latest specific force, body (receiver acceleration)
 AUX_F_B_SIZE = 3
 AUX_F_B_SLICE = slice(18, 21)
+AUX_SAT_CLOCK = 21  # m, m/s: satellite clock offset c dt_sv (relativistic term and the signal's group delay included) and drift c d(dt_sv)/dt
+AUX_SAT_CLOCK_SIZE = 2
+AUX_SAT_CLOCK_SLICE = slice(21, 23)
+AUX_T_SOD = 23  # s: GPS time of day of reception (Klobuchar local time)
+AUX_T_SOD_SIZE = 1
+AUX_T_SOD_SLICE = slice(23, 24)
+AUX_IONO_SCALE = 24  # -: (f_L1 / f)^2 of the signal: scales the Klobuchar L1 delay; 0 = no ionosphere term
+AUX_IONO_SCALE_SIZE = 1
+AUX_IONO_SCALE_SLICE = slice(24, 25)
+AUX_TROPO_SCALE = 25  # -: 1 = Saastamoinen troposphere applied, 0 = not
+AUX_TROPO_SCALE_SIZE = 1
+AUX_TROPO_SCALE_SLICE = slice(25, 26)
+AUX_ISB_SELECT = 26  # -: [1 if Galileo, 1 if BeiDou]: which inter-system bias the signal carries
+AUX_ISB_SELECT_SIZE = 2
+AUX_ISB_SELECT_SLICE = slice(26, 28)
+AUX_KLOBUCHAR = 28  # s, s/sc, s/sc^2, s/sc^3, s, s/sc, s/sc^2, s/sc^3: GPS broadcast ionosphere alpha0..3, beta0..3 (IS-GPS-200 20.3.3.5.1.7)
+AUX_KLOBUCHAR_SIZE = 8
+AUX_KLOBUCHAR_SLICE = slice(28, 36)
 
 U_DTHETA_B = 0  # rad: gyro angle increment over dt, body FLU
 U_DTHETA_B_SIZE = 3
@@ -103,6 +127,7 @@ P_Q_BLO = 9  # Hz^2/s: LO offset random-walk PSD
 P_F_C_HZ = 10  # Hz: beacon carrier frequency
 
 MEAS_IMU = -1  # record kind of an IMU interval
+KIND_CV = -2  # record kind of a constant-velocity predict over dt (no IMU)
 MEAS_PSEUDORANGE = 0  # m
 MEAS_POS_E = 1  # m
 MEAS_POS_N = 2  # m
@@ -113,7 +138,9 @@ MEAS_VEL_U = 6  # m/s
 MEAS_DOPPLER_RATE = 7  # Hz/s
 MEAS_DOPPLER = 8  # Hz
 MEAS_OFDM_RANGE_DIFF = 9  # m
-NMEAS = 10
+MEAS_GNSS_PSEUDORANGE = 10  # m
+MEAS_GNSS_RANGE_RATE = 11  # m/s
+NMEAS = 12
 
 # Observables in kind-id order (twin of LEONAV_MEAS_TABLE): kind id, function suffix
 # (leonav_h_<suffix>, leonav_update_<suffix>), dimension of z, name, unit.
@@ -129,6 +156,8 @@ MEAS_TABLE = (
     Observable(MEAS_DOPPLER_RATE, 'doppler_rate', 1, 'DOPPLER_RATE', 'Hz/s'),
     Observable(MEAS_DOPPLER, 'doppler', 1, 'DOPPLER', 'Hz'),
     Observable(MEAS_OFDM_RANGE_DIFF, 'ofdm_range_diff', 1, 'OFDM_RANGE_DIFF', 'm'),
+    Observable(MEAS_GNSS_PSEUDORANGE, 'gnss_pseudorange', 1, 'GNSS_PSEUDORANGE', 'm'),
+    Observable(MEAS_GNSS_RANGE_RATE, 'gnss_range_rate', 1, 'GNSS_RANGE_RATE', 'm/s'),
 )
 P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz']
 
@@ -137,14 +166,14 @@ OK = 0  # success: the step was applied / the value computed
 GATED = 1  # update rejected: nis above the gate; x and P unchanged
 FAILED = 2  # numerical failure (non-finite input or result, R < 0, S <= 0, dt < 0); x and P unchanged
 ERR_WORK = -1  # workspace NULL, too small or not initialised
-ERR_KIND = -2  # record kind is neither IMU nor a LEONAV_MEAS_* id
+ERR_KIND = -2  # record kind is neither IMU, CV nor a LEONAV_MEAS_* id
 ERR_LAYOUT = -3  # a generated function's shape does not match state_layout.h
 ERR_ARG = -4  # a required pointer is NULL or n < 0
 ERR_NUMERIC = -5  # PCRB / boxminus: a generated step failed, S not positive and finite, or R <= 0
 RETURN_NAMES = {0: 'LEONAV_OK', 1: 'LEONAV_GATED', 2: 'LEONAV_FAILED', -1: 'LEONAV_ERR_WORK', -2: 'LEONAV_ERR_KIND', -3: 'LEONAV_ERR_LAYOUT', -4: 'LEONAV_ERR_ARG', -5: 'LEONAV_ERR_NUMERIC'}
 
 # Per-record status of leonav_run (leonav_run_out.status, RunResult.status): its own enum.
-STATUS_IMU = -1  # IMU record: predicted
+STATUS_IMU = -1  # IMU or constant-velocity record: predicted
 STATUS_APPLIED = 0  # measurement record: applied
 STATUS_GATED = 1  # measurement record: rejected by the gate (x, P unchanged)
-STATUS_FAILED = 2  # IMU or measurement record: numerical failure (x, P unchanged)
+STATUS_FAILED = 2  # IMU, constant-velocity or measurement record: numerical failure (x, P unchanged)

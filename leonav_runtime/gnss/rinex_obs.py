@@ -17,6 +17,7 @@ GPS-UTC leap seconds of the date.
 """
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import re
@@ -55,6 +56,7 @@ class RejectedObservationsWarning(UserWarning):
     """Some observation lines or fields were rejected (see `ObservationTable.rejected`)."""
 
 
+@functools.lru_cache(maxsize=None)
 def _v2_type(obs_type: str, system: str) -> tuple[str, str] | None:
     """(signal, quantity C/L/D/S) of a RINEX 2 observation code; None when unknown."""
     if len(obs_type) != 2 or obs_type[0] not in "CPLDS":
@@ -212,6 +214,15 @@ class _Reader:
 
     def field(self, line_index: int, text: str, what: str) -> tuple[float, int, int]:
         """(value, lli, ssi) of one 16-column observation field; NaN when blank or unreadable."""
+        if len(text) >= 14:  # fast path, the common case: a complete F14.3 (float() skips blanks)
+            try:
+                value = float(text[0:14])
+            except ValueError:
+                pass
+            else:
+                if math.isfinite(value):
+                    lli_c, ssi_c = text[14:15], text[15:16]
+                    return value, (int(lli_c) if lli_c.isdigit() else 0), (int(ssi_c) if ssi_c.isdigit() else 0)
         num = text[0:14].strip()
         lli_c, ssi_c = text[14:15].strip(), text[15:16].strip()
         value = math.nan

@@ -69,13 +69,64 @@ def sfrbx_payload(sv_id: int, words: list[int], *, gnss_id: int = 0, sig_id: int
 # ---------------------------------------------------------------- decode to ephemerides
 
 
+# Subframe 4 page 18 (SV ID 56): ionospheric and UTC data, IS-GPS-200 20.3.3.5.1 and
+# Figure 20-1 sheet 8 / Table 20-X: alpha_n (s/semicircle^n), beta_n (s/semicircle^n), signed.
+IONO_PAGE_SV_ID = 56
+IONO_FIELDS = (
+    lnav.Field("data_id", ((61, 2),)), lnav.Field("sv_id", ((63, 6),)),
+    lnav.Field("alpha0", ((69, 8),), True, 2.0**-30), lnav.Field("alpha1", ((77, 8),), True, 2.0**-27),
+    lnav.Field("alpha2", ((91, 8),), True, 2.0**-24), lnav.Field("alpha3", ((99, 8),), True, 2.0**-24),
+    lnav.Field("beta0", ((107, 8),), True, 2.0**11), lnav.Field("beta1", ((121, 8),), True, 2.0**14),
+    lnav.Field("beta2", ((129, 8),), True, 2.0**16), lnav.Field("beta3", ((137, 8),), True, 2.0**16),
+)
+KLOBUCHAR_NAMES = ("alpha0", "alpha1", "alpha2", "alpha3", "beta0", "beta1", "beta2", "beta3")
+
+
+def decode_iono_page(data: list[int]) -> tuple[float, ...] | None:
+    """Klobuchar alpha0..3, beta0..3 of subframe 4 data words (10 x 24 bits) if the page is
+    page 18 (SV ID 56), else None."""
+    raw = {f.name: f.get_raw(data) for f in IONO_FIELDS}
+    if raw["sv_id"] != IONO_PAGE_SV_ID:
+        return None
+    fields = {f.name: f for f in IONO_FIELDS}
+    return tuple(fields[n].value(raw[n]) for n in KLOBUCHAR_NAMES)
+
+
+def encode_iono_page(coefficients, tow_count: int, *, convention: str = "source") -> list[int]:
+    """10 words of a subframe 4 page 18 carrying Klobuchar coefficients (other fields 0):
+    the round-trip test of `decode_iono_page`. Coefficients are rounded to the ICD scale."""
+    data = [0] * 10
+    lnav.Field("preamble", ((1, 8),)).set_raw(data, lnav.PREAMBLE)
+    lnav.HOW[0].set_raw(data, tow_count)
+    lnav.HOW[3].set_raw(data, 4)
+    fields = {f.name: f for f in IONO_FIELDS}
+    fields["data_id"].set_raw(data, 1)
+    fields["sv_id"].set_raw(data, IONO_PAGE_SV_ID)
+    for name, value in zip(KLOBUCHAR_NAMES, coefficients):
+        fields[name].set_raw(data, fields[name].quantize(value))
+    words, prev = [], 0
+    for k in range(10):
+        if k in (1, 9):  # non-information bits 23-24 of words 2 and 10: D29 = D30 = 0
+            for t in range(4):
+                d = (data[k] & ~0x3) | t
+                if lnav.parity(d, (prev >> 1) & 1, prev & 1) & 0b11 == 0:
+                    data[k] = d
+                    break
+        w = lnav.encode_word(data[k], prev, convention)
+        words.append(w)
+        prev = w
+    return words
+
+
 @dataclass
 class LnavAssembler:
-    """Subframes 1-3 of each GPS satellite -> ephemeris rows (`ephemerides()`)."""
+    """Subframes 1-3 of each GPS satellite -> ephemeris rows (`ephemerides()`); subframe 4
+    page 18 -> the latest Klobuchar coefficients (`klobuchar`, alpha0..3 beta0..3)."""
 
     reference_week: int
     convention: str = "auto"
     counts: Counter = field(default_factory=Counter)
+    klobuchar: tuple[float, ...] | None = None
     _pending: dict[int, dict[int, lnav.Subframe]] = field(default_factory=dict)
     _rows: list = field(default_factory=list)
     _sources: list[str] = field(default_factory=list)
@@ -98,6 +149,13 @@ class LnavAssembler:
             self.counts[exc.reason] += 1
             return
         self.counts[f"subframe_{sf.subframe_id}"] += 1
+        if sf.subframe_id == 4:
+            data, _ = lnav.check_subframe([w & lnav.WORD_MASK for w in words], sf.convention)
+            coeffs = decode_iono_page(data)
+            if coeffs is not None:
+                self.klobuchar = coeffs
+                self.counts["iono_pages"] += 1
+            return
         if sf.subframe_id > 3:
             return
         slot = self._pending.setdefault(prn, {})

@@ -131,6 +131,13 @@ def nearest_week_time(sow: float | np.ndarray, t_ref_s: float | np.ndarray) -> n
     Used for toe, toc and transmit times given as seconds of week next to a full epoch
     (week crossovers: toe may lie in the week after the transmission).
     """
+    if isinstance(sow, (float, int)) and isinstance(t_ref_s, (float, int)):  # scalars (readers): plain floats
+        t = math.floor(t_ref_s / GPS_WEEK_S) * GPS_WEEK_S + float(sow)
+        if t - t_ref_s > GPS_WEEK_S / 2:
+            t -= GPS_WEEK_S
+        elif t - t_ref_s < -GPS_WEEK_S / 2:
+            t += GPS_WEEK_S
+        return np.float64(t)
     t_ref = np.asarray(t_ref_s, dtype=np.float64)
     week_start = np.floor(t_ref / GPS_WEEK_S) * GPS_WEEK_S
     t = week_start + np.asarray(sow, dtype=np.float64)

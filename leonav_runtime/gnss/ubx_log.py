@@ -28,6 +28,7 @@ class UbxLog:
     observations: ObservationTable
     ephemerides: Ephemerides
     counts: Counter  # frames by message name, decode errors, framing rejections
+    iono: dict | None = None  # {"GPSA": alpha0..3, "GPSB": beta0..3} from the last subframe 4 page 18
 
 
 def parse_ubx_bytes(data: bytes, source: str = "<bytes>", *, reference_week: int | None = None) -> UbxLog:
@@ -63,7 +64,10 @@ def parse_ubx_bytes(data: bytes, source: str = "<bytes>", *, reference_week: int
         assembler.add_payload(payload, where)
     eph = assembler.ephemerides()
     counts.update({f"sfrbx_{k}": v for k, v in assembler.counts.items()})
-    return UbxLog(table, eph, counts)
+    iono = None
+    if assembler.klobuchar is not None:
+        iono = {"GPSA": assembler.klobuchar[:4], "GPSB": assembler.klobuchar[4:]}
+    return UbxLog(table, eph, counts, iono)
 
 
 def read_ubx_log(path: str | Path, *, reference_week: int | None = None) -> UbxLog:

@@ -123,7 +123,9 @@ def analyze_information(acc: Accumulated, scales: np.ndarray, names: Sequence[st
     at the final time every unobservable direction and the `n_weakest` weakest observable ones,
     named (with `labels` when given) and with their information in units of S^-2.
     """
+    # a component without a prior (sigma 0: a state the scenario leaves out) is scaled by its unit
     scales = np.asarray(scales, dtype=float)
+    scales = np.where(np.isfinite(scales) & (scales > 0), scales, 1.0)
     targets = scales if targets is None else np.asarray(targets, dtype=float)
     n, ndx = acc.R.shape[0], scales.size
     sv_all = np.zeros((n, ndx))

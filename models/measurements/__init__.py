@@ -8,7 +8,8 @@ from __future__ import annotations
 
 def models() -> dict:
     """{suffix: h(x, aux, p) -> scalar SX} for every observable, in models.state.MEASUREMENTS order."""
-    from models.measurements import doppler, doppler_rate, gnss_fix, gnss_pseudorange, ofdm_range_difference
+    from models.measurements import (doppler, doppler_rate, gnss_code, gnss_fix, gnss_pseudorange,
+                                     ofdm_range_difference)
     from models.state import MEASUREMENTS
 
     table = {
@@ -18,5 +19,7 @@ def models() -> dict:
         "doppler_rate": doppler_rate.h,
         "doppler": doppler.h,
         "ofdm_range_diff": ofdm_range_difference.h,
+        "gnss_pseudorange": gnss_code.h_pseudorange,
+        "gnss_range_rate": gnss_code.h_range_rate,
     }
     return {m.suffix: table[m.suffix] for m in MEASUREMENTS}

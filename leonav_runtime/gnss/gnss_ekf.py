@@ -1,0 +1,167 @@
+"""GNSS-only EKF for receivers without an IMU: the one generated filter, fed differently.
+
+The state layout, the scalar Joseph update of `GNSS_PSEUDORANGE` (and `GNSS_RANGE_RATE`
+when the receiver gives Doppler) and the C loop are those of the IMU filter. Between epochs
+a constant-velocity record (kind LEONAV_KIND_CV, generated `leonav_predict_cv`) replaces the
+IMU predict: p += v dt with white acceleration of PSD q_acc (m^2/s^3, passed as the
+parameter vrw = sqrt(q_acc)), the two-state clock random walk (q_cdt, q_cddt), inter-system
+biases constant. Attitude and IMU biases stay in the state with zero covariance and no
+process noise, untouched (nothing observes them and the CV model does not read them).
+
+Records per epoch k: CV(t_k, dt = t_k - t_{k-1}) for k > 0, then one pseudorange record per
+satellite that the single-point solution kept above the masks (its variance from the same
+error model, at the single-point elevation), then the range rates. RAIM-excluded satellites
+are given to the filter too: its NIS gate (chi-square 1 dof, 99.9 %) decides. Initial state:
+the first single-point solution (position, clock, inter-system biases), zero velocity, clock
+drift from the first two single-point clocks.
+
+Why one filter and not a second, smaller one: a second generated filter would duplicate the
+update code and the driver, and drift from the IMU filter the first time either changes; a
+record kind costs one generated function and a branch in the driver, and the same filter
+runs with or without IMU (an IMU record and a CV record are both "predict to t").
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from leonav_runtime import geometry, records
+from leonav_runtime.filter import EKF, STATUS_APPLIED, STATUS_GATED, RunResult
+from leonav_runtime.gen import constants as K
+from leonav_runtime.gen import state_layout as L
+from leonav_runtime.gen.profiles import ClockProfile, ImuProfile
+from leonav_runtime.gnss.signals import EPOCH_UNSOLVED, RAIM_EXCLUDED
+from leonav_runtime.gnss.spp import SppResult
+from leonav_runtime.navfuncs import NavFunctions
+from leonav_runtime.params import params_array
+
+DEFAULT_Q_ACC_M2PS3 = 1e-10
+"""m^2/s^3: white-acceleration PSD of a static receiver (velocity sigma grows 0.6 mm/s per hour; a car: ~1)."""
+DEFAULT_Q_CDT_M2PS = 1e4
+"""m^2/s: clock white-frequency PSD (loose: the receiver clock is re-estimated every epoch)."""
+DEFAULT_Q_CDDT_M2PS3 = 1.0
+"""m^2/s^3: clock random-walk-frequency PSD (drift changes of receiver TCXOs)."""
+P0_POSITION_M, P0_VELOCITY_MPS, P0_CLOCK_M, P0_DRIFT_MPS, P0_ISB_M = 30.0, 0.01, 1e3, 100.0, 100.0
+
+
+@dataclass
+class EkfSolution:
+    """Per epoch (E,) of the single-point result it was started from: t_gps_s, r_ecef_m,
+    cov_enu_m2 (E, 3, 3) (origin ENU axes), clock_m, ns (pseudoranges applied), gated; and
+    the raw RunResult of the C loop, the records, x0, P0, params."""
+
+    t_gps_s: np.ndarray
+    r_ecef_m: np.ndarray
+    v_enu_mps: np.ndarray
+    cov_enu_m2: np.ndarray
+    clock_m: np.ndarray
+    ns: np.ndarray
+    gated: np.ndarray
+    run: RunResult
+    records: np.ndarray
+    x0: np.ndarray
+    P0: np.ndarray
+    params: np.ndarray
+
+
+def build_records(spp: SppResult, *, use_range_rate: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """(records, epoch index per record) of the GNSS-only run; times in s since the first epoch."""
+    rows = spp.rows
+    t0 = spp.t_gps_s[0]
+    keep = (spp.epoch_index >= 0) & np.isin(spp.row_status, (0, RAIM_EXCLUDED, EPOCH_UNSOLVED)) \
+        & np.isfinite(spp.sigma_m)
+    keep &= spp.el_rad >= 0.0  # below-mask rows already carry their own status
+    idx = np.flatnonzero(keep)
+    kind_pr = L.MEAS_GNSS_PSEUDORANGE
+    parts, epochs = [], []
+    t_ep = spp.t_gps_s - t0
+    cv = records.cv_records(t_ep[1:], np.diff(t_ep))
+    parts.append(cv)
+    epochs.append(np.arange(1, t_ep.size))
+    pr = records.measurement_records(rows.t_gps_s[idx] - t0, kind_pr, rows.pseudorange_m[idx], spp.sigma_m[idx] ** 2,
+                                     rows.aux[idx], sat_id=_sat_ids(rows, idx))
+    parts.append(pr)
+    epochs.append(spp.epoch_index[idx])
+    if use_range_rate:
+        rr = idx[np.isfinite(rows.range_rate_mps[idx])]
+        if rr.size:
+            parts.append(records.measurement_records(rows.t_gps_s[rr] - t0, L.MEAS_GNSS_RANGE_RATE,
+                                                     rows.range_rate_mps[rr], K.RANGE_RATE_SIGMA_MPS**2,
+                                                     rows.aux[rr], sat_id=_sat_ids(rows, rr)))
+            epochs.append(spp.epoch_index[rr])
+    recs = np.concatenate(parts)
+    ep = np.concatenate(epochs)
+    order = np.argsort(recs["kind"] >= 0, kind="stable")
+    order = order[np.argsort(recs["t"][order], kind="stable")]
+    return recs[order], ep[order]
+
+
+def _sat_ids(rows, idx) -> np.ndarray:
+    """sat_id of a record: ord(system letter) * 1000 + PRN (e.g. G07 -> 71007)."""
+    return np.array([ord(s) * 1000 + int(p) for s, p in zip(rows.system[idx], rows.prn[idx])], dtype=np.int32)
+
+
+def run(spp: SppResult, *, q_acc_m2ps3: float = DEFAULT_Q_ACC_M2PS3, q_cdt_m2ps: float = DEFAULT_Q_CDT_M2PS,
+        q_cddt_m2ps3: float = DEFAULT_Q_CDDT_M2PS3, gate: float = K.CHI2_1DOF_999,
+        nav: NavFunctions | None = None) -> EkfSolution:
+    """GNSS-only EKF over the epochs of a single-point result (see the module doc)."""
+    ok = np.flatnonzero(spp.solved)
+    if ok.size == 0:
+        raise ValueError("no single-point solution to start the GNSS-only EKF from")
+    nav = nav or NavFunctions()
+    e0 = int(ok[0])
+    lat0, lon0, h0 = (float(v) for v in geometry.ecef_to_geodetic(spp.r_ecef_m[e0]))
+    imu = ImuProfile("constant-velocity", math.sqrt(q_acc_m2ps3), 0.0, 0.0, 0.0, 0.0, 0.0,
+                     "GNSS-only: vrw is the white-acceleration PSD of the constant-velocity model")
+    clock = ClockProfile("gnss-only", q_cdt_m2ps, q_cddt_m2ps3, "GNSS-only EKF defaults (gnss_ekf.py)")
+    p = params_array(lat0, lon0, h0, imu=imu, clock=clock)
+    x0 = np.zeros(L.NX)
+    x0[L.X_Q_NB] = 1.0
+    x0[L.X_C_DT] = spp.clock_m[e0]
+    if ok.size > 1:
+        e1 = int(ok[1])
+        x0[L.X_C_DDT] = (spp.clock_m[e1] - spp.clock_m[e0]) / (spp.t_gps_s[e1] - spp.t_gps_s[e0])
+    isb = spp.isb_m[e0]
+    x0[L.X_ISB_SLICE] = np.nan_to_num(isb)
+    sd = np.zeros(L.NDX)
+    sd[L.DX_DP_SLICE] = P0_POSITION_M
+    sd[L.DX_DV_SLICE] = P0_VELOCITY_MPS
+    sd[L.DX_DC_DT], sd[L.DX_DC_DDT] = P0_CLOCK_M, P0_DRIFT_MPS
+    sd[L.DX_DISB_SLICE] = P0_ISB_M  # an inter-system bias first seen later needs room too
+    P0 = np.diag(sd**2)
+    recs, ep = build_records(spp)
+    # records before the first solved epoch are dropped (nothing to start from there)
+    first_t = spp.t_gps_s[e0] - spp.t_gps_s[0]
+    recs, ep = recs[recs["t"] >= first_t], ep[recs["t"] >= first_t]
+    if recs.size and recs["kind"][0] == records.KIND_CV:
+        recs, ep = recs[1:], ep[1:]
+    ekf = EKF(x0, P0, p, gate={"gnss_pseudorange": gate, "gnss_range_rate": gate}, library=nav.library)
+    res = ekf.run(recs)
+    E = spp.t_gps_s.size
+    last = np.full(E, -1)
+    last[ep] = np.arange(ep.size)  # ep is non-decreasing: the last record of each epoch wins
+    have = last >= 0
+    r = np.full((E, 3), np.nan)
+    v = np.full((E, 3), np.nan)
+    cov = np.full((E, 3, 3), np.nan)
+    clk = np.full(E, np.nan)
+    ns = np.zeros(E, int)
+    gated = np.zeros(E, int)
+    is_pr = recs["kind"] == L.MEAS_GNSS_PSEUDORANGE
+    np.add.at(ns, ep[is_pr & (res.status == STATUS_APPLIED)], 1)
+    np.add.at(gated, ep[is_pr & (res.status == STATUS_GATED)], 1)
+    for e in np.flatnonzero(have):
+        x = res.x[last[e]]
+        r[e] = nav.receiver_ecef(x, p)[0]
+        v[e] = x[L.X_V_ENU_SLICE]
+        cov[e] = np.diag(res.P_diag[last[e], L.DX_DP_SLICE])
+        clk[e] = x[L.X_C_DT]
+    return EkfSolution(spp.t_gps_s, r, v, cov, clk, ns, gated, res, recs, x0, P0, p)
+
+
+def scatter_rms_m(r_ecef_m: np.ndarray) -> float:
+    """RMS of the 3-D distances of the positions (n, 3) from their mean (m)."""
+    r = r_ecef_m[np.all(np.isfinite(r_ecef_m), axis=1)]
+    return float(np.sqrt(np.mean(np.sum((r - r.mean(axis=0)) ** 2, axis=1)))) if len(r) else math.nan
