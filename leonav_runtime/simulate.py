@@ -41,6 +41,7 @@ from leonav_runtime.orbits import (ElementSet, default_elements, group_by_conste
 from leonav_runtime.params import IMU_PROFILES
 from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
 from leonav_runtime.trajectory import motion
+from leonav_runtime.sensor_noise import _random_walk, bias_walks, measured_increments  # noqa: F401  (public here too)
 
 __all__ = [
     "SatSeries", "Setup", "Trial", "truth", "needed_constellations", "scenario_elements", "prior_covariance",
@@ -249,28 +250,6 @@ def prior_covariance(scn: Scenario, profile, layout) -> np.ndarray:
                                 f["initial_attitude_sigma_rad"]) ** 2)
 
 
-def bias_walks(rng: np.random.Generator, profile, n: int, dt: float, scale: float = 1.0):
-    """True accelerometer and gyro biases (n+1, 3) each at the IMU samples: an initial draw
-    from the profile's bias sigma, then its random walk (m/s^2, rad/s; body frame).
-    scale 0 gives zero biases (the draws are still made, to keep random streams aligned)."""
-    b_a = _random_walk(rng, n, dt, scale * profile.acc_bias_sigma * rng.standard_normal(3),
-                       scale * profile.acc_bias_rw**2)
-    b_g = _random_walk(rng, n, dt, scale * profile.gyro_bias_sigma * rng.standard_normal(3),
-                       scale * profile.gyro_bias_rw**2)
-    return b_a, b_g
-
-
-def measured_increments(rng: np.random.Generator, profile, u_true: np.ndarray, b_a: np.ndarray,
-                        b_g: np.ndarray, dt: float, scale: float = 1.0) -> np.ndarray:
-    """IMU increments as the sensor gives them: the ideal ones plus the bias at the start of
-    each interval and the white noise of the profile (ARW, VRW). (n, 6): rad, m/s."""
-    n = u_true.shape[0]
-    u = u_true.copy()
-    u[:, :3] += b_g[:-1] * dt + scale * profile.arw * math.sqrt(dt) * rng.standard_normal((n, 3))
-    u[:, 3:] += b_a[:-1] * dt + scale * profile.vrw * math.sqrt(dt) * rng.standard_normal((n, 3))
-    return u
-
-
 def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
     """Truth, satellite geometry and noise-free measurements shared by all trials."""
     nav = nav or navfuncs.NavFunctions()
@@ -336,11 +315,6 @@ class Trial:
     records: np.ndarray
     x0: np.ndarray
     x_true: np.ndarray   # (n+1, NX) truth including this trial's biases, clock and LO
-
-
-def _random_walk(rng, n, dt, x0, q):
-    steps = rng.standard_normal((n,) + np.shape(x0)) * math.sqrt(q * dt)
-    return np.concatenate([[x0], x0 + np.cumsum(steps, axis=0)])
 
 
 def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,

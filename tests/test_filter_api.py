@@ -43,10 +43,11 @@ def test_gate_specs(lib, params):
 
 
 def test_argument_shapes_are_checked(lib, params):
-    with pytest.raises(ValueError, match="x0: expected 19 values, got 18"):
-        lf.EKF(x_rest()[:18], P0(), params, library=lib)
-    with pytest.raises(ValueError, match=r"P0: expected shape \(18, 18\)"):
-        lf.EKF(x_rest(), np.eye(17), params, library=lib)
+    nx, ndx = lib.layout.NX, lib.layout.NDX
+    with pytest.raises(ValueError, match=f"x0: expected {nx} values, got {nx - 1}"):
+        lf.EKF(x_rest()[:-1], P0(), params, library=lib)
+    with pytest.raises(ValueError, match=rf"P0: expected shape \({ndx}, {ndx}\)"):
+        lf.EKF(x_rest(), np.eye(ndx - 1), params, library=lib)
     with pytest.raises(ValueError, match="params: expected"):
         lf.EKF(x_rest(), P0(), params[:-1], library=lib)
     ekf = lf.EKF(x_rest(), P0(), params, library=lib)
