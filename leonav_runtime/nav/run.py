@@ -1,0 +1,187 @@
+"""One run of `leonav nav`: a source, the navigator, the outputs, signals -> files and an exit code.
+
+Exit codes (also in nav.json `exit_code` and `leonav nav --help`):
+  0    the run ended as asked (--seconds elapsed, or the played-back session ended) and navigated
+  1    it never navigated: no GNSS time tag, no usable fix or no IMU data (outputs still written)
+  2    bad arguments or input files (the CLI's convention for every command)
+  3    a device disappeared during the run (the filter went on with the rest; see nav.json)
+  130  interrupted by SIGINT (Ctrl-C)
+  143  stopped by SIGTERM (systemd stop): every output flushed, as for 0
+SIGINT and SIGTERM only set a flag: the loop sees it within 50 ms, then every output is flushed
+and closed and session.json, trajectory.csv and nav.json are complete.
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import math
+import signal
+import threading
+from pathlib import Path
+from typing import Callable
+
+from leonav_runtime import navfuncs
+from leonav_runtime.errors import UserInputError
+from leonav_runtime.nav.navigator import Navigator, NavConfig
+from leonav_runtime.nav.outputs import LiveOutputs
+from leonav_runtime.nav.status import StatusLine
+from leonav_runtime.output import write_json
+
+EXIT_OK, EXIT_NEVER_NAVIGATED, EXIT_USAGE, EXIT_DEVICE_LOST = 0, 1, 2, 3
+EXIT_SIGINT, EXIT_SIGTERM = 130, 143
+EXIT_CODES = {EXIT_OK: "ended as asked and navigated", EXIT_NEVER_NAVIGATED: "never navigated (no time tag, fix or IMU)",
+              EXIT_USAGE: "bad arguments or input", EXIT_DEVICE_LOST: "a device disappeared during the run",
+              EXIT_SIGINT: "interrupted (SIGINT)", EXIT_SIGTERM: "stopped (SIGTERM)"}
+
+
+@dataclasses.dataclass
+class NavOptions:
+    out_dir: Path
+    nav: NavConfig
+    session: Path | None = None           # --from SESSION
+    realtime: bool = False
+    speed: float = 1.0                    # playback pace multiplier (tests)
+    gnss: str | None = None
+    imu: str | None = None
+    sdr_index: int | None = None
+    gnss_baud: int = 38400
+    imu_baud: int = 9600
+    configure: bool = False
+    sdr_settings: object = None
+    seconds: float | None = None
+    record: bool = True
+    tcp: tuple[str, int] | None = ("127.0.0.1", 10110)
+    pty_link: str | None = None
+    mavlink: str | None = None
+    json_lines: bool = True
+    status: bool | None = None            # None: on when stderr is a terminal (else a line every 10 s)
+    tle_files: tuple = ()
+
+
+class _Signals:
+    """SIGINT/SIGTERM -> a flag (main thread only; elsewhere `request` is the way to stop)."""
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self._old: dict = {}
+
+    def request(self, signum: int = signal.SIGINT) -> None:
+        if self.received is None:
+            self.received = signum
+
+    def __enter__(self) -> "_Signals":
+        if threading.current_thread() is threading.main_thread():
+            for s in (signal.SIGINT, signal.SIGTERM):
+                self._old[s] = signal.signal(s, lambda signum, frame: self.request(signum))
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for s, h in self._old.items():
+            signal.signal(s, h)
+
+
+def _source(opts: NavOptions, record_dir: Path | None):
+    from leonav_runtime.nav import sources
+
+    if opts.session is not None and not opts.realtime:
+        return sources.FastPlayback(opts.session, record_dir)
+    if opts.session is not None:
+        return _realtime_playback(opts, record_dir)
+    if not (opts.gnss or opts.imu):
+        raise UserInputError("nav: give --gnss PORT and --imu PORT (live devices) or --from SESSION")
+    return sources.LiveSource(record_dir, opts.gnss, opts.imu, opts.sdr_index, opts.gnss_baud, opts.imu_baud,
+                              opts.configure, opts.sdr_settings)
+
+
+def _realtime_playback(opts: NavOptions, record_dir: Path):
+    from leonav_runtime.nav import sources
+
+    folder = Path(opts.session)
+    t0 = sources.session_start_mono(folder)
+    ptys = [sources.PacedPty(sources.chunk_events(folder, name, t0), opts.speed) for name in ("gnss", "imu")]
+    info = sources.read_session_info(folder)
+    return sources.LiveSource(record_dir, ptys[0].path, ptys[1].path, None, sources._baud(info, "gnss") or 38400,
+                              sources._baud(info, "imu") or 9600, playback=ptys)
+
+
+def session_bauds(opts: NavOptions) -> tuple[int | None, int | None]:
+    if opts.session is None:
+        return opts.gnss_baud, opts.imu_baud
+    from leonav_runtime.nav.sources import _baud, read_session_info
+
+    info = read_session_info(Path(opts.session))
+    return _baud(info, "gnss"), _baud(info, "imu")
+
+
+def run_nav(opts: NavOptions, on_started: Callable[[], None] | None = None,
+            signals: _Signals | None = None, nav: navfuncs.NavFunctions | None = None) -> dict:
+    """Run to the end; returns nav.json's content (with `exit_code`)."""
+    from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
+
+    out = Path(opts.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    record_dir = out / "session" if opts.record or (opts.session is None or opts.realtime) else None
+    cfg = opts.nav
+    cfg.road.gnss_baud, cfg.road.imu_baud = session_bauds(opts)
+    if not math.isfinite(cfg.road.f_c_hz):
+        cfg.road.f_c_hz = STARLINK_BEACON_HZ
+    signals = signals or _Signals()
+    status = StatusLine(enabled=True if opts.status is None else opts.status)
+    if opts.status is None and not status.tty:
+        status.refresh_s = 10.0
+    outputs = LiveOutputs(opts.tcp, opts.pty_link, opts.mavlink, out / "solutions.jsonl" if opts.json_lines else None)
+    navigator = source = None
+    reason, session_info = "error", {}
+    started_utc = _dt.datetime.now(_dt.timezone.utc)
+    try:
+        navigator = Navigator(cfg, out, outputs, status, nav)
+        source = _source(opts, record_dir)
+        where = [f"NMEA tcp://{outputs.tcp_address[0]}:{outputs.tcp_address[1]}" if outputs.tcp_address else "",
+                 f"NMEA pty {opts.pty_link} -> {outputs.pty_device}" if outputs.pty_device else "",
+                 f"MAVLink {opts.mavlink}" if opts.mavlink else ""]
+        status.event(f"leonav nav: {cfg.mode}, writing {out}" + "".join(f"; {w}" for w in where if w))
+        with signals:
+            reason = source.run(navigator, opts.seconds, on_started=on_started,
+                                should_stop=lambda: signals.received is not None)
+    finally:
+        prev = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)} \
+            if threading.current_thread() is threading.main_thread() else {}
+        try:
+            state = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated"}.get(signals.received,
+                                                                                    "complete" if reason != "error"
+                                                                                    else "error")
+            if source is not None:
+                session_info = source.stop(state)
+            summary = navigator.finish() if navigator is not None else {}
+            outputs_report = outputs.close()
+            status.close()
+        finally:
+            for s, h in prev.items():
+                signal.signal(s, h)
+    code = exit_code(signals.received, summary, session_info)
+    result = {"exit_code": code, "exit_meaning": EXIT_CODES[code], "end_reason": reason, "status": state,
+              "started_utc": started_utc, "source": _describe_source(opts), "outputs": outputs_report,
+              "session_folder": str(record_dir) if record_dir else None,
+              "session_status": session_info.get("status"), "exit_codes": EXIT_CODES} | summary
+    write_json(out / "nav.json", result)
+    return result
+
+
+def exit_code(signum: int | None, summary: dict, session_info: dict) -> int:
+    if signum == signal.SIGINT:
+        return EXIT_SIGINT
+    if signum == signal.SIGTERM:
+        return EXIT_SIGTERM
+    if summary.get("devices_lost"):
+        return EXIT_DEVICE_LOST
+    if not summary.get("started"):
+        return EXIT_NEVER_NAVIGATED
+    return EXIT_OK
+
+
+def _describe_source(opts: NavOptions) -> dict:
+    if opts.session is not None:
+        return {"kind": "playback (paced, pty devices)" if opts.realtime else "playback (as fast as possible)",
+                "session": str(opts.session), "speed": opts.speed if opts.realtime else None}
+    return {"kind": "live devices", "gnss": opts.gnss, "imu": opts.imu, "sdr_index": opts.sdr_index,
+            "gnss_baud": opts.gnss_baud, "imu_baud": opts.imu_baud}
