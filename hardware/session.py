@@ -138,9 +138,9 @@ class RecordSession:
                     time.sleep(0.05)   # the sensor needs a moment between register writes
                 run.extra["config_commands_sent"] = len(witmotion.configure_sequence(rate_hz=10))
             for sample in reader:
-                sink.write(imu_row(sample, self.time_map.utc))
                 if self.on_record:
                     self.on_record("imu", sample)
+                sink.write(imu_row(sample, self.time_map.utc))
         finally:
             sink.close()
             run.extra["csv_rows"] = {"imu.csv": sink.rows}

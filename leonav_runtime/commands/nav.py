@@ -38,7 +38,6 @@ def register(subparsers) -> None:
                      help="play back a session folder (`leonav record` / `leonav session synth`) instead of devices")
     src.add_argument("--realtime", action="store_true",
                      help="with --from: feed pty devices at the recorded pace (the live path), not as fast as possible")
-    src.add_argument("--speed", type=float, default=1.0, help="with --realtime: pace multiplier (default 1)")
     src.add_argument("--gnss-baud", type=int, default=38400, help="GNSS baud (default 38400)")
     src.add_argument("--imu-baud", type=int, default=9600, help="IMU baud (default 9600)")
     src.add_argument("--configure", action="store_true", help="send the 10 Hz configuration first (as `leonav record`)")
@@ -80,7 +79,7 @@ def options_from_args(args: argparse.Namespace):
         raise UserInputError(f"--from {args.session}: not a session folder")
     if args.realtime and args.session is None:
         raise UserInputError("--realtime: only with --from SESSION")
-    for name in ("speed", "rate", "trajectory_rate", "lag"):
+    for name in ("rate", "trajectory_rate", "lag"):
         v = getattr(args, name)
         if not (math.isfinite(v) and v > 0):
             raise UserInputError(f"--{name.replace('_', '-')}: {v!r}: expected a positive number")
@@ -98,7 +97,7 @@ def options_from_args(args: argparse.Namespace):
                     trajectory_rate_hz=args.trajectory_rate)
     return NavOptions(
         out_dir=output.results_dir(args.out, "nav"), nav=cfg, session=Path(args.session) if args.session else None,
-        realtime=args.realtime, speed=args.speed, gnss=args.gnss, imu=args.imu, sdr_index=args.sdr,
+        realtime=args.realtime, gnss=args.gnss, imu=args.imu, sdr_index=args.sdr,
         gnss_baud=args.gnss_baud, imu_baud=args.imu_baud, configure=args.configure,
         sdr_settings=SdrSettings() if args.sdr is not None else None, seconds=args.seconds,
         record=not args.no_record, tcp=(args.nmea_host, args.nmea_port) if args.nmea_port else None,

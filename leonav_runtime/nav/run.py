@@ -40,7 +40,6 @@ class NavOptions:
     nav: NavConfig
     session: Path | None = None           # --from SESSION
     realtime: bool = False
-    speed: float = 1.0                    # playback pace multiplier (tests)
     gnss: str | None = None
     imu: str | None = None
     sdr_index: int | None = None
@@ -98,7 +97,7 @@ def _realtime_playback(opts: NavOptions, record_dir: Path):
 
     folder = Path(opts.session)
     t0 = sources.session_start_mono(folder)
-    ptys = [sources.PacedPty(sources.chunk_events(folder, name, t0), opts.speed) for name in ("gnss", "imu")]
+    ptys = [sources.PacedPty(sources.chunk_events(folder, name, t0)) for name in ("gnss", "imu")]
     info = sources.read_session_info(folder)
     return sources.LiveSource(record_dir, ptys[0].path, ptys[1].path, None, sources._baud(info, "gnss") or 38400,
                               sources._baud(info, "imu") or 9600, playback=ptys)
@@ -182,6 +181,6 @@ def exit_code(signum: int | None, summary: dict, session_info: dict) -> int:
 def _describe_source(opts: NavOptions) -> dict:
     if opts.session is not None:
         return {"kind": "playback (paced, pty devices)" if opts.realtime else "playback (as fast as possible)",
-                "session": str(opts.session), "speed": opts.speed if opts.realtime else None}
+                "session": str(opts.session)}
     return {"kind": "live devices", "gnss": opts.gnss, "imu": opts.imu, "sdr_index": opts.sdr_index,
             "gnss_baud": opts.gnss_baud, "imu_baud": opts.imu_baud}

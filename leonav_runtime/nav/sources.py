@@ -38,15 +38,15 @@ TICK_S = 0.05
 
 
 class PacedPty:
-    """A pty pair fed with `events` = [(offset s, bytes), ...] on an absolute schedule divided by
-    `speed`; `close_at_s` closes the master then (device unplugged). `path` is the slave side."""
+    """A pty pair fed with `events` = [(offset s, bytes), ...] on an absolute schedule (at the
+    recorded pace: the receiver's UTC in the bytes does not run faster, so neither may the
+    playback); `close_at_s` closes the master then (device unplugged). `path` is the slave side."""
 
-    def __init__(self, events: list[tuple[float, bytes]], speed: float = 1.0, close_at_s: float | None = None) -> None:
+    def __init__(self, events: list[tuple[float, bytes]], close_at_s: float | None = None) -> None:
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
         self.path = os.ttyname(self.slave)
         self.events = sorted(events, key=lambda e: e[0])
-        self.speed = speed
         self.close_at_s = close_at_s
         self.done = threading.Event()
         self.closed = False
@@ -58,7 +58,7 @@ class PacedPty:
         self._thread.start()
 
     def _wait_until(self, t0: float, offset: float) -> bool:
-        delay = t0 + offset / self.speed - time.monotonic()
+        delay = t0 + offset - time.monotonic()
         return not (delay > 0 and self._stop.wait(delay))
 
     def _feed(self) -> None:
@@ -117,27 +117,26 @@ def session_start_mono(folder: Path) -> float:
 
 class FileRtlSdr:
     """A recorded cu8 capture read back like pyrtlsdr's RtlSdr (`read_bytes`), paced at its sample
-    rate divided by `speed`; raises IOError at the end of the recording."""
+    rate; raises IOError at the end of the recording."""
 
     END = "end of the recorded capture"
 
-    def __init__(self, path: Path, speed: float = 1.0, start_delay_s: float = 0.0) -> None:
+    def __init__(self, path: Path, start_delay_s: float = 0.0) -> None:
         self._fh = open(path, "rb")
         self.sample_rate, self.center_freq, self.gain, self.freq_correction = 2.4e6, 1e9, "auto", 0
-        self.speed = speed
         self.start_delay_s = max(0.0, start_delay_s)
         self._t0 = None
         self._n = 0
 
     def read_bytes(self, n: int) -> bytes:
         if self._t0 is None:
-            time.sleep(self.start_delay_s / self.speed)     # the capture started this long after the serial logs
+            time.sleep(self.start_delay_s)     # the capture started this long after the serial logs
             self._t0 = time.monotonic()
         data = self._fh.read(n)
         if not data:
             raise IOError(self.END)
         self._n += len(data) // 2
-        delay = self._t0 + self._n / self.sample_rate / self.speed - time.monotonic()
+        delay = self._t0 + self._n / self.sample_rate - time.monotonic()
         if delay > 0:
             time.sleep(delay)
         return data
@@ -156,10 +155,14 @@ class LiveSource:
         kw = {} if sdr_factory is None else {"sdr_factory": sdr_factory}
         self.session = RecordSession(record_dir, gnss=gnss, imu=imu, sdr_index=sdr_index, gnss_baud=gnss_baud,
                                      imu_baud=imu_baud, configure=configure, sdr_settings=sdr_settings,
-                                     progress=False, on_record=lambda kind, rec: self.queue.put((kind, rec)), **kw)
+                                     progress=False, on_record=self._put, **kw)
         self.playback = playback or []
         self.reported: set[str] = set()
         self.info: dict = {}
+
+    def _put(self, kind: str, rec) -> None:
+        """From a device thread: the record and when it was handed over (its last byte read and decoded)."""
+        self.queue.put((kind, rec, time.monotonic()))
 
     def rejected(self) -> dict:
         out = {}
@@ -212,20 +215,24 @@ class LiveSource:
                     return "playback ended"
 
     def _dispatch(self, items: list, navigator) -> None:
+        """Records in arrival order; IMU samples of one read (one stamp) go together, with the time
+        the last of them was handed over as their arrival."""
         group: list[ImuSample] = []
-        for kind, rec in items:
+        arrived = 0.0
+        for kind, rec, handed in items:
             if kind == "imu":
                 if group and rec.t_mono_s != group[-1].t_mono_s:
-                    navigator.on_imu(group, group[-1].t_mono_s, group[-1].t_mono_s)
+                    navigator.on_imu(group, group[-1].t_mono_s, arrived)
                     group = []
                 group.append(rec)
+                arrived = handed
                 continue
             if group:
-                navigator.on_imu(group, group[-1].t_mono_s, group[-1].t_mono_s)
+                navigator.on_imu(group, group[-1].t_mono_s, arrived)
                 group = []
             navigator.on_gnss(rec, rec.t_mono_s)
         if group:
-            navigator.on_imu(group, group[-1].t_mono_s, group[-1].t_mono_s)
+            navigator.on_imu(group, group[-1].t_mono_s, arrived)
 
     def _check_devices(self, navigator) -> None:
         for d in self.session.devices:
