@@ -51,8 +51,8 @@ def register(subparsers) -> None:
                    help="ENU origin, deg deg m (default: the first GNSS fix)")
     f.add_argument("--yaw-deg", type=float, default=None, help="initial heading, deg from East towards North")
     f.add_argument("--gnss-latency", type=float, default=0.0, metavar="S", help="receiver output latency, s")
-    f.add_argument("--lag", type=float, default=2.5, metavar="S",
-                   help="how late a measurement may arrive and still be put in its place (default 2.5 s)")
+    f.add_argument("--lag", type=float, default=3.5, metavar="S",
+                   help="how late a measurement may arrive and still be put in its place (default 3.5 s: a Doppler-rate epoch comes up to ~2.7 s after its time)")
     f.add_argument("--tle", action="append", default=[], metavar="FILE", help="Starlink element sets (beacons)")
     o = p.add_argument_group("outputs")
     o.add_argument("--nmea-port", type=int, default=10110, help="NMEA TCP server port (default 10110; 0: off)")

@@ -41,7 +41,7 @@ class NavConfig:
     mode: str = "fix+imu"
     road: RoadConfig = dataclasses.field(default_factory=RoadConfig)
     gate_nis: float = lfilter.CHI2_1DOF_999
-    lag_s: float = 2.5
+    lag_s: float = 3.5
     output_rate_hz: float = 10.0
     trajectory_rate_hz: float = 10.0
     gnss_timeout_s: float = 2.0

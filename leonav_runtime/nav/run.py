@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
-import math
 import signal
 import threading
 from pathlib import Path
@@ -79,28 +78,64 @@ class _Signals:
             signal.signal(s, h)
 
 
-def _source(opts: NavOptions, record_dir: Path | None):
+def _source(opts: NavOptions, record_dir: Path | None, beacons):
     from leonav_runtime.nav import sources
 
     if opts.session is not None and not opts.realtime:
-        return sources.FastPlayback(opts.session, record_dir)
+        return sources.FastPlayback(opts.session, record_dir, beacons)
     if opts.session is not None:
-        return _realtime_playback(opts, record_dir)
+        return _realtime_playback(opts, record_dir, beacons)
     if not (opts.gnss or opts.imu):
         raise UserInputError("nav: give --gnss PORT and --imu PORT (live devices) or --from SESSION")
     return sources.LiveSource(record_dir, opts.gnss, opts.imu, opts.sdr_index, opts.gnss_baud, opts.imu_baud,
-                              opts.configure, opts.sdr_settings)
+                              opts.configure, opts.sdr_settings, beacons=beacons)
 
 
-def _realtime_playback(opts: NavOptions, record_dir: Path):
+def _realtime_playback(opts: NavOptions, record_dir: Path, beacons):
+    from hardware.sdr.capture import SdrSettings
     from leonav_runtime.nav import sources
+    from leonav_runtime.nav.beacon_feed import capture_meta
 
     folder = Path(opts.session)
     t0 = sources.session_start_mono(folder)
     ptys = [sources.PacedPty(sources.chunk_events(folder, name, t0)) for name in ("gnss", "imu")]
     info = sources.read_session_info(folder)
-    return sources.LiveSource(record_dir, ptys[0].path, ptys[1].path, None, sources._baud(info, "gnss") or 38400,
-                              sources._baud(info, "imu") or 9600, playback=ptys)
+    sdr = {}
+    if beacons is not None:
+        m = capture_meta(folder / "sdr.sigmf-meta")
+        delay = float(m["t_mono_start_s"]) - t0 if m.get("t_mono_start_s") is not None else 0.0
+        sdr = {"sdr_index": 0, "sdr_factory": lambda index: sources.FileRtlSdr(folder / "sdr.cu8", delay),
+               "sdr_settings": SdrSettings(rf_center_hz=m["rf_center_hz"], lnb_lo_hz=m["lnb_lo_hz"],
+                                           sample_rate_hz=m["sample_rate_hz"], gain_db=m["gain_db"])}
+    return sources.LiveSource(record_dir, ptys[0].path, ptys[1].path, gnss_baud=sources._baud(info, "gnss") or 38400,
+                              imu_baud=sources._baud(info, "imu") or 9600, playback=ptys, beacons=beacons, **sdr)
+
+
+def _beacons(opts: NavOptions, record_dir: Path | None):
+    """(BeaconFeed or None, f_c Hz, where f_c came from) for the mode and the source."""
+    from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
+    from leonav_runtime.nav.beacon_feed import BeaconFeed, capture_meta, carrier
+    from leonav_runtime.orbits.elements import load_element_files
+    from leonav_runtime.replay.options import MODE_STREAMS
+
+    default = (None, STARLINK_BEACON_HZ, "default (no Starlink capture)")
+    if "doppler_rate" not in MODE_STREAMS[opts.nav.mode]:
+        return default
+    elements = load_element_files(opts.tle_files)
+    floor = opts.nav.road.doppler_rate_sigma_floor_hz_s
+    if opts.session is not None:
+        meta_path = Path(opts.session) / "sdr.sigmf-meta"
+        if not meta_path.exists() or not (Path(opts.session) / "sdr.cu8").exists():
+            raise UserInputError(f"--mode {opts.nav.mode}: {opts.session} has no sdr.cu8 + sdr.sigmf-meta")
+        meta = capture_meta(meta_path)
+        f_c, src = carrier(meta["rf_center_hz"])
+        if not opts.realtime:
+            return BeaconFeed(Path(opts.session) / "sdr.cu8", meta, f_c, elements, floor, live=False), f_c, src
+        return BeaconFeed(record_dir / "sdr.cu8", None, f_c, elements, floor, live=True), f_c, src
+    if opts.sdr_index is None:
+        raise UserInputError(f"--mode {opts.nav.mode}: needs --sdr INDEX (the Starlink capture)")
+    f_c, src = carrier(opts.sdr_settings.rf_center_hz)
+    return BeaconFeed(record_dir / "sdr.cu8", None, f_c, elements, floor, live=True), f_c, src
 
 
 def session_bauds(opts: NavOptions) -> tuple[int | None, int | None]:
@@ -115,26 +150,23 @@ def session_bauds(opts: NavOptions) -> tuple[int | None, int | None]:
 def run_nav(opts: NavOptions, on_started: Callable[[], None] | None = None,
             signals: _Signals | None = None, nav: navfuncs.NavFunctions | None = None) -> dict:
     """Run to the end; returns nav.json's content (with `exit_code`)."""
-    from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
-
     out = Path(opts.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     record_dir = out / "session" if opts.record or (opts.session is None or opts.realtime) else None
     cfg = opts.nav
     cfg.road.gnss_baud, cfg.road.imu_baud = session_bauds(opts)
-    if not math.isfinite(cfg.road.f_c_hz):
-        cfg.road.f_c_hz = STARLINK_BEACON_HZ
     signals = signals or _Signals()
     status = StatusLine(enabled=True if opts.status is None else opts.status)
     if opts.status is None and not status.tty:
         status.refresh_s = 10.0
     outputs = LiveOutputs(opts.tcp, opts.pty_link, opts.mavlink, out / "solutions.jsonl" if opts.json_lines else None)
     navigator = source = None
-    reason, session_info = "error", {}
+    reason, session_info, beacons, f_c_source = "error", {}, None, ""
     started_utc = _dt.datetime.now(_dt.timezone.utc)
     try:
+        beacons, cfg.road.f_c_hz, f_c_source = _beacons(opts, record_dir)
         navigator = Navigator(cfg, out, outputs, status, nav)
-        source = _source(opts, record_dir)
+        source = _source(opts, record_dir, beacons)
         where = [f"NMEA tcp://{outputs.tcp_address[0]}:{outputs.tcp_address[1]}" if outputs.tcp_address else "",
                  f"NMEA pty {opts.pty_link} -> {outputs.pty_device}" if outputs.pty_device else "",
                  f"MAVLink {opts.mavlink}" if opts.mavlink else ""]
@@ -161,7 +193,9 @@ def run_nav(opts: NavOptions, on_started: Callable[[], None] | None = None,
     result = {"exit_code": code, "exit_meaning": EXIT_CODES[code], "end_reason": reason, "status": state,
               "started_utc": started_utc, "source": _describe_source(opts), "outputs": outputs_report,
               "session_folder": str(record_dir) if record_dir else None,
-              "session_status": session_info.get("status"), "exit_codes": EXIT_CODES} | summary
+              "session_status": session_info.get("status"), "exit_codes": EXIT_CODES,
+              "f_c_hz": cfg.road.f_c_hz, "f_c_source": f_c_source,
+              "beacons": beacons.summary() if beacons is not None else None} | summary
     write_json(out / "nav.json", result)
     return result
 

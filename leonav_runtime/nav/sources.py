@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import queue
 import threading
 import time
@@ -150,8 +151,10 @@ class LiveSource:
 
     def __init__(self, record_dir: Path, gnss: str | None, imu: str | None, sdr_index: int | None = None,
                  gnss_baud: int = 38400, imu_baud: int = 9600, configure: bool = False, sdr_settings=None,
-                 sdr_factory: Callable | None = None, playback: list[PacedPty] | None = None) -> None:
+                 sdr_factory: Callable | None = None, playback: list[PacedPty] | None = None, beacons=None) -> None:
         self.queue: queue.SimpleQueue = queue.SimpleQueue()
+        self.beacons = beacons
+        self.record_dir = Path(record_dir)
         kw = {} if sdr_factory is None else {"sdr_factory": sdr_factory}
         self.session = RecordSession(record_dir, gnss=gnss, imu=imu, sdr_index=sdr_index, gnss_baud=gnss_baud,
                                      imu_baud=imu_baud, configure=configure, sdr_settings=sdr_settings,
@@ -178,6 +181,10 @@ class LiveSource:
             should_stop: Callable[[], bool] = lambda: False) -> str:
         """Read until `seconds` pass, every device ends, the playback (if any) is over, or `should_stop()`."""
         self.session.start(seconds if seconds else sdr_seconds)
+        if self.beacons is not None:
+            sdr = next((d for d in self.session.devices if d.kind == "sdr"), None)
+            self.beacons.start(self.record_dir / "sdr.sigmf-meta",
+                               lambda: sdr is not None and sdr.thread is not None and sdr.thread.is_alive())
         for p in self.playback:
             p.start()
         if on_started:
@@ -199,6 +206,8 @@ class LiveSource:
             except queue.Empty:
                 pass
             self._dispatch(items, navigator)
+            if self.beacons is not None:
+                self.beacons.poll(navigator)
             now = time.monotonic()
             if now - last_tick >= TICK_S:
                 last_tick = now
@@ -247,6 +256,8 @@ class LiveSource:
         for p in self.playback:
             p.close()
         self.info = self.session.stop(status)
+        if self.beacons is not None:
+            self.beacons.stop()
         return self.info
 
 
@@ -318,8 +329,9 @@ def same_stamp_groups(samples: list[ImuSample]) -> list[list[ImuSample]]:
 class FastPlayback:
     """A session's chunks through the decoders in stamp order, as fast as possible (module doc)."""
 
-    def __init__(self, folder: Path, record_dir: Path | None) -> None:
+    def __init__(self, folder: Path, record_dir: Path | None, beacons=None) -> None:
         self.folder = Path(folder)
+        self.beacons = beacons
         self.info = read_session_info(self.folder)
         self.copy = SessionCopy(record_dir, self.info) if record_dir is not None else None
         self.gnss = GnssDecoder()
@@ -347,6 +359,8 @@ class FastPlayback:
                 return "stopped"
             if seconds is not None and t - t_first > seconds:
                 return "complete"
+            if self.beacons is not None:
+                self.beacons.advance_to(t, navigator)
             if self.copy:
                 self.copy.chunk(kind, chunk, t)
             if kind == "gnss":
@@ -371,8 +385,13 @@ class FastPlayback:
     def stop(self, status: str) -> dict:
         self.gnss.close()
         self.parser.close()
+        if self.beacons is not None:
+            self.beacons.stop()
         if self.copy is None:
             return {}
+        for name in ("sdr.cu8", "sdr.sigmf-meta"):     # the capture is copied as it is
+            if (self.folder / name).exists():
+                shutil.copyfile(self.folder / name, self.copy.folder / name)
         summaries = {"gnss": self.gnss.summary(), "imu": {"rejected": self.rejected()["imu"],
                                                           "accepted": dict(self.parser.counts)}}
         return self.copy.close(status, summaries)

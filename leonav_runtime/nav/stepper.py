@@ -45,7 +45,7 @@ class LagStepper:
 
     ARRAYS = ("_recs", "_x", "_P", "_status", "_nis")
 
-    def __init__(self, ekf: lfilter.EKF, lag_s: float = 2.5, capacity: int = 4096) -> None:
+    def __init__(self, ekf: lfilter.EKF, lag_s: float = 3.5, capacity: int = 4096) -> None:
         self.ekf = ekf
         self.lag_s = float(lag_s)
         lay = ekf.lib.layout
