@@ -1,10 +1,12 @@
 """The capture -> `beacon_stream.BeaconStream` -> Doppler-rate tables on the navigator's road.
 
-- Live (and paced playback): the recorder's SDR thread writes `session/sdr.cu8` (flushed per
-  block); a worker thread reads the file as it grows (`tail`), in `chunk_s` pieces, so the
-  navigator never waits for the SDR and the capture is recorded whatever happens.
-- Fast playback: `advance_to(t_mono)` pushes the recorded samples up to that host time in the
-  caller's thread, in step with the serial chunks (deterministic).
+- Live (and paced playback), `BeaconProcess`: the recorder's SDR thread writes `session/sdr.cu8`
+  (flushed per block); a separate process reads the file as it grows, in `CHUNK_S` pieces, runs
+  the stream and sends finished Doppler-rate rows (with SGP4 satellite states) back. The
+  navigator's thread never waits for the SDR or the STFT (no shared interpreter lock: on a
+  Pi 4 the beacon work gets its own core), and the capture is recorded whatever happens.
+- Fast playback, `BeaconFeed.advance_to(t_mono)`: the recorded samples up to that host time are
+  pushed in the caller's thread, in step with the serial chunks (deterministic).
 Measurements are placed on the road's axis with the capture's first-sample host stamp
 (SigMF `leonav:t_mono_start_s`) through the GNSS time map, as the replay does, and get their
 satellite states from `replay.beacon_table.doppler_rate_table` (SGP4, sigma floor).
@@ -13,9 +15,6 @@ from __future__ import annotations
 
 import json
 import math
-import queue
-import threading
-import time
 import warnings
 from pathlib import Path
 
@@ -60,149 +59,98 @@ def cu8_to_complex(raw: bytes) -> np.ndarray:
     return f.view(np.complex64)
 
 
-class BeaconFeed:
-    def __init__(self, data_path: Path, meta: dict, tone_rf_hz: float, elements, sigma_floor_hz_s: float,
-                 live: bool) -> None:
-        self.data_path = Path(data_path)
-        self.meta = meta
-        self.tone_rf_hz = tone_rf_hz
-        self.elements = elements
-        self.sigma_floor = sigma_floor_hz_s
-        self.live = live
-        self.stream: BeaconStream | None = None
-        self.notes: list[str] = []
-        self.start_unix = math.nan
-        self._fh = None
-        self._n_read = 0
+def emitted_table(emitted: list, start_unix: float, epoch_unix: float, elements, sigma_floor_hz_s: float):
+    """`inputs.DopplerRateTable` of emitted measurements on the road's axis (t s since `epoch_unix`)."""
+    t = np.array([start_unix + e.t_s - epoch_unix for e in emitted])
+    meas = BeaconMeasurements(t, np.array([e.norad_id for e in emitted], int),
+                              np.array([e.sat_index for e in emitted], int),
+                              np.array([e.rate_hz_s for e in emitted]), np.array([e.sigma_hz_s for e in emitted]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return doppler_rate_table(meas, elements, utc_of(epoch_unix), sigma_floor_hz_s)
+
+
+class CaptureFile:
+    """A cu8 file read from the start in pieces, also while it is still being written."""
+
+    def __init__(self, path: Path) -> None:
+        self._fh = open(path, "rb")
         self._pending = b""
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._site_set = False
-        self.counts = {"samples": 0, "tables": 0, "measurements": 0}
-        self.error = ""
+        self.n_read = 0
 
-    # -- setup
-    def _open(self) -> bool:
-        if self.stream is not None:
-            return True
-        meta = self.meta
-        if meta is None or not self.data_path.exists():
-            return False
-        self.stream = BeaconStream(meta["sample_rate_hz"], meta["rf_center_hz"], self.tone_rf_hz, self.elements)
-        if self.live and meta.get("t_mono_start_s") is not None:
-            self.stream.t_mono_start = float(meta["t_mono_start_s"])
-        self._fh = open(self.data_path, "rb")
-        return True
-
-    def _read(self, max_samples: int) -> np.ndarray | None:
-        data = self._pending + self._fh.read(2 * max_samples - len(self._pending))
+    def read(self, max_samples: int) -> np.ndarray | None:
+        """Up to `max_samples` new samples (complex64), None when nothing new is there yet."""
+        data = self._pending + self._fh.read(max(0, 2 * max_samples - len(self._pending)))
         n = len(data) // 2 * 2
         self._pending = data[n:]
         if not n:
             return None
-        self._n_read += n // 2
-        self.counts["samples"] = self._n_read
+        self.n_read += n // 2
         return cu8_to_complex(data[:n])
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+class BeaconFeed:
+    """Fast playback: the session's capture through a `BeaconStream` in step with the serial chunks."""
+
+    def __init__(self, data_path: Path, meta: dict, tone_rf_hz: float, elements, sigma_floor_hz_s: float) -> None:
+        self.data_path = Path(data_path)
+        self.meta = meta
+        self.elements = elements
+        self.sigma_floor = sigma_floor_hz_s
+        self.stream = BeaconStream(meta["sample_rate_hz"], meta["rf_center_hz"], tone_rf_hz, elements)
+        self.capture = CaptureFile(self.data_path)
+        self.notes: list[str] = []
+        self.start_unix = math.nan
+        self.counts = {"samples": 0, "tables": 0, "measurements": 0}
+        self.error = ""
 
     def set_site(self, navigator) -> None:
         """Once the road has started: the site (its origin) and the capture start through the time map."""
         road = navigator.road
-        if self._site_set or not road.started or self.meta is None or self.meta.get("t_mono_start_s") is None:
-            return
-        if self.stream is None and not self._open():
+        if math.isfinite(self.start_unix) or not road.started or self.meta.get("t_mono_start_s") is None:
             return
         self.start_unix = road.tmap.to_utc(float(self.meta["t_mono_start_s"]))
         start = utc_of(self.start_unix)
         if self.elements is None:
-            self.elements = default_elements(start, self.notes)
-            self.stream.elements = self.elements
+            self.elements = self.stream.elements = default_elements(start, self.notes)
         self.stream.set_site(Site(*road.origin), start)
-        self._site_set = True
 
-    # -- fast playback
     def advance_to(self, t_mono: float, navigator) -> None:
-        if self.meta is None or self.meta.get("t_mono_start_s") is None or not self._open():
+        """Push the samples recorded up to host time `t_mono`; hand what is finished to the navigator."""
+        if self.meta.get("t_mono_start_s") is None:
             return
         self.set_site(navigator)
         target = int((t_mono - float(self.meta["t_mono_start_s"])) * self.meta["sample_rate_hz"])
         chunk = int(CHUNK_S * self.meta["sample_rate_hz"])
-        while self._n_read < target:
-            z = self._read(min(chunk, target - self._n_read))
+        while self.capture.n_read < target:
+            z = self.capture.read(min(chunk, target - self.capture.n_read))
             if z is None:
                 break
             self.stream.push(z)
-        self._deliver(self.stream.take(), navigator)
-
-    # -- live: the worker thread
-    def start(self, meta_path: Path, recording_alive) -> None:
-        self._thread = threading.Thread(target=self._tail, args=(meta_path, recording_alive), daemon=True,
-                                        name="leonav-beacons")
-        self._thread.start()
-
-    def _tail(self, meta_path: Path, recording_alive) -> None:
-        try:
-            while self.meta is None and not self._stop.is_set():
-                if meta_path.exists():
-                    try:
-                        self.meta = capture_meta(meta_path)
-                    except (json.JSONDecodeError, KeyError, OSError):
-                        self.meta = None          # being written: next time
-                if self.meta is None:
-                    time.sleep(0.05)
-            while not self._stop.is_set() and not self._open():
-                time.sleep(0.05)
-            chunk = int(CHUNK_S * self.meta["sample_rate_hz"])
-            while not self._stop.is_set():
-                z = self._read(chunk)
-                if z is None:
-                    if not recording_alive():
-                        break
-                    time.sleep(0.02)
-                    continue
-                self.stream.push(z)
-                out = self.stream.take()
-                if out:
-                    self._queue.put(out)
-        except Exception as exc:       # the navigator goes on without Doppler-rate, and says why
-            self.error = f"{type(exc).__name__}: {exc}"
+        self.counts["samples"] = self.capture.n_read
+        emitted = self.stream.take()
+        road = navigator.road
+        if emitted and road.started and math.isfinite(self.start_unix):
+            table = emitted_table(emitted, self.start_unix, road.epoch_unix, self.elements, self.sigma_floor)
+            self.counts["tables"] += 1
+            self.counts["measurements"] += int(table.t.size)
+            navigator.on_doppler_rate(table)
 
     def poll(self, navigator) -> None:
-        """Main thread: set the site when possible, hand finished measurements to the navigator."""
-        if self.stream is not None:
-            self.set_site(navigator)
-        while True:
-            try:
-                self._deliver(self._queue.get_nowait(), navigator)
-            except queue.Empty:
-                return
+        """Nothing arrives on its own in fast playback (`advance_to` delivers)."""
 
     def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5.0)
-        if self._fh is not None:
-            self._fh.close()
-
-    # -- to the road
-    def _deliver(self, emitted: list, navigator) -> None:
-        road = navigator.road
-        if not emitted or not road.started or not math.isfinite(self.start_unix):
-            return
-        t = np.array([self.start_unix + e.t_s - road.epoch_unix for e in emitted])
-        meas = BeaconMeasurements(t, np.array([e.norad_id for e in emitted], int),
-                                  np.array([e.sat_index for e in emitted], int),
-                                  np.array([e.rate_hz_s for e in emitted]), np.array([e.sigma_hz_s for e in emitted]))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            table = doppler_rate_table(meas, self.elements, road.epoch_utc, self.sigma_floor)
-        self.counts["tables"] += 1
-        self.counts["measurements"] += int(t.size)
-        navigator.on_doppler_rate(table)
+        self.capture.close()
 
     def summary(self) -> dict:
-        s = self.stream
-        return {"counts": dict(self.counts), "stream": None if s is None else dict(s.counts),
-                "max_lag_s": None if s is None else s.max_lag_seen_s,
-                "last_association": None if s is None else s.last_summary, "error": self.error, "notes": self.notes,
-                "capture_start_utc": utc_of(self.start_unix) if math.isfinite(self.start_unix) else None}
+        return stream_summary(self.stream, self.counts, self.error, self.notes, self.start_unix)
+
+
+def stream_summary(stream: BeaconStream | None, counts: dict, error: str, notes: list, start_unix: float) -> dict:
+    return {"counts": dict(counts), "stream": None if stream is None else dict(stream.counts),
+            "max_lag_s": None if stream is None else stream.max_lag_seen_s,
+            "last_association": None if stream is None else stream.last_summary, "error": error, "notes": notes,
+            "capture_start_utc": utc_of(start_unix) if math.isfinite(start_unix) else None}

@@ -115,13 +115,14 @@ def _beacons(opts: NavOptions, record_dir: Path | None):
     """(BeaconFeed or None, f_c Hz, where f_c came from) for the mode and the source."""
     from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
     from leonav_runtime.nav.beacon_feed import BeaconFeed, capture_meta, carrier
+    from leonav_runtime.nav.beacon_process import BeaconProcess
     from leonav_runtime.orbits.elements import load_element_files
     from leonav_runtime.replay.options import MODE_STREAMS
 
     default = (None, STARLINK_BEACON_HZ, "default (no Starlink capture)")
     if "doppler_rate" not in MODE_STREAMS[opts.nav.mode]:
         return default
-    elements = load_element_files(opts.tle_files)
+    elements = load_element_files(opts.tle_files)     # checked here: a bad file is a clear error at once
     floor = opts.nav.road.doppler_rate_sigma_floor_hz_s
     if opts.session is not None:
         meta_path = Path(opts.session) / "sdr.sigmf-meta"
@@ -130,12 +131,12 @@ def _beacons(opts: NavOptions, record_dir: Path | None):
         meta = capture_meta(meta_path)
         f_c, src = carrier(meta["rf_center_hz"])
         if not opts.realtime:
-            return BeaconFeed(Path(opts.session) / "sdr.cu8", meta, f_c, elements, floor, live=False), f_c, src
-        return BeaconFeed(record_dir / "sdr.cu8", None, f_c, elements, floor, live=True), f_c, src
+            return BeaconFeed(Path(opts.session) / "sdr.cu8", meta, f_c, elements, floor), f_c, src
+        return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor), f_c, src
     if opts.sdr_index is None:
         raise UserInputError(f"--mode {opts.nav.mode}: needs --sdr INDEX (the Starlink capture)")
     f_c, src = carrier(opts.sdr_settings.rf_center_hz)
-    return BeaconFeed(record_dir / "sdr.cu8", None, f_c, elements, floor, live=True), f_c, src
+    return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor), f_c, src
 
 
 def session_bauds(opts: NavOptions) -> tuple[int | None, int | None]:
