@@ -101,7 +101,9 @@ class PushStft:
 
     def _emit(self, block: np.ndarray):
         spec = next(iter_spectra([block], self.stft, self.fs, slices_per_block=self.per_block))
-        return dataclasses.replace(spec, t_s=spec.t_s + self._start / self.fs)
+        # slice centres since the capture start, written as iter_spectra writes them (same rounding)
+        t = (self._start + np.arange(spec.t_s.size) * self.stft.hop + self.stft.fft_size / 2) / self.fs
+        return dataclasses.replace(spec, t_s=t)
 
 
 class BeaconStream:
