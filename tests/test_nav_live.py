@@ -163,3 +163,14 @@ def test_live_over_ptys_at_the_recorded_pace_agrees_with_the_replay(session):
     rec = decode_session(session / "live" / "session")
     assert len(rec.imu_samples) >= 0.95 * len(decode_session(session / "s").imu_samples)
     assert json.loads((session / "live" / "session" / "session.json").read_text())["status"] == "complete"
+
+
+def test_nav_and_export_records_run_with_casadi_unimportable(session):
+    from tests.test_layering import _run_blocked
+
+    r = _run_blocked(["nav", "--from", str(session / "s"), "--nmea-port", "0", "--quiet", "--no-record",
+                      "--out", str(session / "blocked")], session)
+    assert r.returncode == 0, r.stderr[-3000:]
+    r = _run_blocked(["export-records", str(session / "s"), "--out", str(session / "export")], session)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert (session / "export" / "records.bin").stat().st_size > 0

@@ -82,21 +82,31 @@ class PushStft:
         self.stft, self.fs, self.per_block = stft, sample_rate_hz, slices_per_block
         self.need = stft.fft_size + (slices_per_block - 1) * stft.hop
         self.step = slices_per_block * stft.hop
-        self._buf = np.zeros(0, np.complex64)
-        self._start = 0                 # sample index of _buf[0]
+        self._parts: list[np.ndarray] = []    # pushed pieces not yet joined (joined once per block)
+        self._n = 0
+        self._start = 0                 # sample index of the first buffered sample
+
+    def _joined(self) -> np.ndarray:
+        if len(self._parts) > 1:
+            self._parts = [np.concatenate(self._parts)]
+        return self._parts[0] if self._parts else np.zeros(0, np.complex64)
 
     def push(self, samples: np.ndarray) -> list:
-        self._buf = np.concatenate([self._buf, samples]) if self._buf.size else samples
+        self._parts.append(samples)
+        self._n += samples.size
         out = []
-        while self._buf.size >= self.need:
-            out.append(self._emit(self._buf[:self.need]))
-            self._buf = self._buf[self.step:]
+        while self._n >= self.need:
+            buf = self._joined()
+            out.append(self._emit(buf[:self.need]))
+            self._parts = [buf[self.step:]]
+            self._n -= self.step
             self._start += self.step
         return out
 
     def flush(self) -> list:
-        out = [self._emit(self._buf)] if self._buf.size >= self.stft.fft_size else []
-        self._buf = np.zeros(0, np.complex64)
+        buf = self._joined()
+        out = [self._emit(buf)] if buf.size >= self.stft.fft_size else []
+        self._parts, self._n = [], 0
         return out
 
     def _emit(self, block: np.ndarray):
