@@ -61,6 +61,7 @@ class OnlineImuTiming:
         self.sigma = 0.0            # robust spread of the on-time residuals (s)
         self.gap_threshold_s = math.inf
         self.prev_idx = -1
+        self.last_indices: list[int] = []
         self._last_stamp = math.nan
         self._since_fit = 0
         self._late_run: list[float] = []
@@ -138,7 +139,11 @@ class OnlineImuTiming:
         if len(self._pts) < 50 or self._since_fit >= self.refit_every:
             self._fit()
             self._since_fit = 0
+        self.last_indices = list(range(last - n + 1, last + 1))
         if not math.isfinite(self.period):
             return [float(stamp_s) - self.serial_s] * n
-        times = self._line(np.arange(last - n + 1, last + 1))
-        return [float(t) - self.serial_s for t in times]
+        return self.times_of(self.last_indices)
+
+    def times_of(self, indices) -> list[float]:
+        """Times (s) of samples by index on the current line (the buffered samples at the start)."""
+        return [float(t) - self.serial_s for t in np.atleast_1d(self._line(np.asarray(indices)))]

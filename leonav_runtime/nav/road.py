@@ -99,10 +99,10 @@ class StreamingRoad:
     def add_imu(self, samples: list, stamp_s: float) -> None:
         """Samples that arrived in one read at `stamp_s` (host monotonic s)."""
         times = self.timing.add(stamp_s, len(samples))
-        for s, t_mono in zip(samples, times):
+        for s, t_mono, idx in zip(samples, times, self.timing.last_indices):
             self.counts["imu_samples"] += 1
             if not self.started:
-                self._pre_imu.append((t_mono, s.w_b_radps, s.f_b_mps2, s.rpy_rad))
+                self._pre_imu.append((t_mono, s.w_b_radps, s.f_b_mps2, s.rpy_rad, idx))
                 while self._pre_imu and self._pre_imu[-1][0] - self._pre_imu[0][0] > PRE_START_BUFFER_S:
                     self._pre_imu.popleft()
                 continue
@@ -235,7 +235,8 @@ class StreamingRoad:
         first = next((r for ep in self._pre_epochs for r in ep if isinstance(r, GnssFix) and usable_fix(r)), None)
         if first is None and self.cfg.origin_deg is None:
             return
-        t_mono = np.array([p[0] for p in self._pre_imu])
+        # the buffered samples on the line fitted so far (as the replay puts all samples on its line)
+        t_mono = np.array(self.timing.times_of([p[4] for p in self._pre_imu]))
         utc = np.array([self.tmap.to_utc(t) for t in t_mono])
         epoch = float(utc[0])
         t = utc - epoch
@@ -259,9 +260,10 @@ class StreamingRoad:
         w = np.array([p[1] for p in pre], float)
         f = np.array([p[2] for p in pre], float)
         rpy = np.array([p[3] for p in pre], float)
-        if not np.all(np.diff(t) > 0):
-            t = np.maximum.accumulate(t)
-            t[1:] = np.maximum(t[1:], t[:-1] + 1e-4)
+        for k in range(1, t.size):      # a line refitted later could not reorder them, but be sure
+            if not t[k] > t[k - 1]:
+                t[k] = t[k - 1] + 1e-4
+                self.counts["imu_time_not_increasing"] += 1
         imu = ImuTable.from_rates(t[1:], np.diff(t), w[1:], f[1:], rpy[1:])
         profile = filter_profile(float(np.median(np.diff(t))), quantized=True)
         self.params = filter_params(origin, profile, self.cfg.f_c_hz)
