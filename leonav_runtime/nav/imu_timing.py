@@ -4,7 +4,7 @@ The streaming twin of `replay.timebase.regular_sample_times`: the samples are re
 sensor's clock, so a sample's time is a straight line through (sample index, arrival stamp),
 fitted by least squares on the on-time samples received so far (the latest `window`, after
 dropping stamps more than max(5 robust sigmas, 30 ms) off; refitted every `refit_every`
-samples). Stamps are arrival times, only ever late:
+samples, every sample for the first 50). Stamps are arrival times, only ever late:
 
 - samples that arrive in one read (a host stall) get consecutive indices ending at the last
   one, the only one close to on time (the others are not used in the fit);
@@ -21,7 +21,6 @@ so its first second carries the spread of a short fit.
 """
 from __future__ import annotations
 
-import collections
 import dataclasses
 import math
 
@@ -44,14 +43,51 @@ class ImuTimingCounts:
     early: int = 0            # samples earlier than the line by more than half a period (line re-anchored)
 
 
+class _Points:
+    """The last `window` (index, stamp) pairs in two arrays (appended in time order)."""
+
+    def __init__(self, window: int) -> None:
+        self.window = window
+        self.idx = np.zeros(2 * window)
+        self.t = np.zeros(2 * window)
+        self.s = self.e = 0
+
+    def __len__(self) -> int:
+        return self.e - self.s
+
+    def append(self, idx: int, t: float) -> None:
+        if self.e == self.idx.size:         # compact: keep the newest window - 1
+            keep = min(self.window - 1, self.e - self.s)
+            self.idx[:keep], self.t[:keep] = self.idx[self.e - keep:self.e], self.t[self.e - keep:self.e]
+            self.s, self.e = 0, keep
+        self.idx[self.e], self.t[self.e] = idx, t
+        self.e += 1
+        if self.e - self.s > self.window:
+            self.s += 1
+
+    def pop(self) -> None:
+        if self.e > self.s:
+            self.e -= 1
+
+    def clear(self) -> None:
+        self.s = self.e
+
+    def last(self) -> tuple[int, float]:
+        return int(self.idx[self.e - 1]), float(self.t[self.e - 1])
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.idx[self.s:self.e], self.t[self.s:self.e]
+
+
 class OnlineImuTiming:
     """Sample times (host monotonic s, the packet's serialization taken off) for arriving samples."""
 
-    def __init__(self, imu_baud: int | None = None, window: int = 3000, refit_every: int = 8,
+    def __init__(self, imu_baud: int | None = None, window: int = 3000, refit_every: int = 16,
                  gap_sigmas: float = 4.0, shift_samples: int = 10) -> None:
         self.serial_s = float(serialization_s(WITMOTION_PACKET_BYTES, imu_baud)) if imu_baud else 0.0
-        self._pts: collections.deque[tuple[int, float]] = collections.deque(maxlen=window)
-        self._res: collections.deque[float] = collections.deque(maxlen=1000)
+        self._pts = _Points(window)
+        self._res = np.zeros(1000)          # recent on-time residuals (ring)
+        self._n_res = 0
         self.refit_every = refit_every
         self.gap_sigmas = gap_sigmas
         self.shift_samples = shift_samples
@@ -71,9 +107,8 @@ class OnlineImuTiming:
         return self.offset + self.period * (np.asarray(idx, float) - self.idx_ref)
 
     def _fit(self) -> None:
-        idx = np.fromiter((p[0] for p in self._pts), float, len(self._pts))
-        t = np.fromiter((p[1] for p in self._pts), float, len(self._pts))
-        if idx.size < 2 or np.ptp(idx) == 0:
+        idx, t = self._pts.arrays()
+        if idx.size < 2 or idx[-1] == idx[0]:
             return
         ref = int(idx[-1])
         keep = np.ones(idx.size, bool)
@@ -88,7 +123,8 @@ class OnlineImuTiming:
         if a <= 0:
             return
         self.period, self.offset, self.idx_ref, self.sigma = float(a), float(b), ref, 1.4826 * mad
-        q = float(np.quantile(np.fromiter(self._res, float, len(self._res)), GAP_QUANTILE)) if self._res else 0.0
+        res_recent = self._res[:min(self._n_res, self._res.size)]
+        q = float(np.quantile(res_recent, GAP_QUANTILE)) if res_recent.size else 0.0
         thr = a / 2 + max(self.gap_sigmas * self.sigma, q)
         self.gap_threshold_s = thr if idx.size >= 20 and thr < IMMEDIATE_MAX * a else math.inf
 
@@ -101,10 +137,9 @@ class OnlineImuTiming:
         if stamp_s == self._last_stamp:
             # more samples of the read already seen (handed over in parts): the burst goes on,
             # its newest sample is the on-time one
-            if self._pts:
-                self._pts.pop()
+            self._pts.pop()
         elif self.prev_idx >= 0 and not math.isfinite(self.period):
-            i0, t0 = self._pts[-1]
+            i0, t0 = self._pts.last()
             if stamp_s > t0:              # first spacing: a provisional period
                 self.period, self.offset, self.idx_ref = (stamp_s - t0) / (last - i0), float(stamp_s), last
         elif self.prev_idx >= 0:
@@ -131,10 +166,11 @@ class OnlineImuTiming:
                     self.offset += late
                     self._pts.clear()
                 else:
-                    self._res.append(late)
+                    self._res[self._n_res % self._res.size] = late
+                    self._n_res += 1
         self.prev_idx = last
         self._last_stamp = stamp_s
-        self._pts.append((last, float(stamp_s)))
+        self._pts.append(last, float(stamp_s))
         self._since_fit += 1
         if len(self._pts) < 50 or self._since_fit >= self.refit_every:
             self._fit()

@@ -185,7 +185,8 @@ class Navigator:
             if "imu" not in self.faults and idle > self.cfg.imu_timeout_s:
                 self.faults["imu"] = "IMU SILENT: not predicting"
                 self.event(f"no IMU sample for {self.cfg.imu_timeout_s:g} s: not predicting", "imu_lost")
-        self.status.update(format_status(self.snapshot()))
+        if self.status.due():
+            self.status.update(format_status(self.snapshot()), force=True)
 
     def latency_percentiles(self, recent_s: float | None = None) -> tuple[float, float] | None:
         if recent_s is not None:

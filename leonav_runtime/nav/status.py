@@ -22,6 +22,10 @@ class StatusLine:
         self._last = -1e9
         self._shown = False
 
+    def due(self) -> bool:
+        """Whether `update` would draw now (so the caller builds the text only then)."""
+        return self.enabled and time.monotonic() - self._last >= self.refresh_s
+
     def update(self, text: str, force: bool = False) -> None:
         if not self.enabled:
             return
