@@ -4,7 +4,7 @@ The streaming twin of `replay.timebase.regular_sample_times`: the samples are re
 sensor's clock, so a sample's time is a straight line through (sample index, arrival stamp),
 fitted by least squares on the on-time samples received so far (the latest `window`, after
 dropping stamps more than max(5 robust sigmas, 30 ms) off; refitted every `refit_every`
-samples, every sample for the first 50). Stamps are arrival times, only ever late:
+samples or half a second, every sample for the first 50). Stamps are arrival times, only ever late:
 
 - samples that arrive in one read (a host stall) get consecutive indices ending at the last
   one, the only one close to on time (the others are not used in the fit);
@@ -32,6 +32,7 @@ from hardware.uart import serialization_s
 OUTLIER_FLOOR_S = 0.03
 GAP_QUANTILE = 0.998        # residual quantile a gap must exceed (by half a period)
 IMMEDIATE_MAX = 0.9         # immediate gap decisions only while the threshold is below this many periods
+REFIT_S = 0.5               # the line is refitted at least every `refit_every` samples and this many seconds
 
 
 @dataclasses.dataclass
@@ -40,7 +41,7 @@ class ImuTimingCounts:
     missing: int = 0          # samples counted missing (gaps)
     late_gaps: int = 0        # gaps found only from the samples after them
     bursts: int = 0           # reads that brought more than one sample
-    early: int = 0            # samples earlier than the line by more than half a period (line re-anchored)
+    early: int = 0            # samples clearly earlier than the line (> half a period + the jitter): re-anchored
 
 
 class _Points:
@@ -96,6 +97,7 @@ class OnlineImuTiming:
         self.idx_ref = 0
         self.sigma = 0.0            # robust spread of the on-time residuals (s)
         self.gap_threshold_s = math.inf
+        self.early_threshold_s = math.inf
         self.prev_idx = -1
         self.last_indices: list[int] = []
         self._last_stamp = math.nan
@@ -124,9 +126,11 @@ class OnlineImuTiming:
             return
         self.period, self.offset, self.idx_ref, self.sigma = float(a), float(b), ref, 1.4826 * mad
         res_recent = self._res[:min(self._n_res, self._res.size)]
-        q = float(np.quantile(res_recent, GAP_QUANTILE)) if res_recent.size else 0.0
-        thr = a / 2 + max(self.gap_sigmas * self.sigma, q)
+        q_hi, q_lo = (np.quantile(res_recent, [GAP_QUANTILE, 1 - GAP_QUANTILE]) if res_recent.size else (0.0, 0.0))
+        thr = a / 2 + max(self.gap_sigmas * self.sigma, float(q_hi))
         self.gap_threshold_s = thr if idx.size >= 20 and thr < IMMEDIATE_MAX * a else math.inf
+        thr = a / 2 + max(self.gap_sigmas * self.sigma, -float(q_lo))
+        self.early_threshold_s = thr if idx.size >= 20 and thr < IMMEDIATE_MAX * a else math.inf
 
     def add(self, stamp_s: float, n: int = 1) -> list[float]:
         """Times (s) of `n` samples that arrived together at `stamp_s` (one read), oldest first."""
@@ -161,7 +165,7 @@ class OnlineImuTiming:
                     self._late_run.clear()
             else:
                 self._late_run.clear()
-                if late < -self.period / 2:   # earlier than possible: the line was ahead; move it
+                if late < -self.early_threshold_s:   # earlier than possible: the line was ahead; move it
                     c.early += 1
                     self.offset += late
                     self._pts.clear()
@@ -172,7 +176,8 @@ class OnlineImuTiming:
         self._last_stamp = stamp_s
         self._pts.append(last, float(stamp_s))
         self._since_fit += 1
-        if len(self._pts) < 50 or self._since_fit >= self.refit_every:
+        every = max(self.refit_every, int(REFIT_S / self.period)) if math.isfinite(self.period) else 1
+        if len(self._pts) < 50 or self._since_fit >= every:
             self._fit()
             self._since_fit = 0
         self.last_indices = list(range(last - n + 1, last + 1))

@@ -34,6 +34,7 @@ from leonav_runtime.replay.options import MODE_STREAMS
 from leonav_runtime.replay.timebase import utc_of
 
 LATENCY_KEEP = 200_000        # latency samples kept for the run's percentiles (ring)
+SETTLE_CHUNK_S = 0.5          # records leave the lag window (to trajectory.csv) this much at a time
 
 
 @dataclasses.dataclass
@@ -129,9 +130,10 @@ class Navigator:
         self.stepper.step(recs)
         if arrived_mono is not None and np.any(recs["kind"] == records.KIND_IMU):
             self._publish(arrived_mono)
-        settled = self.stepper.settle()
-        if settled is not None:
-            self.trajectory.add(settled, self.road.epoch_unix, self.road.origin, self.fix_kinds, self.dr_kind)
+        if self.stepper.head_t - self.stepper.window_start_t > self.cfg.lag_s + SETTLE_CHUNK_S:
+            settled = self.stepper.settle()        # in chunks: one trajectory write per half second
+            if settled is not None:
+                self.trajectory.add(settled, self.road.epoch_unix, self.road.origin, self.fix_kinds, self.dr_kind)
 
     def _window_counts(self, t_head: float) -> tuple[int, int, int]:
         recs, status = self.stepper.window()

@@ -54,6 +54,9 @@ class LagStepper:
         for name, kind in ekf.lib.meas_ids.items():
             stream = "fix" if name in FIX_KINDS else name
             self._rank[int(kind)] = 1 + (STREAMS.index(stream) if stream in STREAMS else len(STREAMS))
+        self._rank_of = np.full(max(self._rank) + 2, 99, np.int64)     # by kind + 1 (IMU is -1)
+        for kind, r in self._rank.items():
+            self._rank_of[kind + 1] = r
         self._recs = np.zeros(capacity, records.RECORD_DTYPE)
         self._x = np.zeros((capacity, self.nx))
         self._P = np.zeros((capacity, self.ndx, self.ndx))
@@ -69,7 +72,7 @@ class LagStepper:
 
     # -- order
     def rank(self, kinds: np.ndarray) -> np.ndarray:
-        return np.fromiter((self._rank.get(int(k), 99) for k in kinds), np.int64, len(kinds))
+        return self._rank_of[np.asarray(kinds) + 1]
 
     def _order(self, recs: np.ndarray) -> np.ndarray:
         """Indices that sort `recs` (oldest arrival first) into the road's merge order."""
@@ -78,6 +81,11 @@ class LagStepper:
     @property
     def head_t(self) -> float:
         return float(self._recs["t"][self._e - 1]) if self._e > self._s else self.settled_t
+
+    @property
+    def window_start_t(self) -> float:
+        """Time of the oldest record in the window (the head's when empty)."""
+        return float(self._recs["t"][self._s]) if self._e > self._s else self.head_t
 
     @property
     def size(self) -> int:
@@ -92,7 +100,8 @@ class LagStepper:
         """Process a batch (any order); returns how many records were dropped as too late."""
         if new.size == 0:
             return 0
-        new = new[self._order(new)]
+        if new.size > 1:
+            new = new[self._order(new)]
         s, e = self._s, self._e
         if e > s:
             t0, r0 = self._recs["t"][s], self._rank.get(int(self._recs["kind"][s]), 99)
@@ -113,8 +122,7 @@ class LagStepper:
             tail = tail[self._order(tail)]
             self.counts["reruns"] += 1
             self.counts["rerun_records"] += e - i
-            for st in self._status[i:e]:
-                self._count_status(int(st), -1)
+            self._count_statuses(self._status[i:e], -1)
             if i == s:
                 x, P = self.base_x, self.base_P
             else:
@@ -137,11 +145,10 @@ class LagStepper:
             j += 1
         return j
 
-    def _count_status(self, st: int, sign: int) -> None:
-        name = {lfilter.STATUS_APPLIED: "applied", lfilter.STATUS_GATED: "gated",
-                lfilter.STATUS_FAILED: "failed"}.get(st)
-        if name:
-            self.counts[name] += sign
+    def _count_statuses(self, status: np.ndarray, sign: int) -> None:
+        for name, code in (("applied", lfilter.STATUS_APPLIED), ("gated", lfilter.STATUS_GATED),
+                           ("failed", lfilter.STATUS_FAILED)):
+            self.counts[name] += sign * int(np.count_nonzero(status == code))
 
     def _run(self, recs: np.ndarray) -> None:
         res = self.ekf.run(recs, full_P=True)
@@ -155,8 +162,7 @@ class LagStepper:
         self._nis[a:b] = res.nis
         self._e = b
         self.counts["records"] += n
-        for st in res.status:
-            self._count_status(int(st), 1)
+        self._count_statuses(res.status, 1)
 
     def _room(self, n: int) -> None:
         """Make room for n rows after _e: compact to row 0, grow when the window itself needs it."""
