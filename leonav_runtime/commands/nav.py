@@ -41,6 +41,12 @@ def register(subparsers) -> None:
     src.add_argument("--gnss-baud", type=int, default=38400, help="GNSS baud (default 38400)")
     src.add_argument("--imu-baud", type=int, default=9600, help="IMU baud (default 9600)")
     src.add_argument("--configure", action="store_true", help="send the 10 Hz configuration first (as `leonav record`)")
+    src.add_argument("--rf-hz", type=float, default=None,
+                     help="beacon RF carrier tuned to baseband 0 (Hz, default 11.325e9); also the Doppler-rate carrier")
+    src.add_argument("--lnb-lo-hz", type=float, default=None, help="LNB local oscillator (Hz, default 9.75e9)")
+    src.add_argument("--sdr-rate", type=float, default=None, help="SDR sample rate (S/s, default 2.4e6)")
+    src.add_argument("--sdr-gain", default="auto", help="SDR gain in dB or 'auto'")
+    src.add_argument("--sdr-ppm", type=int, default=0, help="SDR frequency correction (ppm)")
     src.add_argument("--seconds", type=float, default=None, help="stop after this many seconds (default: run on)")
     src.add_argument("--no-record", action="store_true",
                      help="fast playback only: do not copy the session (live runs always record)")
@@ -67,8 +73,21 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def options_from_args(args: argparse.Namespace):
+def _sdr_settings(args: argparse.Namespace):
     from hardware.sdr.capture import SdrSettings
+
+    base = SdrSettings()
+    gain = args.sdr_gain
+    if gain != "auto":
+        try:
+            gain = float(gain)
+        except ValueError:
+            raise UserInputError(f"--sdr-gain {args.sdr_gain!r}: expected a number in dB or 'auto'") from None
+    return SdrSettings(rf_center_hz=args.rf_hz or base.rf_center_hz, lnb_lo_hz=args.lnb_lo_hz or base.lnb_lo_hz,
+                       sample_rate_hz=args.sdr_rate or base.sample_rate_hz, gain_db=gain, ppm=args.sdr_ppm)
+
+
+def options_from_args(args: argparse.Namespace):
     from leonav_runtime.nav.navigator import NavConfig
     from leonav_runtime.nav.road import RoadConfig
     from leonav_runtime.nav.run import NavOptions
@@ -99,7 +118,7 @@ def options_from_args(args: argparse.Namespace):
         out_dir=output.results_dir(args.out, "nav"), nav=cfg, session=Path(args.session) if args.session else None,
         realtime=args.realtime, gnss=args.gnss, imu=args.imu, sdr_index=args.sdr,
         gnss_baud=args.gnss_baud, imu_baud=args.imu_baud, configure=args.configure,
-        sdr_settings=SdrSettings() if args.sdr is not None else None, seconds=args.seconds,
+        sdr_settings=_sdr_settings(args) if args.sdr is not None else None, seconds=args.seconds,
         record=not args.no_record, tcp=(args.nmea_host, args.nmea_port) if args.nmea_port else None,
         pty_link=args.nmea_pty, mavlink=args.mavlink, json_lines=not args.no_json,
         status=False if args.quiet else None, tle_files=tuple(args.tle))
