@@ -76,8 +76,6 @@ class Navigator:
         self._out_slot = -math.inf
         self.last_imu_stamp = math.inf
         self.last_solution = None
-        self.counts = collections.Counter()
-        self.leo_recent: collections.deque = collections.deque()             # (t, sat_id) applied
 
     # -- events in
     def event(self, text: str, kind: str = "info") -> None:

@@ -38,6 +38,7 @@ from leonav_runtime.replay.timebase import filter_profile, utc_of
 
 ROLLING_IMU_S = 2.0          # IMU samples kept after the start for the averaged specific force
 PRE_START_BUFFER_S = 10.0    # IMU samples kept while waiting for the start
+MAX_PENDING = 2000           # measurements waiting for the IMU (none come while it is lost): the oldest go
 
 
 @dataclasses.dataclass
@@ -177,6 +178,9 @@ class StreamingRoad:
             self.counts[f"{stream}_not_fused"] += 1
             return
         self._pending.append((t, stream, table))
+        if len(self._pending) > MAX_PENDING:
+            self._pending.pop(0)
+            self.counts["waiting_for_imu_dropped"] += 1
 
     def _release(self) -> None:
         if not self._pending:

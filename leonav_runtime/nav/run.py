@@ -160,7 +160,13 @@ def run_nav(opts: NavOptions, on_started: Callable[[], None] | None = None,
     status = StatusLine(enabled=True if opts.status is None else opts.status)
     if opts.status is None and not status.tty:
         status.refresh_s = 10.0
-    outputs = LiveOutputs(opts.tcp, opts.pty_link, opts.mavlink, out / "solutions.jsonl" if opts.json_lines else None)
+    try:
+        outputs = LiveOutputs(opts.tcp, opts.pty_link, opts.mavlink,
+                              out / "solutions.jsonl" if opts.json_lines else None)
+    except OSError as exc:
+        where = f"--nmea-port {opts.tcp[1]} on {opts.tcp[0]}" if opts.tcp else "outputs"
+        raise UserInputError(f"{where}: cannot open ({exc}); another program may use the port (--nmea-port 0: off)") \
+            from None
     navigator = source = None
     reason, session_info, beacons, f_c_source = "error", {}, None, ""
     started_utc = _dt.datetime.now(_dt.timezone.utc)
