@@ -4,7 +4,7 @@
 samples that arrived in one read (with that read's host stamp), Doppler-rate tables from the
 beacon stream, and device endings. Each IMU group steps the filter at once (`stepper.LagStepper`:
 the generated C loop on the batch), and a solution goes to the live outputs on the
-`output_rate_hz` grid; records leaving the lag window go to `trajectory.csv`.
+at most `output_rate_hz` per second; records leaving the lag window go to `trajectory.csv`.
 
 Faults:
 - GNSS lost (its device ended, or no fix epoch for `gnss_timeout_s`): the filter goes on with
@@ -26,7 +26,7 @@ import numpy as np
 
 from leonav_runtime import filter as lfilter
 from leonav_runtime import navfuncs, records
-from leonav_runtime.nav.outputs import COLUMNS_TEXT, LiveOutputs, TrajectoryWriter, solution_of
+from leonav_runtime.nav.outputs import COLUMNS_TEXT, Decimator, LiveOutputs, TrajectoryWriter, solution_of
 from leonav_runtime.nav.road import RoadConfig, StreamingRoad
 from leonav_runtime.nav.status import StatusLine, format_status
 from leonav_runtime.nav.stepper import LagStepper
@@ -73,7 +73,7 @@ class Navigator:
         self._lat = np.full(LATENCY_KEEP, np.nan)
         self._lat_n = 0
         self._recent_lat: collections.deque = collections.deque(maxlen=2000)   # (mono, latency s)
-        self._out_slot = -math.inf
+        self._out_due = Decimator(1.0 / cfg.output_rate_hz if cfg.output_rate_hz > 0 else 0.0)
         self.last_imu_stamp = math.inf
         self.last_solution = None
 
@@ -146,10 +146,7 @@ class Navigator:
 
     def _publish(self, arrived_mono: float) -> None:
         t_head = self.stepper.head_t
-        rate = self.cfg.output_rate_hz
-        slot = math.floor(t_head * rate + 1e-6) if rate > 0 else -math.inf
-        if slot > self._out_slot:
-            self._out_slot = slot
+        if self._out_due(t_head, self.road.imu_dt):
             x, P = self.stepper.head()
             n_fix, n_dr, _ = self._window_counts(t_head)
             fused_fix = "fix" in self.cfg.road.streams

@@ -28,7 +28,7 @@ TRAJECTORY_COLUMNS = [
     "sigma_roll_deg", "sigma_pitch_deg", "sigma_yaw_deg", "gnss_fixes_1s", "doppler_rate_1s",
 ]
 COLUMNS_TEXT = (
-    "trajectory.csv: one row per IMU sample on the --trajectory-rate grid, the filter after every record "
+    "trajectory.csv: one row per IMU sample, at most --trajectory-rate per second, the filter after every record "
     "of that time (the same rows a replay of these records gives).\n"
     "utc_unix_s [s POSIX], utc [ISO 8601]; t_s [s since nav.json epoch_utc]; lat_deg, lon_deg [deg WGS84], "
     "h_m [m above the ellipsoid]; x/y/z_ecef_m [m, WGS84 ECEF]; p_e/n/u_m [m, ENU at nav.json origin]; "
@@ -130,8 +130,24 @@ class LiveOutputs:
         return report
 
 
+class Decimator:
+    """Every sample, or one per `period` s: a sample is due when it is at least `period` minus half
+    its own interval after the last one taken (a grid of fixed slots would skip or double samples
+    whose times straddle its boundaries)."""
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+        self.last = -math.inf
+
+    def __call__(self, t: float, dt: float) -> bool:
+        if t < self.last + self.period - 0.5 * dt:
+            return False
+        self.last = t
+        return True
+
+
 class TrajectoryWriter:
-    """trajectory.csv rows from settled records (module doc), on a grid of `rate_hz`."""
+    """trajectory.csv rows from settled records (module doc), at most `rate_hz` per second."""
 
     def __init__(self, path: Path, nav: navfuncs.NavFunctions, rate_hz: float = 10.0) -> None:
         self.path = Path(path)
@@ -142,7 +158,7 @@ class TrajectoryWriter:
         self._w.writerow(TRAJECTORY_COLUMNS)
         self._fh.flush()
         self.rows = 0
-        self._last_slot = -math.inf
+        self._due = Decimator(self.period)
         self._meas_t: list[tuple[float, int]] = []    # (t, kind) of applied measurements, last second
 
     def add(self, settled, epoch_unix: float, origin, fix_kinds: set[int], dr_kind: int) -> None:
@@ -159,10 +175,8 @@ class TrajectoryWriter:
         last = np.searchsorted(t, t[imu], side="right") - 1      # after every record of that time
         rows = []
         for i, j in zip(imu, last):
-            slot = math.floor(t[i] / self.period + 1e-6) if self.period else t[i]
-            if slot <= self._last_slot:
+            if not self._due(float(t[i]), float(recs["dt"][i])):
                 continue
-            self._last_slot = slot
             x, pd = settled.x[j], settled.P_diag[j]
             lat, lon, h, r = _geodetic(x[L.X_P_ENU_SLICE], origin)
             rpy = np.degrees(self.nav.euler_from_quat(x[L.X_Q_NB_SLICE]).reshape(-1))

@@ -70,6 +70,7 @@ class StreamingRoad:
         self.params: np.ndarray | None = None
         self.t_start = math.nan
         self.t_imu = -math.inf                      # time of the latest IMU sample on the axis
+        self.imu_dt = 0.0                           # its interval
         self._pre_imu: collections.deque = collections.deque()   # (t_mono_fit, w, f, rpy) before the start
         self._pre_epochs: list[list] = []            # fix epochs (records) before the start
         self._roll: collections.deque = collections.deque()      # (t, dt, dvel) after the start
@@ -213,6 +214,7 @@ class StreamingRoad:
                                     np.array([s.f_b_mps2]), np.array([s.rpy_rad]))
         self._out.append(imu_records(table))
         self._roll.append((t, dt, table.dvel_b[0].copy()))
+        self.imu_dt = dt
         while self._roll and t - self._roll[0][0] > ROLLING_IMU_S:
             self._roll.popleft()
         self.t_imu = t
