@@ -73,6 +73,7 @@ class Navigator:
         self._lat = np.full(LATENCY_KEEP, np.nan)
         self._lat_n = 0
         self._recent_lat: collections.deque = collections.deque(maxlen=2000)   # (mono, latency s)
+        self._dr_settled: collections.deque = collections.deque()              # (t, sat) applied, left the window
         self._out_due = Decimator(1.0 / cfg.output_rate_hz if cfg.output_rate_hz > 0 else 0.0)
         self.last_imu_stamp = math.inf
         self.last_solution = None
@@ -131,15 +132,25 @@ class Navigator:
         if self.stepper.head_t - self.stepper.window_start_t > self.cfg.lag_s + SETTLE_CHUNK_S:
             settled = self.stepper.settle()        # in chunks: one trajectory write per half second
             if settled is not None:
-                self.trajectory.add(settled, self.road.epoch_unix, self.road.origin, self.fix_kinds, self.dr_kind)
+                self._settled(settled)
+
+    def _settled(self, settled) -> None:
+        self.trajectory.add(settled, self.road.epoch_unix, self.road.origin, self.fix_kinds, self.dr_kind)
+        dr = (settled.recs["kind"] == self.dr_kind) & (settled.status == lfilter.STATUS_APPLIED)
+        self._dr_settled.extend(zip(settled.recs["t"][dr].tolist(), settled.recs["sat_id"][dr].tolist()))
+        while self._dr_settled and self._dr_settled[0][0] < settled.recs["t"][-1] - 10.0:
+            self._dr_settled.popleft()
 
     def _window_counts(self, t_head: float) -> tuple[int, int, int]:
+        """(fix epochs applied in the last second, Doppler-rate records applied in the last 10 s and
+        their satellites), from the lag window and the records that left it."""
         recs, status = self.stepper.window()
         ok = status == lfilter.STATUS_APPLIED
         t = recs["t"]
         n_fix = int(np.sum(ok & (t > t_head - 1.0) & np.isin(recs["kind"], list(self.fix_kinds)))) // 3
         dr = ok & (recs["kind"] == self.dr_kind) & (t > t_head - 10.0)
-        return n_fix, int(dr.sum()), int(np.unique(recs["sat_id"][dr]).size)
+        old = [sat for (t_dr, sat) in self._dr_settled if t_dr > t_head - 10.0]
+        return n_fix, int(dr.sum()) + len(old), len(set(recs["sat_id"][dr].tolist()) | set(old))
 
     def gnss_ok(self) -> bool:
         return "gnss" not in self.faults
@@ -148,12 +159,12 @@ class Navigator:
         t_head = self.stepper.head_t
         if self._out_due(t_head, self.road.imu_dt):
             x, P = self.stepper.head()
-            n_fix, n_dr, _ = self._window_counts(t_head)
+            n_fix, n_dr, n_sats = self._window_counts(t_head)   # Starlink: satellites over 10 s (they come late)
             fused_fix = "fix" in self.cfg.road.streams
             quality = 1 if (fused_fix and self.gnss_ok()) or (not fused_fix and n_dr) else 6
             mode = self.cfg.mode if self.gnss_ok() or not fused_fix else self.cfg.mode.replace("fix+", "") + " (GNSS lost)"
             sol = solution_of(x, np.diag(P), utc_of(self.road.epoch_unix + t_head), self.road.origin, self.nav,
-                              mode=mode, n_gnss=n_fix, n_leo=n_dr, fix_quality=quality, latency_s=math.nan)
+                              mode=mode, n_gnss=n_fix, n_leo=n_sats, fix_quality=quality, latency_s=math.nan)
             sol = dataclasses.replace(sol, latency_s=time.monotonic() - arrived_mono)
             self.outputs.send(sol)
             self.last_solution = sol
@@ -220,7 +231,7 @@ class Navigator:
         if self.stepper is not None:
             settled = self.stepper.settle_all()
             if settled is not None:
-                self.trajectory.add(settled, self.road.epoch_unix, self.road.origin, self.fix_kinds, self.dr_kind)
+                self._settled(settled)
         self.trajectory.close()
         r = self.road
         lat = self.latency_percentiles()
