@@ -3,8 +3,8 @@
 `Navigator` is fed by a source (`sources.py`) in arrival order: GNSS records, groups of IMU
 samples that arrived in one read (with that read's host stamp), Doppler-rate tables from the
 beacon stream, and device endings. Each IMU group steps the filter at once (`stepper.LagStepper`:
-the generated C loop on the batch), and a solution goes to the live outputs on the
-at most `output_rate_hz` per second; records leaving the lag window go to `trajectory.csv`.
+the generated C loop on the batch), and solutions go to the live outputs, at most
+`output_rate_hz` per second; records leaving the lag window go to `trajectory.csv`.
 
 Faults:
 - GNSS lost (its device ended, or no fix epoch for `gnss_timeout_s`): the filter goes on with
@@ -83,9 +83,9 @@ class Navigator:
         self.events.append({"t_run_s": round(time.monotonic() - self.t0_mono, 3), "kind": kind, "text": text})
         self.status.event(f"leonav nav: {text}")
 
-    def on_gnss(self, rec, now: float) -> None:
-        self.road.add_gnss(rec, now)
-        self._step(None, now)
+    def on_gnss(self, rec) -> None:
+        self.road.add_gnss(rec)
+        self._step()
 
     def on_imu(self, samples: list, stamp_s: float, arrived_mono: float) -> None:
         self.last_imu_stamp = stamp_s
@@ -93,11 +93,11 @@ class Navigator:
             self.event("IMU samples again: predicting", "recovered")
             del self.faults["imu"]
         self.road.add_imu(samples, stamp_s)
-        self._step(arrived_mono, stamp_s)
+        self._step(arrived_mono)
 
     def on_doppler_rate(self, table) -> None:
         self.road.add_doppler_rate(table)
-        self._step(None, None)
+        self._step()
 
     def device_ended(self, kind: str, reason: str) -> None:
         if kind in self.lost:
@@ -120,7 +120,8 @@ class Navigator:
                    f"(origin {math.degrees(lat):.7f}, {math.degrees(lon):.7f}, {h:.2f} m; mode {self.cfg.mode})",
                    "start")
 
-    def _step(self, arrived_mono: float | None, stamp_s: float | None) -> None:
+    def _step(self, arrived_mono: float | None = None) -> None:
+        """Run what the road has ready; publish when IMU samples arrived (`arrived_mono`: their arrival)."""
         recs = self.road.take()
         if not recs.size:
             return
@@ -180,7 +181,7 @@ class Navigator:
         if rejected is not None:
             self.rejected = rejected
         self.road.poll(now)
-        self._step(None, None)
+        self._step()
         if self.road.started:
             stale = now - self.road.last_fix_mono
             if "gnss" not in self.faults and stale > self.cfg.gnss_timeout_s:
@@ -227,7 +228,7 @@ class Navigator:
     def finish(self) -> dict:
         """Apply what can still be applied, settle every record, close the trajectory; returns a summary."""
         self.road.flush()
-        self._step(None, None)
+        self._step()
         if self.stepper is not None:
             settled = self.stepper.settle_all()
             if settled is not None:

@@ -80,7 +80,7 @@ class StreamingRoad:
         self.last_fix_mono = -math.inf
 
     # -- arriving data
-    def add_gnss(self, rec, now_mono: float | None = None) -> None:
+    def add_gnss(self, rec) -> None:
         self.tmap.add(rec)
         for epoch in self.assembler.add(rec):
             self._fix_epoch(epoch)

@@ -239,7 +239,7 @@ class LiveSource:
             if group:
                 navigator.on_imu(group, group[-1].t_mono_s, arrived)
                 group = []
-            navigator.on_gnss(rec, rec.t_mono_s)
+            navigator.on_gnss(rec)
         if group:
             navigator.on_imu(group, group[-1].t_mono_s, arrived)
 
@@ -367,7 +367,7 @@ class FastPlayback:
                 for rec in self.gnss.decode(chunk, t):
                     if self.copy:
                         self.copy.gnss(rec)
-                    navigator.on_gnss(rec, t)
+                    navigator.on_gnss(rec)
             else:
                 samples = [s for p in self.parser.feed(chunk, t) for s in self.grouper.push(p)]
                 for s in samples:
