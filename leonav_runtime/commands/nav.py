@@ -1,0 +1,143 @@
+"""`leonav nav`: live navigation from the devices (or a recorded session played back), with live outputs."""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from leonav_runtime import output
+from leonav_runtime.errors import UserInputError
+
+EPILOG = """exit status:
+  0    ended as asked (--seconds elapsed or the played-back session ended) and navigated
+  1    never navigated (no GNSS time tag, usable fix or IMU data); outputs still written
+  2    bad arguments or input
+  3    a device disappeared during the run (the filter went on with the rest; nav.json says which)
+  130  interrupted (SIGINT, Ctrl-C)      143  stopped (SIGTERM, e.g. systemctl stop)
+SIGINT/SIGTERM flush and close every output (trajectory.csv, solutions.jsonl, session/, nav.json)."""
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "nav", help="live navigation: GNSS + WitMotion IMU (+ RTL-SDR Starlink) through the filter, NMEA/MAVLink out",
+        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EPILOG,
+        description=(
+            "Read the devices (like `leonav record`, and record them into OUT/session/), build the filter's inputs "
+            "causally as they arrive (online GNSS time map, online IMU sample timing, fixes as they complete, "
+            "Doppler-rate from the streaming beacon pipeline) through the same road as `leonav replay`, step the "
+            "generated C filter on every IMU sample, and send solutions as NMEA (TCP, 127.0.0.1:10110 by default, "
+            "and/or a pty), MAVLink and JSON lines. Writes trajectory.csv (lat/lon/h, ECEF, ENU, sigmas) and "
+            "nav.json. With --from SESSION a recorded session is played back: with --realtime through pty devices "
+            "at its recorded pace (the live code path), else as fast as possible."))
+    src = p.add_argument_group("source")
+    src.add_argument("--gnss", metavar="PORT", help="GNSS serial port (e.g. /dev/ttyAMA0, /dev/leonav-gnss)")
+    src.add_argument("--imu", metavar="PORT", help="WitMotion serial port (e.g. /dev/ttyUSB0)")
+    src.add_argument("--sdr", metavar="INDEX", type=int, default=None, help="RTL-SDR device index (Starlink beacons)")
+    src.add_argument("--from", dest="session", metavar="SESSION", default=None,
+                     help="play back a session folder (`leonav record` / `leonav session synth`) instead of devices")
+    src.add_argument("--realtime", action="store_true",
+                     help="with --from: feed pty devices at the recorded pace (the live path), not as fast as possible")
+    src.add_argument("--gnss-baud", type=int, default=38400, help="GNSS baud (default 38400)")
+    src.add_argument("--imu-baud", type=int, default=9600, help="IMU baud (default 9600)")
+    src.add_argument("--configure", action="store_true", help="send the 10 Hz configuration first (as `leonav record`)")
+    src.add_argument("--rf-hz", type=float, default=None,
+                     help="beacon RF carrier tuned to baseband 0 (Hz, default 11.325e9); also the Doppler-rate carrier")
+    src.add_argument("--lnb-lo-hz", type=float, default=None, help="LNB local oscillator (Hz, default 9.75e9)")
+    src.add_argument("--sdr-rate", type=float, default=None, help="SDR sample rate (S/s, default 2.4e6)")
+    src.add_argument("--sdr-gain", default="auto", help="SDR gain in dB or 'auto'")
+    src.add_argument("--sdr-ppm", type=int, default=0, help="SDR frequency correction (ppm)")
+    src.add_argument("--seconds", type=float, default=None, help="stop after this many seconds (default: run on)")
+    src.add_argument("--no-record", action="store_true",
+                     help="fast playback only: do not copy the session (live runs always record)")
+    f = p.add_argument_group("filter")
+    f.add_argument("--mode", default=None, choices=("fix+imu", "leo-alpha+imu", "fix+leo-alpha+imu"),
+                   help="observables fused with the IMU (default fix+leo-alpha+imu with an SDR or capture, else fix+imu)")
+    f.add_argument("--origin", nargs=3, type=float, default=None, metavar=("LAT", "LON", "H"),
+                   help="ENU origin, deg deg m (default: the first GNSS fix)")
+    f.add_argument("--yaw-deg", type=float, default=None, help="initial heading, deg from East towards North")
+    f.add_argument("--gnss-latency", type=float, default=0.0, metavar="S", help="receiver output latency, s")
+    f.add_argument("--lag", type=float, default=3.5, metavar="S",
+                   help="how late a measurement may arrive and still be put in its place (default 3.5 s: a Doppler-rate epoch comes up to ~2.7 s after its time)")
+    f.add_argument("--tle", action="append", default=[], metavar="FILE", help="Starlink element sets (beacons)")
+    o = p.add_argument_group("outputs")
+    o.add_argument("--nmea-port", type=int, default=10110, help="NMEA TCP server port (default 10110; 0: off)")
+    o.add_argument("--nmea-host", default="127.0.0.1", help="address the NMEA server listens on (default 127.0.0.1)")
+    o.add_argument("--nmea-pty", metavar="PATH", default=None, help="also write NMEA to a pty linked at PATH")
+    o.add_argument("--mavlink", metavar="URL", default=None, help="MAVLink GPS_INPUT, e.g. udpout:127.0.0.1:14550")
+    o.add_argument("--rate", type=float, default=10.0, help="live solutions per second (default 10)")
+    o.add_argument("--trajectory-rate", type=float, default=10.0, help="trajectory.csv rows per second (default 10)")
+    o.add_argument("--no-json", action="store_true", help="no solutions.jsonl")
+    o.add_argument("--quiet", action="store_true", help="no status line")
+    output.add_out_argument(o)
+    p.set_defaults(func=run)
+
+
+def _sdr_settings(args: argparse.Namespace):
+    from hardware.sdr.capture import SdrSettings
+
+    base = SdrSettings()
+    gain = args.sdr_gain
+    if gain != "auto":
+        try:
+            gain = float(gain)
+        except ValueError:
+            raise UserInputError(f"--sdr-gain {args.sdr_gain!r}: expected a number in dB or 'auto'") from None
+    return SdrSettings(rf_center_hz=args.rf_hz or base.rf_center_hz, lnb_lo_hz=args.lnb_lo_hz or base.lnb_lo_hz,
+                       sample_rate_hz=args.sdr_rate or base.sample_rate_hz, gain_db=gain, ppm=args.sdr_ppm)
+
+
+def options_from_args(args: argparse.Namespace):
+    from leonav_runtime.nav.navigator import NavConfig
+    from leonav_runtime.nav.road import RoadConfig
+    from leonav_runtime.nav.run import NavOptions
+
+    if args.session is not None and (args.gnss or args.imu or args.sdr is not None):
+        raise UserInputError("nav: --from SESSION plays back a session; do not give --gnss/--imu/--sdr with it")
+    if args.session is not None and not Path(args.session).is_dir():
+        raise UserInputError(f"--from {args.session}: not a session folder")
+    if args.realtime and args.session is None:
+        raise UserInputError("--realtime: only with --from SESSION")
+    for name in ("rate", "trajectory_rate", "lag"):
+        v = getattr(args, name)
+        if not (math.isfinite(v) and v > 0):
+            raise UserInputError(f"--{name.replace('_', '-')}: {v!r}: expected a positive number")
+    if args.seconds is not None and not (math.isfinite(args.seconds) and args.seconds > 0):
+        raise UserInputError(f"--seconds: {args.seconds!r}: expected a positive duration")
+    if not (math.isfinite(args.gnss_latency) and 0 <= args.gnss_latency < 1):
+        raise UserInputError(f"--gnss-latency: {args.gnss_latency!r}: expected seconds in [0, 1)")
+    if not 0 <= args.nmea_port <= 65535:
+        raise UserInputError(f"--nmea-port: {args.nmea_port}: expected 0..65535")
+    has_sdr = args.sdr is not None or (args.session is not None and (Path(args.session) / "sdr.cu8").exists())
+    mode = args.mode or ("fix+leo-alpha+imu" if has_sdr else "fix+imu")
+    road = RoadConfig(origin_deg=tuple(args.origin) if args.origin else None, yaw_deg=args.yaw_deg,
+                      gnss_latency_s=args.gnss_latency)
+    cfg = NavConfig(mode=mode, road=road, lag_s=args.lag, output_rate_hz=args.rate,
+                    trajectory_rate_hz=args.trajectory_rate)
+    return NavOptions(
+        out_dir=output.results_dir(args.out, "nav"), nav=cfg, session=Path(args.session) if args.session else None,
+        realtime=args.realtime, gnss=args.gnss, imu=args.imu, sdr_index=args.sdr,
+        gnss_baud=args.gnss_baud, imu_baud=args.imu_baud, configure=args.configure,
+        sdr_settings=_sdr_settings(args) if args.sdr is not None else None, seconds=args.seconds,
+        record=not args.no_record, tcp=(args.nmea_host, args.nmea_port) if args.nmea_port else None,
+        pty_link=args.nmea_pty, mavlink=args.mavlink, json_lines=not args.no_json,
+        status=False if args.quiet else None, tle_files=tuple(args.tle))
+
+
+def run(args: argparse.Namespace) -> int:
+    from leonav_runtime.nav.run import run_nav
+
+    opts = options_from_args(args)
+    res = run_nav(opts)
+    lat = res.get("latency_ms") or {}
+    print(f"leonav nav: {res['status']} ({res['end_reason']}), exit {res['exit_code']}: {res['exit_meaning']}")
+    print(f"  {res.get('trajectory_rows', 0)} trajectory rows -> {opts.out_dir}/trajectory.csv; "
+          f"{res['outputs'].get('solutions', 0)} live solutions"
+          + (f"; latency p50 {lat['p50']:.2f} ms, p99 {lat['p99']:.2f} ms" if lat else ""))
+    for name, reason in (res.get("devices_lost") or {}).items():
+        print(f"  {name} lost: {reason}")
+    junk = {k: v.get("junk_bytes", 0) for k, v in (res.get("rejected") or {}).items() if v.get("junk_bytes")}
+    if junk:
+        print(f"  garbage bytes skipped: {junk}")
+    sys.stdout.flush()
+    return int(res["exit_code"])

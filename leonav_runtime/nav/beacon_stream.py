@@ -1,0 +1,285 @@
+"""The beacon pipeline on a capture that is still being written: chunks in, Doppler-rate out.
+
+The streaming twin of `beacons.pipeline.process_capture`, built from the beacons package's
+public pieces (it does not change them):
+- IQ blocks -> `waterfall.iter_spectra` -> `ridges.RidgeTracker.add_block`, as in the batch
+  pipeline, block by block (`block_s` of samples);
+- every ridge still being tracked is measured as soon as a measurement epoch's fit window is
+  complete (`doppler.ridge_measurements` on the ridge's recent points: epochs k * 1 s, fit
+  over +-1 s), so an epoch is ready one half-window after its time;
+- association with a joint LO offset and drift (`associate.associate_capture`) is re-run on
+  the measurements of the last `window_s` whenever new epochs are ready, against predictions
+  (`predict.predict_visible`, SGP4 through the generated model) refreshed every
+  `predict_every_s` over a horizon around now; the evidence grows with every epoch;
+- each new epoch of an associated comb is emitted once (its combined, drift-corrected rate,
+  `CaptureAssociation.filter_measurements`), never revised afterwards.
+Memory stays bounded: finished tracks are dropped from the tracker once measured, tracks keep
+their last `track_keep_s` of points, measurements their last `window_s`.
+
+Differences from the batch pipeline (named for the README): no fragment joining and no
+tone-shape filter at the end of the capture (noise tracks simply find no satellite); the LO
+drift is estimated from the window, not the whole capture; a ridge shorter than one fit
+window gives no measurement; an association made early is not revised for epochs already sent.
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import time
+
+import numpy as np
+
+from leonav_runtime.beacons.associate import associate_capture
+from leonav_runtime.beacons.doppler import RidgeMeasurements, ridge_measurements
+from leonav_runtime.beacons.pipeline import PipelineConfig
+from leonav_runtime.beacons.predict import predict_visible
+from leonav_runtime.beacons.ridges import Ridge, RidgeTracker
+from leonav_runtime.beacons.waterfall import StftConfig, band_bins, iter_spectra
+
+MEAS_FIELDS = ("t_s", "doppler_hz", "sigma_doppler_hz", "rate_hz_s", "sigma_rate_hz_s", "n_points", "snr_db")
+
+
+@dataclasses.dataclass
+class StreamSettings:
+    window_s: float = 60.0          # measurements kept for the association
+    predict_every_s: float = 30.0
+    predict_ahead_s: float = 45.0
+    track_keep_s: float = 12.0      # points kept per track (the tracker uses its last second)
+    max_lag_s: float = 2.0          # an epoch not ready this long after its newest sample is not sent
+
+
+@dataclasses.dataclass
+class Emitted:
+    """One Doppler-rate measurement: capture time t_s, satellite, rate and 1-sigma (Hz/s), and how
+    late it came: `data_lag_s` from its newest sample to the end of the data processed when it
+    was emitted (capture time), `wall_s` the host clock when it was emitted (live: compare with
+    the sample's arrival; `max_lag_s` applies to the later of the two lags)."""
+
+    t_s: float
+    norad_id: int
+    sat_index: int
+    rate_hz_s: float
+    sigma_hz_s: float
+    data_lag_s: float
+    wall_s: float
+
+
+def _concat(a: RidgeMeasurements, b: RidgeMeasurements) -> RidgeMeasurements:
+    return RidgeMeasurements(a.ridge_id, *(np.concatenate([getattr(a, f), getattr(b, f)]) for f in MEAS_FIELDS))
+
+
+def _since(m: RidgeMeasurements, t0: float) -> RidgeMeasurements:
+    k = np.searchsorted(m.t_s, t0)
+    return RidgeMeasurements(m.ridge_id, *(getattr(m, f)[k:] for f in MEAS_FIELDS))
+
+
+class PushStft:
+    """`waterfall.iter_spectra` driven by pushed sample blocks: the same slices (and times since the
+    capture start) as the batch STFT of the whole capture, emitted as soon as a block of
+    `slices_per_block` slices is complete."""
+
+    def __init__(self, stft: StftConfig, sample_rate_hz: float, slices_per_block: int = 64) -> None:
+        self.stft, self.fs, self.per_block = stft, sample_rate_hz, slices_per_block
+        self.need = stft.fft_size + (slices_per_block - 1) * stft.hop
+        self.step = slices_per_block * stft.hop
+        self._parts: list[np.ndarray] = []    # pushed pieces not yet joined (joined once per block)
+        self._n = 0
+        self._start = 0                 # sample index of the first buffered sample
+
+    def _joined(self) -> np.ndarray:
+        if len(self._parts) > 1:
+            self._parts = [np.concatenate(self._parts)]
+        return self._parts[0] if self._parts else np.zeros(0, np.complex64)
+
+    def push(self, samples: np.ndarray) -> list:
+        self._parts.append(samples)
+        self._n += samples.size
+        out = []
+        while self._n >= self.need:
+            buf = self._joined()
+            out.append(self._emit(buf[:self.need]))
+            self._parts = [buf[self.step:]]
+            self._n -= self.step
+            self._start += self.step
+        return out
+
+    def flush(self) -> list:
+        buf = self._joined()
+        out = [self._emit(buf)] if buf.size >= self.stft.fft_size else []
+        self._parts, self._n = [], 0
+        return out
+
+    def _emit(self, block: np.ndarray):
+        spec = next(iter_spectra([block], self.stft, self.fs, slices_per_block=self.per_block))
+        # slice centres since the capture start, written as iter_spectra writes them (same rounding)
+        t = (self._start + np.arange(spec.t_s.size) * self.stft.hop + self.stft.fft_size / 2) / self.fs
+        return dataclasses.replace(spec, t_s=t)
+
+
+class BeaconStream:
+    """Feed IQ (`push`, complex64) or spectrum blocks (`add_block`); take measurements with `take()`."""
+
+    def __init__(self, sample_rate_hz: float, rf_center_hz: float, tone_rf_hz: float, elements,
+                 cfg: PipelineConfig | None = None, settings: StreamSettings | None = None) -> None:
+        self.cfg = cfg = cfg or PipelineConfig(tone_rf_hz=tone_rf_hz, band_hz=min(1.2e6, sample_rate_hz))
+        self.settings = settings or StreamSettings()
+        self.fs = sample_rate_hz
+        self.rf_center_hz = rf_center_hz
+        self.elements = elements
+        self.stft = StftConfig.for_rate(sample_rate_hz, cfg.band_hz, cfg.fft_size, cfg.overlap, cfg.dc_notch_hz)
+        _, f_hz = band_bins(self.stft, sample_rate_hz)
+        self.tracker = RidgeTracker(f_hz, cfg.tracker)
+        self.stft_push = PushStft(self.stft, sample_rate_hz)
+        self.site = None
+        self.start_utc: _dt.datetime | None = None
+        self.t_mono_start: float | None = None   # host clock of the first sample (live: wall lag)
+        self._ids: dict[int, tuple[object, int]] = {}   # id(track) -> (track, ridge id)
+        self._next_epoch: dict[int, float] = {}
+        self._meas: dict[int, RidgeMeasurements] = {}
+        self._emitted_t: dict[int, float] = {}  # norad -> last emitted epoch
+        self._pred = None
+        self._pred_span = (np.inf, -np.inf)
+        self._out: list[Emitted] = []
+        self.t_data = 0.0                        # capture time processed so far (s)
+        self.counts = {"blocks": 0, "ridges": 0, "epochs": 0, "associations": 0, "emitted": 0,
+                       "predictions": 0, "tracks_dropped": 0, "too_late": 0}
+        self.max_lag_seen_s = 0.0
+        self.last_summary: dict = {}
+
+    def set_site(self, site, start_utc: _dt.datetime) -> None:
+        """The receiver's site and the capture's first-sample UTC (needed to associate)."""
+        self.site, self.start_utc = site, start_utc
+
+    # -- per block
+    def push(self, samples: np.ndarray) -> None:
+        for blk in self.stft_push.push(samples):
+            self.add_block(blk)
+
+    def flush(self) -> None:
+        for blk in self.stft_push.flush():
+            self.add_block(blk)
+
+    def add_block(self, blk) -> None:
+        self.tracker.add_block(blk)
+        self.counts["blocks"] += 1
+        self.t_data = float(blk.t_s[-1])
+        new = self._measure()
+        if new and self.site is not None:
+            self._associate()
+        self._trim()
+
+    def _rid(self, tr) -> int:
+        entry = self._ids.get(id(tr))
+        if entry is None or entry[0] is not tr:
+            entry = self._ids[id(tr)] = (tr, self.counts["ridges"])
+            self.counts["ridges"] += 1
+        return entry[1]
+
+    def _measure(self) -> int:
+        hw, step = self.cfg.fit_half_window_s, self.cfg.meas_interval_s
+        new = 0
+        for tr in self.tracker.active + self.tracker.done:
+            if len(tr.t) < 8:
+                continue
+            rid = self._rid(tr)
+            nxt = self._next_epoch.get(rid)
+            if nxt is None:
+                nxt = float(np.ceil((tr.t[0] + hw) / step) * step)
+            if tr.t[-1] - hw < nxt:       # no complete fit window yet
+                continue
+            t = np.asarray(tr.t)
+            k = int(np.searchsorted(t, nxt - hw - 0.5))      # a margin: the epoch's window must be inside
+            ridge = Ridge(t[k:], np.asarray(tr.f[k:]), np.asarray(tr.snr[k:]), rid)
+            m = ridge_measurements(ridge, self.rf_center_hz, self.cfg.tone_rf_hz, step, hw)
+            m = _since(m, nxt - 1e-9)
+            on_grid = np.abs(m.t_s / step - np.round(m.t_s / step)) < 1e-6   # not the short-ridge fallback
+            if not on_grid.all():
+                m = RidgeMeasurements(m.ridge_id, *(getattr(m, f)[on_grid] for f in MEAS_FIELDS))
+            self._next_epoch[rid] = float(np.floor((t[-1] - hw) / step) * step) + step
+            if m.t_s.size:
+                self._meas[rid] = _concat(self._meas[rid], m) if rid in self._meas else m
+                new += m.t_s.size
+        self.counts["epochs"] += new
+        return new
+
+    def _predictions(self):
+        s = self.settings
+        lo, hi = self._pred_span
+        t_now = self.t_data
+        if self._pred is None or t_now + 5.0 > hi or t_now - s.window_s < lo and lo > 0:
+            t0 = max(0.0, t_now - s.window_s - 2.0)
+            t1 = t_now + s.predict_ahead_s
+            start = self.start_utc + _dt.timedelta(seconds=t0)
+            pred = predict_visible(self.elements, self.site, start, t1 - t0, mask_deg=self.cfg.mask_deg,
+                                   tone_rf_hz=self.cfg.tone_rf_hz)
+            self._pred = dataclasses.replace(pred, t_s=pred.t_s + t0, start_utc=self.start_utc)
+            self._pred_span = (t0, t1)
+            self.counts["predictions"] += 1
+        return self._pred
+
+    def _associate(self) -> None:
+        pred = self._predictions()
+        if not len(pred.names):
+            return
+        meas = [m for m in self._meas.values() if m.t_s.size]
+        if not meas:
+            return
+        ca = associate_capture(meas, pred, self.cfg.association)
+        self.counts["associations"] += 1
+        self.last_summary = {"lo_offset_hz": ca.lo.offset_hz, "lo_drift_hz_s": ca.lo.drift_hz_s,
+                             "drift_removed": ca.lo.drift_removed,
+                             "status": {s: sum(a.status == s for a in ca.associations)
+                                        for s in ("associated", "ambiguous", "unassociated")}}
+        hw = self.cfg.fit_half_window_s
+        now = time.monotonic()
+        for a in ca.associations:
+            if a.status != "associated" or not a.carrier or a.ridge_id not in ca.filter_measurements:
+                continue
+            m = ca.filter_measurements[a.ridge_id]
+            last = self._emitted_t.get(a.norad_id, -np.inf)
+            for k in np.flatnonzero(m.t_s > last + 1e-6):
+                newest = float(m.t_s[k]) + hw
+                lag = self.t_data - newest
+                if self.t_mono_start is not None:
+                    lag = max(lag, now - (self.t_mono_start + newest))
+                if lag > self.settings.max_lag_s:
+                    self.counts["too_late"] += 1
+                    continue
+                self.max_lag_seen_s = max(self.max_lag_seen_s, lag)
+                self._out.append(Emitted(float(m.t_s[k]), a.norad_id, int(pred.sat_index[a.sat_row]),
+                                         float(m.rate_hz_s[k]), float(m.sigma_rate_hz_s[k]), lag, now))
+            if m.t_s.size:
+                self._emitted_t[a.norad_id] = max(last, float(m.t_s[-1]))
+
+    def _trim(self) -> None:
+        s = self.settings
+        keep_from = self.t_data - s.window_s
+        for rid in list(self._meas):
+            m = _since(self._meas[rid], keep_from)
+            if m.t_s.size:
+                self._meas[rid] = m
+            else:
+                del self._meas[rid]
+        # finished tracks: measured already; drop them (the tracker would keep them for finish())
+        hw = self.cfg.fit_half_window_s
+        for tr in list(self.tracker.done):
+            entry = self._ids.get(id(tr))
+            nxt = self._next_epoch.get(entry[1], np.inf) if entry is not None and entry[0] is tr else np.inf
+            if len(tr.t) < 8 or tr.t[-1] - hw < nxt:
+                self.tracker.done.remove(tr)
+                self.counts["tracks_dropped"] += 1
+        live = {id(tr) for tr in self.tracker.active + self.tracker.done}
+        for key in [k for k in self._ids if k not in live]:     # tracks the tracker let go
+            self._next_epoch.pop(self._ids.pop(key)[1], None)
+        cut = self.t_data - s.track_keep_s
+        for tr in self.tracker.active:     # old points of long tracks (the tracker uses the last 256)
+            if len(tr.t) > 2000 and tr.t[0] < cut:
+                k = int(np.searchsorted(np.asarray(tr.t), cut))
+                k = min(k, len(tr.t) - 1000)
+                if k > 0:
+                    del tr.t[:k], tr.f[:k], tr.snr[:k]
+
+    def take(self) -> list[Emitted]:
+        out, self._out = self._out, []
+        self.counts["emitted"] += len(out)
+        return out

@@ -1,0 +1,227 @@
+"""One run of `leonav nav`: a source, the navigator, the outputs, signals -> files and an exit code.
+
+Exit codes (also in nav.json `exit_code` and `leonav nav --help`):
+  0    the run ended as asked (--seconds elapsed, or the played-back session ended) and navigated
+  1    it never navigated: no GNSS time tag, no usable fix or no IMU data (outputs still written)
+  2    bad arguments or input files (the CLI's convention for every command)
+  3    a device disappeared during the run (the filter went on with the rest; see nav.json)
+  130  interrupted by SIGINT (Ctrl-C)
+  143  stopped by SIGTERM (systemd stop): every output flushed, as for 0
+SIGINT and SIGTERM only set a flag: the loop sees it within 50 ms, then every output is flushed
+and closed and session.json, trajectory.csv and nav.json are complete.
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import signal
+import threading
+from pathlib import Path
+from typing import Callable
+
+from leonav_runtime import navfuncs
+from leonav_runtime.errors import UserInputError
+from leonav_runtime.nav.navigator import Navigator, NavConfig
+from leonav_runtime.nav.outputs import LiveOutputs
+from leonav_runtime.nav.status import StatusLine
+from leonav_runtime.output import write_json
+
+EXIT_OK, EXIT_NEVER_NAVIGATED, EXIT_USAGE, EXIT_DEVICE_LOST = 0, 1, 2, 3
+EXIT_SIGINT, EXIT_SIGTERM = 130, 143
+EXIT_CODES = {EXIT_OK: "ended as asked and navigated", EXIT_NEVER_NAVIGATED: "never navigated (no time tag, fix or IMU)",
+              EXIT_USAGE: "bad arguments or input", EXIT_DEVICE_LOST: "a device disappeared during the run",
+              EXIT_SIGINT: "interrupted (SIGINT)", EXIT_SIGTERM: "stopped (SIGTERM)"}
+
+
+@dataclasses.dataclass
+class NavOptions:
+    out_dir: Path
+    nav: NavConfig
+    session: Path | None = None           # --from SESSION
+    realtime: bool = False
+    gnss: str | None = None
+    imu: str | None = None
+    sdr_index: int | None = None
+    gnss_baud: int = 38400
+    imu_baud: int = 9600
+    configure: bool = False
+    sdr_settings: object = None
+    seconds: float | None = None
+    record: bool = True
+    tcp: tuple[str, int] | None = ("127.0.0.1", 10110)
+    pty_link: str | None = None
+    mavlink: str | None = None
+    json_lines: bool = True
+    status: bool | None = None            # None: on when stderr is a terminal (else a line every 10 s)
+    tle_files: tuple = ()
+
+
+class _Signals:
+    """SIGINT/SIGTERM -> a flag (main thread only; elsewhere `request` is the way to stop)."""
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self._old: dict = {}
+
+    def request(self, signum: int = signal.SIGINT) -> None:
+        if self.received is None:
+            self.received = signum
+
+    def __enter__(self) -> "_Signals":
+        if threading.current_thread() is threading.main_thread():
+            for s in (signal.SIGINT, signal.SIGTERM):
+                self._old[s] = signal.signal(s, lambda signum, frame: self.request(signum))
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for s, h in self._old.items():
+            signal.signal(s, h)
+
+
+def _source(opts: NavOptions, record_dir: Path | None, beacons):
+    from leonav_runtime.nav import sources
+
+    if opts.session is not None and not opts.realtime:
+        return sources.FastPlayback(opts.session, record_dir, beacons)
+    if opts.session is not None:
+        return _realtime_playback(opts, record_dir, beacons)
+    if not (opts.gnss or opts.imu):
+        raise UserInputError("nav: give --gnss PORT and --imu PORT (live devices) or --from SESSION")
+    return sources.LiveSource(record_dir, opts.gnss, opts.imu, opts.sdr_index, opts.gnss_baud, opts.imu_baud,
+                              opts.configure, opts.sdr_settings, beacons=beacons)
+
+
+def _realtime_playback(opts: NavOptions, record_dir: Path, beacons):
+    from hardware.sdr.capture import SdrSettings
+    from leonav_runtime.nav import sources
+    from leonav_runtime.nav.beacon_feed import capture_meta
+
+    folder = Path(opts.session)
+    t0 = sources.session_start_mono(folder)
+    ptys = [sources.PacedPty(sources.chunk_events(folder, name, t0)) for name in ("gnss", "imu")]
+    info = sources.read_session_info(folder)
+    sdr = {}
+    if beacons is not None:
+        m = capture_meta(folder / "sdr.sigmf-meta")
+        delay = float(m["t_mono_start_s"]) - t0 if m.get("t_mono_start_s") is not None else 0.0
+        sdr = {"sdr_index": 0, "sdr_factory": lambda index: sources.FileRtlSdr(folder / "sdr.cu8", delay),
+               "sdr_settings": SdrSettings(rf_center_hz=m["rf_center_hz"], lnb_lo_hz=m["lnb_lo_hz"],
+                                           sample_rate_hz=m["sample_rate_hz"], gain_db=m["gain_db"])}
+    return sources.LiveSource(record_dir, ptys[0].path, ptys[1].path, gnss_baud=sources._baud(info, "gnss") or 38400,
+                              imu_baud=sources._baud(info, "imu") or 9600, playback=ptys, beacons=beacons, **sdr)
+
+
+def _beacons(opts: NavOptions, record_dir: Path | None):
+    """(BeaconFeed or None, f_c Hz, where f_c came from) for the mode and the source."""
+    from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
+    from leonav_runtime.nav.beacon_feed import BeaconFeed, capture_meta, carrier
+    from leonav_runtime.nav.beacon_process import BeaconProcess
+    from leonav_runtime.orbits.elements import load_element_files
+    from leonav_runtime.replay.options import MODE_STREAMS
+
+    default = (None, STARLINK_BEACON_HZ, "default (no Starlink capture)")
+    if "doppler_rate" not in MODE_STREAMS[opts.nav.mode]:
+        return default
+    elements = load_element_files(opts.tle_files)     # checked here: a bad file is a clear error at once
+    floor = opts.nav.road.doppler_rate_sigma_floor_hz_s
+    if opts.session is not None:
+        meta_path = Path(opts.session) / "sdr.sigmf-meta"
+        if not meta_path.exists() or not (Path(opts.session) / "sdr.cu8").exists():
+            raise UserInputError(f"--mode {opts.nav.mode}: {opts.session} has no sdr.cu8 + sdr.sigmf-meta")
+        meta = capture_meta(meta_path)
+        f_c, src = carrier(meta["rf_center_hz"])
+        if not opts.realtime:
+            return BeaconFeed(Path(opts.session) / "sdr.cu8", meta, f_c, elements, floor), f_c, src
+        return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor), f_c, src
+    if opts.sdr_index is None:
+        raise UserInputError(f"--mode {opts.nav.mode}: needs --sdr INDEX (the Starlink capture)")
+    f_c, src = carrier(opts.sdr_settings.rf_center_hz)
+    return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor), f_c, src
+
+
+def session_bauds(opts: NavOptions) -> tuple[int | None, int | None]:
+    if opts.session is None:
+        return opts.gnss_baud, opts.imu_baud
+    from leonav_runtime.nav.sources import _baud, read_session_info
+
+    info = read_session_info(Path(opts.session))
+    return _baud(info, "gnss"), _baud(info, "imu")
+
+
+def run_nav(opts: NavOptions, on_started: Callable[[], None] | None = None,
+            signals: _Signals | None = None, nav: navfuncs.NavFunctions | None = None) -> dict:
+    """Run to the end; returns nav.json's content (with `exit_code`)."""
+    out = Path(opts.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    record_dir = out / "session" if opts.record or (opts.session is None or opts.realtime) else None
+    cfg = opts.nav
+    cfg.road.gnss_baud, cfg.road.imu_baud = session_bauds(opts)
+    signals = signals or _Signals()
+    status = StatusLine(enabled=True if opts.status is None else opts.status)
+    if opts.status is None and not status.tty:
+        status.refresh_s = 10.0
+    try:
+        outputs = LiveOutputs(opts.tcp, opts.pty_link, opts.mavlink,
+                              out / "solutions.jsonl" if opts.json_lines else None)
+    except OSError as exc:
+        where = f"--nmea-port {opts.tcp[1]} on {opts.tcp[0]}" if opts.tcp else "outputs"
+        raise UserInputError(f"{where}: cannot open ({exc}); another program may use the port (--nmea-port 0: off)") \
+            from None
+    navigator = source = None
+    reason, session_info, beacons, f_c_source = "error", {}, None, ""
+    started_utc = _dt.datetime.now(_dt.timezone.utc)
+    try:
+        beacons, cfg.road.f_c_hz, f_c_source = _beacons(opts, record_dir)
+        navigator = Navigator(cfg, out, outputs, status, nav)
+        source = _source(opts, record_dir, beacons)
+        where = [f"NMEA tcp://{outputs.tcp_address[0]}:{outputs.tcp_address[1]}" if outputs.tcp_address else "",
+                 f"NMEA pty {opts.pty_link} -> {outputs.pty_device}" if outputs.pty_device else "",
+                 f"MAVLink {opts.mavlink}" if opts.mavlink else ""]
+        status.event(f"leonav nav: {cfg.mode}, writing {out}" + "".join(f"; {w}" for w in where if w))
+        with signals:
+            reason = source.run(navigator, opts.seconds, on_started=on_started,
+                                should_stop=lambda: signals.received is not None)
+    finally:
+        prev = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)} \
+            if threading.current_thread() is threading.main_thread() else {}
+        try:
+            state = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated"}.get(signals.received,
+                                                                                    "complete" if reason != "error"
+                                                                                    else "error")
+            if source is not None:
+                session_info = source.stop(state)
+            summary = navigator.finish() if navigator is not None else {}
+            outputs_report = outputs.close()
+            status.close()
+        finally:
+            for s, h in prev.items():
+                signal.signal(s, h)
+    code = exit_code(signals.received, summary, session_info)
+    result = {"exit_code": code, "exit_meaning": EXIT_CODES[code], "end_reason": reason, "status": state,
+              "started_utc": started_utc, "source": _describe_source(opts), "outputs": outputs_report,
+              "session_folder": str(record_dir) if record_dir else None,
+              "session_status": session_info.get("status"), "exit_codes": EXIT_CODES,
+              "f_c_hz": cfg.road.f_c_hz, "f_c_source": f_c_source,
+              "beacons": beacons.summary() if beacons is not None else None} | summary
+    write_json(out / "nav.json", result)
+    return result
+
+
+def exit_code(signum: int | None, summary: dict, session_info: dict) -> int:
+    if signum == signal.SIGINT:
+        return EXIT_SIGINT
+    if signum == signal.SIGTERM:
+        return EXIT_SIGTERM
+    if summary.get("devices_lost"):
+        return EXIT_DEVICE_LOST
+    if not summary.get("started"):
+        return EXIT_NEVER_NAVIGATED
+    return EXIT_OK
+
+
+def _describe_source(opts: NavOptions) -> dict:
+    if opts.session is not None:
+        return {"kind": "playback (paced, pty devices)" if opts.realtime else "playback (as fast as possible)",
+                "session": str(opts.session)}
+    return {"kind": "live devices", "gnss": opts.gnss, "imu": opts.imu, "sdr_index": opts.sdr_index,
+            "gnss_baud": opts.gnss_baud, "imu_baud": opts.imu_baud}
