@@ -44,7 +44,7 @@ def test_streamed_doppler_rate_equals_the_batch_pipeline(session):
         got += bs.take()
     bs.flush()
     got += bs.take()
-    res = pipeline.process_capture(info, elements, site, pipeline.PipelineConfig(tone_rf_hz=info.rf_center_hz,
+    res = pipeline.process_capture(info, elements, site, pipeline.PipelineConfig(f_c_hz=info.rf_center_hz,
                                                                                  band_hz=240e3))
     batch = {(a.norad_id, round(float(t), 3)): r for m, a in zip(res.measurements, res.associations)
              if a.status == "associated" for t, r in zip(m.t_s, m.rate_hz_s)}

@@ -95,12 +95,12 @@ class CaptureFile:
 class BeaconFeed:
     """Fast playback: the session's capture through a `BeaconStream` in step with the serial chunks."""
 
-    def __init__(self, data_path: Path, meta: dict, tone_rf_hz: float, elements, sigma_floor_hz_s: float) -> None:
+    def __init__(self, data_path: Path, meta: dict, f_c_hz: float, elements, sigma_floor_hz_s: float) -> None:
         self.data_path = Path(data_path)
         self.meta = meta
         self.elements = elements
         self.sigma_floor = sigma_floor_hz_s
-        self.stream = BeaconStream(meta["sample_rate_hz"], meta["rf_center_hz"], tone_rf_hz, elements)
+        self.stream = BeaconStream(meta["sample_rate_hz"], meta["rf_center_hz"], f_c_hz, elements)
         self.capture = CaptureFile(self.data_path)
         self.notes: list[str] = []
         self.start_unix = math.nan

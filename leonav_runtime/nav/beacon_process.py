@@ -25,7 +25,7 @@ from leonav_runtime.inputs import DopplerRateTable
 IDLE_S = 0.02
 
 
-def _child(data_path: str, meta_path: str, tone_rf_hz: float, tle_files: tuple, sigma_floor: float,
+def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigma_floor: float,
            inbox, outbox, recording_done, stop) -> None:
     from leonav_runtime.beacons.predict import Site
     from leonav_runtime.nav.beacon_feed import CHUNK_S, CaptureFile, capture_meta, emitted_table, stream_summary
@@ -51,7 +51,7 @@ def _child(data_path: str, meta_path: str, tone_rf_hz: float, tle_files: tuple, 
                     raise RuntimeError("the SDR recording ended before its metadata was written")
                 time.sleep(0.05)
         if meta is not None:
-            stream = BeaconStream(meta["sample_rate_hz"], meta["rf_center_hz"], tone_rf_hz, elements)
+            stream = BeaconStream(meta["sample_rate_hz"], meta["rf_center_hz"], f_c_hz, elements)
             stream.t_mono_start = meta.get("t_mono_start_s")
             capture = CaptureFile(Path(data_path))
             chunk = int(CHUNK_S * meta["sample_rate_hz"])
@@ -91,9 +91,9 @@ def _child(data_path: str, meta_path: str, tone_rf_hz: float, tle_files: tuple, 
 class BeaconProcess:
     """The parent side (module doc)."""
 
-    def __init__(self, data_path: Path, tone_rf_hz: float, tle_files: tuple, sigma_floor_hz_s: float) -> None:
+    def __init__(self, data_path: Path, f_c_hz: float, tle_files: tuple, sigma_floor_hz_s: float) -> None:
         self.data_path = Path(data_path)
-        self.tone_rf_hz = tone_rf_hz
+        self.f_c_hz = f_c_hz
         self.tle_files = tuple(str(p) for p in tle_files)
         self.sigma_floor = sigma_floor_hz_s
         ctx = mp.get_context("spawn")
@@ -111,7 +111,7 @@ class BeaconProcess:
         self._meta_path = Path(meta_path)
         self._proc = self._ctx.Process(
             target=_child, name="leonav-beacons", daemon=True,
-            args=(str(self.data_path), str(meta_path), self.tone_rf_hz, self.tle_files, self.sigma_floor,
+            args=(str(self.data_path), str(meta_path), self.f_c_hz, self.tle_files, self.sigma_floor,
                   self._inbox, self._outbox, self._recording_done, self._stop))
         self._proc.start()
 

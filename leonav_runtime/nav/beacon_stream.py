@@ -119,9 +119,9 @@ class PushStft:
 class BeaconStream:
     """Feed IQ (`push`, complex64) or spectrum blocks (`add_block`); take measurements with `take()`."""
 
-    def __init__(self, sample_rate_hz: float, rf_center_hz: float, tone_rf_hz: float, elements,
+    def __init__(self, sample_rate_hz: float, rf_center_hz: float, f_c_hz: float, elements,
                  cfg: PipelineConfig | None = None, settings: StreamSettings | None = None) -> None:
-        self.cfg = cfg = cfg or PipelineConfig(tone_rf_hz=tone_rf_hz, band_hz=min(1.2e6, sample_rate_hz))
+        self.cfg = cfg = cfg or PipelineConfig(f_c_hz=f_c_hz, band_hz=min(1.2e6, sample_rate_hz))
         self.settings = settings or StreamSettings()
         self.fs = sample_rate_hz
         self.rf_center_hz = rf_center_hz
@@ -190,7 +190,7 @@ class BeaconStream:
             t = np.asarray(tr.t)
             k = int(np.searchsorted(t, nxt - hw - 0.5))      # a margin: the epoch's window must be inside
             ridge = Ridge(t[k:], np.asarray(tr.f[k:]), np.asarray(tr.snr[k:]), rid)
-            m = ridge_measurements(ridge, self.rf_center_hz, self.cfg.tone_rf_hz, step, hw)
+            m = ridge_measurements(ridge, self.rf_center_hz, self.cfg.f_c_hz, step, hw)
             m = _since(m, nxt - 1e-9)
             on_grid = np.abs(m.t_s / step - np.round(m.t_s / step)) < 1e-6   # not the short-ridge fallback
             if not on_grid.all():
@@ -211,7 +211,7 @@ class BeaconStream:
             t1 = t_now + s.predict_ahead_s
             start = self.start_utc + _dt.timedelta(seconds=t0)
             pred = predict_visible(self.elements, self.site, start, t1 - t0, mask_deg=self.cfg.mask_deg,
-                                   tone_rf_hz=self.cfg.tone_rf_hz)
+                                   f_c_hz=self.cfg.f_c_hz)
             self._pred = dataclasses.replace(pred, t_s=pred.t_s + t0, start_utc=self.start_utc)
             self._pred_span = (t0, t1)
             self.counts["predictions"] += 1
