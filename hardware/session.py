@@ -12,6 +12,10 @@ Session folder (see hardware/README.md for every column):
 Stopping: the duration elapsing, Ctrl-C (KeyboardInterrupt in the main loop), or every
 device ending (EOF or a serial error when a device disappears). In each case the threads
 are stopped, files closed and the final session.json written; nothing recorded is lost.
+
+Other programs reuse the recorder as their live reader loop (`leonav nav`): `on_record(kind,
+record)` sees every decoded record in its device thread ("gnss": GNSS records, "imu":
+ImuSample), and `start()` / `stop(status)` replace `run()` when the caller has its own loop.
 """
 from __future__ import annotations
 
@@ -63,13 +67,14 @@ class RecordSession:
                  sdr_index: int | None = None, gnss_baud: int = 38400, imu_baud: int = 9600,
                  configure: bool = False, sdr_settings: sdr_capture.SdrSettings | None = None,
                  sdr_factory: Callable[[int], Any] = sdr_capture.open_rtlsdr,
-                 progress: bool = True) -> None:
+                 progress: bool = True, on_record: Callable[[str, Any], None] | None = None) -> None:
         if not (gnss or imu or sdr_index is not None):
             raise UserInputError("record: give at least one device (--gnss, --imu or --sdr)")
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
         self.configure = configure
         self.progress = progress
+        self.on_record = on_record
         self.stop_event = threading.Event()
         self.time_map = RunningTimeMap()
         self.devices: list[DeviceRun] = []
@@ -109,6 +114,8 @@ class RecordSession:
                     self.time_map.add(rec)
                 elif isinstance(rec, UbxAck):
                     acks.append({"acked": rec.acked, "class": rec.acked_class, "id": rec.acked_id})
+                if self.on_record:
+                    self.on_record("gnss", rec)
                 name, rows = gnss_rows(rec, self.time_map.utc)
                 if name == "gnss_raw" and raw_csv is None:
                     raw_csv = CsvSink(self.folder / "gnss_raw.csv", GNSS_RAW_COLUMNS)
@@ -132,6 +139,8 @@ class RecordSession:
                 run.extra["config_commands_sent"] = len(witmotion.configure_sequence(rate_hz=10))
             for sample in reader:
                 sink.write(imu_row(sample, self.time_map.utc))
+                if self.on_record:
+                    self.on_record("imu", sample)
         finally:
             sink.close()
             run.extra["csv_rows"] = {"imu.csv": sink.rows}
@@ -151,14 +160,24 @@ class RecordSession:
             run.error = f"{type(exc).__name__}: {exc}"
 
     # -- main loop
-    def run(self, seconds: float) -> dict:
-        """Record for `seconds` (or until Ctrl-C / all devices end); returns session.json's content."""
+    def start(self, seconds: float) -> None:
+        """Write the partial session.json and start one thread per device (`seconds`: the SDR's length)."""
         self._write_session_json(partial=True)
         targets = {"gnss": self._gnss_thread, "imu": self._imu_thread, "sdr": self._sdr_thread}
         for run in self.devices:
             run.thread = threading.Thread(target=self._thread_main, args=(run, targets[run.kind], seconds),
                                           name=f"leonav-record-{run.kind}")
             run.thread.start()
+
+    def stop(self, status: str) -> dict:
+        """Stop every device, close the files, write the final session.json with `status`; returns it."""
+        self.status = status
+        self._stop_all()
+        return self._write_session_json(partial=False)
+
+    def run(self, seconds: float) -> dict:
+        """Record for `seconds` (or until Ctrl-C / all devices end); returns session.json's content."""
+        self.start(seconds)
         deadline = self.t_mono_start + seconds
         bar = None
         if self.progress:
