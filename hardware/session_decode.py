@@ -95,7 +95,7 @@ def decode_session(folder: str | Path) -> DecodedSession:
         decoder = GnssDecoder()
         for chunk, t_mono in iter_raw_chunks(folder, "gnss"):
             result.gnss_records.extend(decoder.decode(chunk, t_mono))
-        decoder.close()
+        result.gnss_records.extend(decoder.close())
         result.gnss_summary = decoder.summary()
         result.time_map = TimeMap.fit(r for r in result.gnss_records if isinstance(r, GnssTimeTag))
     if (folder / "imu.raw").exists():
