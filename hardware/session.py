@@ -9,9 +9,18 @@ Session folder (see hardware/README.md for every column):
   session.json                 devices, times, counts, rejects, time map; a partial one
                                ("status": "recording") is written at the start
 
-Stopping: the duration elapsing, Ctrl-C (KeyboardInterrupt in the main loop), or every
-device ending (EOF or a serial error when a device disappears). In each case the threads
-are stopped, files closed and the final session.json written; nothing recorded is lost.
+Stopping: the duration elapsing, Ctrl-C, SIGTERM or SIGHUP (noted by a signal handler
+while `run()` records; more signals during the shutdown are ignored), or every device ending
+(EOF or a serial error when a device disappears). In each case the threads are stopped,
+files closed and the final session.json written (through a temporary file, so it is never
+half written); nothing recorded is lost. A device thread never ends on the bytes it reads
+(the readers count what they reject); one that ends on an error of its own (a full disk)
+makes the session "failed".
+
+Final `status`: "complete" (the duration elapsed), "devices ended" (every device ended
+first), "interrupted" (a stop signal; `stop_signal` names it), "failed" (a device thread
+ended on an error: its `error` says which). A folder that already holds a recording
+(session.json, or a non-empty raw log or capture) is refused, never overwritten.
 
 Other programs reuse the recorder as their live reader loop (`leonav nav`): `on_record(kind,
 record)` sees every decoded record in its device thread ("gnss": GNSS records, "imu":
@@ -21,8 +30,10 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import signal
 import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -32,12 +43,16 @@ from hardware.gnss import ubx_config
 from hardware.gnss.reader import GnssReader
 from hardware.imu import witmotion
 from hardware.imu.witmotion import ImuReader
-from hardware.jsonfile import write_json
 from hardware.records import GnssTimeTag, UbxAck
 from hardware.sdr import capture as sdr_capture
 from hardware.session_decode import DecodedSession, decode_session, iter_raw_chunks
 from hardware.session_files import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, SESSION_VERSION, CsvSink,
-                                    RawLog, RunningTimeMap, gnss_rows, imu_row, session_json)  # noqa: F401
+                                    RawLog, RunningTimeMap, gnss_rows, imu_row, session_json,  # noqa: F401
+                                    write_json_replacing)
+
+STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")   # end a recording like Ctrl-C
+RECORDING_FILES = ("session.json", "gnss.raw", "imu.raw", "sdr.cu8")
+JOIN_TIMEOUT_S = 5.0      # how long the shutdown waits for each device thread
 
 __all__ = ["RecordSession", "DeviceRun", "decode_session", "DecodedSession", "iter_raw_chunks", "CsvSink", "RawLog",
            "RunningTimeMap", "gnss_rows", "imu_row", "GNSS_FIX_COLUMNS", "GNSS_RAW_COLUMNS", "IMU_COLUMNS",
@@ -58,6 +73,17 @@ class DeviceRun:
     error: str = ""
     records: dict = field(default_factory=dict)
     extra: dict = field(default_factory=dict)
+    exception: BaseException | None = field(default=None, repr=False)   # what ended the thread, if anything
+
+
+def holds_recording(folder: Path) -> str | None:
+    """The file that shows `folder` already holds a recording (session.json, or a non-empty
+    raw log / capture), else None. Empty raw logs are what a failed start leaves."""
+    for name in RECORDING_FILES:
+        path = folder / name
+        if path.is_file() and (name == "session.json" or path.stat().st_size > 0):
+            return name
+    return None
 
 
 class RecordSession:
@@ -71,29 +97,35 @@ class RecordSession:
         if not (gnss or imu or sdr_index is not None):
             raise UserInputError("record: give at least one device (--gnss, --imu or --sdr)")
         self.folder = Path(folder)
+        taken = holds_recording(self.folder)
+        if taken:
+            raise UserInputError(f"{self.folder}: already holds a recording ({taken}); give a new folder "
+                                 "(a recording is never overwritten)")
         self.folder.mkdir(parents=True, exist_ok=True)
         self.configure = configure
         self.progress = progress
         self.on_record = on_record
         self.stop_event = threading.Event()
+        self.stop_signal = ""
         self.time_map = RunningTimeMap()
         self.devices: list[DeviceRun] = []
         self.sdr_settings = sdr_settings or sdr_capture.SdrSettings()
-        # Open every device before recording anything: a wrong port fails fast and clean.
-        if gnss:
-            run = DeviceRun("gnss", gnss, gnss_baud)
-            run.raw = RawLog(self.folder, "gnss")
-            run.reader = GnssReader(gnss, gnss_baud, on_bytes=run.raw.write)
-            self.devices.append(run)
-        if imu:
-            run = DeviceRun("imu", imu, imu_baud)
-            run.raw = RawLog(self.folder, "imu")
-            run.reader = ImuReader(imu, imu_baud, on_bytes=run.raw.write)
-            self.devices.append(run)
-        if sdr_index is not None:
-            run = DeviceRun("sdr", str(sdr_index))
-            run.reader = sdr_factory(sdr_index)
-            self.devices.append(run)
+        # Open every device before recording anything: a wrong port fails fast and clean
+        # (what was opened is closed again, and no raw log is created).
+        try:
+            if gnss:
+                self.devices.append(DeviceRun("gnss", gnss, gnss_baud, reader=GnssReader(gnss, gnss_baud)))
+            if imu:
+                self.devices.append(DeviceRun("imu", imu, imu_baud, reader=ImuReader(imu, imu_baud)))
+            if sdr_index is not None:
+                self.devices.append(DeviceRun("sdr", str(sdr_index), reader=sdr_factory(sdr_index)))
+            for run in self.devices:
+                if run.kind != "sdr":
+                    run.raw = RawLog(self.folder, run.kind)
+                    run.reader.on_bytes = run.raw.write
+        except BaseException:
+            self._close_devices()
+            raise
         self.start_utc = _dt.datetime.now(_dt.timezone.utc)
         self.t_mono_start = time.monotonic()
         self.status = "recording"
@@ -158,6 +190,7 @@ class RecordSession:
             target(run, seconds)
         except Exception as exc:  # keep the session alive and report the failure
             run.error = f"{type(exc).__name__}: {exc}"
+            run.exception = exc
 
     # -- main loop
     def start(self, seconds: float) -> None:
@@ -165,38 +198,69 @@ class RecordSession:
         self._write_session_json(partial=True)
         targets = {"gnss": self._gnss_thread, "imu": self._imu_thread, "sdr": self._sdr_thread}
         for run in self.devices:
+            # daemon: a thread stuck in a device driver never keeps the process from exiting
             run.thread = threading.Thread(target=self._thread_main, args=(run, targets[run.kind], seconds),
-                                          name=f"leonav-record-{run.kind}")
+                                          name=f"leonav-record-{run.kind}", daemon=True)
             run.thread.start()
 
     def stop(self, status: str) -> dict:
-        """Stop every device, close the files, write the final session.json with `status`; returns it."""
-        self.status = status
+        """Stop every device, close the files, write the final session.json with `status`
+        ("failed" instead when a device thread ended on an error); returns it."""
         self._stop_all()
+        self.status = "failed" if any(run.error for run in self.devices) else status
         return self._write_session_json(partial=False)
 
     def run(self, seconds: float) -> dict:
-        """Record for `seconds` (or until Ctrl-C / all devices end); returns session.json's content."""
-        self.start(seconds)
-        deadline = self.t_mono_start + seconds
-        bar = None
-        if self.progress:
-            from tqdm import tqdm
-            bar = tqdm(total=round(seconds, 1), unit="s", desc="recording", leave=False, disable=None)
-        try:
-            while time.monotonic() < deadline and any(r.thread.is_alive() for r in self.devices):
-                time.sleep(0.05)
+        """Record for `seconds` (or until a stop signal / all devices end); returns session.json's content."""
+        with self.stop_signals():
+            self.start(seconds)
+            deadline = self.t_mono_start + seconds
+            bar = None
+            status = "failed"
+            try:
+                if self.progress:
+                    from tqdm import tqdm
+                    bar = tqdm(total=round(seconds, 1), unit="s", desc="recording", leave=False, disable=None)
+                while (time.monotonic() < deadline and not self.stop_signal
+                       and any(r.thread.is_alive() for r in self.devices)):
+                    time.sleep(0.05)
+                    if bar is not None:
+                        bar.n = round(min(time.monotonic() - self.t_mono_start, seconds), 1)
+                        bar.refresh()
+                status = ("interrupted" if self.stop_signal else
+                          "complete" if time.monotonic() >= deadline else "devices ended")
+            except KeyboardInterrupt:   # only where no handler could be installed (not the main thread)
+                self.stop_signal = self.stop_signal or "SIGINT"
+                status = "interrupted"
+            finally:
                 if bar is not None:
-                    bar.n = round(min(time.monotonic() - self.t_mono_start, seconds), 1)
-                    bar.refresh()
-            self.status = "complete" if time.monotonic() >= deadline else "devices ended"
-        except KeyboardInterrupt:
-            self.status = "interrupted"
+                    bar.close()
+                info = self.stop(status)
+            return info
+
+    @contextmanager
+    def stop_signals(self):
+        """While inside, SIGINT/SIGTERM/SIGHUP only note a stop request (`stop_signal`): the
+        main loop of `run()` ends, the devices stop and session.json is written; further
+        signals during that shutdown are ignored. The previous handlers come back at the end
+        (a caller may hold it open longer, e.g. while printing the summary). Nothing is
+        installed outside the main thread (Python allows handlers only there)."""
+        installed = {}
+        if threading.current_thread() is threading.main_thread():
+            for name in STOP_SIGNALS:
+                number = getattr(signal, name, None)
+                if number is not None:
+                    installed[number] = signal.signal(number, self._on_stop_signal)
+        try:
+            yield
         finally:
-            if bar is not None:
-                bar.close()
-            self._stop_all()
-        return self._write_session_json(partial=False)
+            for number, old in installed.items():
+                signal.signal(number, old if old is not None else signal.SIG_DFL)
+
+    def _on_stop_signal(self, signum: int, frame) -> None:
+        if not self.stop_signal:
+            self.stop_signal = signal.Signals(signum).name
+        self.stop_event.set()
 
     def _stop_all(self) -> None:
         self.stop_event.set()
@@ -206,15 +270,26 @@ class RecordSession:
         for run in self.devices:
             if run.thread is not None:
                 try:
-                    run.thread.join(timeout=5.0)
-                except KeyboardInterrupt:   # a second Ctrl-C: wait once more, then go on
-                    run.thread.join(timeout=5.0)
+                    run.thread.join(timeout=JOIN_TIMEOUT_S)
+                except KeyboardInterrupt:   # a second Ctrl-C without our handler: wait once more, then go on
+                    run.thread.join(timeout=JOIN_TIMEOUT_S)
+                if run.thread.is_alive() and not run.error:
+                    run.error = f"the {run.kind} thread did not stop within {JOIN_TIMEOUT_S:g} s"
             if run.kind != "sdr" and run.reader is not None:
                 run.end_reason = run.reader.end_reason
                 run.records = run.reader.summary()
-                run.reader.close()
-                run.raw.close()
+        self._close_devices()
         self.t_mono_stop = time.monotonic()
+
+    def _close_devices(self) -> None:
+        for run in self.devices:
+            for closable in (run.reader, run.raw):
+                if closable is not None and hasattr(closable, "close"):
+                    try:
+                        closable.close()
+                    except (OSError, ValueError) as exc:   # a raw log that cannot flush its last bytes
+                        run.error = run.error or f"{type(exc).__name__}: {exc}"
+                        run.exception = run.exception or exc
 
     def _write_session_json(self, partial: bool) -> dict:
         devices = []
@@ -228,5 +303,7 @@ class RecordSession:
                                      self.time_map.final())
         info = session_json("recording" if partial else self.status, self.start_utc.isoformat(), self.t_mono_start,
                             devices, self.sdr_settings if has_sdr else None, stop)
-        write_json(self.folder / "session.json", info)
+        if self.stop_signal and not partial:
+            info["stop_signal"] = self.stop_signal
+        write_json_replacing(self.folder / "session.json", info)
         return json.loads((self.folder / "session.json").read_text())

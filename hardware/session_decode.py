@@ -12,7 +12,8 @@ from hardware.errors import UserInputError
 from hardware.gnss.reader import GnssDecoder
 from hardware.imu.witmotion import SampleGrouper, WitMotionParser
 from hardware.records import GnssTimeTag, ImuSample
-from hardware.session_files import GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, CsvSink, gnss_rows, imu_row
+from hardware.session_files import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, CsvSink, fit_time_map, gnss_rows,
+                                    imu_row)
 
 
 def iter_raw_chunks(folder: Path, name: str) -> Iterable[tuple[bytes, float]]:
@@ -95,9 +96,9 @@ def decode_session(folder: str | Path) -> DecodedSession:
         decoder = GnssDecoder()
         for chunk, t_mono in iter_raw_chunks(folder, "gnss"):
             result.gnss_records.extend(decoder.decode(chunk, t_mono))
-        decoder.close()
+        result.gnss_records.extend(decoder.close())
         result.gnss_summary = decoder.summary()
-        result.time_map = TimeMap.fit(r for r in result.gnss_records if isinstance(r, GnssTimeTag))
+        result.time_map = fit_time_map(r for r in result.gnss_records if isinstance(r, GnssTimeTag))
     if (folder / "imu.raw").exists():
         parser, grouper = WitMotionParser(), SampleGrouper()
         for chunk, t_mono in iter_raw_chunks(folder, "imu"):

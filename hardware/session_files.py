@@ -3,16 +3,26 @@
 Column lists of the decoded CSVs, the flushed CSV and raw-log writers, the running
 monotonic -> UTC map the live CSVs use, record -> CSV row functions and the session.json
 content (`session_json`). Every column is described in hardware/README.md.
+
+`replace_file` writes a whole file through a temporary file renamed over it (session.json,
+and the runtime's results files through `leonav_runtime.output`): a reader, a kill or a
+full disk never sees half of it. The flushed logs (raw bytes, chunk index, CSV rows)
+instead grow one flushed piece at a time; a write error there names the file.
 """
 from __future__ import annotations
 
 import csv
+import json
 import math
+import os
 import threading
+import uuid
+import warnings
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import IO, Any, Callable, Iterable
 
 from hardware.clock import TimeMap, utc_unix
+from hardware.jsonfile import jsonable
 from hardware.records import GnssFix, GnssTimeTag, ImuSample, RxmRawx
 
 SESSION_VERSION = 1
@@ -36,6 +46,53 @@ IMU_COLUMNS = [
 ]
 
 
+def replace_file(path: str | Path, write: Callable[[IO], None], binary: bool = False) -> Path:
+    """Write `path` whole: `write(fh)` fills a temporary file beside it (same folder, mode
+    from the umask), which is flushed to disk and renamed over `path`. On any error or
+    interrupt the temporary file is removed and `path` keeps its old content (or stays
+    absent); an OSError names `path`."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
+    try:
+        with open(tmp, "xb" if binary else "x", **({} if binary else {"newline": "", "encoding": "utf-8"})) as fh:
+            write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        if isinstance(exc, OSError) and exc.filename in (str(tmp), tmp):
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
+        raise
+    return path
+
+
+def write_json_replacing(path: str | Path, data: Any) -> Path:
+    """`hardware.jsonfile.write_json`'s format (indented, NumPy values converted, NaN as
+    null), written through `replace_file`."""
+    text = json.dumps(jsonable(data), indent=2) + "\n"
+    return replace_file(path, lambda fh: fh.write(text))
+
+
+def fit_time_map(tags: Iterable[GnssTimeTag]) -> TimeMap:
+    """`TimeMap.fit`, or an empty (invalid) map when the tags leave it nothing to fit (two
+    groups of tags more than 1 s apart around their median: every tag is an outlier)."""
+    try:
+        with warnings.catch_warnings():   # numpy's "mean of empty slice" on the way to that ValueError
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return TimeMap.fit(tags)
+    except ValueError:
+        return TimeMap()
+
+
+def _named(exc: OSError, path: Path) -> OSError:
+    """The OSError of a write to `path`, with `path` as its file name."""
+    return exc if exc.filename else OSError(exc.errno, exc.strerror, str(path))
+
+
 def _num(value: Any) -> Any:
     if value is None:
         return ""
@@ -57,8 +114,12 @@ class CsvSink:
         self.rows = 0
 
     def write(self, row: Iterable[Any]) -> None:
-        self._writer.writerow([_num(v) for v in row])
-        self._fh.flush()
+        cells = [_num(v) for v in row]
+        try:
+            self._writer.writerow(cells)
+            self._fh.flush()
+        except OSError as exc:
+            raise _named(exc, self.path) from exc
         self.rows += 1
 
     def close(self) -> None:
@@ -78,11 +139,17 @@ class RawLog:
 
     def write(self, chunk: bytes, t_mono_s: float) -> None:
         with self._lock:
-            self._fh.write(chunk)
-            self._fh.flush()
+            try:
+                self._fh.write(chunk)
+                self._fh.flush()
+            except OSError as exc:
+                raise _named(exc, self.path) from exc
             self.n_bytes += len(chunk)
-            self._idx.write(f"{t_mono_s!r},{self.n_bytes}\n")
-            self._idx.flush()
+            try:
+                self._idx.write(f"{t_mono_s!r},{self.n_bytes}\n")
+                self._idx.flush()
+            except OSError as exc:
+                raise _named(exc, Path(self._idx.name)) from exc
 
     def close(self) -> None:
         self._fh.close()
@@ -100,7 +167,7 @@ class RunningTimeMap:
     def add(self, tag: GnssTimeTag) -> None:
         with self._lock:
             self._tags.append(tag)
-            self._map = TimeMap.fit(self._tags[-RUNNING_MAP_WINDOW:])
+            self._map = fit_time_map(self._tags[-RUNNING_MAP_WINDOW:])
 
     def utc(self, t_mono_s: float) -> float:
         with self._lock:
@@ -109,7 +176,7 @@ class RunningTimeMap:
 
     def final(self) -> TimeMap:
         with self._lock:
-            return TimeMap.fit(self._tags)
+            return fit_time_map(self._tags)
 
 
 # ------------------------------------------------------------------ record -> rows

@@ -72,7 +72,12 @@ def build_frame(msg_class: int, msg_id: int, payload: bytes = b"") -> bytes:
 
 
 def gps_to_utc(week: int, tow_s: float, leap_s: int) -> _dt.datetime:
-    """UTC datetime of GPS week/time-of-week, given GPS-UTC leap seconds."""
+    """UTC datetime of GPS week/time-of-week, given GPS-UTC leap seconds.
+
+    ValueError when the time of week is not finite or outside [-1 s, one week + 1 s] (the
+    second of margin holds a receiver's rounded fractional part) or the week is negative."""
+    if not (math.isfinite(tow_s) and -1.0 <= tow_s <= SECONDS_PER_WEEK + 1.0 and week >= 0):
+        raise ValueError(f"GPS week {week}, time of week {tow_s!r} s: expected a week >= 0 and 0..{SECONDS_PER_WEEK:g} s")
     return GPS_EPOCH + _dt.timedelta(seconds=week * SECONDS_PER_WEEK + tow_s - leap_s)
 
 

@@ -4,9 +4,19 @@ session folder (raw logs, decoded CSVs, SigMF IQ, session.json). See hardware/RE
 from __future__ import annotations
 
 import argparse
+import math
+import shutil
+from pathlib import Path
 
 from hardware.sdr.capture import DEFAULT_LNB_LO_HZ
 from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
+
+MAX_SECONDS = 30 * 86400             # one recording at most 30 days
+BAUD_RANGE = (50, 12_000_000)        # serial rates a UART / USB adapter can run (FTDI tops at 12 Mbaud)
+SDR_RATE_RANGE = (225e3, 3.2e6)      # RTL-SDR sample rates (S/s)
+SDR_GAIN_RANGE_DB = (0.0, 60.0)
+SDR_BYTES_PER_SAMPLE = 2             # cu8: one byte I, one byte Q
+DISK_MARGIN_BYTES = 100e6            # left free beside the capture
 
 
 def _gain(text: str) -> float | str:
@@ -23,10 +33,13 @@ def register(subparsers) -> None:
         "record",
         help="record GNSS (NMEA/UBX) + WitMotion IMU + RTL-SDR IQ into a session folder",
         description="Record serial GNSS and IMU streams and an RTL-SDR capture of the LNB IF. "
-        "Raw bytes are flushed as they arrive, so Ctrl-C or an unplugged device leaves a "
-        "readable session. Decoded CSVs and session.json describe the run.",
+        "Raw bytes are flushed as they arrive, so Ctrl-C, SIGTERM, SIGHUP or an unplugged device leaves a "
+        "readable session (exit status 130 for a signal). Decoded CSVs and session.json describe the run; "
+        "status \"failed\" (exit 3 or 1) when a device thread ended on an error such as a full disk. Limits: "
+        "--seconds up to 30 days, baud 50..12000000, with --sdr the capture must fit on the disk.",
     )
-    parser.add_argument("outdir", help="session folder to create (or reuse)")
+    parser.add_argument("outdir", help="session folder to create (or an empty one; a recording is never "
+                        "overwritten)")
     parser.add_argument("--gnss", metavar="PORT", help="GNSS serial port or pyserial URL (e.g. /dev/ttyAMA0)")
     parser.add_argument("--gnss-baud", type=int, default=38400, help="GNSS baud rate (default 38400, the M10 default)")
     parser.add_argument("--imu", metavar="PORT", help="WitMotion serial port (e.g. /dev/ttyUSB0)")
@@ -47,20 +60,67 @@ def register(subparsers) -> None:
     parser.set_defaults(func=_run)
 
 
+def _existing_parent(path: Path) -> Path:
+    path = path.absolute()
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return path
+
+
+def check_options(args: argparse.Namespace) -> None:
+    """Every option in range before a device is opened or a file written (UserInputError)."""
+    from leonav_runtime.errors import UserInputError
+
+    if not (math.isfinite(args.seconds) and 0 < args.seconds <= MAX_SECONDS):
+        raise UserInputError(f"--seconds {args.seconds!r}: expected a duration in (0, {MAX_SECONDS}] s (30 days)")
+    for option, baud in (("--gnss-baud", args.gnss_baud), ("--imu-baud", args.imu_baud)):
+        if not BAUD_RANGE[0] <= baud <= BAUD_RANGE[1]:
+            raise UserInputError(f"{option} {baud}: expected a baud rate in {BAUD_RANGE[0]}..{BAUD_RANGE[1]}")
+    for option, hz in (("--rf-hz", args.rf_hz), ("--lnb-lo-hz", args.lnb_lo_hz)):
+        if not (math.isfinite(hz) and hz > 0):
+            raise UserInputError(f"{option} {hz!r}: expected a positive frequency in Hz")
+    if not (math.isfinite(args.sdr_rate) and SDR_RATE_RANGE[0] <= args.sdr_rate <= SDR_RATE_RANGE[1]):
+        raise UserInputError(f"--sdr-rate {args.sdr_rate!r}: expected {SDR_RATE_RANGE[0]:g}..{SDR_RATE_RANGE[1]:g} "
+                             "samples/s (RTL-SDR)")
+    if args.sdr_gain != "auto" and not (math.isfinite(args.sdr_gain)
+                                        and SDR_GAIN_RANGE_DB[0] <= args.sdr_gain <= SDR_GAIN_RANGE_DB[1]):
+        raise UserInputError(f"--sdr-gain {args.sdr_gain!r}: expected 'auto' or {SDR_GAIN_RANGE_DB[0]:g}.."
+                             f"{SDR_GAIN_RANGE_DB[1]:g} dB")
+    if abs(args.sdr_ppm) > 1000:
+        raise UserInputError(f"--sdr-ppm {args.sdr_ppm}: expected -1000..1000")
+    if args.sdr is not None:
+        where = _existing_parent(Path(args.outdir))
+        need = args.seconds * args.sdr_rate * SDR_BYTES_PER_SAMPLE + DISK_MARGIN_BYTES
+        free = shutil.disk_usage(where).free
+        if need > free:
+            raise UserInputError(
+                f"--seconds {args.seconds:g} at --sdr-rate {args.sdr_rate:g} S/s needs {need / 1e9:.1f} GB for "
+                f"sdr.cu8 but {free / 1e9:.1f} GB are free on {where}; record less (--seconds) or at a lower "
+                "--sdr-rate, or free the disk")
+
+
 def _run(args: argparse.Namespace) -> int:
     from hardware.sdr.capture import SdrSettings
     from hardware.session import RecordSession
-    from leonav_runtime.errors import UserInputError
 
-    if args.seconds <= 0:
-        raise UserInputError(f"--seconds {args.seconds}: expected a positive duration")
+    check_options(args)
     settings = SdrSettings(rf_center_hz=args.rf_hz, lnb_lo_hz=args.lnb_lo_hz,
                            sample_rate_hz=args.sdr_rate, gain_db=args.sdr_gain, ppm=args.sdr_ppm)
     session = RecordSession(args.outdir, gnss=args.gnss, imu=args.imu, sdr_index=args.sdr,
                             gnss_baud=args.gnss_baud, imu_baud=args.imu_baud,
                             configure=args.configure, sdr_settings=settings)
-    info = session.run(args.seconds)
-    print(f"session {args.outdir}: {info['status']}")
+    with session.stop_signals():   # a second Ctrl-C while the summary is printed is ignored too
+        info = session.run(args.seconds)
+        _print_summary(args, info)
+    if info["status"] == "failed":   # one line from the CLI, with the exit status of that error
+        failure = next((run.exception for run in session.devices if run.exception is not None), None)
+        raise failure or RuntimeError("a device thread failed (see session.json)")
+    return 0 if info["status"] != "interrupted" else 130
+
+
+def _print_summary(args: argparse.Namespace, info: dict) -> None:
+    status = info["status"] + (f" ({info['stop_signal']})" if info.get("stop_signal") else "")
+    print(f"session {args.outdir}: {status}")
     for dev in info["devices"]:
         accepted = dev.get("accepted", {})
         rejected = dev.get("rejected", {})
@@ -76,4 +136,3 @@ def _run(args: argparse.Namespace) -> int:
               f"residual std {tm['residual_std_s'] * 1e3:.1f} ms")
     else:
         print("  time map: no GNSS time tags (imu.csv has no UTC column values)")
-    return 0 if info["status"] != "interrupted" else 130
