@@ -16,32 +16,108 @@ from hardware.session_files import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLU
                                     imu_row)
 
 
+INDEX_HEADER = "t_mono_s,end_offset"
+MAX_STAMP_S = 1e10              # a monotonic clock's seconds (since boot): far below 317 years
+MAX_SESSION_JSON_BYTES = 16_000_000
+
+
+def _text(path: Path, what: str) -> str:
+    try:
+        return path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise UserInputError(f"{path}: not UTF-8 text (byte {exc.start}); expected {what}") from None
+
+
+def read_chunk_index(folder: Path, name: str) -> list[tuple[int, float]]:
+    """(end_offset, t_mono_s) of every chunk of `<name>.raw`, from `<name>.chunks.csv`.
+
+    UserInputError naming the file and line for a missing index, a line that is not two
+    numbers, a stamp that is not finite (or beyond MAX_STAMP_S) or goes back in time, and an
+    offset that goes back. A last line without its line end (cut by a stop between the two
+    writes of a chunk) is ignored."""
+    idx_path = folder / f"{name}.chunks.csv"
+    if not idx_path.is_file():
+        raise UserInputError(f"{idx_path}: missing; the arrival stamps of {name}.raw are needed to place its "
+                             f"records in time (expected lines '{INDEX_HEADER}')")
+    lines = _text(idx_path, f"'{INDEX_HEADER}' lines").split("\n")
+    if lines[0].strip() != INDEX_HEADER:
+        raise UserInputError(f"{idx_path}:1: expected the header '{INDEX_HEADER}', got {lines[0][:40]!r}")
+    out: list[tuple[int, float]] = []
+    for line_no, line in enumerate(lines[1:-1], start=2):   # lines[-1]: '' or a line cut short
+        parts = line.strip().split(",")
+        try:
+            t_mono, end = float(parts[0]), int(parts[1])
+            if len(parts) != 2:
+                raise ValueError(f"{len(parts)} fields")
+        except (ValueError, IndexError) as exc:
+            raise UserInputError(f"{idx_path}:{line_no}: expected '{INDEX_HEADER}' numbers, got {line[:60]!r} "
+                                 f"({exc})") from None
+        prev_t, prev_end = out[-1][1] if out else -MAX_STAMP_S, out[-1][0] if out else 0
+        if not abs(t_mono) < MAX_STAMP_S:
+            raise UserInputError(f"{idx_path}:{line_no}: t_mono_s {parts[0]}: expected a finite monotonic time "
+                                 f"within +-{MAX_STAMP_S:g} s")
+        if t_mono < prev_t:
+            raise UserInputError(f"{idx_path}:{line_no}: t_mono_s {parts[0]} is earlier than the line before "
+                                 f"({prev_t!r}): the stamps of a monotonic clock only grow")
+        if end < prev_end:
+            raise UserInputError(f"{idx_path}:{line_no}: end_offset {end} is below the line before ({prev_end}): "
+                                 "expected growing byte offsets")
+        out.append((end, t_mono))
+    return out
+
+
 def iter_raw_chunks(folder: Path, name: str) -> Iterable[tuple[bytes, float]]:
-    """(chunk, t_mono_s) of `<name>.raw` as recorded, using `<name>.chunks.csv`.
+    """(chunk, t_mono_s) of `<name>.raw` as recorded, using `<name>.chunks.csv` (`read_chunk_index`).
 
     Bytes past the last indexed offset (a run killed between the two writes) come last,
-    stamped with the last stamp.
+    stamped with the last stamp (NaN without an index: `decode_session` refuses records
+    without a stamp).
     """
     data = (folder / f"{name}.raw").read_bytes()
-    idx_path = folder / f"{name}.chunks.csv"
-    start, t_last = 0, math.nan
-    if idx_path.exists():
-        with open(idx_path) as fh:
-            next(fh, None)
-            for line_no, line in enumerate(fh, start=2):
-                parts = line.strip().split(",")
-                if len(parts) != 2:
-                    continue          # a line cut by an interrupted write
-                try:
-                    t_mono, end = float(parts[0]), int(parts[1])
-                except ValueError as exc:
-                    raise UserInputError(f"{idx_path}:{line_no}: expected 't_mono_s,end_offset' ({exc})") from exc
-                end = min(end, len(data))
-                if end > start:
-                    yield data[start:end], t_mono
-                start, t_last = max(start, end), t_mono
+    index = read_chunk_index(folder, name) if (folder / f"{name}.chunks.csv").exists() else []
+    start = 0
+    for end, t_mono in index:
+        end = min(end, len(data))
+        if end > start:
+            yield data[start:end], t_mono
+        start = max(start, end)
     if start < len(data):
-        yield data[start:], t_last
+        yield data[start:], index[-1][1] if index else math.nan
+
+
+def _stamped(folder: Path, name: str, n_records: int) -> None:
+    """Records decoded from `<name>.raw` need its chunk index (without one they have no time)."""
+    idx_path = folder / f"{name}.chunks.csv"
+    if n_records and not (idx_path.is_file() and read_chunk_index(folder, name)):
+        raise UserInputError(f"{idx_path}: missing or empty; the arrival stamps of {name}.raw are needed to place "
+                             f"its {n_records} records in time (expected lines '{INDEX_HEADER}')")
+
+
+def read_session_info(path: Path) -> dict:
+    """session.json as a dict, checked where the replay reads it (UserInputError naming the file)."""
+    if path.stat().st_size > MAX_SESSION_JSON_BYTES:
+        raise UserInputError(f"{path}: more than {MAX_SESSION_JSON_BYTES / 1e6:g} MB: not a session.json")
+    try:
+        info = json.loads(_text(path, "a JSON object"))
+    except json.JSONDecodeError as exc:
+        raise UserInputError(f"{path}: line {exc.lineno}: invalid JSON ({exc.msg})") from exc
+    except RecursionError:
+        raise UserInputError(f"{path}: arrays or objects nested too deeply: not a session.json") from None
+    problem = None
+    if not isinstance(info, dict):
+        kinds = {list: "an array", str: "a string", bool: "true/false", int: "a number", float: "a number"}
+        problem = f"expected a JSON object, got {kinds.get(type(info), 'null')}"
+    elif not (isinstance(info.get("devices", []), list) and all(isinstance(d, dict) for d in info.get("devices", []))):
+        problem = "devices: expected a list of objects"
+    elif "start_utc" in info and not isinstance(info["start_utc"], str):
+        problem = f"start_utc: expected an ISO 8601 time as text, got {info['start_utc']!r:.40}"
+    elif "t_mono_start_s" in info and not (isinstance(info["t_mono_start_s"], (int, float))
+                                           and not isinstance(info["t_mono_start_s"], bool)
+                                           and abs(info["t_mono_start_s"]) < MAX_STAMP_S):
+        problem = f"t_mono_start_s: expected a finite monotonic time in s, got {info['t_mono_start_s']!r:.40}"
+    if problem:
+        raise UserInputError(f"{path}: {problem}")
+    return info
 
 
 @dataclass
@@ -88,15 +164,13 @@ def decode_session(folder: str | Path) -> DecodedSession:
     result = DecodedSession(folder)
     info_path = folder / "session.json"
     if info_path.exists():
-        try:
-            result.session_info = json.loads(info_path.read_text())
-        except json.JSONDecodeError as exc:
-            raise UserInputError(f"{info_path}: line {exc.lineno}: invalid JSON ({exc.msg})") from exc
+        result.session_info = read_session_info(info_path)
     if (folder / "gnss.raw").exists():
         decoder = GnssDecoder()
         for chunk, t_mono in iter_raw_chunks(folder, "gnss"):
             result.gnss_records.extend(decoder.decode(chunk, t_mono))
         result.gnss_records.extend(decoder.close())
+        _stamped(folder, "gnss", len(result.gnss_records))
         result.gnss_summary = decoder.summary()
         result.time_map = fit_time_map(r for r in result.gnss_records if isinstance(r, GnssTimeTag))
     if (folder / "imu.raw").exists():
@@ -106,6 +180,7 @@ def decode_session(folder: str | Path) -> DecodedSession:
                 result.imu_samples.extend(grouper.push(packet))
         parser.close()
         result.imu_samples.extend(grouper.flush())
+        _stamped(folder, "imu", len(result.imu_samples))
         rejected = dict(parser.rejected)
         if grouper.incomplete:
             rejected["incomplete_samples"] = grouper.incomplete

@@ -1,24 +1,32 @@
 """Results folders: every computing command writes JSON/CSV/PNG into one folder.
 
 `write_json` is `hardware.jsonfile.write_json` (one JSON writer for session files and results).
+`write_csv` writes through `hardware.session_files.replace_file`: a temporary file in the
+same folder renamed over the target, so a full disk or a kill never leaves a half-written
+CSV (the old file, if any, stays whole).
 
-Default location is `./leonav-out/<command>-<UTC timestamp>/`; `--out DIR` overrides it.
+Default location is `./leonav-out/<command>-<UTC timestamp>/`; `--out DIR` overrides it. The
+default folder's name never leaves `./leonav-out` (path separators and `..` in the command
+name, e.g. from a scenario name, become `_`).
 """
 from __future__ import annotations
 
 import argparse
 import csv
 import datetime as _dt
+import re
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 import numpy as np
 
 from hardware.jsonfile import write_json
+from hardware.session_files import replace_file
 
 __all__ = ["add_out_argument", "results_dir", "write_json", "write_csv"]
 
 DEFAULT_ROOT = Path("leonav-out")
+_UNSAFE = re.compile(r"[^A-Za-z0-9._+-]|\.\.+")
 
 
 def add_out_argument(parser: argparse.ArgumentParser) -> None:
@@ -35,7 +43,7 @@ def results_dir(out: str | Path | None, command: str) -> Path:
     """Create and return the results folder for `command`."""
     if out is None:
         stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-        out = DEFAULT_ROOT / f"{command}-{stamp}"
+        out = DEFAULT_ROOT / f"{_UNSAFE.sub('_', command).lstrip('.') or 'results'}-{stamp}"
     path = Path(out)
     path.mkdir(parents=True, exist_ok=True)
     return path
@@ -43,10 +51,10 @@ def results_dir(out: str | Path | None, command: str) -> Path:
 
 def write_csv(path: str | Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Path:
     """Write a CSV with a header row; floats are written with full precision."""
-    path = Path(path)
-    with path.open("w", newline="") as fh:
+    def fill(fh) -> None:
         writer = csv.writer(fh)
         writer.writerow(header)
         for row in rows:
             writer.writerow([repr(float(v)) if isinstance(v, (float, np.floating)) else v for v in row])
-    return path
+
+    return replace_file(path, fill)

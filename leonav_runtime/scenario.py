@@ -6,6 +6,10 @@ below (type, unit, range, allowed values), rejects unknown keys (typos), and ret
 `Scenario` whose fields are SI (rad, m, s, Hz). Errors name the file, the field, the value
 and what was expected.
 
+Limits, checked before anything is allocated: a scenario file of at most 1 MB; measurement
+rates that divide the IMU rate and give an epoch within the run; manoeuvres within 100 m/s^2,
+180 deg/s and 0..400 m/s; the memory a run needs at most LEONAV_MAX_MEMORY_MB (`run_size`).
+
 Satellite-selection rule (`starlink.selection`, one rule today: `"highest-elevation"`): at
 every Starlink epoch the N satellites above the mask with the highest elevation are used,
 so over a long run the set follows the sky as satellites rise and set. Asking for more
@@ -16,6 +20,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,21 +31,18 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
+from leonav_runtime import run_size
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.utc import parse_utc
 from leonav_runtime.params import IMU_PROFILES as IMU_PROFILE_DATA
 from leonav_runtime.gen.constants import CHI2_1DOF_999, STARLINK_BEACON_HZ, STARLINK_MASK_DEG
 
 BUILTIN_DIR = Path(__file__).with_name("scenarios")
+MAX_FILE_BYTES = 1_000_000
+MAX_ACCEL_MPS2, MAX_TURN_DEG_S, MAX_COUNT = 100.0, 180.0, 10_000
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,63}")
 
-MODES = (
-    "gps+imu",
-    "leo-alpha+imu",
-    "gps+leo-alpha+imu",
-    "leo-ofdm+imu",
-    "leo-alpha+ofdm+imu",
-    "leo-doppler+alpha+imu",
-)
+MODES = ("gps+imu", "leo-alpha+imu", "gps+leo-alpha+imu", "leo-ofdm+imu", "leo-alpha+ofdm+imu", "leo-doppler+alpha+imu")
 """Fusion modes: which observables feed the filter (IMU always propagates)."""
 
 MODE_OBSERVABLES: dict[str, tuple[str, ...]] = {
@@ -177,35 +179,45 @@ def _where(source: str, section: str, key: str) -> str:
     return f"{source}: [{section}] {key}" if section else f"{source}: {key}"
 
 
+def _show(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _finite(value: Any) -> bool:
+    try:
+        return math.isfinite(value)
+    except OverflowError:   # an integer beyond any float
+        return False
+
+
 def _check_value(source: str, section: str, key: str, spec: Field, value: Any) -> Any:
-    where = _where(source, section, key)
+    where, given = _where(source, section, key), value
     kinds = spec.kind if isinstance(spec.kind, tuple) else (spec.kind,)
     if float in kinds and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
+        value = float(value) if _finite(value) else math.inf
     if not isinstance(value, kinds) or isinstance(value, bool):
         names = " or ".join(k.__name__ for k in kinds)
-        raise UserInputError(f"{where} = {value!r}: expected a {names} in {spec.unit}")
-    if isinstance(value, float) and not math.isfinite(value):
-        raise UserInputError(f"{where} = {value!r}: expected a finite number in {spec.unit}")
+        raise UserInputError(f"{where} = {_show(value)}: expected a {names} in {spec.unit}")
     if isinstance(value, (int, float)):
-        if (spec.lo is not None and value < spec.lo) or (spec.hi is not None and value > spec.hi):
-            raise UserInputError(
-                f"{where} = {value!r}: expected {spec.unit} in [{spec.lo}, {spec.hi}]"
-            )
+        if not _finite(value) or (spec.lo is not None and value < spec.lo) or (spec.hi is not None and value > spec.hi):
+            raise UserInputError(f"{where} = {_show(given if isinstance(given, int) else value)}: expected "
+                                 f"{spec.unit} in [{spec.lo}, {spec.hi}]")
     if spec.choices is not None and value not in spec.choices:
-        raise UserInputError(f"{where} = {value!r}: expected one of {', '.join(spec.choices)}")
+        raise UserInputError(f"{where} = {_show(value)}: expected one of {', '.join(spec.choices)}")
     return value
 
 
 def _numbers(source: str, section: str, key: str, value: Any, length: int | None,
-             unit: str) -> list[float]:
+             unit: str, limit: float = math.inf) -> list[float]:
     where = _where(source, section, key)
     ok = isinstance(value, list) and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value
+        isinstance(v, (int, float)) and not isinstance(v, bool) and _finite(v) and abs(v) <= limit for v in value
     )
     if not ok or (length is not None and len(value) != length):
         n = f"{length} " if length is not None else ""
-        raise UserInputError(f"{where} = {value!r}: expected a list of {n}numbers in {unit}")
+        within = f" within +-{limit:g}" if limit < math.inf else ""
+        raise UserInputError(f"{where} = {_show(value)}: expected a list of {n}numbers in {unit}{within}")
     return [float(v) for v in value]
 
 
@@ -222,14 +234,12 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
     for section, fields in SCHEMA.items():
         given = data if section == "" else data.get(section, {})
         if section and not isinstance(given, dict):
-            raise UserInputError(f"{source}: [{section}] must be a table, got {given!r}")
+            raise UserInputError(f"{source}: [{section}] must be a table, got {_show(given)}")
         if section:
             unknown = set(given) - set(fields)
             if unknown:
-                raise UserInputError(
-                    f"{source}: [{section}] unknown key {sorted(unknown)[0]!r}; expected one of "
-                    f"{', '.join(fields)}"
-                )
+                raise UserInputError(f"{source}: [{section}] unknown key {_show(sorted(unknown)[0])}; expected one "
+                                     f"of {', '.join(fields)}")
         out: dict[str, Any] = {}
         for key, spec in fields.items():
             if key in given:
@@ -241,16 +251,22 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
         values[section] = out
 
     traj = dict(values["trajectory"])
-    att = _numbers(source, "trajectory", "attitude_deg", traj["attitude_deg"], 3, "deg")
+    att = _numbers(source, "trajectory", "attitude_deg", traj["attitude_deg"], 3, "deg", limit=360.0)
     traj["attitude_rad"] = [math.radians(a) for a in att]
-    maneuvers = []
+    maneuvers, t_end, speed = [], 0.0, traj["speed_mps"]
     for i, m in enumerate(traj["maneuvers"]):
         row = _numbers(source, "trajectory", f"maneuvers[{i}]", m, 3,
                        "[duration_s, acceleration_mps2, turn_rate_deg_s]")
-        if row[0] <= 0:
-            raise UserInputError(
-                f"{source}: [trajectory] maneuvers[{i}] duration {row[0]!r} s: expected > 0 s"
-            )
+        where = f"{source}: [trajectory] maneuvers[{i}]"
+        for what, value, lo, hi, unit in (("duration", row[0], 1e-3, 86400, "s"),
+                                          ("acceleration", row[1], -MAX_ACCEL_MPS2, MAX_ACCEL_MPS2, "m/s^2"),
+                                          ("turn rate", row[2], -MAX_TURN_DEG_S, MAX_TURN_DEG_S, "deg/s")):
+            if not lo <= value <= hi:
+                raise UserInputError(f"{where} {what} {value:g} {unit}: expected {lo:g}..{hi:g} {unit}")
+        t_end, speed = t_end + row[0], speed + row[0] * row[1]
+        if not 0 <= speed <= SCHEMA["trajectory"]["speed_mps"].hi:
+            raise UserInputError(f"{source}: [trajectory] maneuvers make the speed {speed:g} m/s at {t_end:g} s: "
+                                 f"expected 0..{SCHEMA['trajectory']['speed_mps'].hi:g} m/s")
         maneuvers.append((row[0], row[1], math.radians(row[2])))
     traj["maneuvers"] = maneuvers
     traj["roll_amplitude_rad"] = math.radians(traj.pop("roll_amplitude_deg"))
@@ -263,26 +279,23 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
     for i, w in enumerate(gps.pop("outages_s")):
         a, b = _numbers(source, "gps", f"outages_s[{i}]", w, 2, "[start_s, end_s]")
         if not 0 <= a < b <= duration:
-            raise UserInputError(
-                f"{source}: [gps] outages_s[{i}] = {w!r}: expected 0 <= start < end <= "
-                f"duration ({duration} s)"
-            )
+            raise UserInputError(f"{source}: [gps] outages_s[{i}] = {_show(w)}: expected 0 <= start < end <= "
+                                 f"duration ({duration} s)")
         outages.append((a, b))
     gps["outages"] = outages
     gps["elevation_mask_rad"] = math.radians(gps.pop("elevation_mask_deg"))
 
     star = dict(values["starlink"])
     counts = star["counts"]
-    if not counts or not all(isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in counts):
-        raise UserInputError(
-            f"{source}: [starlink] counts = {counts!r}: expected a non-empty list of integers >= 1"
-        )
+    if not counts or not all(isinstance(c, int) and not isinstance(c, bool) and 1 <= c <= MAX_COUNT for c in counts):
+        raise UserInputError(f"{source}: [starlink] counts = {_show(counts)}: expected a non-empty list of "
+                             f"integers >= 1 (at most {MAX_COUNT})")
     star["counts"] = sorted(set(counts))  # ascending: min/max and curves read it in order
     star["elevation_mask_rad"] = math.radians(star.pop("elevation_mask_deg"))
 
     files = values["elements"]["files"]
-    if not all(isinstance(f, str) for f in files):
-        raise UserInputError(f"{source}: [elements] files = {files!r}: expected a list of paths")
+    if not all(isinstance(f, str) and f and "\0" not in f for f in files):
+        raise UserInputError(f"{source}: [elements] files = {_show(files)}: expected a list of paths")
     base = base_dir or Path.cwd()
     element_files = [(base / f) if not Path(f).is_absolute() else Path(f) for f in files]
     if values["elements"]["source"] == "files" and not element_files:
@@ -291,13 +304,24 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
     modes = values["monte_carlo"]["modes"]
     bad = [m for m in modes if m not in MODES] if isinstance(modes, list) else [modes]
     if bad or not modes:
-        raise UserInputError(
-            f"{source}: [monte_carlo] modes contains {bad[0] if bad else modes!r}: expected a "
-            f"non-empty list of {', '.join(MODES)}"
-        )
+        raise UserInputError(f"{source}: [monte_carlo] modes contains {_show(bad[0] if bad else modes)}: expected a "
+                             f"non-empty list of {', '.join(MODES)}")
     modes = list(dict.fromkeys(modes))  # keep the given order, drop repeats
     filt = dict(values["filter"])
     filt["initial_attitude_sigma_rad"] = math.radians(filt.pop("initial_attitude_sigma_deg"))
+    if not NAME.fullmatch(values[""]["name"]):   # it names output folders: never a path
+        raise UserInputError(f"{source}: name = {_show(values['']['name'])}: expected 1-64 letters, digits, '.', '_', "
+                             "'+' or '-' (it names the results folder), starting with a letter or digit")
+    used = {k for m in modes for k in MODE_OBSERVABLES[m]}
+    imu_hz = values["imu"]["rate_hz"]
+    for section, needed in (("gps", "pseudorange" in used), ("starlink", bool(used - {"pseudorange"}))):
+        rate = values[section]["rate_hz"]
+        if needed and abs(imu_hz / rate - round(imu_hz / rate)) > 1e-9:
+            raise UserInputError(f"{source}: [{section}] rate_hz = {rate:g}: measurements are tagged on IMU samples, "
+                                 f"so it must divide the IMU rate {imu_hz:g} Hz")
+        if needed and round(imu_hz / rate) > round(duration * imu_hz):
+            raise UserInputError(f"{source}: [{section}] rate_hz = {rate:g}: one epoch every {1 / rate:g} s, none "
+                                 f"within duration_s = {duration:g} s; expected a rate >= {1 / duration:g} Hz")
 
     return Scenario(
         name=values[""]["name"],
@@ -331,12 +355,29 @@ def load_scenario(path: str | Path) -> Scenario:
     if not path.exists():
         builtins = ", ".join(sorted(p.stem for p in BUILTIN_DIR.glob("*.toml")))
         raise UserInputError(f"{path}: scenario file not found (built-in scenarios: {builtins})")
-    text = path.read_text()
+    if path.is_dir():
+        raise UserInputError(f"{path}: is a directory, expected a scenario TOML file")
+    with open(path, "rb") as fh:   # a device or a huge file is read only up to the limit
+        raw = fh.read(MAX_FILE_BYTES + 1)
+    if len(raw) > MAX_FILE_BYTES:
+        size = max(path.stat().st_size, len(raw)) / 1e6
+        raise UserInputError(f"{path}: {size:.1f} MB is more than a scenario file can be ({MAX_FILE_BYTES / 1e6:g} MB)")
     try:
-        data = tomllib.loads(text)
+        data = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise UserInputError(f"{path}: not UTF-8 text (byte {exc.start}); save it as UTF-8") from None
     except tomllib.TOMLDecodeError as exc:
         raise UserInputError(f"{path}: not valid TOML: {exc}") from None
-    return scenario_from_dict(data, source=str(path), base_dir=path.parent)
+    except RecursionError:
+        raise UserInputError(f"{path}: not a scenario: arrays or tables nested too deeply") from None
+    scn = scenario_from_dict(data, source=str(path), base_dir=path.parent)
+    check_run_size(scn, trials=0, workers=1)   # what every command needs: the simulator and one trial
+    return scn
+
+
+def check_run_size(scn: Scenario, trials: int | None = None, workers: int | None = None) -> None:
+    """`run_size.check_run_size` with this module's modes (trials None: the scenario's; workers None: all cores)."""
+    run_size.check_run_size(scn, MODE_OBSERVABLES, SCHEMA["monte_carlo"]["trials"].hi, trials, workers)
 
 
 def builtin_scenarios() -> list[str]:

@@ -5,7 +5,7 @@ import argparse
 
 from leonav_runtime import output
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import builtin_scenarios, load_scenario
+from leonav_runtime.scenario import builtin_scenarios, check_run_size, load_scenario
 
 
 def register(subparsers) -> None:
@@ -42,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"--workers {args.workers}: expected an integer >= 1")
     scn = load_scenario(args.scenario)
+    check_run_size(scn, trials=args.trials, workers=1 if args.dask else args.workers)  # before any work
     out_dir = output.results_dir(args.out, f"sweep-{scn.name}")
     res = run_sweep(scn, out_dir, trials=args.trials, workers=args.workers, dask_address=args.dask,
                     progress=not args.no_progress)

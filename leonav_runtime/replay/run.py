@@ -81,6 +81,10 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
     if not dec.imu_samples:
         raise UserInputError(f"{folder / 'imu.raw'}: no complete WitMotion cycle decoded "
                              f"(rejected: {dec.imu_summary.get('rejected')})")
+    if dec.imu_samples[0].t_mono_s == dec.imu_samples[-1].t_mono_s:
+        raise UserInputError(f"{folder / 'imu.chunks.csv'}: the {len(dec.imu_samples)} WitMotion cycles all arrived "
+                             f"at t_mono_s {dec.imu_samples[0].t_mono_s!r}: the stamps do not advance, so the "
+                             "samples cannot be placed in time")
     to_utc, time_src = mono_to_utc_function(dec, options.gnss_latency_s)
     if not dec.time_map.valid:
         notes.append(f"time: {time_src}")
@@ -133,6 +137,37 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
     return inputs
 
 
+def check_truth_csv(path: Path) -> None:
+    """truth.csv as `scoring.truth_reference` reads it: UTF-8, a header with every truth column,
+    then rows with a finite number in each of them, in time order (UserInputError naming the
+    file and line; a cut last row says the file is truncated)."""
+    from leonav_runtime.replay.scoring import TRUTH_COLUMNS
+
+    try:
+        lines = path.read_bytes().decode("utf-8").splitlines()
+    except UnicodeDecodeError as exc:
+        raise UserInputError(f"{path}: not UTF-8 text (byte {exc.start}); expected a CSV") from None
+    header = lines[0].split(",") if lines else []
+    missing = [c for c in TRUTH_COLUMNS if c not in header]
+    if missing or len(lines) < 2:
+        raise UserInputError(f"{path}: expected a header with {', '.join(TRUTH_COLUMNS)} and at least one row"
+                             + (f" (missing {', '.join(missing)})" if missing else ""))
+    cols, t_prev = [header.index(c) for c in TRUTH_COLUMNS], -math.inf
+    for line_no, line in enumerate(lines[1:], start=2):
+        cells = line.split(",")
+        if len(cells) != len(header):
+            cut = " (the file is cut short)" if line_no == len(lines) else ""
+            raise UserInputError(f"{path}:{line_no}: {len(cells)} of {len(header)} fields{cut}")
+        try:
+            values = [float(cells[j]) for j in cols]
+        except ValueError:
+            values = [math.nan]
+        if not all(math.isfinite(v) for v in values) or values[0] <= t_prev:
+            raise UserInputError(f"{path}:{line_no}: expected finite numbers in {', '.join(TRUTH_COLUMNS)} with "
+                                 f"{TRUTH_COLUMNS[0]} increasing, got {line[:80]!r}")
+        t_prev = values[0]
+
+
 def skip_reasons(inputs: SessionInputs, modes) -> dict[str, str]:
     """Modes that cannot run on these inputs, with the reason."""
     out = {}
@@ -182,6 +217,7 @@ def replay_session(folder: str | Path, out_dir: str | Path, options: ReplayOptio
     truth = folder / "truth.csv"
     ref = None
     if options.use_truth and truth.is_file():
+        check_truth_csv(truth)
         ref = scoring.truth_reference(truth, inputs.epoch_utc, inputs.origin, nav)
     elif inputs.fixes.t.size:
         ref = scoring.fix_reference(inputs.fixes)

@@ -35,7 +35,11 @@ NMEA_LINE_END_BYTES = 2               # CR LF
 
 
 def utc_of(t_utc_unix: float) -> _dt.datetime:
-    return _dt.datetime.fromtimestamp(t_utc_unix, _dt.timezone.utc)
+    try:
+        return _dt.datetime.fromtimestamp(t_utc_unix, _dt.timezone.utc)
+    except (OverflowError, OSError, ValueError):
+        raise UserInputError(f"the session's time axis maps to {t_utc_unix!r} s since 1970: not a UTC time "
+                             "(check the GNSS time tags or session.json start_utc)") from None
 
 
 def device_baud(dec, kind: str) -> int | None:
@@ -80,7 +84,11 @@ def mono_to_utc_function(dec, gnss_latency_s: float = 0.0) -> tuple[Callable[[np
                 f"receiver latency {gnss_latency_s * 1e3:.1f} ms)")
     info = dec.session_info
     if "start_utc" in info and "t_mono_start_s" in info:
-        start = utc_unix(_dt.datetime.fromisoformat(info["start_utc"]))
+        try:
+            start = utc_unix(_dt.datetime.fromisoformat(str(info["start_utc"])))
+        except (ValueError, OverflowError):
+            raise UserInputError(f"{dec.folder / 'session.json'}: start_utc {str(info['start_utc'])[:40]!r}: "
+                                 "expected an ISO 8601 UTC time") from None
         t0 = float(info["t_mono_start_s"])
         return (lambda t: start + (np.asarray(t, float) - t0),
                 "host wall clock of session.json (no GNSS time tag in gnss.raw): UTC may be off by seconds")
