@@ -255,7 +255,10 @@ class RecordSession:
             yield
         finally:
             for number, old in installed.items():
-                signal.signal(number, old if old is not None else signal.SIG_DFL)
+                # after a stop request the process is ending: a late repeat of the signal
+                # (a double Ctrl-C) must not kill it during its exit (that gave exit -2)
+                signal.signal(number, signal.SIG_IGN if self.stop_signal else
+                              old if old is not None else signal.SIG_DFL)
 
     def _on_stop_signal(self, signum: int, frame) -> None:
         if not self.stop_signal:

@@ -200,7 +200,10 @@ def _check_value(source: str, section: str, key: str, spec: Field, value: Any) -
         names = " or ".join(k.__name__ for k in kinds)
         raise UserInputError(f"{where} = {_show(value)}: expected a {names} in {spec.unit}")
     if isinstance(value, (int, float)):
-        if not _finite(value) or (spec.lo is not None and value < spec.lo) or (spec.hi is not None and value > spec.hi):
+        if isinstance(given, float) and not _finite(given):   # NaN passes every comparison: say what it is
+            raise UserInputError(f"{where} = {_show(given if isinstance(given, int) else value)}: "
+                                 f"expected a finite number in {spec.unit}")
+        if (spec.lo is not None and value < spec.lo) or (spec.hi is not None and value > spec.hi):
             raise UserInputError(f"{where} = {_show(given if isinstance(given, int) else value)}: expected "
                                  f"{spec.unit} in [{spec.lo}, {spec.hi}]")
     if spec.choices is not None and value not in spec.choices:
