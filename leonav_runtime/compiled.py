@@ -9,7 +9,8 @@ renamed, so parallel processes can build into the same cache safely.
 
 Generated folder: `$LEONAV_GEN_DIR` if set. Cache folder: `$LEONAV_BUILD_DIR`, else `$XDG_CACHE_HOME/leonav/build`, else
 `~/.cache/leonav/build`. Compiler: `$CC`, else `cc`. Flags: `CFLAGS` below (portable, no
-`-march=native`, so results match the Raspberry Pi build) plus `$LEONAV_CFLAGS`.
+`-march=native`, so results match the Raspberry Pi build) plus `$LEONAV_CFLAGS`. Faults: see
+`build_cache.py` (CompilerError, exit 4; a prebuilt library loads without a compiler).
 
 This module never imports casadi: the compiled library is all the filter needs.
 """
@@ -22,7 +23,6 @@ import os
 import shlex
 import shutil
 import subprocess
-import tempfile
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -32,6 +32,8 @@ from types import ModuleType
 
 import numpy as np
 
+from leonav_runtime.build_cache import (CompilerError, atomic_output, cache_dir, load_library, prebuilt_library,
+                                         prepare_writes, record_prebuilt, split_setting, version_line)
 from leonav_runtime.gen import state_layout as _codes  # driver return codes (same in every layout)
 
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -45,10 +47,6 @@ LIBS: tuple[str, ...] = ("-lm",)
 
 _c_double_p = ctypes.POINTER(ctypes.c_double)
 _c_int_p = ctypes.POINTER(ctypes.c_int)
-
-
-class CompilerError(RuntimeError):
-    """No usable C compiler, or compilation failed (the message carries the compiler output)."""
 
 
 class LayoutMismatchError(RuntimeError):
@@ -70,7 +68,7 @@ def build_dir() -> Path:
 def compiler() -> str:
     """Path of the C compiler ($CC or cc); CompilerError if there is none."""
     name = os.environ.get("CC", "cc")
-    argv = shlex.split(name)
+    argv = split_setting("CC", name)
     path = shutil.which(argv[0]) if argv else None
     if not path:
         raise CompilerError(
@@ -86,14 +84,13 @@ _version_cache: dict[str, str] = {}
 def compiler_version(cc: str) -> str:
     """First line of `cc --version` (part of every cache key)."""
     if cc not in _version_cache:
-        proc = subprocess.run(shlex.split(cc) + ["--version"], capture_output=True, text=True)
-        _version_cache[cc] = (proc.stdout or proc.stderr).splitlines()[0] if (proc.stdout or proc.stderr) else cc
+        _version_cache[cc] = version_line(cc)
     return _version_cache[cc]
 
 
 def cflags() -> list[str]:
     """Compile flags actually used: CFLAGS plus $LEONAV_CFLAGS."""
-    return list(CFLAGS) + shlex.split(os.environ.get("LEONAV_CFLAGS", ""))
+    return list(CFLAGS) + split_setting("LEONAV_CFLAGS", os.environ.get("LEONAV_CFLAGS", ""))
 
 
 def sources(gen_dir: Path = GEN_DIR, csrc_dir: Path = CSRC_DIR) -> list[Path]:
@@ -128,21 +125,12 @@ def library_key(object_keys: list[str], ldflags: list[str]) -> str:
 
 
 def _run_compiler(argv: list[str]) -> None:
-    proc = subprocess.run(argv, capture_output=True, text=True)
+    try:
+        proc = subprocess.run(argv, capture_output=True, text=True)
+    except OSError as exc:
+        raise CompilerError(f"C compiler {argv[0]!r} does not run ({exc})") from None
     if proc.returncode != 0:
         raise CompilerError(f"C compiler failed ({shlex.join(argv)}):\n{proc.stderr.strip()}")
-
-
-def _atomic_output(target: Path, produce) -> None:
-    """produce(tmp_path) writes a file that is then renamed onto target (atomic)."""
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=target.name + ".", suffix=".tmp")
-    os.close(fd)
-    try:
-        produce(Path(tmp))
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 @dataclass
@@ -163,13 +151,12 @@ class BuildInfo:
 
 def build(gen_dir: Path = GEN_DIR, csrc_dir: Path = CSRC_DIR, out_dir: Path | None = None) -> BuildInfo:
     """Compile (if not cached) and return the shared library of gen + driver."""
-    cc = compiler()
-    version = compiler_version(cc)
     flags = cflags()
-    out = Path(out_dir) if out_dir is not None else build_dir()
-    out.mkdir(parents=True, exist_ok=True)
+    out = cache_dir(Path(out_dir) if out_dir is not None else build_dir())
     include_dirs = [Path(gen_dir), Path(csrc_dir)]
     srcs = sources(gen_dir, csrc_dir)
+    cc = compiler()
+    version = compiler_version(cc)
     keys = [object_key(s, include_dirs, flags, version) for s in srcs]
     objects = [out / f"{s.stem}-{k[:20]}.o" for s, k in zip(srcs, keys)]
     info = BuildInfo(out / "", "", cc, version, flags, list(LDFLAGS))
@@ -178,22 +165,42 @@ def build(gen_dir: Path = GEN_DIR, csrc_dir: Path = CSRC_DIR, out_dir: Path | No
     def compile_one(src_obj):
         src, obj = src_obj
         includes = [f"-I{d}" for d in include_dirs]
-        _atomic_output(obj, lambda tmp: _run_compiler(shlex.split(cc) + flags + includes + ["-c", str(src), "-o", str(tmp)]))
+        atomic_output(obj, lambda tmp: _run_compiler(shlex.split(cc) + flags + includes + ["-c", str(src), "-o", str(tmp)]))
         return src.name
 
     missing = [(s, o) for s, o in zip(srcs, objects) if not o.exists()]
+    if missing or not (out / f"libleonav-{library_key(keys, list(LDFLAGS) + list(LIBS))[:20]}.so").exists():
+        prepare_writes(out)
     if missing:  # the generated file dominates; compile the objects in parallel
         with ThreadPoolExecutor(max_workers=min(len(missing), os.cpu_count() or 1)) as pool:
             info.compiled_objects = list(pool.map(compile_one, missing))
     key = library_key(keys, list(LDFLAGS) + list(LIBS))
     library = out / f"libleonav-{key[:20]}.so"
     if not library.exists():
-        _atomic_output(library, lambda tmp: _run_compiler(
+        atomic_output(library, lambda tmp: _run_compiler(
             shlex.split(cc) + list(LDFLAGS) + flags + [str(o) for o in objects] + ["-o", str(tmp)] + list(LIBS)))
         info.linked = True
     info.library, info.key, info.objects = library, key, objects
     info.compile_time_s = time.perf_counter() - start if (missing or info.linked) else 0.0
+    record_prebuilt(out, _sources_key(srcs, include_dirs, flags), library)
     return info
+
+
+def _sources_key(srcs: list[Path], include_dirs: list[Path], flags: list[str]) -> str:
+    """The library's identity without the compiler (its sources, headers and flags)."""
+    return library_key([object_key(s, include_dirs, flags, "") for s in srcs], list(LDFLAGS) + list(LIBS))
+
+
+def prebuilt(gen_dir: Path, csrc_dir: Path, out_dir: Path | None, problem: CompilerError) -> BuildInfo:
+    """The library a build recorded for these sources and flags (`load` without a usable compiler), else `problem`."""
+    try:
+        key = _sources_key(sources(gen_dir, csrc_dir), [Path(gen_dir), Path(csrc_dir)], cflags())
+        library = prebuilt_library(Path(out_dir) if out_dir is not None else build_dir(), key)
+    except (CompilerError, OSError):
+        library = None
+    if library is None:
+        raise problem
+    return BuildInfo(library, library.stem.rpartition("-")[2], f"none (prebuilt; {problem})", "", cflags(), list(LDFLAGS))
 
 
 # ---- layout -----------------------------------------------------------------------
@@ -367,14 +374,20 @@ def load(gen_dir: Path = GEN_DIR, csrc_dir: Path = CSRC_DIR, out_dir: Path | Non
         known = _stat_memo.get(signature)
         if known in _loaded and _loaded[known].build.library.exists():
             return _loaded[known]
-        info = build(gen_dir, csrc_dir, out_dir)
+        try:
+            info = build(gen_dir, csrc_dir, out_dir)
+        except CompilerError as problem:   # no usable compiler: the library built before, if any
+            info = prebuilt(gen_dir, csrc_dir, out_dir, problem)
         _stat_memo[signature] = info.key
         if info.key in _loaded:
             return _loaded[info.key]
-        lib = ctypes.CDLL(str(info.library))
+        lib = load_library(info.library, info.compiler)
         layout = load_layout(gen_dir)
         check_layout(lib, layout)
-        _declare(lib)
+        try:
+            _declare(lib)
+        except AttributeError as exc:
+            raise LayoutMismatchError(f"{info.library}: a driver function is missing ({exc})") from None
         library = Library(lib, layout, info, int(lib.leonav_work_size()), measurement_ids(layout))
         _loaded[info.key] = library
         return library
