@@ -54,9 +54,8 @@ MODE_OBSERVABLES: dict[str, tuple[str, ...]] = {
     "leo-doppler+alpha+imu": ("doppler", "doppler_rate"),
 }
 
-IMU_PROFILES = tuple(IMU_PROFILE_DATA)  # names of models/imu.py PROFILES: tactical, wt901
-TRAJECTORY_KINDS = ("static", "maneuvers")
-SELECTION_RULES = ("highest-elevation",)
+IMU_PROFILES = tuple(IMU_PROFILE_DATA)  # names of the emitted profiles (gen/profiles.py): tactical, wt901
+TRAJECTORY_KINDS, SELECTION_RULES = ("static", "maneuvers"), ("highest-elevation",)
 
 
 @dataclass(frozen=True)
@@ -200,9 +199,8 @@ def _check_value(source: str, section: str, key: str, spec: Field, value: Any) -
         names = " or ".join(k.__name__ for k in kinds)
         raise UserInputError(f"{where} = {_show(value)}: expected a {names} in {spec.unit}")
     if isinstance(value, (int, float)):
-        if isinstance(given, float) and not _finite(given):   # NaN passes every comparison: say what it is
-            raise UserInputError(f"{where} = {_show(given if isinstance(given, int) else value)}: "
-                                 f"expected a finite number in {spec.unit}")
+        if isinstance(given, float) and not _finite(given):   # NaN passes every comparison
+            raise UserInputError(f"{where} = {_show(value)}: expected a finite number in {spec.unit}")
         if (spec.lo is not None and value < spec.lo) or (spec.hi is not None and value > spec.hi):
             raise UserInputError(f"{where} = {_show(given if isinstance(given, int) else value)}: expected "
                                  f"{spec.unit} in [{spec.lo}, {spec.hi}]")
