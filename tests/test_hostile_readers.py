@@ -11,9 +11,7 @@ the untouched prefix are the original ones.
 from __future__ import annotations
 
 import dataclasses
-import signal
 import struct
-from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -24,24 +22,11 @@ from hardware.imu.witmotion import PACKET_LEN, ImuReader, SampleGrouper, WitMoti
 from hardware.records import GnssFix, GnssTimeTag, NmeaSentence, RxmRawx
 from hardware.session_decode import decode_session
 from tests.conftest import shared_file
+from tests.timebox import bounded
 
 NMEA_REASONS = ("nmea_truncated", "nmea_too_long", "nmea_non_ascii", nmea.NO_CHECKSUM, nmea.BAD_CHECKSUM,
                 nmea.PARSE_ERROR, "truncated_at_end")
 
-
-@contextmanager
-def bounded(seconds: float):
-    """Fail (TimeoutError) instead of hanging when the block runs longer than `seconds`."""
-    def _alarm(signum, frame):
-        raise TimeoutError(f"took longer than {seconds} s")
-
-    old = signal.signal(signal.SIGALRM, _alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
 
 
 def sentence(body: str) -> bytes:

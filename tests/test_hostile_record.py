@@ -14,7 +14,6 @@ import signal
 import subprocess
 import sys
 import time
-from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -25,23 +24,11 @@ from hardware.gnss import nmea
 from hardware.session import RecordSession, decode_session
 from leonav_runtime.cli import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_IO, main
 from tests.conftest import shared_file
+from tests.timebox import bounded
 
 REPO = Path(__file__).resolve().parents[1]
 CLI = "import sys; from leonav_runtime.cli import main; sys.exit(main(sys.argv[1:]))"
 
-
-@contextmanager
-def bounded(seconds: float):
-    def _alarm(signum, frame):
-        raise TimeoutError(f"took longer than {seconds} s")
-
-    old = signal.signal(signal.SIGALRM, _alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
 
 
 def _one_line(capsys) -> str:

@@ -11,11 +11,9 @@ from __future__ import annotations
 import copy
 import datetime as dt
 import json
-import signal
 import subprocess
 import sys
 import tomllib
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -26,25 +24,13 @@ from leonav_runtime.cli import EXIT_BAD_INPUT, main
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.scenario import BUILTIN_DIR, load_scenario, scenario_from_dict
 from leonav_runtime.utc import parse_utc
+from tests.timebox import bounded
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER = BUILTIN_DIR / "paper.toml"
 MARITIME = BUILTIN_DIR / "maritime-outage.toml"
 MEMORY_ENV = "LEONAV_MAX_MEMORY_MB"
 
-
-@contextmanager
-def bounded(seconds: float):
-    def _alarm(signum, frame):
-        raise TimeoutError(f"took longer than {seconds} s")
-
-    old = signal.signal(signal.SIGALRM, _alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
 
 
 def _write(tmp_path: Path, text: str, name: str = "s.toml") -> Path:

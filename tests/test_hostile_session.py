@@ -12,8 +12,6 @@ import errno
 import json
 import os
 import shutil
-import signal
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -25,22 +23,10 @@ from leonav_runtime import navfuncs, output, replay
 from leonav_runtime.cli import EXIT_BAD_INPUT, main
 from leonav_runtime.errors import UserInputError
 from tests.conftest import shared_file
+from tests.timebox import bounded
 
 TRUTH = "utc_unix_s,lat_deg,lon_deg,h_m,v_e_mps,v_n_mps,v_u_mps,roll_rad,pitch_rad,yaw_rad"
 
-
-@contextmanager
-def bounded(seconds: float):
-    def _alarm(signum, frame):
-        raise TimeoutError(f"took longer than {seconds} s")
-
-    old = signal.signal(signal.SIGALRM, _alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
 
 
 def real_session(folder: Path, n_imu: int = 300) -> Path:
