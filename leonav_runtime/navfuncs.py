@@ -131,17 +131,23 @@ class NavFunctions:
         return np.array([self._dr_variance(s, f_b_span_s, p)[0][0, 0] for s in np.ravel(sigma_hz_s)]
                         ).reshape(np.shape(sigma_hz_s))
 
-    def h_values(self, kind: int | str, x: np.ndarray, aux_rows: np.ndarray, params: np.ndarray | None = None
-                 ) -> np.ndarray:
-        """Predicted measurements (n,) of one state `x` (NX,) for n aux rows (n, NAUX)."""
-        f = self._h[self.kind_id(kind)]
-        p = self.params if params is None else params
-        return np.array([f(x, a, p)[0][0, 0] for a in np.atleast_2d(aux_rows)])
-
     def _workspace(self):
         if self._work is None:
             self._work = self.library.new_workspace()
         return self._work
+
+    def _rows(self, what: str, x_rows: np.ndarray, aux_rows: np.ndarray, params: np.ndarray | None):
+        """(n, x (n, NX), aux (n, NAUX), p) as contiguous float64 for a batched driver call; one
+        (NX,) state is used for every aux row."""
+        L = self.layout
+        aux = np.ascontiguousarray(np.atleast_2d(aux_rows), dtype=np.float64)
+        n = aux.shape[0]
+        x = np.asarray(x_rows, dtype=np.float64)
+        x = np.ascontiguousarray(np.broadcast_to(x, (n, L.NX)) if x.ndim == 1 else x)
+        if x.shape != (n, L.NX) or aux.shape[1] != L.NAUX:
+            raise ValueError(f"{what}: expected x ({n}, {L.NX}) and aux ({n}, {L.NAUX}), got {x.shape}, {aux.shape}")
+        p = np.ascontiguousarray(self.params if params is None else params, dtype=np.float64)
+        return n, x, aux, p
 
     def h_many(self, kind: int | str, x_rows: np.ndarray, aux_rows: np.ndarray, params: np.ndarray | None = None,
                jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
@@ -150,13 +156,7 @@ class NavFunctions:
         call into the driver's loop over the generated `leonav_h_<kind>`. A row whose result is
         not finite gets NaN."""
         L = self.layout
-        aux = np.ascontiguousarray(np.atleast_2d(aux_rows), dtype=np.float64)
-        n = aux.shape[0]
-        x = np.asarray(x_rows, dtype=np.float64)
-        x = np.ascontiguousarray(np.broadcast_to(x, (n, L.NX)) if x.ndim == 1 else x)
-        if x.shape != (n, L.NX) or aux.shape[1] != L.NAUX:
-            raise ValueError(f"h_many: expected x ({n}, {L.NX}) and aux ({n}, {L.NAUX}), got {x.shape}, {aux.shape}")
-        p = np.ascontiguousarray(self.params if params is None else params, dtype=np.float64)
+        n, x, aux, p = self._rows("h_many", x_rows, aux_rows, params)
         h = np.empty(n)
         H = np.empty((n, L.NDX)) if jacobian else None
         with self._work_lock:
@@ -173,13 +173,7 @@ class NavFunctions:
         signals (generated leonav_gnss_terms: the terms of the GNSS pseudorange model), one call;
         x_rows (n, NX) or one (NX,) state, aux (n, NAUX)."""
         L = self.layout
-        aux = np.ascontiguousarray(np.atleast_2d(aux_rows), dtype=np.float64)
-        n = aux.shape[0]
-        x = np.asarray(x_rows, dtype=np.float64)
-        x = np.ascontiguousarray(np.broadcast_to(x, (n, L.NX)) if x.ndim == 1 else x)
-        if x.shape != (n, L.NX) or aux.shape[1] != L.NAUX:
-            raise ValueError(f"gnss_terms: expected x ({n}, {L.NX}) and aux ({n}, {L.NAUX}), got {x.shape}, {aux.shape}")
-        p = np.ascontiguousarray(self.params if params is None else params, dtype=np.float64)
+        n, x, aux, p = self._rows("gnss_terms", x_rows, aux_rows, params)
         out = np.empty((n, 4))
         with self._work_lock:
             rc = self.library.lib.leonav_gnss_terms_many(n, x.ctypes.data_as(_dp), aux.ctypes.data_as(_dp),

@@ -15,7 +15,7 @@ REPO = Path(__file__).resolve().parents[1]
 PACKAGES = ("leonav_runtime", "hardware")
 MAX_LINES = 400
 # Modules over the limit that belong to other work in progress; they may not grow.
-OVER_LIMIT = {"leonav_runtime/gnss/rinex_obs.py": 421}
+OVER_LIMIT = {"leonav_runtime/gnss/rinex_obs.py": 415}
 
 
 def _modules() -> dict[str, Path]:

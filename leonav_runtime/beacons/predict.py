@@ -61,8 +61,8 @@ def evaluate_model(r_ecef_m: np.ndarray, v_ecef_mps: np.ndarray, a_ecef_mps2: np
     aux[:, L.AUX_V_S_ECEF:L.AUX_V_S_ECEF + L.AUX_V_S_ECEF_SIZE] = np.reshape(v_ecef_mps, (n, 3))
     aux[:, L.AUX_A_S_ECEF:L.AUX_A_S_ECEF + L.AUX_A_S_ECEF_SIZE] = np.reshape(a_ecef_mps2, (n, 3))
     aux[:, L.AUX_F_B:L.AUX_F_B + L.AUX_F_B_SIZE] = f_b
-    d = nav.h_values("doppler", x, aux, p)
-    r = nav.h_values("doppler_rate", x, aux, p)
+    d = nav.h_many("doppler", x, aux, p, jacobian=False)[0]
+    r = nav.h_many("doppler_rate", x, aux, p, jacobian=False)[0]
     return d.reshape(shape), r.reshape(shape)
 
 

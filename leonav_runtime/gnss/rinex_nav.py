@@ -327,16 +327,21 @@ def parse_rinex_nav(text: str, source: str = "<string>") -> NavFile:
     return NavFile(source, version, eph, iono, leap)
 
 
-def read_rinex_nav(path: str | Path) -> NavFile:
-    """Read a RINEX navigation file (see `parse_rinex_nav`); UserInputError when unreadable."""
+def read_rinex_text(path: str | Path, kind: str) -> str:
+    """Text of a RINEX `kind` ("navigation", "observation") file, non-ASCII bytes replaced;
+    UserInputError naming the file when it is missing or a directory."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="ascii", errors="replace")
+        return path.read_text(encoding="ascii", errors="replace")
     except FileNotFoundError:
-        raise UserInputError(f"{path}: navigation file not found") from None
+        raise UserInputError(f"{path}: {kind} file not found") from None
     except IsADirectoryError:
-        raise UserInputError(f"{path}: is a directory, expected a RINEX navigation file") from None
-    return parse_rinex_nav(text, str(path))
+        raise UserInputError(f"{path}: is a directory, expected a RINEX {kind} file") from None
+
+
+def read_rinex_nav(path: str | Path) -> NavFile:
+    """Read a RINEX navigation file (see `parse_rinex_nav`); UserInputError when unreadable."""
+    return parse_rinex_nav(read_rinex_text(path, "navigation"), str(path))
 
 
 def read_rinex_navs(paths) -> Ephemerides:

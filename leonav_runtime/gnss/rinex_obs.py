@@ -30,6 +30,7 @@ import numpy as np
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import Rejection
+from leonav_runtime.gnss.rinex_nav import read_rinex_text
 from leonav_runtime.gnss.observations import (
     FLAG_ANTISPOOFING,
     FLAG_CP_VALID,
@@ -411,11 +412,4 @@ def parse_rinex_obs(text: str, source: str = "<string>") -> ObservationTable:
 
 def read_rinex_obs(path: str | Path) -> ObservationTable:
     """Read a RINEX observation file (see `parse_rinex_obs`)."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="ascii", errors="replace")
-    except FileNotFoundError:
-        raise UserInputError(f"{path}: observation file not found") from None
-    except IsADirectoryError:
-        raise UserInputError(f"{path}: is a directory, expected a RINEX observation file") from None
-    return parse_rinex_obs(text, str(path))
+    return parse_rinex_obs(read_rinex_text(path, "observation"), str(path))
