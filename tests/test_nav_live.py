@@ -150,7 +150,9 @@ def test_live_over_ptys_at_the_recorded_pace_agrees_with_the_replay(session):
     rms, n, _ = difference_rms(session / "live", session / "replay", "fix+imu")
     assert n > 70 and rms < 0.5, rms
     lat = res["latency_ms"]
-    assert lat["p50"] < 20 and lat["p99"] < 100, lat                 # no stalls (a loaded 2-core test host)
+    # No stalls: a stall holds solutions back for seconds; the latency figures themselves are
+    # measured by the benchmark, since a loaded 2-core test host adds tens of ms at random.
+    assert lat["p50"] < 50 and lat["p99"] < 500, lat
     assert res["trajectory_rows"] >= 10 * (SECONDS - 1.5)
     # the clients saw the solutions: NMEA GGA near the replay's trajectory, MAVLink GPS_INPUT
     lines = [ln for ln in got[0].decode().split("\r\n") if ln.startswith("$GPGGA") or ln.startswith("$GNGGA")]
