@@ -159,3 +159,13 @@ def test_gga_fields_south_west_and_heights():
     assert fix.height_m == pytest.approx(16.0) and fix.utc is None   # no date seen yet
     no_fix = body.replace(",2,11,", ",0,00,")
     assert b.fix(nmea.parse_sentence(sentence(no_fix), 0.0)) is None
+
+
+def test_rmc_writer_carries_the_rounding_into_the_date():
+    """23:59:59.996 is written as 00:00:00.00 of the next day: time and date agree (pynmea2)."""
+    from hardware.gnss import nmea_write
+
+    line = nmea_write.rmc(dt.datetime(2026, 12, 31, 23, 59, 59, 996000, tzinfo=dt.timezone.utc),
+                          43.08, -77.67, 1.0, 0.0).decode().strip()
+    msg = pynmea2.parse(line, check=True)
+    assert msg.datestamp == dt.date(2027, 1, 1) and msg.timestamp.replace(tzinfo=None) == dt.time(0, 0, 0)

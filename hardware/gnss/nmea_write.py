@@ -21,11 +21,16 @@ def sentence(body: str) -> bytes:
     return f"${body}*{nmea_checksum(body.encode('ascii')):02X}\r\n".encode("ascii")
 
 
-def _time(utc: _dt.datetime) -> str:
-    # hundredths of a second, rounded; a carry into the next second is handled by timedelta
+def round_to_centiseconds(utc: _dt.datetime) -> _dt.datetime:
+    """`utc` rounded to the sentences' hundredths of a second; the carry reaches the date
+    (23:59:59.996 becomes 00:00:00.00 of the next day)."""
     cs = round(utc.microsecond / 1e4)
-    t = utc.replace(microsecond=0) + _dt.timedelta(seconds=cs / 100)
-    return f"{t.hour:02d}{t.minute:02d}{t.second:02d}.{round(t.microsecond / 1e4):02d}"
+    return utc.replace(microsecond=0) + _dt.timedelta(microseconds=cs * 10000)
+
+
+def _time(utc: _dt.datetime) -> str:
+    t = round_to_centiseconds(utc)
+    return f"{t.hour:02d}{t.minute:02d}{t.second:02d}.{t.microsecond // 10000:02d}"
 
 
 def _angle(deg: float, width: int, pos: str, neg: str) -> tuple[str, str]:
@@ -56,7 +61,8 @@ def rmc(utc: _dt.datetime, lat_deg: float, lon_deg: float, v_east_mps: float, v_
     lon, ew = _angle(lon_deg, 3, "E", "W")
     speed_kn = math.hypot(v_east_mps, v_north_mps) / KNOT_MPS
     course = math.degrees(math.atan2(v_east_mps, v_north_mps)) % 360.0
-    date = f"{utc.day:02d}{utc.month:02d}{utc.year % 100:02d}"
+    day = round_to_centiseconds(utc)  # the same rounding as the time field, so a carry changes the date
+    date = f"{day.day:02d}{day.month:02d}{day.year % 100:02d}"
     status, mode = ("A", "A") if valid else ("V", "N")
     body = (f"{talker}RMC,{_time(utc)},{status},{lat},{ns},{lon},{ew},{speed_kn:.3f},{course:.2f},"
             f"{date},,,{mode},V")

@@ -11,7 +11,6 @@ heading clockwise from North),sigma_e,sigma_n,sigma_u (m),mode,n_gnss,n_leo`.
 from __future__ import annotations
 
 import dataclasses
-import datetime as _dt
 import math
 
 from hardware.gnss import nmea_write
@@ -52,10 +51,6 @@ def sentences(sol: NavSolution) -> bytes:
 
     The time is rounded to the sentences' hundredths of a second first, so a rounding
     carry reaches the date too (23:59:59.996 is written as 00:00:00.00 of the next day)."""
-    sol = dataclasses.replace(sol, utc=_round_to_centiseconds(sol.utc))
+    sol = dataclasses.replace(sol, utc=nmea_write.round_to_centiseconds(sol.utc))
     return rmc(sol) + gga(sol) + gst(sol) + plnav(sol)
 
-
-def _round_to_centiseconds(t: _dt.datetime) -> _dt.datetime:
-    cs = round(t.microsecond / 1e4)
-    return t.replace(microsecond=0) + _dt.timedelta(microseconds=cs * 10000)
