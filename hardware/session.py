@@ -43,12 +43,12 @@ from hardware.gnss import ubx_config
 from hardware.gnss.reader import GnssReader
 from hardware.imu import witmotion
 from hardware.imu.witmotion import ImuReader
+from hardware.jsonfile import write_json
 from hardware.records import GnssTimeTag, UbxAck
 from hardware.sdr import capture as sdr_capture
 from hardware.session_decode import DecodedSession, decode_session, iter_raw_chunks
 from hardware.session_files import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, SESSION_VERSION, CsvSink,
-                                    RawLog, RunningTimeMap, gnss_rows, imu_row, session_json,  # noqa: F401
-                                    write_json_replacing)
+                                    RawLog, RunningTimeMap, gnss_rows, imu_row, session_json)  # noqa: F401
 
 STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")   # end a recording like Ctrl-C
 RECORDING_FILES = ("session.json", "gnss.raw", "imu.raw", "sdr.cu8")
@@ -308,5 +308,5 @@ class RecordSession:
                             devices, self.sdr_settings if has_sdr else None, stop)
         if self.stop_signal and not partial:
             info["stop_signal"] = self.stop_signal
-        write_json_replacing(self.folder / "session.json", info)
+        write_json(self.folder / "session.json", info)
         return json.loads((self.folder / "session.json").read_text())

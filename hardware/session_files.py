@@ -4,7 +4,7 @@ Column lists of the decoded CSVs, the flushed CSV and raw-log writers, the runni
 monotonic -> UTC map the live CSVs use, record -> CSV row functions and the session.json
 content (`session_json`). Every column is described in hardware/README.md.
 
-`replace_file` writes a whole file through a temporary file renamed over it (session.json,
+`hardware.jsonfile.replace_file` writes a whole file through a temporary file renamed over it (session.json,
 and the runtime's results files through `leonav_runtime.output`): a reader, a kill or a
 full disk never sees half of it. The flushed logs (raw bytes, chunk index, CSV rows)
 instead grow one flushed piece at a time; a write error there names the file.
@@ -12,17 +12,13 @@ instead grow one flushed piece at a time; a write error there names the file.
 from __future__ import annotations
 
 import csv
-import json
 import math
-import os
 import threading
-import uuid
 import warnings
 from pathlib import Path
-from typing import IO, Any, Callable, Iterable
+from typing import Any, Callable, Iterable
 
 from hardware.clock import TimeMap, utc_unix
-from hardware.jsonfile import jsonable
 from hardware.records import GnssFix, GnssTimeTag, ImuSample, RxmRawx
 
 SESSION_VERSION = 1
@@ -44,37 +40,6 @@ IMU_COLUMNS = [
     "w_z_radps", "roll_rad", "pitch_rad", "yaw_rad", "temperature_c", "mag_x_raw", "mag_y_raw",
     "mag_z_raw", "q_w", "q_x", "q_y", "q_z", "device_time_utc",
 ]
-
-
-def replace_file(path: str | Path, write: Callable[[IO], None], binary: bool = False) -> Path:
-    """Write `path` whole: `write(fh)` fills a temporary file beside it (same folder, mode
-    from the umask), which is flushed to disk and renamed over `path`. On any error or
-    interrupt the temporary file is removed and `path` keeps its old content (or stays
-    absent); an OSError names `path`."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
-    try:
-        with open(tmp, "xb" if binary else "x", **({} if binary else {"newline": "", "encoding": "utf-8"})) as fh:
-            write(fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        if isinstance(exc, OSError) and exc.filename in (str(tmp), tmp):
-            raise OSError(exc.errno, exc.strerror, str(path)) from exc
-        raise
-    return path
-
-
-def write_json_replacing(path: str | Path, data: Any) -> Path:
-    """`hardware.jsonfile.write_json`'s format (indented, NumPy values converted, NaN as
-    null), written through `replace_file`."""
-    text = json.dumps(jsonable(data), indent=2) + "\n"
-    return replace_file(path, lambda fh: fh.write(text))
 
 
 def fit_time_map(tags: Iterable[GnssTimeTag]) -> TimeMap:

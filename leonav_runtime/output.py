@@ -1,7 +1,7 @@
 """Results folders: every computing command writes JSON/CSV/PNG into one folder.
 
 `write_json` is `hardware.jsonfile.write_json` (one JSON writer for session files and results).
-`write_csv` writes through `hardware.session_files.replace_file`: a temporary file in the
+`write_csv` writes through `hardware.jsonfile.replace_file`: a temporary file in the
 same folder renamed over the target, so a full disk or a kill never leaves a half-written
 CSV (the old file, if any, stays whole).
 
@@ -21,7 +21,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from hardware.jsonfile import write_json
-from hardware.session_files import replace_file
+from hardware.jsonfile import replace_file
 
 __all__ = ["add_out_argument", "results_dir", "write_json", "write_csv"]
 
