@@ -21,6 +21,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
+from hardware.errors import UserInputError
 from hardware.records import GnssTimeTag
 from hardware.uart import serialization_s
 
@@ -94,6 +95,11 @@ class TimeMap:
         # or misparsed tag).
         keep = np.abs(d - med) <= max(5 * 1.4826 * mad, OUTLIER_FLOOR_S)
         keep &= np.abs(d - med) < 1.0
+        if not keep.any():   # two equal groups of tags more than 1 s apart: no majority to trust
+            raise UserInputError(
+                f"{source} time tags disagree: {len(d)} tags split into groups more than 1 s apart "
+                f"(host-minus-receiver offsets {np.min(d):.3f} .. {np.max(d):.3f} s); expected one "
+                "consistent receiver time (a restarted receiver or host clock step inside the session?)")
         t_ref = float(np.median(t[keep]))
         slope = 0.0
         if drift and keep.sum() >= 3 and np.ptp(t[keep]) > 0:

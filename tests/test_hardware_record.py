@@ -65,6 +65,15 @@ def test_time_map_fit_recovers_offset_jitter_and_rejects_outliers():
     assert set(m2.per_source) == {"NAV-PVT", "RMC"}
 
 
+def test_time_map_of_two_equal_groups_of_tags_is_a_clear_error():
+    """A receiver restarted mid-session: half the tags 30 s off; no majority, one clear line."""
+    t0 = dt.datetime(2024, 1, 1, tzinfo=dt.timezone.utc)
+    tags = [GnssTimeTag(1000.0 + k, t0 + dt.timedelta(seconds=k + (30 if k >= 5 else 0)), "RMC")
+            for k in range(10)]
+    with pytest.raises(UserInputError, match="RMC time tags disagree: 10 tags"):
+        TimeMap.fit(tags)
+
+
 def test_sdr_capture_writes_cu8_and_valid_sigmf(tmp_path):
     from sigmf import SigMFFile
 
