@@ -73,11 +73,9 @@ def read_imu(spec: DatasetSpec, counts: dict) -> tuple[np.ndarray, np.ndarray, n
     cols = ([("time_column", s["time_column"])] + [("gyro_columns", c) for c in s["gyro_columns"]]
             + [("accel_columns", c) for c in s["accel_columns"]])
     if s["format"] == "mat":
-        names = [("time", s["time_column"]), ("gyro", s["gyro_columns"][0]), ("accel", s["accel_columns"][0])]
-        if len(set(map(str, s["gyro_columns"]))) == 1 and len(set(map(str, s["accel_columns"]))) == 1:
-            data = readers.read_mat_columns(path, s["mat_struct"], names)
-        else:
-            data = readers.read_mat_columns(path, s["mat_struct"], cols)
+        data = readers.read_mat_columns(path, s["mat_struct"], [("time_column", s["time_column"])]
+                                        + [("gyro_columns", c) for c in s["gyro_columns"]]
+                                        + [("accel_columns", c) for c in s["accel_columns"]])
     else:
         data = readers.read_columns(path, cols, s["delimiter"])
     if data.values.shape[1] != 7:

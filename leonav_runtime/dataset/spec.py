@@ -46,7 +46,7 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "mat_struct": Field(str, "-", default="", doc="mat: struct holding the fields (empty: top level)"),
         "delimiter": Field(str, "-", default=",", doc="csv field separator"),
         "time_column": Field(Column, "-", default=0, doc="header name or 0-based index (mat: field name)"),
-        "gyro_columns": Field(list, "-", default=REQ, doc="3 names or indices, sensor x y z"),
+        "gyro_columns": Field(list, "-", default=REQ, doc="3 names or indices, sensor x y z (mat: one (n, 3) field)"),
         "accel_columns": Field(list, "-", default=REQ, doc="3 names or indices, sensor x y z"),
         "time_unit": Field(str, "-", default="s", choices=tuple(TIME_UNITS)),
         "gyro_unit": Field(str, "-", default="rad/s", choices=tuple(GYRO_UNITS)),
@@ -211,7 +211,10 @@ def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
     """Lists, choices and conversions the per-key check cannot do."""
     imu, gnss, ref = v["imu"], v["gnss"], v["reference"]
     for key in ("gyro_columns", "accel_columns"):
-        imu[key] = _columns(source, "imu", key, imu[key], 3)
+        imu[key] = _columns(source, "imu", key, imu[key], None)
+        if len(imu[key]) != 3 and not (imu["format"] == "mat" and len(imu[key]) == 1):
+            raise UserInputError(f"{_where(source, 'imu', key)} = {_show(imu[key])}: expected 3 column names or "
+                                 "indices (x y z; mat: also one (n, 3) field)")
     imu["axis_map"] = parse_axes(imu["axes"], _where(source, "imu", "axes"))
     for sec, key in (("imu", "time_offset_s"), ("gnss", "sigma_scale"), ("alignment", "yaw_deg")):
         val, word = v[sec][key], {"time_offset_s": "calibrate", "sigma_scale": "auto", "yaw_deg": "gnss"}[key]
