@@ -147,3 +147,11 @@ def test_cli_reports_bad_input_in_one_line(tmp_path, capsys):
     assert status != 0 and err.count("\n") == 0 and "[imu] accel_unit" in err and "Traceback" not in err
     status = cli.main(["run", str(tmp_path / "nothing.toml")])
     assert status != 0 and "dataset file not found" in capsys.readouterr().err
+
+
+def test_every_key_is_documented():
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "datasets.md").read_text()
+    missing = [f"[{sec}] {key}" for sec, fields in spec.SCHEMA.items() for key in fields if f"`{key}`" not in text]
+    assert not missing, f"docs/datasets.md lacks {missing}"

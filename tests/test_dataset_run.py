@@ -56,7 +56,7 @@ def test_trajectory_files_agree(result):
     assert sorted(f.rsplit(".", 1)[1] for f in files) == ["csv", "gpx", "kml", "pos"]
     csv = np.genfromtxt(out / "trajectory_fix_imu_nhc_zupt.csv", delimiter=",", names=True)
     pos = solution_io.read_pos(out / "trajectory_fix_imu_nhc_zupt.pos")
-    assert len(pos) == csv.size
+    assert len(pos) == csv.size and np.isfinite(csv["lat_deg"]).all() and np.isfinite(csv["sigma_e_m"]).all()
     np.testing.assert_allclose([p.lat_deg for p in pos], csv["lat_deg"], atol=1e-8)
     np.testing.assert_allclose([p.sd[0] for p in pos], csv["sigma_n_m"], atol=1e-3)
     gps_minus_unix = np.array([p.t_gps_s for p in pos]) - csv["unix_s"]

@@ -82,5 +82,7 @@ def run(args: argparse.Namespace) -> int:
               f"{s['us_per_imu_step']:>7.2f}  {outs}")
     for goal, v in m["summary"].items():
         if isinstance(v, dict):
-            print(f"  goal {goal}: {'met' if v['met'] else 'NOT met'} ({', '.join(f'{k}={fmt(x) if isinstance(x, float) else x}' for k, x in v.items() if k != 'met')})")
+            state = "not scored" if v["met"] is None else "met" if v["met"] else "NOT met"
+            values = ", ".join(f"{k}={fmt(x) if isinstance(x, float) else x}" for k, x in v.items() if k != "met")
+            print(f"  goal {goal}: {state} ({values})")
     return 0

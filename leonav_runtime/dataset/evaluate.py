@@ -109,7 +109,7 @@ def summary(metrics: dict) -> dict:
                                 "met": h is not None and h < GOALS["kf_gins_horizontal_rmse_m"]
                                 and h < metrics["gps_alone"]["rmse_horizontal_m"]}
     y = m.get("rmse_yaw_deg_after_skip")
-    out["yaw_rmse_deg_after_skip"] = {"value": y, "met": y is not None and y <= GOALS["yaw_rmse_deg"]}
+    out["yaw_rmse_deg_after_skip"] = {"value": y, "met": None if y is None else y <= GOALS["yaw_rmse_deg"]}
     o = m.get("outages")
     if o:
         out["outages"] = {"median_ratio": o["median_ratio"], "worse_than_hold": o["worse_than_hold"],

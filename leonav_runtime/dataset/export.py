@@ -28,6 +28,7 @@ def trajectory(res: lfilter.RunResult, layout, origin, t0_unix: float, t_start: 
     """Arrays per output epoch (module doc): t, unix, lat/lon rad, h, r_ecef, p_enu, sigma_enu,
     v_enu, yaw_rad, sigma_yaw_rad."""
     t = np.arange(t_start, float(res.t[-1]) + 1e-9, 1.0 / rate_hz)
+    t = t[t >= res.t[0]]                  # epochs with an estimate (the first record ends after the start)
     _, x, pd = states_at(res, t)
     p = x[:, layout.X_P_ENU_SLICE]
     lat0, lon0, h0 = origin
