@@ -155,3 +155,40 @@ def test_every_key_is_documented():
     text = (Path(__file__).resolve().parents[1] / "docs" / "datasets.md").read_text()
     missing = [f"[{sec}] {key}" for sec, fields in spec.SCHEMA.items() for key in fields if f"`{key}`" not in text]
     assert not missing, f"docs/datasets.md lacks {missing}"
+
+
+def test_nmea_log_as_the_gnss_file(tmp_path):
+    """A receiver's NMEA log through the device decoders: positions as gpsd decodes them (.chk),
+    per-fix sigma from the GST sentence of the same epoch (the receiver's own covariance)."""
+    import json
+
+    log = shared_file("nmea/gpsd/ublox-neo-m9n-nmea.log")
+    tpv = {}
+    for line in shared_file("nmea/gpsd/ublox-neo-m9n-nmea.log.chk").read_text().splitlines():
+        if line.startswith("{"):
+            rec = json.loads(line)
+            if rec.get("class") == "TPV" and rec.get("mode") == 3:
+                tpv[rec["time"]] = (rec["lat"], rec["lon"])
+    t0 = 1594507065.0                       # 2020-07-11 22:37:45 UTC, the log's first epoch
+    path = _write_dataset(tmp_path, _imu_rows(n=200, t0=t0))
+    text = path.read_text().replace('file = "gnss.csv"', f'file = "{log}"\nformat = "nmea"')
+    path.write_text(text)
+    ds = load.load(spec.load_spec(path))
+    assert ds.t0_unix == t0 and ds.fixes.t.size == len(tpv) == 61
+    lat, lon = np.degrees(ds.origin[0]), np.degrees(ds.origin[1])
+    assert (lat, lon) == pytest.approx(tpv["2020-07-11T22:37:45.000Z"], abs=1e-9)
+    # $GNGST,223745.00,228650,2.5,2.4,126,0.98,1.0,3.1: sigma lat 0.98 (N), lon 1.0 (E), alt 3.1 m
+    np.testing.assert_allclose(ds.fixes.sigma_enu_m[0], [1.0, 0.98, 3.1])
+    assert ds.counts["gnss"]["sigma_source"] == {"GST": 61}
+
+
+def test_per_fix_sigma_columns(tmp_path):
+    rows = [f"{1.5e9 + 0.1 * k:.3f},45.5,-73.4,25.0,{0.5 + 0.01 * k},{0.6 + 0.01 * k},{1.2 + k}" for k in range(20)]
+    rows[4] = rows[4].rsplit(",", 1)[0] + ",-1"          # a negative sigma: out of range, skipped
+    rows[6] = rows[6].replace("45.5", "95.5")            # latitude beyond 90 deg: skipped
+    path = _write_dataset(tmp_path, _imu_rows(), gnss_rows=rows)
+    path.write_text(path.read_text() + "sigma_columns = [4, 5, 6]\n")
+    ds = load.load(spec.load_spec(path))
+    assert ds.counts["gnss"]["rows_out_of_range"] == 2 and ds.fixes.t.size == 18
+    np.testing.assert_allclose(ds.fixes.sigma_enu_m[:4], [[0.5 + 0.01 * k, 0.6 + 0.01 * k, 1.2 + k] for k in range(4)])
+    np.testing.assert_allclose(ds.fixes.sigma_enu_m[4], [0.55, 0.65, 6.2])

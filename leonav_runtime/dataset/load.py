@@ -133,26 +133,28 @@ def read_fixes(spec: DatasetSpec, counts: dict, notes: list[str]):
 
 
 def _decoded_fixes(path, counts: dict, notes: list[str]):
-    """Fixes of an NMEA or UBX log through the device layer's decoder (GGA+RMC date, NAV-PVT)."""
+    """Fixes of an NMEA or UBX log through the device layer's decoder (GGA + RMC date, NAV-PVT);
+    per-fix sigma as a recorded session's replay takes it (GST, NAV-PVT accuracy, else HDOP)."""
     from hardware.gnss.reader import GnssDecoder
     from hardware.records import GnssFix
-    from leonav_runtime.replay.gnss_table import fix_height_m, usable_fix
+    from leonav_runtime.replay.gnss_table import fix_height_m, fix_table, usable_fix
 
     dec = GnssDecoder()
     recs = dec.decode(path.read_bytes(), 0.0) + dec.close()
-    fixes = [r for r in recs if isinstance(r, GnssFix) and usable_fix(r) and r.utc is not None]
+    all_fixes = [r for r in recs if isinstance(r, GnssFix)]
+    fixes = [f for f in all_fixes if usable_fix(f) and f.utc is not None]
     if not fixes:
-        raise UserInputError(f"{path}: no GNSS fix with a date (GGA + RMC, or NAV-PVT) in the log")
+        raise UserInputError(f"{path}: no GNSS fix with a position and a date (GGA + RMC, or NAV-PVT) in the log")
     t = np.array([f.utc.timestamp() for f in fixes])
     keep, order = readers.monotonic_rows(t)
-    counts["gnss"] = order | {"rows_used": int(keep.sum()), "decoder_rejected": dict(dec.rejected)}
-    sig = np.array([[f.h_acc_m / math.sqrt(2), f.h_acc_m / math.sqrt(2), f.v_acc_m]
-                    if f.h_acc_m and f.v_acc_m else [np.nan] * 3 for f in fixes])
     fixes = [f for f, k in zip(fixes, keep) if k]
-    sig = sig[keep]
+    origin = (fixes[0].lat_rad, fixes[0].lon_rad, fix_height_m(fixes[0]))
+    table, fc = fix_table([r for r in recs if not isinstance(r, GnssFix)] + fixes, None, 0.0, origin, notes)
+    counts["gnss"] = order | {"rows_used": len(fixes), "rows_without_date_or_position": len(all_fixes) - int(
+        keep.size), "decoder_rejected": dict(dec.rejected), "fix_sigma_source": fc["fix_sigma_source"]}
     notes.append(f"GNSS: {len(fixes)} fixes decoded from {path.name}")
     return (t[keep], np.array([f.lat_rad for f in fixes]), np.array([f.lon_rad for f in fixes]),
-            np.array([fix_height_m(f) for f in fixes]), sig if np.isfinite(sig).all() else None)
+            np.array([fix_height_m(f) for f in fixes]), table.sigma_enu_m)
 
 
 def read_reference(spec: DatasetSpec, t0_unix: float, origin, counts: dict) -> Reference | None:
@@ -233,7 +235,7 @@ def load(spec: DatasetSpec) -> Dataset:
         sig = np.tile(g["sigma_m"], (t_fix.size, 1))
         counts["gnss"]["sigma_source"] = f"[gnss] sigma_m {g['sigma_m']}"
     else:
-        counts["gnss"]["sigma_source"] = "per-fix sigma columns"
+        counts["gnss"]["sigma_source"] = counts["gnss"].pop("fix_sigma_source", "per-fix sigma columns")
     fixes = FixTable(t_fix - t0, p, np.asarray(sig, float), np.full((t_fix.size, 2), np.nan))
     t_imu, w, f = read_imu(spec, counts)
     ref = read_reference(spec, t0, origin, counts)
