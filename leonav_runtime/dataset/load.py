@@ -127,6 +127,10 @@ def read_fixes(spec: DatasetSpec, counts: dict, notes: list[str]):
     counts["gnss"] = data.counts | order | {"rows_out_of_range": int(bad.sum()), "rows_used": int(keep.sum())}
     if not keep.any():
         raise UserInputError(f"{path}: no usable fix: expected latitude in [-90, 90] deg and longitude in deg")
+    dt = np.diff(t[keep])
+    if dt.size:
+        gaps = dt > 5 * np.median(dt)
+        counts["gnss"] |= {"gaps": int(gaps.sum()), "gap_seconds": float(dt[gaps].sum())}
     v = v[keep]
     sigma = v[:, 4:7] if g["sigma_columns"] else None
     return t[keep], np.radians(v[:, 1]), np.radians(v[:, 2]), v[:, 3], sigma
