@@ -192,3 +192,11 @@ def test_per_fix_sigma_columns(tmp_path):
     assert ds.counts["gnss"]["rows_out_of_range"] == 2 and ds.fixes.t.size == 18
     np.testing.assert_allclose(ds.fixes.sigma_enu_m[:4], [[0.5 + 0.01 * k, 0.6 + 0.01 * k, 1.2 + k] for k in range(4)])
     np.testing.assert_allclose(ds.fixes.sigma_enu_m[4], [0.55, 0.65, 6.2])
+
+
+def test_shipped_dataset_says_where_the_shared_data_is_looked_for(tmp_path, monkeypatch):
+    monkeypatch.setenv("LEONAV_SHARED_DATA", str(tmp_path / "nowhere"))
+    with pytest.raises(UserInputError) as err:
+        load.load(spec.load_spec("cpet_run3"))
+    msg = str(err.value)
+    assert str(tmp_path / "nowhere") in msg and "LEONAV_SHARED_DATA" in msg and "[gnss] file" in msg

@@ -69,7 +69,7 @@ def _vehicle_flu(raw: np.ndarray, axis_map, frame: str) -> np.ndarray:
 def read_imu(spec: DatasetSpec, counts: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t s as in the file, w rad/s FLU, f m/s^2 FLU) of the good IMU rows."""
     s = spec["imu"]
-    path = readers.resolve(spec.data_dir / s["file"], "IMU", spec.where("imu", "file"))
+    path = readers.resolve(spec.data_dir / s["file"], "IMU", spec.where("imu", "file"), spec.shared)
     cols = ([("time_column", s["time_column"])] + [("gyro_columns", c) for c in s["gyro_columns"]]
             + [("accel_columns", c) for c in s["accel_columns"]])
     if s["format"] == "mat":
@@ -111,7 +111,7 @@ def _enu(lat_rad, lon_rad, h_m, origin) -> np.ndarray:
 def read_fixes(spec: DatasetSpec, counts: dict, notes: list[str]):
     """(t unix s, lat rad, lon rad, h m, sigma (n, 3) m E N U or None) of the good fixes."""
     g = spec["gnss"]
-    path = readers.resolve(spec.data_dir / g["file"], "GNSS", spec.where("gnss", "file"))
+    path = readers.resolve(spec.data_dir / g["file"], "GNSS", spec.where("gnss", "file"), spec.shared)
     if g["format"] in ("nmea", "ubx"):
         return _decoded_fixes(path, counts, notes)
     cols = [("time_column", g["time_column"]), ("lat_column", g["lat_column"]), ("lon_column", g["lon_column"]),
@@ -166,7 +166,7 @@ def read_reference(spec: DatasetSpec, t0_unix: float, origin, counts: dict) -> R
     r = spec["reference"]
     if not r["file"]:
         return None
-    path = readers.resolve(spec.data_dir / r["file"], "reference", spec.where("reference", "file"))
+    path = readers.resolve(spec.data_dir / r["file"], "reference", spec.where("reference", "file"), spec.shared)
     return reference_from_file(path, r, t0_unix, origin, counts)
 
 

@@ -120,7 +120,8 @@ def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuPr
                        [f["roll_pitch_sigma_rad"]] * 2 + [al["yaw_sigma_rad"]])
     report["alignment"] = {"start_s": t_start, "roll_pitch_yaw_deg": np.degrees([roll, pitch, yaw]).tolist(),
                            "roll_pitch": f"generated leonav_level on the {level_src}", "yaw": yaw_src,
-                           "gyro_bias_radps": x0[L.X_B_G_SLICE].tolist(), "velocity_enu_mps": x0[L.X_V_ENU_SLICE].tolist()}
+                           "gyro_bias_radps": x0[L.X_B_G_SLICE].tolist(),
+                           "velocity_enu_mps": x0[L.X_V_ENU_SLICE].tolist()}
     return Prior(x0, np.diag(sig**2), dict(report["alignment"]), t_start)
 
 

@@ -87,7 +87,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "time_column": Field(Column, "-", default=0, doc="unix time"),
         "time_unit": Field(str, "-", default="s", choices=tuple(TIME_UNITS)),
         "position_columns": Field(list, "-", default=[1, 2, 3]),
-        "quaternion_columns": Field(list, "-", default=[], doc="x y z w of body -> local level ENU (CRS grid); its yaw (body x axis) is scored"),
+        "quaternion_columns": Field(list, "-", default=[],
+                                    doc="x y z w of body -> local level ENU (CRS grid); its yaw (body x) is scored"),
     },
     "filter": {
         "modes": Field(list, "-", default=list(MODES), doc=", ".join(MODES)),
@@ -137,6 +138,7 @@ class DatasetSpec:
     source: str
     data_dir: Path
     sections: dict[str, dict[str, Any]] = field(default_factory=dict)
+    shared: bool = False     # data_dir is the shared public data ({shared})
 
     def __getitem__(self, section: str) -> dict[str, Any]:
         return self.sections[section]
@@ -204,7 +206,8 @@ def spec_from_dict(data: dict[str, Any], source: str = "<dict>", base_dir: Path 
     base = base_dir or Path.cwd()
     text = values["data"]["dir"].replace("{shared}", str(shared_data_dir()))
     data_dir = Path(text) if Path(text).is_absolute() else base / text
-    return DatasetSpec(values[""]["name"], values[""]["description"], source, data_dir, values)
+    return DatasetSpec(values[""]["name"], values[""]["description"], source, data_dir, values,
+                       "{shared}" in values["data"]["dir"])
 
 
 def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
