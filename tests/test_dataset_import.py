@@ -200,3 +200,17 @@ def test_shipped_dataset_says_where_the_shared_data_is_looked_for(tmp_path, monk
         load.load(spec.load_spec("cpet_run3"))
     msg = str(err.value)
     assert str(tmp_path / "nowhere") in msg and "LEONAV_SHARED_DATA" in msg and "[gnss] file" in msg
+
+
+def test_reference_yaw_is_true_not_grid(cpet):
+    """UTM grid north is not true north (1.15 deg here): the reference yaw is turned by pyproj's
+    own meridian convergence (Proj.get_factors), computed independently of the importer's way."""
+    from pyproj import Proj
+
+    gt = np.loadtxt(shared_file(f"{CPET}/global-pose-utm.txt"), delimiter=",")
+    x, y, z, w = gt[:, 4], gt[:, 5], gt[:, 6], gt[:, 7]
+    grid_yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    lon, lat = np.degrees(cpet.origin[1]), np.degrees(cpet.origin[0])
+    conv = np.radians(Proj("EPSG:32618").get_factors(lon, lat).meridian_convergence)
+    diff = scoring.wrap(cpet.reference.yaw_rad - (grid_yaw - conv))
+    assert np.abs(diff).max() < 1e-4 and conv > 0.019
