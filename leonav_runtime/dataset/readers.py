@@ -130,13 +130,16 @@ def read_mat_columns(path: Path, struct: str, columns: list[tuple[str, str | int
 
 def monotonic_rows(t: np.ndarray) -> tuple[np.ndarray, dict]:
     """Mask of rows to keep so that time strictly increases: a repeated time stamp
-    (`rows_duplicate_time`) or one earlier than the last kept (`rows_non_monotonic`) is skipped."""
-    keep = np.ones(t.size, bool)
-    if t.size > 1 and np.all(np.diff(t) > 0):
+    (`rows_duplicate_time`) or one earlier than the last kept (`rows_non_monotonic`) is skipped.
+    NaN times (rows the caller already rejected) are skipped without being counted here."""
+    keep = np.isfinite(t)
+    if t.size > 1 and keep.all() and np.all(np.diff(t) > 0):
         return keep, {"rows_duplicate_time": 0, "rows_non_monotonic": 0}
     dup = back = 0
     last = -np.inf
     for i, v in enumerate(t):
+        if not keep[i]:
+            continue
         if v == last:
             keep[i], dup = False, dup + 1
         elif v < last:
