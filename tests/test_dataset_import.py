@@ -101,12 +101,13 @@ def test_bad_rows_are_counted_and_skipped(tmp_path):
     rows[12] = rows[3]                                # back in time
     rows[20] = rows[20].replace("9.8", "20.0")        # at the accelerometer's full scale: clipped
     rows[30] = rows[30].replace("0.01", "abc", 1)     # not a number
-    rows[22] = rows[21]                               # duplicated after the clipped row
+    rows[21] = rows[18]                               # back in time, right after the clipped row
+    rows[23] = rows[22]                               # duplicated
     ds = load.load(spec.load_spec(_write_dataset(tmp_path, rows)))
     c = ds.counts["imu"]
     assert (c["rows_nan"], c["rows_short"], c["rows_duplicate_time"], c["rows_non_monotonic"], c["rows_clipped"]) \
-        == (2, 1, 2, 1, 1)
-    assert c["rows_used"] == 50 - 7 and np.all(np.diff(ds.imu.t) > 0)
+        == (2, 1, 2, 2, 1)
+    assert c["rows_used"] == 50 - 8 and np.all(np.diff(ds.imu.t) > 0)
 
 
 @pytest.mark.parametrize("extra, needle", [
