@@ -26,13 +26,16 @@ def build_params(
     clock: ClockProfile = TCXO,
     q_blo: float = DEFAULT_Q_BLO_HZ2_S,
     f_c_hz: float = STARLINK_BEACON_HZ,
+    lever_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
 ) -> list[float]:
     """Parameter vector (NP,): ENU origin (WGS84 rad, rad, m), IMU and clock noise (SI),
-    LO random-walk PSD (Hz^2/s) and beacon carrier (Hz)."""
+    LO random-walk PSD (Hz^2/s), beacon carrier (Hz) and the GNSS antenna lever arm
+    (m, body FLU, from the IMU to the antenna)."""
     values = {
         "lat0_rad": lat0_rad, "lon0_rad": lon0_rad, "h0_m": h0_m,
         "vrw": imu.vrw, "arw": imu.arw, "acc_bias_rw": imu.acc_bias_rw, "gyro_bias_rw": imu.gyro_bias_rw,
         "q_cdt": clock.q_cdt, "q_cddt": clock.q_cddt, "q_blo": q_blo, "f_c_hz": f_c_hz,
+        "lever_x_m": lever_b_m[0], "lever_y_m": lever_b_m[1], "lever_z_m": lever_b_m[2],
     }
     if set(values) != set(L.P_NAMES):
         raise RuntimeError(f"parameter names {sorted(values)} differ from the generated layout {L.P_NAMES}")

@@ -68,6 +68,10 @@ P_NAMES = (
     ("q_cddt", "m^2/s^3", "clock random-walk-frequency PSD (drives c_ddt)"),
     ("q_blo", "Hz^2/s", "LO offset random-walk PSD"),
     ("f_c_hz", "Hz", "beacon carrier frequency"),
+    # GNSS antenna position relative to the IMU, body FLU (a calibration, not a state: 0 = co-located)
+    ("lever_x_m", "m", "GNSS antenna lever arm, body forward (from the IMU to the antenna phase centre)"),
+    ("lever_y_m", "m", "GNSS antenna lever arm, body left"),
+    ("lever_z_m", "m", "GNSS antenna lever arm, body up"),
 )
 P_BLOCKS = _blocks([(n, 1, u, d) for n, u, d in P_NAMES])
 # Auxiliary measurement input
@@ -124,6 +128,12 @@ MEASUREMENTS = (
     Observable("OFDM_RANGE_DIFF", "ofdm_range_diff", 1, "m"),
     Observable("GNSS_PSEUDORANGE", "gnss_pseudorange", 1, "m"),
     Observable("GNSS_RANGE_RATE", "gnss_range_rate", 1, "m/s"),
+    # motion constraints of a ground vehicle: z = 0 with their own R (docs/design.md "Motion constraints")
+    Observable("NHC_Y", "nhc_y", 1, "m/s"),
+    Observable("NHC_Z", "nhc_z", 1, "m/s"),
+    Observable("ZUPT_E", "zupt_e", 1, "m/s"),
+    Observable("ZUPT_N", "zupt_n", 1, "m/s"),
+    Observable("ZUPT_U", "zupt_u", 1, "m/s"),
 )
 # Record kinds that are not observables (measurement records carry their observable's index):
 # an IMU interval (strapdown predict) and a constant-velocity predict (no IMU).
@@ -152,5 +162,5 @@ AUX = {b.name: b for b in AUX_BLOCKS}
 U = {b.name: b for b in U_BLOCKS}
 NNAV = sum(DX[name].size for name in NAV_BLOCKS)
 
-assert (NX, NDX, NP, NAUX, NU, NNAV) == (21, 20, 11, 36, 6, 9), "layout drifted from docs/design.md"
+assert (NX, NDX, NP, NAUX, NU, NNAV) == (21, 20, 14, 36, 6, 9), "layout drifted from docs/design.md"
 assert [DX[name].offset for name in NAV_BLOCKS] == [0, 3, 6], "the 9D block must lead dx"

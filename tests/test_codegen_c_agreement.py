@@ -19,7 +19,8 @@ FUNCTIONS = build_functions()
 X_SCALE = {"p_enu": 300.0, "v_enu": 30.0, "q_nb": 1.0, "b_a": 1e-2, "b_g": 1e-3, "c_dt": 1e3, "c_ddt": 10.0,
            "b_lo": 1e3}
 P_VALUES = {"lat0_rad": 0.75, "lon0_rad": -1.35, "h0_m": 170.0, "vrw": 1e-3, "arw": 1e-4, "acc_bias_rw": 1e-5,
-            "gyro_bias_rw": 1e-7, "q_cdt": 0.01, "q_cddt": 0.03, "q_blo": 0.01, "f_c_hz": 11.325e9}
+            "gyro_bias_rw": 1e-7, "q_cdt": 0.01, "q_cddt": 0.03, "q_blo": 0.01, "f_c_hz": 11.325e9,
+            "lever_x_m": 0.54, "lever_y_m": -0.22, "lever_z_m": 1.16}
 P_VEC = np.array([P_VALUES[name] for name in L.P_NAMES])
 
 

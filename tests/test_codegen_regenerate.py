@@ -46,7 +46,7 @@ def test_layout_twin_matches_header():
     exec(compile(source, "state_layout.py", "exec"), namespace)
     twin = {k: v for k, v in namespace.items() if k.isupper() and isinstance(v, int)}
     assert header == twin
-    assert (twin["NX"], twin["NDX"], twin["NP"], twin["NAUX"], twin["NU"], twin["NMEAS"]) == (21, 20, 11, 36, 6, 12)
+    assert (twin["NX"], twin["NDX"], twin["NP"], twin["NAUX"], twin["NU"], twin["NMEAS"]) == (21, 20, 14, 36, 6, 17)
     assert all(twin[f"MEAS_{m.name}"] == m.kind for m in namespace["MEAS_TABLE"])
     assert twin["NNAV"] == 9 and namespace["DX_NAV9_SLICE"] == slice(0, twin["NNAV"])
     # the observable table: C X-macro rows == Python MEAS_TABLE rows (kind, suffix, dim, name, unit)

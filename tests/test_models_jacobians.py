@@ -10,7 +10,8 @@ from leonav_runtime.params import build_params
 from models.state import MEASUREMENTS, NDX
 
 FNS = {f.name(): f for f in build_functions()}
-P_VEC = np.array(build_params(np.radians(43.0848638), np.radians(-77.6786127), 170.0))
+P_VEC = np.array(build_params(np.radians(43.0848638), np.radians(-77.6786127), 170.0,
+                             lever_b_m=(0.54, -0.22, 1.16)))   # non-zero: the fix Jacobian's attitude terms
 
 
 def _state(rng):

@@ -105,6 +105,13 @@ def test_output_files(comparison):
         assert (folder / name).is_file(), name
     rows = (folder / "rmse_vs_time.csv").read_text().splitlines()
     assert rows[0].startswith("t_s,mode,position_error_m")
+    # geodetic trajectories as `leonav run` writes them, one set per mode; .pos readable as RTKLIB's
+    from leonav_runtime.gnss import solution_io
+    for mode in comparison["replay"]["modes"]:
+        stem = folder / f"trajectory_{mode.replace('+', '_')}"
+        assert all(stem.with_suffix(ext).is_file() for ext in (".csv", ".pos", ".kml", ".gpx")), mode
+        pos = solution_io.read_pos(stem.with_suffix(".pos"))
+        assert len(pos) == len(stem.with_suffix(".csv").read_text().splitlines()) - 1 > 0
     assert len(rows) - 1 == 3 * int(comparison["replay"]["modes"]["fix+imu"]["eval_points"])
 
 

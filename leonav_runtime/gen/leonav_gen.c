@@ -95,8 +95,28 @@ extern "C" {
 #define casadi_f62 CASADI_PREFIX(f62)
 #define casadi_f63 CASADI_PREFIX(f63)
 #define casadi_f64 CASADI_PREFIX(f64)
+#define casadi_f65 CASADI_PREFIX(f65)
+#define casadi_f66 CASADI_PREFIX(f66)
+#define casadi_f67 CASADI_PREFIX(f67)
+#define casadi_f68 CASADI_PREFIX(f68)
+#define casadi_f69 CASADI_PREFIX(f69)
 #define casadi_f7 CASADI_PREFIX(f7)
+#define casadi_f70 CASADI_PREFIX(f70)
+#define casadi_f71 CASADI_PREFIX(f71)
+#define casadi_f72 CASADI_PREFIX(f72)
+#define casadi_f73 CASADI_PREFIX(f73)
+#define casadi_f74 CASADI_PREFIX(f74)
+#define casadi_f75 CASADI_PREFIX(f75)
+#define casadi_f76 CASADI_PREFIX(f76)
+#define casadi_f77 CASADI_PREFIX(f77)
+#define casadi_f78 CASADI_PREFIX(f78)
+#define casadi_f79 CASADI_PREFIX(f79)
 #define casadi_f8 CASADI_PREFIX(f8)
+#define casadi_f80 CASADI_PREFIX(f80)
+#define casadi_f81 CASADI_PREFIX(f81)
+#define casadi_f82 CASADI_PREFIX(f82)
+#define casadi_f83 CASADI_PREFIX(f83)
+#define casadi_f84 CASADI_PREFIX(f84)
 #define casadi_f9 CASADI_PREFIX(f9)
 #define casadi_fabs CASADI_PREFIX(fabs)
 #define casadi_fmax CASADI_PREFIX(fmax)
@@ -212,7 +232,7 @@ CASADI_SYMBOL_EXPORT int leonav_gen_casadi_real_size(void) { return (int) sizeof
 static const casadi_int casadi_s0[3] = {21, 1, 1};
 static const casadi_int casadi_s1[3] = {6, 1, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
-static const casadi_int casadi_s3[3] = {11, 1, 1};
+static const casadi_int casadi_s3[3] = {14, 1, 1};
 static const casadi_int casadi_s4[3] = {20, 20, 1};
 static const casadi_int casadi_s5[3] = {36, 1, 1};
 static const casadi_int casadi_s6[3] = {1, 20, 1};
@@ -224,7 +244,7 @@ static const casadi_int casadi_s10[3] = {2, 1, 1};
 static const casadi_real casadi_zeros[400] = 
   {0.};
 
-/* leonav_mech:(x[21],u[6],dt,p[11])->(x_next[21]) */
+/* leonav_mech:(x[21],u[6],dt,p[14])->(x_next[21]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
@@ -886,7 +906,7 @@ CASADI_SYMBOL_EXPORT int leonav_mech_work_bytes(casadi_int *sz_arg, casadi_int* 
   return 0;
 }
 
-/* leonav_predict:(x[21],P[20x20],u[6],dt,p[11])->(x_next[21],P_next[20x20],F[20x20],Qd[20x20]) */
+/* leonav_predict:(x[21],P[20x20],u[6],dt,p[14])->(x_next[21],P_next[20x20],F[20x20],Qd[20x20]) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;
@@ -9698,7 +9718,7 @@ CASADI_SYMBOL_EXPORT int leonav_predict_work_bytes(casadi_int *sz_arg, casadi_in
   return 0;
 }
 
-/* leonav_predict_cv:(x[21],P[20x20],dt,p[11])->(x_next[21],P_next[20x20],F[20x20],Qd[20x20]) */
+/* leonav_predict_cv:(x[21],P[20x20],dt,p[14])->(x_next[21],P_next[20x20],F[20x20],Qd[20x20]) */
 static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;
@@ -12459,7 +12479,7 @@ CASADI_SYMBOL_EXPORT int leonav_predict_cv_work_bytes(casadi_int *sz_arg, casadi
   return 0;
 }
 
-/* leonav_h_pseudorange:(x[21],aux[36],p[11])->(h,H[1x20]) */
+/* leonav_h_pseudorange:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f3(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21;
@@ -12653,7 +12673,7 @@ CASADI_SYMBOL_EXPORT int leonav_h_pseudorange_work_bytes(casadi_int *sz_arg, cas
   return 0;
 }
 
-/* leonav_innovation_pseudorange:(i0[21],i1[20x20],i2,i3,i4[36],i5[11])->(o0,o1[20],o2) */
+/* leonav_innovation_pseudorange:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
 static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21;
@@ -15428,7 +15448,7 @@ static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   return 0;
 }
 
-/* leonav_update_pseudorange:(x[21],P[20x20],z,R,aux[36],p[11])->(x_post[21],P_post[20x20],y,S,nis) */
+/* leonav_update_pseudorange:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
 static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
@@ -15555,7 +15575,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_pseudorange_work_bytes(casadi_int *sz_arg
   return 0;
 }
 
-/* leonav_pcrb_info_pseudorange:(J[20x20],x[21],aux[36],p[11],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_pseudorange:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
 static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+22, *w1=w+422, *w5=w+822, *w6=w+842, w7;
@@ -15659,33 +15679,107 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_pseudorange_work_bytes(casadi_int *sz_
   return 0;
 }
 
-/* leonav_h_pos_e:(x[21],aux[36],p[11])->(h,H[1x20]) */
+/* leonav_h_pos_e:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real a0;
-  a0=arg[0]? arg[0][0] : 0;
-  if (res[0]!=0) res[0][0]=a0;
-  a0=1.;
-  if (res[1]!=0) res[1][0]=a0;
-  a0=0.;
-  if (res[1]!=0) res[1][1]=a0;
-  if (res[1]!=0) res[1][2]=a0;
-  if (res[1]!=0) res[1][3]=a0;
-  if (res[1]!=0) res[1][4]=a0;
-  if (res[1]!=0) res[1][5]=a0;
-  if (res[1]!=0) res[1][6]=a0;
-  if (res[1]!=0) res[1][7]=a0;
-  if (res[1]!=0) res[1][8]=a0;
-  if (res[1]!=0) res[1][9]=a0;
-  if (res[1]!=0) res[1][10]=a0;
-  if (res[1]!=0) res[1][11]=a0;
-  if (res[1]!=0) res[1][12]=a0;
-  if (res[1]!=0) res[1][13]=a0;
-  if (res[1]!=0) res[1][14]=a0;
-  if (res[1]!=0) res[1][15]=a0;
-  if (res[1]!=0) res[1][16]=a0;
-  if (res[1]!=0) res[1][17]=a0;
-  if (res[1]!=0) res[1][18]=a0;
-  if (res[1]!=0) res[1][19]=a0;
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13;
+  a00=arg[0]? arg[0][0] : 0;
+  a01=1.;
+  a02=arg[0]? arg[0][8] : 0;
+  a03=casadi_sq(a02);
+  a04=arg[0]? arg[0][9] : 0;
+  a05=casadi_sq(a04);
+  a03=(a03+a05);
+  a03=(2.*a03);
+  a03=(a01-a03);
+  a05=arg[2]? arg[2][11] : 0;
+  a03=(a03*a05);
+  a06=arg[0]? arg[0][7] : 0;
+  a07=(a06*a02);
+  a08=arg[0]? arg[0][6] : 0;
+  a09=(a08*a04);
+  a07=(a07-a09);
+  a07=(2.*a07);
+  a09=arg[2]? arg[2][12] : 0;
+  a07=(a07*a09);
+  a03=(a03+a07);
+  a07=(a06*a04);
+  a10=(a08*a02);
+  a07=(a07+a10);
+  a07=(2.*a07);
+  a10=arg[2]? arg[2][13] : 0;
+  a07=(a07*a10);
+  a03=(a03+a07);
+  a00=(a00+a03);
+  if (res[0]!=0) res[0][0]=a00;
+  if (res[1]!=0) res[1][0]=a01;
+  a01=0.;
+  if (res[1]!=0) res[1][1]=a01;
+  if (res[1]!=0) res[1][2]=a01;
+  if (res[1]!=0) res[1][3]=a01;
+  if (res[1]!=0) res[1][4]=a01;
+  if (res[1]!=0) res[1][5]=a01;
+  a00=5.0000000000000000e-01;
+  a10=(2.*a10);
+  a03=(a04*a10);
+  a09=(2.*a09);
+  a07=(a02*a09);
+  a03=(a03+a07);
+  a07=(a08*a03);
+  a11=(a02*a10);
+  a12=(a04*a09);
+  a11=(a11-a12);
+  a12=(a06*a11);
+  a07=(a07-a12);
+  a12=(a06*a10);
+  a13=(a08*a09);
+  a12=(a12-a13);
+  a13=(2.*a04);
+  a05=(-a05);
+  a05=(2.*a05);
+  a13=(a13*a05);
+  a12=(a12+a13);
+  a13=(a02*a12);
+  a07=(a07-a13);
+  a10=(a08*a10);
+  a09=(a06*a09);
+  a10=(a10+a09);
+  a09=(2.*a02);
+  a09=(a09*a05);
+  a10=(a10+a09);
+  a09=(a04*a10);
+  a07=(a07+a09);
+  a07=(a00*a07);
+  if (res[1]!=0) res[1][6]=a07;
+  a07=(a06*a12);
+  a09=(a02*a11);
+  a05=(a04*a03);
+  a09=(a09+a05);
+  a07=(a07-a09);
+  a09=(a08*a10);
+  a07=(a07+a09);
+  a07=(a00*a07);
+  if (res[1]!=0) res[1][7]=a07;
+  a02=(a02*a03);
+  a04=(a04*a11);
+  a02=(a02-a04);
+  a08=(a08*a12);
+  a02=(a02+a08);
+  a06=(a06*a10);
+  a02=(a02-a06);
+  a00=(a00*a02);
+  if (res[1]!=0) res[1][8]=a00;
+  if (res[1]!=0) res[1][9]=a01;
+  if (res[1]!=0) res[1][10]=a01;
+  if (res[1]!=0) res[1][11]=a01;
+  if (res[1]!=0) res[1][12]=a01;
+  if (res[1]!=0) res[1][13]=a01;
+  if (res[1]!=0) res[1][14]=a01;
+  if (res[1]!=0) res[1][15]=a01;
+  if (res[1]!=0) res[1][16]=a01;
+  if (res[1]!=0) res[1][17]=a01;
+  if (res[1]!=0) res[1][18]=a01;
+  if (res[1]!=0) res[1][19]=a01;
   return 0;
 }
 
@@ -15766,118 +15860,526 @@ CASADI_SYMBOL_EXPORT int leonav_h_pos_e_work_bytes(casadi_int *sz_arg, casadi_in
   return 0;
 }
 
-/* leonav_innovation_pos_e:(i0[21],i1[20x20],i2,i3,i4[36],i5[11])->(o0,o1[20],o2) */
+/* leonav_innovation_pos_e:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
 static int casadi_f10(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real a0, a1, a2, a3;
-  a0=arg[2]? arg[2][0] : 0;
-  a1=arg[0]? arg[0][0] : 0;
-  a0=(a0-a1);
-  if (res[0]!=0) res[0][0]=a0;
-  a0=arg[1]? arg[1][0] : 0;
-  if (res[1]!=0) res[1][0]=a0;
-  a1=arg[1]? arg[1][20] : 0;
-  a2=arg[1]? arg[1][1] : 0;
-  a1=(a1+a2);
-  a2=2.;
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][1]=a1;
-  a1=arg[1]? arg[1][40] : 0;
-  a3=arg[1]? arg[1][2] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][2]=a1;
-  a1=arg[1]? arg[1][60] : 0;
-  a3=arg[1]? arg[1][3] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][3]=a1;
-  a1=arg[1]? arg[1][80] : 0;
-  a3=arg[1]? arg[1][4] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][4]=a1;
-  a1=arg[1]? arg[1][100] : 0;
-  a3=arg[1]? arg[1][5] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][5]=a1;
-  a1=arg[1]? arg[1][120] : 0;
-  a3=arg[1]? arg[1][6] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][6]=a1;
-  a1=arg[1]? arg[1][140] : 0;
-  a3=arg[1]? arg[1][7] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][7]=a1;
-  a1=arg[1]? arg[1][160] : 0;
-  a3=arg[1]? arg[1][8] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][8]=a1;
-  a1=arg[1]? arg[1][180] : 0;
-  a3=arg[1]? arg[1][9] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][9]=a1;
-  a1=arg[1]? arg[1][200] : 0;
-  a3=arg[1]? arg[1][10] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][10]=a1;
-  a1=arg[1]? arg[1][220] : 0;
-  a3=arg[1]? arg[1][11] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][11]=a1;
-  a1=arg[1]? arg[1][240] : 0;
-  a3=arg[1]? arg[1][12] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][12]=a1;
-  a1=arg[1]? arg[1][260] : 0;
-  a3=arg[1]? arg[1][13] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][13]=a1;
-  a1=arg[1]? arg[1][280] : 0;
-  a3=arg[1]? arg[1][14] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][14]=a1;
-  a1=arg[1]? arg[1][300] : 0;
-  a3=arg[1]? arg[1][15] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][15]=a1;
-  a1=arg[1]? arg[1][320] : 0;
-  a3=arg[1]? arg[1][16] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][16]=a1;
-  a1=arg[1]? arg[1][340] : 0;
-  a3=arg[1]? arg[1][17] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][17]=a1;
-  a1=arg[1]? arg[1][360] : 0;
-  a3=arg[1]? arg[1][18] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][18]=a1;
-  a1=arg[1]? arg[1][380] : 0;
-  a3=arg[1]? arg[1][19] : 0;
-  a1=(a1+a3);
-  a1=(a1/a2);
-  if (res[1]!=0) res[1][19]=a1;
-  a1=arg[3]? arg[3][0] : 0;
-  a0=(a0+a1);
-  if (res[2]!=0) res[2][0]=a0;
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16;
+  a00=arg[2]? arg[2][0] : 0;
+  a01=arg[0]? arg[0][0] : 0;
+  a02=1.;
+  a03=arg[0]? arg[0][8] : 0;
+  a04=casadi_sq(a03);
+  a05=arg[0]? arg[0][9] : 0;
+  a06=casadi_sq(a05);
+  a04=(a04+a06);
+  a04=(2.*a04);
+  a02=(a02-a04);
+  a04=arg[5]? arg[5][11] : 0;
+  a02=(a02*a04);
+  a06=arg[0]? arg[0][7] : 0;
+  a07=(a06*a03);
+  a08=arg[0]? arg[0][6] : 0;
+  a09=(a08*a05);
+  a07=(a07-a09);
+  a07=(2.*a07);
+  a09=arg[5]? arg[5][12] : 0;
+  a07=(a07*a09);
+  a02=(a02+a07);
+  a07=(a06*a05);
+  a10=(a08*a03);
+  a07=(a07+a10);
+  a07=(2.*a07);
+  a10=arg[5]? arg[5][13] : 0;
+  a07=(a07*a10);
+  a02=(a02+a07);
+  a01=(a01+a02);
+  a00=(a00-a01);
+  if (res[0]!=0) res[0][0]=a00;
+  a00=arg[1]? arg[1][0] : 0;
+  a01=arg[1]? arg[1][120] : 0;
+  a02=arg[1]? arg[1][6] : 0;
+  a01=(a01+a02);
+  a02=2.;
+  a01=(a01/a02);
+  a07=5.0000000000000000e-01;
+  a10=(2.*a10);
+  a11=(a05*a10);
+  a09=(2.*a09);
+  a12=(a03*a09);
+  a11=(a11+a12);
+  a12=(a08*a11);
+  a13=(a03*a10);
+  a14=(a05*a09);
+  a13=(a13-a14);
+  a14=(a06*a13);
+  a12=(a12-a14);
+  a14=(a06*a10);
+  a15=(a08*a09);
+  a14=(a14-a15);
+  a15=(2.*a05);
+  a04=(-a04);
+  a04=(2.*a04);
+  a15=(a15*a04);
+  a14=(a14+a15);
+  a15=(a03*a14);
+  a12=(a12-a15);
+  a10=(a08*a10);
+  a09=(a06*a09);
+  a10=(a10+a09);
+  a09=(2.*a03);
+  a09=(a09*a04);
+  a10=(a10+a09);
+  a09=(a05*a10);
+  a12=(a12+a09);
+  a12=(a07*a12);
+  a09=(a01*a12);
+  a00=(a00+a09);
+  a09=arg[1]? arg[1][140] : 0;
+  a04=arg[1]? arg[1][7] : 0;
+  a09=(a09+a04);
+  a09=(a09/a02);
+  a04=(a06*a14);
+  a15=(a03*a13);
+  a16=(a05*a11);
+  a15=(a15+a16);
+  a04=(a04-a15);
+  a15=(a08*a10);
+  a04=(a04+a15);
+  a04=(a07*a04);
+  a15=(a09*a04);
+  a00=(a00+a15);
+  a15=arg[1]? arg[1][160] : 0;
+  a16=arg[1]? arg[1][8] : 0;
+  a15=(a15+a16);
+  a15=(a15/a02);
+  a03=(a03*a11);
+  a05=(a05*a13);
+  a03=(a03-a05);
+  a08=(a08*a14);
+  a03=(a03+a08);
+  a06=(a06*a10);
+  a03=(a03-a06);
+  a07=(a07*a03);
+  a03=(a15*a07);
+  a00=(a00+a03);
+  if (res[1]!=0) res[1][0]=a00;
+  a03=arg[1]? arg[1][20] : 0;
+  a06=arg[1]? arg[1][1] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][121] : 0;
+  a10=arg[1]? arg[1][26] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][141] : 0;
+  a10=arg[1]? arg[1][27] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][161] : 0;
+  a10=arg[1]? arg[1][28] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][1]=a03;
+  a03=arg[1]? arg[1][40] : 0;
+  a06=arg[1]? arg[1][2] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][122] : 0;
+  a10=arg[1]? arg[1][46] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][142] : 0;
+  a10=arg[1]? arg[1][47] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][162] : 0;
+  a10=arg[1]? arg[1][48] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][2]=a03;
+  a03=arg[1]? arg[1][60] : 0;
+  a06=arg[1]? arg[1][3] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][123] : 0;
+  a10=arg[1]? arg[1][66] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][143] : 0;
+  a10=arg[1]? arg[1][67] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][163] : 0;
+  a10=arg[1]? arg[1][68] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][3]=a03;
+  a03=arg[1]? arg[1][80] : 0;
+  a06=arg[1]? arg[1][4] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][124] : 0;
+  a10=arg[1]? arg[1][86] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][144] : 0;
+  a10=arg[1]? arg[1][87] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][164] : 0;
+  a10=arg[1]? arg[1][88] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][4]=a03;
+  a03=arg[1]? arg[1][100] : 0;
+  a06=arg[1]? arg[1][5] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][125] : 0;
+  a10=arg[1]? arg[1][106] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][145] : 0;
+  a10=arg[1]? arg[1][107] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][165] : 0;
+  a10=arg[1]? arg[1][108] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][5]=a03;
+  a03=arg[1]? arg[1][126] : 0;
+  a03=(a03*a12);
+  a01=(a01+a03);
+  a03=arg[1]? arg[1][146] : 0;
+  a06=arg[1]? arg[1][127] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=(a03*a04);
+  a01=(a01+a06);
+  a06=arg[1]? arg[1][166] : 0;
+  a10=arg[1]? arg[1][128] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a10=(a06*a07);
+  a01=(a01+a10);
+  if (res[1]!=0) res[1][6]=a01;
+  a03=(a03*a12);
+  a09=(a09+a03);
+  a03=arg[1]? arg[1][147] : 0;
+  a03=(a03*a04);
+  a09=(a09+a03);
+  a03=arg[1]? arg[1][167] : 0;
+  a10=arg[1]? arg[1][148] : 0;
+  a03=(a03+a10);
+  a03=(a03/a02);
+  a10=(a03*a07);
+  a09=(a09+a10);
+  if (res[1]!=0) res[1][7]=a09;
+  a06=(a06*a12);
+  a15=(a15+a06);
+  a03=(a03*a04);
+  a15=(a15+a03);
+  a03=arg[1]? arg[1][168] : 0;
+  a03=(a03*a07);
+  a15=(a15+a03);
+  if (res[1]!=0) res[1][8]=a15;
+  a03=arg[1]? arg[1][180] : 0;
+  a06=arg[1]? arg[1][9] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][186] : 0;
+  a10=arg[1]? arg[1][129] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][187] : 0;
+  a10=arg[1]? arg[1][149] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][188] : 0;
+  a10=arg[1]? arg[1][169] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][9]=a03;
+  a03=arg[1]? arg[1][200] : 0;
+  a06=arg[1]? arg[1][10] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][206] : 0;
+  a10=arg[1]? arg[1][130] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][207] : 0;
+  a10=arg[1]? arg[1][150] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][208] : 0;
+  a10=arg[1]? arg[1][170] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][10]=a03;
+  a03=arg[1]? arg[1][220] : 0;
+  a06=arg[1]? arg[1][11] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][226] : 0;
+  a10=arg[1]? arg[1][131] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][227] : 0;
+  a10=arg[1]? arg[1][151] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][228] : 0;
+  a10=arg[1]? arg[1][171] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][11]=a03;
+  a03=arg[1]? arg[1][240] : 0;
+  a06=arg[1]? arg[1][12] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][246] : 0;
+  a10=arg[1]? arg[1][132] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][247] : 0;
+  a10=arg[1]? arg[1][152] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][248] : 0;
+  a10=arg[1]? arg[1][172] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][12]=a03;
+  a03=arg[1]? arg[1][260] : 0;
+  a06=arg[1]? arg[1][13] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][266] : 0;
+  a10=arg[1]? arg[1][133] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][267] : 0;
+  a10=arg[1]? arg[1][153] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][268] : 0;
+  a10=arg[1]? arg[1][173] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][13]=a03;
+  a03=arg[1]? arg[1][280] : 0;
+  a06=arg[1]? arg[1][14] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][286] : 0;
+  a10=arg[1]? arg[1][134] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][287] : 0;
+  a10=arg[1]? arg[1][154] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][288] : 0;
+  a10=arg[1]? arg[1][174] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][14]=a03;
+  a03=arg[1]? arg[1][300] : 0;
+  a06=arg[1]? arg[1][15] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][306] : 0;
+  a10=arg[1]? arg[1][135] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][307] : 0;
+  a10=arg[1]? arg[1][155] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][308] : 0;
+  a10=arg[1]? arg[1][175] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][15]=a03;
+  a03=arg[1]? arg[1][320] : 0;
+  a06=arg[1]? arg[1][16] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][326] : 0;
+  a10=arg[1]? arg[1][136] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][327] : 0;
+  a10=arg[1]? arg[1][156] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][328] : 0;
+  a10=arg[1]? arg[1][176] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][16]=a03;
+  a03=arg[1]? arg[1][340] : 0;
+  a06=arg[1]? arg[1][17] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][346] : 0;
+  a10=arg[1]? arg[1][137] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][347] : 0;
+  a10=arg[1]? arg[1][157] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][348] : 0;
+  a10=arg[1]? arg[1][177] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][17]=a03;
+  a03=arg[1]? arg[1][360] : 0;
+  a06=arg[1]? arg[1][18] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][366] : 0;
+  a10=arg[1]? arg[1][138] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][367] : 0;
+  a10=arg[1]? arg[1][158] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][368] : 0;
+  a10=arg[1]? arg[1][178] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][18]=a03;
+  a03=arg[1]? arg[1][380] : 0;
+  a06=arg[1]? arg[1][19] : 0;
+  a03=(a03+a06);
+  a03=(a03/a02);
+  a06=arg[1]? arg[1][386] : 0;
+  a10=arg[1]? arg[1][139] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a12);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][387] : 0;
+  a10=arg[1]? arg[1][159] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a04);
+  a03=(a03+a06);
+  a06=arg[1]? arg[1][388] : 0;
+  a10=arg[1]? arg[1][179] : 0;
+  a06=(a06+a10);
+  a06=(a06/a02);
+  a06=(a06*a07);
+  a03=(a03+a06);
+  if (res[1]!=0) res[1][19]=a03;
+  a12=(a12*a01);
+  a00=(a00+a12);
+  a04=(a04*a09);
+  a00=(a00+a04);
+  a07=(a07*a15);
+  a00=(a00+a07);
+  a07=arg[3]? arg[3][0] : 0;
+  a00=(a00+a07);
+  if (res[2]!=0) res[2][0]=a00;
   return 0;
 }
 
-/* leonav_update_pos_e:(x[21],P[20x20],z,R,aux[36],p[11])->(x_post[21],P_post[20x20],y,S,nis) */
+/* leonav_update_pos_e:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
 static int casadi_f9(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
@@ -16004,7 +16506,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_pos_e_work_bytes(casadi_int *sz_arg, casa
   return 0;
 }
 
-/* leonav_pcrb_info_pos_e:(J[20x20],x[21],aux[36],p[11],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_pos_e:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
 static int casadi_f11(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;
@@ -16108,33 +16610,107 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_pos_e_work_bytes(casadi_int *sz_arg, c
   return 0;
 }
 
-/* leonav_h_pos_n:(x[21],aux[36],p[11])->(h,H[1x20]) */
+/* leonav_h_pos_n:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f12(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real a0, a1;
-  a0=arg[0]? arg[0][1] : 0;
-  if (res[0]!=0) res[0][0]=a0;
-  a0=0.;
-  if (res[1]!=0) res[1][0]=a0;
-  a1=1.;
-  if (res[1]!=0) res[1][1]=a1;
-  if (res[1]!=0) res[1][2]=a0;
-  if (res[1]!=0) res[1][3]=a0;
-  if (res[1]!=0) res[1][4]=a0;
-  if (res[1]!=0) res[1][5]=a0;
-  if (res[1]!=0) res[1][6]=a0;
-  if (res[1]!=0) res[1][7]=a0;
-  if (res[1]!=0) res[1][8]=a0;
-  if (res[1]!=0) res[1][9]=a0;
-  if (res[1]!=0) res[1][10]=a0;
-  if (res[1]!=0) res[1][11]=a0;
-  if (res[1]!=0) res[1][12]=a0;
-  if (res[1]!=0) res[1][13]=a0;
-  if (res[1]!=0) res[1][14]=a0;
-  if (res[1]!=0) res[1][15]=a0;
-  if (res[1]!=0) res[1][16]=a0;
-  if (res[1]!=0) res[1][17]=a0;
-  if (res[1]!=0) res[1][18]=a0;
-  if (res[1]!=0) res[1][19]=a0;
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14;
+  a00=arg[0]? arg[0][1] : 0;
+  a01=arg[0]? arg[0][7] : 0;
+  a02=arg[0]? arg[0][8] : 0;
+  a03=(a01*a02);
+  a04=arg[0]? arg[0][6] : 0;
+  a05=arg[0]? arg[0][9] : 0;
+  a06=(a04*a05);
+  a03=(a03+a06);
+  a03=(2.*a03);
+  a06=arg[2]? arg[2][11] : 0;
+  a03=(a03*a06);
+  a07=1.;
+  a08=casadi_sq(a01);
+  a09=casadi_sq(a05);
+  a08=(a08+a09);
+  a08=(2.*a08);
+  a08=(a07-a08);
+  a09=arg[2]? arg[2][12] : 0;
+  a08=(a08*a09);
+  a03=(a03+a08);
+  a08=(a02*a05);
+  a10=(a04*a01);
+  a08=(a08-a10);
+  a08=(2.*a08);
+  a10=arg[2]? arg[2][13] : 0;
+  a08=(a08*a10);
+  a03=(a03+a08);
+  a00=(a00+a03);
+  if (res[0]!=0) res[0][0]=a00;
+  a00=0.;
+  if (res[1]!=0) res[1][0]=a00;
+  if (res[1]!=0) res[1][1]=a07;
+  if (res[1]!=0) res[1][2]=a00;
+  if (res[1]!=0) res[1][3]=a00;
+  if (res[1]!=0) res[1][4]=a00;
+  if (res[1]!=0) res[1][5]=a00;
+  a07=5.0000000000000000e-01;
+  a10=(2.*a10);
+  a03=(a05*a10);
+  a06=(2.*a06);
+  a08=(a01*a06);
+  a03=(a03+a08);
+  a08=(a05*a03);
+  a11=(a02*a10);
+  a12=(2.*a05);
+  a09=(-a09);
+  a09=(2.*a09);
+  a12=(a12*a09);
+  a11=(a11+a12);
+  a12=(a04*a06);
+  a11=(a11+a12);
+  a12=(a02*a11);
+  a13=(a05*a06);
+  a14=(a01*a10);
+  a13=(a13-a14);
+  a14=(a01*a13);
+  a12=(a12+a14);
+  a08=(a08-a12);
+  a12=(2.*a01);
+  a12=(a12*a09);
+  a10=(a04*a10);
+  a12=(a12-a10);
+  a06=(a02*a06);
+  a12=(a12+a06);
+  a06=(a04*a12);
+  a08=(a08+a06);
+  a08=(a07*a08);
+  if (res[1]!=0) res[1][6]=a08;
+  a08=(a01*a11);
+  a06=(a02*a13);
+  a08=(a08-a06);
+  a06=(a04*a03);
+  a08=(a08+a06);
+  a06=(a05*a12);
+  a08=(a08-a06);
+  a08=(a07*a08);
+  if (res[1]!=0) res[1][7]=a08;
+  a04=(a04*a11);
+  a05=(a05*a13);
+  a04=(a04-a05);
+  a01=(a01*a03);
+  a04=(a04-a01);
+  a02=(a02*a12);
+  a04=(a04+a02);
+  a07=(a07*a04);
+  if (res[1]!=0) res[1][8]=a07;
+  if (res[1]!=0) res[1][9]=a00;
+  if (res[1]!=0) res[1][10]=a00;
+  if (res[1]!=0) res[1][11]=a00;
+  if (res[1]!=0) res[1][12]=a00;
+  if (res[1]!=0) res[1][13]=a00;
+  if (res[1]!=0) res[1][14]=a00;
+  if (res[1]!=0) res[1][15]=a00;
+  if (res[1]!=0) res[1][16]=a00;
+  if (res[1]!=0) res[1][17]=a00;
+  if (res[1]!=0) res[1][18]=a00;
+  if (res[1]!=0) res[1][19]=a00;
   return 0;
 }
 
@@ -16215,118 +16791,526 @@ CASADI_SYMBOL_EXPORT int leonav_h_pos_n_work_bytes(casadi_int *sz_arg, casadi_in
   return 0;
 }
 
-/* leonav_innovation_pos_n:(i0[21],i1[20x20],i2,i3,i4[36],i5[11])->(o0,o1[20],o2) */
+/* leonav_innovation_pos_n:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
 static int casadi_f14(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real a0, a1, a2, a3;
-  a0=arg[2]? arg[2][0] : 0;
-  a1=arg[0]? arg[0][1] : 0;
-  a0=(a0-a1);
-  if (res[0]!=0) res[0][0]=a0;
-  a0=arg[1]? arg[1][20] : 0;
-  a1=arg[1]? arg[1][1] : 0;
-  a0=(a0+a1);
-  a1=2.;
-  a0=(a0/a1);
-  if (res[1]!=0) res[1][0]=a0;
-  a0=arg[1]? arg[1][21] : 0;
-  if (res[1]!=0) res[1][1]=a0;
-  a2=arg[1]? arg[1][41] : 0;
-  a3=arg[1]? arg[1][22] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][2]=a2;
-  a2=arg[1]? arg[1][61] : 0;
-  a3=arg[1]? arg[1][23] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][3]=a2;
-  a2=arg[1]? arg[1][81] : 0;
-  a3=arg[1]? arg[1][24] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][4]=a2;
-  a2=arg[1]? arg[1][101] : 0;
-  a3=arg[1]? arg[1][25] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][5]=a2;
-  a2=arg[1]? arg[1][121] : 0;
-  a3=arg[1]? arg[1][26] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][6]=a2;
-  a2=arg[1]? arg[1][141] : 0;
-  a3=arg[1]? arg[1][27] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][7]=a2;
-  a2=arg[1]? arg[1][161] : 0;
-  a3=arg[1]? arg[1][28] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][8]=a2;
-  a2=arg[1]? arg[1][181] : 0;
-  a3=arg[1]? arg[1][29] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][9]=a2;
-  a2=arg[1]? arg[1][201] : 0;
-  a3=arg[1]? arg[1][30] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][10]=a2;
-  a2=arg[1]? arg[1][221] : 0;
-  a3=arg[1]? arg[1][31] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][11]=a2;
-  a2=arg[1]? arg[1][241] : 0;
-  a3=arg[1]? arg[1][32] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][12]=a2;
-  a2=arg[1]? arg[1][261] : 0;
-  a3=arg[1]? arg[1][33] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][13]=a2;
-  a2=arg[1]? arg[1][281] : 0;
-  a3=arg[1]? arg[1][34] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][14]=a2;
-  a2=arg[1]? arg[1][301] : 0;
-  a3=arg[1]? arg[1][35] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][15]=a2;
-  a2=arg[1]? arg[1][321] : 0;
-  a3=arg[1]? arg[1][36] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][16]=a2;
-  a2=arg[1]? arg[1][341] : 0;
-  a3=arg[1]? arg[1][37] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][17]=a2;
-  a2=arg[1]? arg[1][361] : 0;
-  a3=arg[1]? arg[1][38] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][18]=a2;
-  a2=arg[1]? arg[1][381] : 0;
-  a3=arg[1]? arg[1][39] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][19]=a2;
-  a2=arg[3]? arg[3][0] : 0;
-  a0=(a0+a2);
-  if (res[2]!=0) res[2][0]=a0;
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16;
+  a00=arg[2]? arg[2][0] : 0;
+  a01=arg[0]? arg[0][1] : 0;
+  a02=arg[0]? arg[0][7] : 0;
+  a03=arg[0]? arg[0][8] : 0;
+  a04=(a02*a03);
+  a05=arg[0]? arg[0][6] : 0;
+  a06=arg[0]? arg[0][9] : 0;
+  a07=(a05*a06);
+  a04=(a04+a07);
+  a04=(2.*a04);
+  a07=arg[5]? arg[5][11] : 0;
+  a04=(a04*a07);
+  a08=1.;
+  a09=casadi_sq(a02);
+  a10=casadi_sq(a06);
+  a09=(a09+a10);
+  a09=(2.*a09);
+  a08=(a08-a09);
+  a09=arg[5]? arg[5][12] : 0;
+  a08=(a08*a09);
+  a04=(a04+a08);
+  a08=(a03*a06);
+  a10=(a05*a02);
+  a08=(a08-a10);
+  a08=(2.*a08);
+  a10=arg[5]? arg[5][13] : 0;
+  a08=(a08*a10);
+  a04=(a04+a08);
+  a01=(a01+a04);
+  a00=(a00-a01);
+  if (res[0]!=0) res[0][0]=a00;
+  a00=arg[1]? arg[1][20] : 0;
+  a01=arg[1]? arg[1][1] : 0;
+  a00=(a00+a01);
+  a01=2.;
+  a00=(a00/a01);
+  a04=arg[1]? arg[1][120] : 0;
+  a08=arg[1]? arg[1][6] : 0;
+  a04=(a04+a08);
+  a04=(a04/a01);
+  a08=5.0000000000000000e-01;
+  a10=(2.*a10);
+  a11=(a06*a10);
+  a07=(2.*a07);
+  a12=(a02*a07);
+  a11=(a11+a12);
+  a12=(a06*a11);
+  a13=(a03*a10);
+  a14=(2.*a06);
+  a09=(-a09);
+  a09=(2.*a09);
+  a14=(a14*a09);
+  a13=(a13+a14);
+  a14=(a05*a07);
+  a13=(a13+a14);
+  a14=(a03*a13);
+  a15=(a06*a07);
+  a16=(a02*a10);
+  a15=(a15-a16);
+  a16=(a02*a15);
+  a14=(a14+a16);
+  a12=(a12-a14);
+  a14=(2.*a02);
+  a14=(a14*a09);
+  a10=(a05*a10);
+  a14=(a14-a10);
+  a07=(a03*a07);
+  a14=(a14+a07);
+  a07=(a05*a14);
+  a12=(a12+a07);
+  a12=(a08*a12);
+  a04=(a04*a12);
+  a00=(a00+a04);
+  a04=arg[1]? arg[1][140] : 0;
+  a07=arg[1]? arg[1][7] : 0;
+  a04=(a04+a07);
+  a04=(a04/a01);
+  a07=(a02*a13);
+  a10=(a03*a15);
+  a07=(a07-a10);
+  a10=(a05*a11);
+  a07=(a07+a10);
+  a10=(a06*a14);
+  a07=(a07-a10);
+  a07=(a08*a07);
+  a04=(a04*a07);
+  a00=(a00+a04);
+  a04=arg[1]? arg[1][160] : 0;
+  a10=arg[1]? arg[1][8] : 0;
+  a04=(a04+a10);
+  a04=(a04/a01);
+  a05=(a05*a13);
+  a06=(a06*a15);
+  a05=(a05-a06);
+  a02=(a02*a11);
+  a05=(a05-a02);
+  a03=(a03*a14);
+  a05=(a05+a03);
+  a08=(a08*a05);
+  a04=(a04*a08);
+  a00=(a00+a04);
+  if (res[1]!=0) res[1][0]=a00;
+  a00=arg[1]? arg[1][21] : 0;
+  a04=arg[1]? arg[1][121] : 0;
+  a05=arg[1]? arg[1][26] : 0;
+  a04=(a04+a05);
+  a04=(a04/a01);
+  a05=(a04*a12);
+  a00=(a00+a05);
+  a05=arg[1]? arg[1][141] : 0;
+  a03=arg[1]? arg[1][27] : 0;
+  a05=(a05+a03);
+  a05=(a05/a01);
+  a03=(a05*a07);
+  a00=(a00+a03);
+  a03=arg[1]? arg[1][161] : 0;
+  a14=arg[1]? arg[1][28] : 0;
+  a03=(a03+a14);
+  a03=(a03/a01);
+  a14=(a03*a08);
+  a00=(a00+a14);
+  if (res[1]!=0) res[1][1]=a00;
+  a14=arg[1]? arg[1][41] : 0;
+  a02=arg[1]? arg[1][22] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][122] : 0;
+  a11=arg[1]? arg[1][46] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][142] : 0;
+  a11=arg[1]? arg[1][47] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][162] : 0;
+  a11=arg[1]? arg[1][48] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][2]=a14;
+  a14=arg[1]? arg[1][61] : 0;
+  a02=arg[1]? arg[1][23] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][123] : 0;
+  a11=arg[1]? arg[1][66] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][143] : 0;
+  a11=arg[1]? arg[1][67] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][163] : 0;
+  a11=arg[1]? arg[1][68] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][3]=a14;
+  a14=arg[1]? arg[1][81] : 0;
+  a02=arg[1]? arg[1][24] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][124] : 0;
+  a11=arg[1]? arg[1][86] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][144] : 0;
+  a11=arg[1]? arg[1][87] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][164] : 0;
+  a11=arg[1]? arg[1][88] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][4]=a14;
+  a14=arg[1]? arg[1][101] : 0;
+  a02=arg[1]? arg[1][25] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][125] : 0;
+  a11=arg[1]? arg[1][106] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][145] : 0;
+  a11=arg[1]? arg[1][107] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][165] : 0;
+  a11=arg[1]? arg[1][108] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][5]=a14;
+  a14=arg[1]? arg[1][126] : 0;
+  a14=(a14*a12);
+  a04=(a04+a14);
+  a14=arg[1]? arg[1][146] : 0;
+  a02=arg[1]? arg[1][127] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=(a14*a07);
+  a04=(a04+a02);
+  a02=arg[1]? arg[1][166] : 0;
+  a11=arg[1]? arg[1][128] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a11=(a02*a08);
+  a04=(a04+a11);
+  if (res[1]!=0) res[1][6]=a04;
+  a14=(a14*a12);
+  a05=(a05+a14);
+  a14=arg[1]? arg[1][147] : 0;
+  a14=(a14*a07);
+  a05=(a05+a14);
+  a14=arg[1]? arg[1][167] : 0;
+  a11=arg[1]? arg[1][148] : 0;
+  a14=(a14+a11);
+  a14=(a14/a01);
+  a11=(a14*a08);
+  a05=(a05+a11);
+  if (res[1]!=0) res[1][7]=a05;
+  a02=(a02*a12);
+  a03=(a03+a02);
+  a14=(a14*a07);
+  a03=(a03+a14);
+  a14=arg[1]? arg[1][168] : 0;
+  a14=(a14*a08);
+  a03=(a03+a14);
+  if (res[1]!=0) res[1][8]=a03;
+  a14=arg[1]? arg[1][181] : 0;
+  a02=arg[1]? arg[1][29] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][186] : 0;
+  a11=arg[1]? arg[1][129] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][187] : 0;
+  a11=arg[1]? arg[1][149] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][188] : 0;
+  a11=arg[1]? arg[1][169] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][9]=a14;
+  a14=arg[1]? arg[1][201] : 0;
+  a02=arg[1]? arg[1][30] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][206] : 0;
+  a11=arg[1]? arg[1][130] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][207] : 0;
+  a11=arg[1]? arg[1][150] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][208] : 0;
+  a11=arg[1]? arg[1][170] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][10]=a14;
+  a14=arg[1]? arg[1][221] : 0;
+  a02=arg[1]? arg[1][31] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][226] : 0;
+  a11=arg[1]? arg[1][131] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][227] : 0;
+  a11=arg[1]? arg[1][151] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][228] : 0;
+  a11=arg[1]? arg[1][171] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][11]=a14;
+  a14=arg[1]? arg[1][241] : 0;
+  a02=arg[1]? arg[1][32] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][246] : 0;
+  a11=arg[1]? arg[1][132] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][247] : 0;
+  a11=arg[1]? arg[1][152] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][248] : 0;
+  a11=arg[1]? arg[1][172] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][12]=a14;
+  a14=arg[1]? arg[1][261] : 0;
+  a02=arg[1]? arg[1][33] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][266] : 0;
+  a11=arg[1]? arg[1][133] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][267] : 0;
+  a11=arg[1]? arg[1][153] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][268] : 0;
+  a11=arg[1]? arg[1][173] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][13]=a14;
+  a14=arg[1]? arg[1][281] : 0;
+  a02=arg[1]? arg[1][34] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][286] : 0;
+  a11=arg[1]? arg[1][134] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][287] : 0;
+  a11=arg[1]? arg[1][154] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][288] : 0;
+  a11=arg[1]? arg[1][174] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][14]=a14;
+  a14=arg[1]? arg[1][301] : 0;
+  a02=arg[1]? arg[1][35] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][306] : 0;
+  a11=arg[1]? arg[1][135] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][307] : 0;
+  a11=arg[1]? arg[1][155] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][308] : 0;
+  a11=arg[1]? arg[1][175] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][15]=a14;
+  a14=arg[1]? arg[1][321] : 0;
+  a02=arg[1]? arg[1][36] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][326] : 0;
+  a11=arg[1]? arg[1][136] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][327] : 0;
+  a11=arg[1]? arg[1][156] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][328] : 0;
+  a11=arg[1]? arg[1][176] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][16]=a14;
+  a14=arg[1]? arg[1][341] : 0;
+  a02=arg[1]? arg[1][37] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][346] : 0;
+  a11=arg[1]? arg[1][137] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][347] : 0;
+  a11=arg[1]? arg[1][157] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][348] : 0;
+  a11=arg[1]? arg[1][177] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][17]=a14;
+  a14=arg[1]? arg[1][361] : 0;
+  a02=arg[1]? arg[1][38] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][366] : 0;
+  a11=arg[1]? arg[1][138] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][367] : 0;
+  a11=arg[1]? arg[1][158] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][368] : 0;
+  a11=arg[1]? arg[1][178] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][18]=a14;
+  a14=arg[1]? arg[1][381] : 0;
+  a02=arg[1]? arg[1][39] : 0;
+  a14=(a14+a02);
+  a14=(a14/a01);
+  a02=arg[1]? arg[1][386] : 0;
+  a11=arg[1]? arg[1][139] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][387] : 0;
+  a11=arg[1]? arg[1][159] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a14=(a14+a02);
+  a02=arg[1]? arg[1][388] : 0;
+  a11=arg[1]? arg[1][179] : 0;
+  a02=(a02+a11);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a14=(a14+a02);
+  if (res[1]!=0) res[1][19]=a14;
+  a12=(a12*a04);
+  a00=(a00+a12);
+  a07=(a07*a05);
+  a00=(a00+a07);
+  a08=(a08*a03);
+  a00=(a00+a08);
+  a08=arg[3]? arg[3][0] : 0;
+  a00=(a00+a08);
+  if (res[2]!=0) res[2][0]=a00;
   return 0;
 }
 
-/* leonav_update_pos_n:(x[21],P[20x20],z,R,aux[36],p[11])->(x_post[21],P_post[20x20],y,S,nis) */
+/* leonav_update_pos_n:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
 static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
@@ -16453,7 +17437,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_pos_n_work_bytes(casadi_int *sz_arg, casa
   return 0;
 }
 
-/* leonav_pcrb_info_pos_n:(J[20x20],x[21],aux[36],p[11],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_pos_n:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
 static int casadi_f15(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;
@@ -16557,33 +17541,107 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_pos_n_work_bytes(casadi_int *sz_arg, c
   return 0;
 }
 
-/* leonav_h_pos_u:(x[21],aux[36],p[11])->(h,H[1x20]) */
+/* leonav_h_pos_u:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f16(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real a0, a1;
-  a0=arg[0]? arg[0][2] : 0;
-  if (res[0]!=0) res[0][0]=a0;
-  a0=0.;
-  if (res[1]!=0) res[1][0]=a0;
-  if (res[1]!=0) res[1][1]=a0;
-  a1=1.;
-  if (res[1]!=0) res[1][2]=a1;
-  if (res[1]!=0) res[1][3]=a0;
-  if (res[1]!=0) res[1][4]=a0;
-  if (res[1]!=0) res[1][5]=a0;
-  if (res[1]!=0) res[1][6]=a0;
-  if (res[1]!=0) res[1][7]=a0;
-  if (res[1]!=0) res[1][8]=a0;
-  if (res[1]!=0) res[1][9]=a0;
-  if (res[1]!=0) res[1][10]=a0;
-  if (res[1]!=0) res[1][11]=a0;
-  if (res[1]!=0) res[1][12]=a0;
-  if (res[1]!=0) res[1][13]=a0;
-  if (res[1]!=0) res[1][14]=a0;
-  if (res[1]!=0) res[1][15]=a0;
-  if (res[1]!=0) res[1][16]=a0;
-  if (res[1]!=0) res[1][17]=a0;
-  if (res[1]!=0) res[1][18]=a0;
-  if (res[1]!=0) res[1][19]=a0;
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13;
+  a00=arg[0]? arg[0][2] : 0;
+  a01=arg[0]? arg[0][7] : 0;
+  a02=arg[0]? arg[0][9] : 0;
+  a03=(a01*a02);
+  a04=arg[0]? arg[0][6] : 0;
+  a05=arg[0]? arg[0][8] : 0;
+  a06=(a04*a05);
+  a03=(a03-a06);
+  a03=(2.*a03);
+  a06=arg[2]? arg[2][11] : 0;
+  a03=(a03*a06);
+  a07=(a05*a02);
+  a08=(a04*a01);
+  a07=(a07+a08);
+  a07=(2.*a07);
+  a08=arg[2]? arg[2][12] : 0;
+  a07=(a07*a08);
+  a03=(a03+a07);
+  a07=1.;
+  a09=casadi_sq(a01);
+  a10=casadi_sq(a05);
+  a09=(a09+a10);
+  a09=(2.*a09);
+  a09=(a07-a09);
+  a10=arg[2]? arg[2][13] : 0;
+  a09=(a09*a10);
+  a03=(a03+a09);
+  a00=(a00+a03);
+  if (res[0]!=0) res[0][0]=a00;
+  a00=0.;
+  if (res[1]!=0) res[1][0]=a00;
+  if (res[1]!=0) res[1][1]=a00;
+  if (res[1]!=0) res[1][2]=a07;
+  if (res[1]!=0) res[1][3]=a00;
+  if (res[1]!=0) res[1][4]=a00;
+  if (res[1]!=0) res[1][5]=a00;
+  a07=5.0000000000000000e-01;
+  a03=(2.*a05);
+  a10=(-a10);
+  a10=(2.*a10);
+  a03=(a03*a10);
+  a08=(2.*a08);
+  a09=(a02*a08);
+  a03=(a03+a09);
+  a06=(2.*a06);
+  a09=(a04*a06);
+  a03=(a03-a09);
+  a09=(a02*a03);
+  a11=(a01*a08);
+  a12=(a05*a06);
+  a11=(a11-a12);
+  a12=(a01*a11);
+  a09=(a09-a12);
+  a12=(a05*a08);
+  a13=(a01*a06);
+  a12=(a12+a13);
+  a13=(a05*a12);
+  a09=(a09-a13);
+  a13=(2.*a01);
+  a13=(a13*a10);
+  a08=(a04*a08);
+  a13=(a13+a08);
+  a06=(a02*a06);
+  a13=(a13+a06);
+  a06=(a04*a13);
+  a09=(a09+a06);
+  a09=(a07*a09);
+  if (res[1]!=0) res[1][6]=a09;
+  a09=(a04*a03);
+  a06=(a05*a11);
+  a09=(a09-a06);
+  a06=(a01*a12);
+  a09=(a09+a06);
+  a06=(a02*a13);
+  a09=(a09-a06);
+  a09=(a07*a09);
+  if (res[1]!=0) res[1][7]=a09;
+  a04=(a04*a12);
+  a01=(a01*a03);
+  a02=(a02*a11);
+  a01=(a01+a02);
+  a04=(a04-a01);
+  a05=(a05*a13);
+  a04=(a04+a05);
+  a07=(a07*a04);
+  if (res[1]!=0) res[1][8]=a07;
+  if (res[1]!=0) res[1][9]=a00;
+  if (res[1]!=0) res[1][10]=a00;
+  if (res[1]!=0) res[1][11]=a00;
+  if (res[1]!=0) res[1][12]=a00;
+  if (res[1]!=0) res[1][13]=a00;
+  if (res[1]!=0) res[1][14]=a00;
+  if (res[1]!=0) res[1][15]=a00;
+  if (res[1]!=0) res[1][16]=a00;
+  if (res[1]!=0) res[1][17]=a00;
+  if (res[1]!=0) res[1][18]=a00;
+  if (res[1]!=0) res[1][19]=a00;
   return 0;
 }
 
@@ -16664,118 +17722,526 @@ CASADI_SYMBOL_EXPORT int leonav_h_pos_u_work_bytes(casadi_int *sz_arg, casadi_in
   return 0;
 }
 
-/* leonav_innovation_pos_u:(i0[21],i1[20x20],i2,i3,i4[36],i5[11])->(o0,o1[20],o2) */
+/* leonav_innovation_pos_u:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
 static int casadi_f18(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real a0, a1, a2, a3;
-  a0=arg[2]? arg[2][0] : 0;
-  a1=arg[0]? arg[0][2] : 0;
-  a0=(a0-a1);
-  if (res[0]!=0) res[0][0]=a0;
-  a0=arg[1]? arg[1][40] : 0;
-  a1=arg[1]? arg[1][2] : 0;
-  a0=(a0+a1);
-  a1=2.;
-  a0=(a0/a1);
-  if (res[1]!=0) res[1][0]=a0;
-  a0=arg[1]? arg[1][41] : 0;
-  a2=arg[1]? arg[1][22] : 0;
-  a0=(a0+a2);
-  a0=(a0/a1);
-  if (res[1]!=0) res[1][1]=a0;
-  a0=arg[1]? arg[1][42] : 0;
-  if (res[1]!=0) res[1][2]=a0;
-  a2=arg[1]? arg[1][62] : 0;
-  a3=arg[1]? arg[1][43] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][3]=a2;
-  a2=arg[1]? arg[1][82] : 0;
-  a3=arg[1]? arg[1][44] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][4]=a2;
-  a2=arg[1]? arg[1][102] : 0;
-  a3=arg[1]? arg[1][45] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][5]=a2;
-  a2=arg[1]? arg[1][122] : 0;
-  a3=arg[1]? arg[1][46] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][6]=a2;
-  a2=arg[1]? arg[1][142] : 0;
-  a3=arg[1]? arg[1][47] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][7]=a2;
-  a2=arg[1]? arg[1][162] : 0;
-  a3=arg[1]? arg[1][48] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][8]=a2;
-  a2=arg[1]? arg[1][182] : 0;
-  a3=arg[1]? arg[1][49] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][9]=a2;
-  a2=arg[1]? arg[1][202] : 0;
-  a3=arg[1]? arg[1][50] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][10]=a2;
-  a2=arg[1]? arg[1][222] : 0;
-  a3=arg[1]? arg[1][51] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][11]=a2;
-  a2=arg[1]? arg[1][242] : 0;
-  a3=arg[1]? arg[1][52] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][12]=a2;
-  a2=arg[1]? arg[1][262] : 0;
-  a3=arg[1]? arg[1][53] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][13]=a2;
-  a2=arg[1]? arg[1][282] : 0;
-  a3=arg[1]? arg[1][54] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][14]=a2;
-  a2=arg[1]? arg[1][302] : 0;
-  a3=arg[1]? arg[1][55] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][15]=a2;
-  a2=arg[1]? arg[1][322] : 0;
-  a3=arg[1]? arg[1][56] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][16]=a2;
-  a2=arg[1]? arg[1][342] : 0;
-  a3=arg[1]? arg[1][57] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][17]=a2;
-  a2=arg[1]? arg[1][362] : 0;
-  a3=arg[1]? arg[1][58] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][18]=a2;
-  a2=arg[1]? arg[1][382] : 0;
-  a3=arg[1]? arg[1][59] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][19]=a2;
-  a2=arg[3]? arg[3][0] : 0;
-  a0=(a0+a2);
-  if (res[2]!=0) res[2][0]=a0;
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15;
+  a00=arg[2]? arg[2][0] : 0;
+  a01=arg[0]? arg[0][2] : 0;
+  a02=arg[0]? arg[0][7] : 0;
+  a03=arg[0]? arg[0][9] : 0;
+  a04=(a02*a03);
+  a05=arg[0]? arg[0][6] : 0;
+  a06=arg[0]? arg[0][8] : 0;
+  a07=(a05*a06);
+  a04=(a04-a07);
+  a04=(2.*a04);
+  a07=arg[5]? arg[5][11] : 0;
+  a04=(a04*a07);
+  a08=(a06*a03);
+  a09=(a05*a02);
+  a08=(a08+a09);
+  a08=(2.*a08);
+  a09=arg[5]? arg[5][12] : 0;
+  a08=(a08*a09);
+  a04=(a04+a08);
+  a08=1.;
+  a10=casadi_sq(a02);
+  a11=casadi_sq(a06);
+  a10=(a10+a11);
+  a10=(2.*a10);
+  a08=(a08-a10);
+  a10=arg[5]? arg[5][13] : 0;
+  a08=(a08*a10);
+  a04=(a04+a08);
+  a01=(a01+a04);
+  a00=(a00-a01);
+  if (res[0]!=0) res[0][0]=a00;
+  a00=arg[1]? arg[1][40] : 0;
+  a01=arg[1]? arg[1][2] : 0;
+  a00=(a00+a01);
+  a01=2.;
+  a00=(a00/a01);
+  a04=arg[1]? arg[1][120] : 0;
+  a08=arg[1]? arg[1][6] : 0;
+  a04=(a04+a08);
+  a04=(a04/a01);
+  a08=5.0000000000000000e-01;
+  a11=(2.*a06);
+  a10=(-a10);
+  a10=(2.*a10);
+  a11=(a11*a10);
+  a09=(2.*a09);
+  a12=(a03*a09);
+  a11=(a11+a12);
+  a07=(2.*a07);
+  a12=(a05*a07);
+  a11=(a11-a12);
+  a12=(a03*a11);
+  a13=(a02*a09);
+  a14=(a06*a07);
+  a13=(a13-a14);
+  a14=(a02*a13);
+  a12=(a12-a14);
+  a14=(a06*a09);
+  a15=(a02*a07);
+  a14=(a14+a15);
+  a15=(a06*a14);
+  a12=(a12-a15);
+  a15=(2.*a02);
+  a15=(a15*a10);
+  a09=(a05*a09);
+  a15=(a15+a09);
+  a07=(a03*a07);
+  a15=(a15+a07);
+  a07=(a05*a15);
+  a12=(a12+a07);
+  a12=(a08*a12);
+  a04=(a04*a12);
+  a00=(a00+a04);
+  a04=arg[1]? arg[1][140] : 0;
+  a07=arg[1]? arg[1][7] : 0;
+  a04=(a04+a07);
+  a04=(a04/a01);
+  a07=(a05*a11);
+  a09=(a06*a13);
+  a07=(a07-a09);
+  a09=(a02*a14);
+  a07=(a07+a09);
+  a09=(a03*a15);
+  a07=(a07-a09);
+  a07=(a08*a07);
+  a04=(a04*a07);
+  a00=(a00+a04);
+  a04=arg[1]? arg[1][160] : 0;
+  a09=arg[1]? arg[1][8] : 0;
+  a04=(a04+a09);
+  a04=(a04/a01);
+  a05=(a05*a14);
+  a02=(a02*a11);
+  a03=(a03*a13);
+  a02=(a02+a03);
+  a05=(a05-a02);
+  a06=(a06*a15);
+  a05=(a05+a06);
+  a08=(a08*a05);
+  a04=(a04*a08);
+  a00=(a00+a04);
+  if (res[1]!=0) res[1][0]=a00;
+  a00=arg[1]? arg[1][41] : 0;
+  a04=arg[1]? arg[1][22] : 0;
+  a00=(a00+a04);
+  a00=(a00/a01);
+  a04=arg[1]? arg[1][121] : 0;
+  a05=arg[1]? arg[1][26] : 0;
+  a04=(a04+a05);
+  a04=(a04/a01);
+  a04=(a04*a12);
+  a00=(a00+a04);
+  a04=arg[1]? arg[1][141] : 0;
+  a05=arg[1]? arg[1][27] : 0;
+  a04=(a04+a05);
+  a04=(a04/a01);
+  a04=(a04*a07);
+  a00=(a00+a04);
+  a04=arg[1]? arg[1][161] : 0;
+  a05=arg[1]? arg[1][28] : 0;
+  a04=(a04+a05);
+  a04=(a04/a01);
+  a04=(a04*a08);
+  a00=(a00+a04);
+  if (res[1]!=0) res[1][1]=a00;
+  a00=arg[1]? arg[1][42] : 0;
+  a04=arg[1]? arg[1][122] : 0;
+  a05=arg[1]? arg[1][46] : 0;
+  a04=(a04+a05);
+  a04=(a04/a01);
+  a05=(a04*a12);
+  a00=(a00+a05);
+  a05=arg[1]? arg[1][142] : 0;
+  a06=arg[1]? arg[1][47] : 0;
+  a05=(a05+a06);
+  a05=(a05/a01);
+  a06=(a05*a07);
+  a00=(a00+a06);
+  a06=arg[1]? arg[1][162] : 0;
+  a15=arg[1]? arg[1][48] : 0;
+  a06=(a06+a15);
+  a06=(a06/a01);
+  a15=(a06*a08);
+  a00=(a00+a15);
+  if (res[1]!=0) res[1][2]=a00;
+  a15=arg[1]? arg[1][62] : 0;
+  a02=arg[1]? arg[1][43] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][123] : 0;
+  a03=arg[1]? arg[1][66] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][143] : 0;
+  a03=arg[1]? arg[1][67] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][163] : 0;
+  a03=arg[1]? arg[1][68] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][3]=a15;
+  a15=arg[1]? arg[1][82] : 0;
+  a02=arg[1]? arg[1][44] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][124] : 0;
+  a03=arg[1]? arg[1][86] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][144] : 0;
+  a03=arg[1]? arg[1][87] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][164] : 0;
+  a03=arg[1]? arg[1][88] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][4]=a15;
+  a15=arg[1]? arg[1][102] : 0;
+  a02=arg[1]? arg[1][45] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][125] : 0;
+  a03=arg[1]? arg[1][106] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][145] : 0;
+  a03=arg[1]? arg[1][107] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][165] : 0;
+  a03=arg[1]? arg[1][108] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][5]=a15;
+  a15=arg[1]? arg[1][126] : 0;
+  a15=(a15*a12);
+  a04=(a04+a15);
+  a15=arg[1]? arg[1][146] : 0;
+  a02=arg[1]? arg[1][127] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=(a15*a07);
+  a04=(a04+a02);
+  a02=arg[1]? arg[1][166] : 0;
+  a03=arg[1]? arg[1][128] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a03=(a02*a08);
+  a04=(a04+a03);
+  if (res[1]!=0) res[1][6]=a04;
+  a15=(a15*a12);
+  a05=(a05+a15);
+  a15=arg[1]? arg[1][147] : 0;
+  a15=(a15*a07);
+  a05=(a05+a15);
+  a15=arg[1]? arg[1][167] : 0;
+  a03=arg[1]? arg[1][148] : 0;
+  a15=(a15+a03);
+  a15=(a15/a01);
+  a03=(a15*a08);
+  a05=(a05+a03);
+  if (res[1]!=0) res[1][7]=a05;
+  a02=(a02*a12);
+  a06=(a06+a02);
+  a15=(a15*a07);
+  a06=(a06+a15);
+  a15=arg[1]? arg[1][168] : 0;
+  a15=(a15*a08);
+  a06=(a06+a15);
+  if (res[1]!=0) res[1][8]=a06;
+  a15=arg[1]? arg[1][182] : 0;
+  a02=arg[1]? arg[1][49] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][186] : 0;
+  a03=arg[1]? arg[1][129] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][187] : 0;
+  a03=arg[1]? arg[1][149] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][188] : 0;
+  a03=arg[1]? arg[1][169] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][9]=a15;
+  a15=arg[1]? arg[1][202] : 0;
+  a02=arg[1]? arg[1][50] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][206] : 0;
+  a03=arg[1]? arg[1][130] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][207] : 0;
+  a03=arg[1]? arg[1][150] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][208] : 0;
+  a03=arg[1]? arg[1][170] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][10]=a15;
+  a15=arg[1]? arg[1][222] : 0;
+  a02=arg[1]? arg[1][51] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][226] : 0;
+  a03=arg[1]? arg[1][131] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][227] : 0;
+  a03=arg[1]? arg[1][151] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][228] : 0;
+  a03=arg[1]? arg[1][171] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][11]=a15;
+  a15=arg[1]? arg[1][242] : 0;
+  a02=arg[1]? arg[1][52] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][246] : 0;
+  a03=arg[1]? arg[1][132] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][247] : 0;
+  a03=arg[1]? arg[1][152] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][248] : 0;
+  a03=arg[1]? arg[1][172] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][12]=a15;
+  a15=arg[1]? arg[1][262] : 0;
+  a02=arg[1]? arg[1][53] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][266] : 0;
+  a03=arg[1]? arg[1][133] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][267] : 0;
+  a03=arg[1]? arg[1][153] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][268] : 0;
+  a03=arg[1]? arg[1][173] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][13]=a15;
+  a15=arg[1]? arg[1][282] : 0;
+  a02=arg[1]? arg[1][54] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][286] : 0;
+  a03=arg[1]? arg[1][134] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][287] : 0;
+  a03=arg[1]? arg[1][154] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][288] : 0;
+  a03=arg[1]? arg[1][174] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][14]=a15;
+  a15=arg[1]? arg[1][302] : 0;
+  a02=arg[1]? arg[1][55] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][306] : 0;
+  a03=arg[1]? arg[1][135] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][307] : 0;
+  a03=arg[1]? arg[1][155] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][308] : 0;
+  a03=arg[1]? arg[1][175] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][15]=a15;
+  a15=arg[1]? arg[1][322] : 0;
+  a02=arg[1]? arg[1][56] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][326] : 0;
+  a03=arg[1]? arg[1][136] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][327] : 0;
+  a03=arg[1]? arg[1][156] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][328] : 0;
+  a03=arg[1]? arg[1][176] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][16]=a15;
+  a15=arg[1]? arg[1][342] : 0;
+  a02=arg[1]? arg[1][57] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][346] : 0;
+  a03=arg[1]? arg[1][137] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][347] : 0;
+  a03=arg[1]? arg[1][157] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][348] : 0;
+  a03=arg[1]? arg[1][177] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][17]=a15;
+  a15=arg[1]? arg[1][362] : 0;
+  a02=arg[1]? arg[1][58] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][366] : 0;
+  a03=arg[1]? arg[1][138] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][367] : 0;
+  a03=arg[1]? arg[1][158] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][368] : 0;
+  a03=arg[1]? arg[1][178] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][18]=a15;
+  a15=arg[1]? arg[1][382] : 0;
+  a02=arg[1]? arg[1][59] : 0;
+  a15=(a15+a02);
+  a15=(a15/a01);
+  a02=arg[1]? arg[1][386] : 0;
+  a03=arg[1]? arg[1][139] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a12);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][387] : 0;
+  a03=arg[1]? arg[1][159] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a07);
+  a15=(a15+a02);
+  a02=arg[1]? arg[1][388] : 0;
+  a03=arg[1]? arg[1][179] : 0;
+  a02=(a02+a03);
+  a02=(a02/a01);
+  a02=(a02*a08);
+  a15=(a15+a02);
+  if (res[1]!=0) res[1][19]=a15;
+  a12=(a12*a04);
+  a00=(a00+a12);
+  a07=(a07*a05);
+  a00=(a00+a07);
+  a08=(a08*a06);
+  a00=(a00+a08);
+  a08=arg[3]? arg[3][0] : 0;
+  a00=(a00+a08);
+  if (res[2]!=0) res[2][0]=a00;
   return 0;
 }
 
-/* leonav_update_pos_u:(x[21],P[20x20],z,R,aux[36],p[11])->(x_post[21],P_post[20x20],y,S,nis) */
+/* leonav_update_pos_u:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
 static int casadi_f17(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
@@ -16902,7 +18368,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_pos_u_work_bytes(casadi_int *sz_arg, casa
   return 0;
 }
 
-/* leonav_pcrb_info_pos_u:(J[20x20],x[21],aux[36],p[11],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_pos_u:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
 static int casadi_f19(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;
@@ -17006,7 +18472,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_pos_u_work_bytes(casadi_int *sz_arg, c
   return 0;
 }
 
-/* leonav_h_vel_e:(x[21],aux[36],p[11])->(h,H[1x20]) */
+/* leonav_h_vel_e:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f20(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1;
   a0=arg[0]? arg[0][3] : 0;
@@ -17113,7 +18579,7 @@ CASADI_SYMBOL_EXPORT int leonav_h_vel_e_work_bytes(casadi_int *sz_arg, casadi_in
   return 0;
 }
 
-/* leonav_innovation_vel_e:(i0[21],i1[20x20],i2,i3,i4[36],i5[11])->(o0,o1[20],o2) */
+/* leonav_innovation_vel_e:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
 static int casadi_f22(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3;
   a0=arg[2]? arg[2][0] : 0;
@@ -17224,7 +18690,7 @@ static int casadi_f22(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* leonav_update_vel_e:(x[21],P[20x20],z,R,aux[36],p[11])->(x_post[21],P_post[20x20],y,S,nis) */
+/* leonav_update_vel_e:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
 static int casadi_f21(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
@@ -17351,7 +18817,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_vel_e_work_bytes(casadi_int *sz_arg, casa
   return 0;
 }
 
-/* leonav_pcrb_info_vel_e:(J[20x20],x[21],aux[36],p[11],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_vel_e:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
 static int casadi_f23(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;
@@ -17455,7 +18921,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_vel_e_work_bytes(casadi_int *sz_arg, c
   return 0;
 }
 
-/* leonav_h_vel_n:(x[21],aux[36],p[11])->(h,H[1x20]) */
+/* leonav_h_vel_n:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f24(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1;
   a0=arg[0]? arg[0][4] : 0;
@@ -17562,7 +19028,7 @@ CASADI_SYMBOL_EXPORT int leonav_h_vel_n_work_bytes(casadi_int *sz_arg, casadi_in
   return 0;
 }
 
-/* leonav_innovation_vel_n:(i0[21],i1[20x20],i2,i3,i4[36],i5[11])->(o0,o1[20],o2) */
+/* leonav_innovation_vel_n:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
 static int casadi_f26(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3;
   a0=arg[2]? arg[2][0] : 0;
@@ -17673,7 +19139,7 @@ static int casadi_f26(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* leonav_update_vel_n:(x[21],P[20x20],z,R,aux[36],p[11])->(x_post[21],P_post[20x20],y,S,nis) */
+/* leonav_update_vel_n:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
 static int casadi_f25(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
@@ -17800,7 +19266,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_vel_n_work_bytes(casadi_int *sz_arg, casa
   return 0;
 }
 
-/* leonav_pcrb_info_vel_n:(J[20x20],x[21],aux[36],p[11],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_vel_n:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
 static int casadi_f27(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;
@@ -17904,7 +19370,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_vel_n_work_bytes(casadi_int *sz_arg, c
   return 0;
 }
 
-/* leonav_h_vel_u:(x[21],aux[36],p[11])->(h,H[1x20]) */
+/* leonav_h_vel_u:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f28(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1;
   a0=arg[0]? arg[0][5] : 0;
@@ -18011,7 +19477,7 @@ CASADI_SYMBOL_EXPORT int leonav_h_vel_u_work_bytes(casadi_int *sz_arg, casadi_in
   return 0;
 }
 
-/* leonav_innovation_vel_u:(i0[21],i1[20x20],i2,i3,i4[36],i5[11])->(o0,o1[20],o2) */
+/* leonav_innovation_vel_u:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
 static int casadi_f30(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3;
   a0=arg[2]? arg[2][0] : 0;
@@ -18122,7 +19588,7 @@ static int casadi_f30(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* leonav_update_vel_u:(x[21],P[20x20],z,R,aux[36],p[11])->(x_post[21],P_post[20x20],y,S,nis) */
+/* leonav_update_vel_u:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
 static int casadi_f29(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
@@ -18249,7 +19715,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_vel_u_work_bytes(casadi_int *sz_arg, casa
   return 0;
 }
 
-/* leonav_pcrb_info_vel_u:(J[20x20],x[21],aux[36],p[11],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_vel_u:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
 static int casadi_f31(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;
@@ -18353,7 +19819,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_vel_u_work_bytes(casadi_int *sz_arg, c
   return 0;
 }
 
-/* leonav_h_doppler_rate:(x[21],aux[36],p[11])->(h,H[1x20]) */
+/* leonav_h_doppler_rate:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f32(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
@@ -19115,7 +20581,7 @@ CASADI_SYMBOL_EXPORT int leonav_h_doppler_rate_work_bytes(casadi_int *sz_arg, ca
   return 0;
 }
 
-/* leonav_innovation_doppler_rate:(i0[21],i1[20x20],i2,i3,i4[36],i5[11])->(o0,o1[20],o2) */
+/* leonav_innovation_doppler_rate:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
 static int casadi_f34(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
@@ -20944,7 +22410,7 @@ static int casadi_f34(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* leonav_update_doppler_rate:(x[21],P[20x20],z,R,aux[36],p[11])->(x_post[21],P_post[20x20],y,S,nis) */
+/* leonav_update_doppler_rate:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
 static int casadi_f33(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
@@ -21071,7 +22537,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_doppler_rate_work_bytes(casadi_int *sz_ar
   return 0;
 }
 
-/* leonav_pcrb_info_doppler_rate:(J[20x20],x[21],aux[36],p[11],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_doppler_rate:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
 static int casadi_f35(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+93, *w1=w+493, *w5=w+893, *w6=w+913, w7;
@@ -21175,7 +22641,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_doppler_rate_work_bytes(casadi_int *sz
   return 0;
 }
 
-/* leonav_h_doppler:(x[21],aux[36],p[11])->(h,H[1x20]) */
+/* leonav_h_doppler:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f36(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
@@ -21430,7 +22896,7 @@ CASADI_SYMBOL_EXPORT int leonav_h_doppler_work_bytes(casadi_int *sz_arg, casadi_
   return 0;
 }
 
-/* leonav_innovation_doppler:(i0[21],i1[20x20],i2,i3,i4[36],i5[11])->(o0,o1[20],o2) */
+/* leonav_innovation_doppler:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
 static int casadi_f38(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
@@ -22319,7 +23785,7 @@ static int casadi_f38(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* leonav_update_doppler:(x[21],P[20x20],z,R,aux[36],p[11])->(x_post[21],P_post[20x20],y,S,nis) */
+/* leonav_update_doppler:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
 static int casadi_f37(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
@@ -22446,7 +23912,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_doppler_work_bytes(casadi_int *sz_arg, ca
   return 0;
 }
 
-/* leonav_pcrb_info_doppler:(J[20x20],x[21],aux[36],p[11],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_doppler:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
 static int casadi_f39(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+24, *w1=w+424, *w5=w+824, *w6=w+844, w7;
@@ -22550,7 +24016,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_doppler_work_bytes(casadi_int *sz_arg,
   return 0;
 }
 
-/* leonav_h_ofdm_range_diff:(x[21],aux[36],p[11])->(h,H[1x20]) */
+/* leonav_h_ofdm_range_diff:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f40(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18;
@@ -22749,7 +24215,7 @@ CASADI_SYMBOL_EXPORT int leonav_h_ofdm_range_diff_work_bytes(casadi_int *sz_arg,
   return 0;
 }
 
-/* leonav_innovation_ofdm_range_diff:(i0[21],i1[20x20],i2,i3,i4[36],i5[11])->(o0,o1[20],o2) */
+/* leonav_innovation_ofdm_range_diff:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
 static int casadi_f42(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19;
@@ -23200,7 +24666,7 @@ static int casadi_f42(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* leonav_update_ofdm_range_diff:(x[21],P[20x20],z,R,aux[36],p[11])->(x_post[21],P_post[20x20],y,S,nis) */
+/* leonav_update_ofdm_range_diff:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
 static int casadi_f41(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
@@ -23327,7 +24793,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_ofdm_range_diff_work_bytes(casadi_int *sz
   return 0;
 }
 
-/* leonav_pcrb_info_ofdm_range_diff:(J[20x20],x[21],aux[36],p[11],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_ofdm_range_diff:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
 static int casadi_f43(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;
@@ -23431,7 +24897,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_ofdm_range_diff_work_bytes(casadi_int 
   return 0;
 }
 
-/* leonav_h_gnss_pseudorange:(x[21],aux[36],p[11])->(h,H[1x20]) */
+/* leonav_h_gnss_pseudorange:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f44(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;
@@ -24193,7 +25659,7 @@ CASADI_SYMBOL_EXPORT int leonav_h_gnss_pseudorange_work_bytes(casadi_int *sz_arg
   return 0;
 }
 
-/* leonav_innovation_gnss_pseudorange:(i0[21],i1[20x20],i2,i3,i4[36],i5[11])->(o0,o1[20],o2) */
+/* leonav_innovation_gnss_pseudorange:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
 static int casadi_f46(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;
@@ -25496,7 +26962,7 @@ static int casadi_f46(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* leonav_update_gnss_pseudorange:(x[21],P[20x20],z,R,aux[36],p[11])->(x_post[21],P_post[20x20],y,S,nis) */
+/* leonav_update_gnss_pseudorange:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
 static int casadi_f45(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+134, w08, *w09=w+154, *w10=w+175;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
@@ -25623,7 +27089,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_gnss_pseudorange_work_bytes(casadi_int *s
   return 0;
 }
 
-/* leonav_pcrb_info_gnss_pseudorange:(J[20x20],x[21],aux[36],p[11],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_gnss_pseudorange:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
 static int casadi_f47(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+133, *w1=w+533, *w5=w+933, *w6=w+953, w7;
@@ -25727,7 +27193,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_gnss_pseudorange_work_bytes(casadi_int
   return 0;
 }
 
-/* leonav_h_gnss_range_rate:(x[21],aux[36],p[11])->(h,H[1x20]) */
+/* leonav_h_gnss_range_rate:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f48(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
@@ -25995,7 +27461,7 @@ CASADI_SYMBOL_EXPORT int leonav_h_gnss_range_rate_work_bytes(casadi_int *sz_arg,
   return 0;
 }
 
-/* leonav_innovation_gnss_range_rate:(i0[21],i1[20x20],i2,i3,i4[36],i5[11])->(o0,o1[20],o2) */
+/* leonav_innovation_gnss_range_rate:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
 static int casadi_f50(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
@@ -26896,7 +28362,7 @@ static int casadi_f50(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* leonav_update_gnss_range_rate:(x[21],P[20x20],z,R,aux[36],p[11])->(x_post[21],P_post[20x20],y,S,nis) */
+/* leonav_update_gnss_range_rate:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
 static int casadi_f49(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
@@ -27023,7 +28489,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_gnss_range_rate_work_bytes(casadi_int *sz
   return 0;
 }
 
-/* leonav_pcrb_info_gnss_range_rate:(J[20x20],x[21],aux[36],p[11],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_gnss_range_rate:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
 static int casadi_f51(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+30, *w1=w+430, *w5=w+830, *w6=w+850, w7;
@@ -27127,8 +28593,3655 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_gnss_range_rate_work_bytes(casadi_int 
   return 0;
 }
 
-/* leonav_pcrb_update:(B[20x20],H[1x20],R)->(B_next[20x20],S) */
+/* leonav_h_nhc_y:(x[21],aux[36],p[14])->(h,H[1x20]) */
 static int casadi_f52(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14;
+  a00=arg[0]? arg[0][7] : 0;
+  a01=arg[0]? arg[0][8] : 0;
+  a02=(a00*a01);
+  a03=arg[0]? arg[0][6] : 0;
+  a04=arg[0]? arg[0][9] : 0;
+  a05=(a03*a04);
+  a02=(a02-a05);
+  a02=(2.*a02);
+  a05=arg[0]? arg[0][3] : 0;
+  a06=(a02*a05);
+  a07=1.;
+  a08=casadi_sq(a00);
+  a09=casadi_sq(a04);
+  a08=(a08+a09);
+  a08=(2.*a08);
+  a07=(a07-a08);
+  a08=arg[0]? arg[0][4] : 0;
+  a09=(a07*a08);
+  a06=(a06+a09);
+  a09=(a01*a04);
+  a10=(a03*a00);
+  a09=(a09+a10);
+  a09=(2.*a09);
+  a10=arg[0]? arg[0][5] : 0;
+  a11=(a09*a10);
+  a06=(a06+a11);
+  if (res[0]!=0) res[0][0]=a06;
+  a06=0.;
+  if (res[1]!=0) res[1][0]=a06;
+  if (res[1]!=0) res[1][1]=a06;
+  if (res[1]!=0) res[1][2]=a06;
+  if (res[1]!=0) res[1][3]=a02;
+  if (res[1]!=0) res[1][4]=a07;
+  if (res[1]!=0) res[1][5]=a09;
+  a09=5.0000000000000000e-01;
+  a10=(2.*a10);
+  a07=(a04*a10);
+  a05=(2.*a05);
+  a02=(a00*a05);
+  a07=(a07+a02);
+  a02=(a04*a07);
+  a11=(a01*a10);
+  a12=(2.*a04);
+  a08=(-a08);
+  a08=(2.*a08);
+  a12=(a12*a08);
+  a11=(a11+a12);
+  a12=(a03*a05);
+  a11=(a11-a12);
+  a12=(a01*a11);
+  a13=(a00*a10);
+  a14=(a04*a05);
+  a13=(a13-a14);
+  a14=(a00*a13);
+  a12=(a12+a14);
+  a02=(a02-a12);
+  a10=(a03*a10);
+  a12=(2.*a00);
+  a12=(a12*a08);
+  a10=(a10+a12);
+  a05=(a01*a05);
+  a10=(a10+a05);
+  a05=(a03*a10);
+  a02=(a02+a05);
+  a02=(a09*a02);
+  if (res[1]!=0) res[1][6]=a02;
+  a02=(a00*a11);
+  a05=(a01*a13);
+  a02=(a02-a05);
+  a05=(a03*a07);
+  a02=(a02+a05);
+  a05=(a04*a10);
+  a02=(a02-a05);
+  a02=(a09*a02);
+  if (res[1]!=0) res[1][7]=a02;
+  a03=(a03*a11);
+  a04=(a04*a13);
+  a03=(a03-a04);
+  a00=(a00*a07);
+  a03=(a03-a00);
+  a01=(a01*a10);
+  a03=(a03+a01);
+  a09=(a09*a03);
+  if (res[1]!=0) res[1][8]=a09;
+  if (res[1]!=0) res[1][9]=a06;
+  if (res[1]!=0) res[1][10]=a06;
+  if (res[1]!=0) res[1][11]=a06;
+  if (res[1]!=0) res[1][12]=a06;
+  if (res[1]!=0) res[1][13]=a06;
+  if (res[1]!=0) res[1][14]=a06;
+  if (res[1]!=0) res[1][15]=a06;
+  if (res[1]!=0) res[1][16]=a06;
+  if (res[1]!=0) res[1][17]=a06;
+  if (res[1]!=0) res[1][18]=a06;
+  if (res[1]!=0) res[1][19]=a06;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_nhc_y(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f52(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_nhc_y_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_nhc_y_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_nhc_y_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_nhc_y_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_h_nhc_y_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_h_nhc_y_n_out(void) { return 2;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_h_nhc_y_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_h_nhc_y_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "aux";
+    case 2: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_h_nhc_y_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "h";
+    case 1: return "H";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_h_nhc_y_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s5;
+    case 2: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_h_nhc_y_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    case 1: return casadi_s6;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_nhc_y_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 2;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_nhc_y_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 2*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_innovation_nhc_y:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
+static int casadi_f54(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16, a17, a18, a19;
+  a00=arg[2]? arg[2][0] : 0;
+  a01=arg[0]? arg[0][7] : 0;
+  a02=arg[0]? arg[0][8] : 0;
+  a03=(a01*a02);
+  a04=arg[0]? arg[0][6] : 0;
+  a05=arg[0]? arg[0][9] : 0;
+  a06=(a04*a05);
+  a03=(a03-a06);
+  a03=(2.*a03);
+  a06=arg[0]? arg[0][3] : 0;
+  a07=(a03*a06);
+  a08=1.;
+  a09=casadi_sq(a01);
+  a10=casadi_sq(a05);
+  a09=(a09+a10);
+  a09=(2.*a09);
+  a08=(a08-a09);
+  a09=arg[0]? arg[0][4] : 0;
+  a10=(a08*a09);
+  a07=(a07+a10);
+  a10=(a02*a05);
+  a11=(a04*a01);
+  a10=(a10+a11);
+  a10=(2.*a10);
+  a11=arg[0]? arg[0][5] : 0;
+  a12=(a10*a11);
+  a07=(a07+a12);
+  a00=(a00-a07);
+  if (res[0]!=0) res[0][0]=a00;
+  a00=arg[1]? arg[1][60] : 0;
+  a07=arg[1]? arg[1][3] : 0;
+  a00=(a00+a07);
+  a07=2.;
+  a00=(a00/a07);
+  a00=(a00*a03);
+  a12=arg[1]? arg[1][80] : 0;
+  a13=arg[1]? arg[1][4] : 0;
+  a12=(a12+a13);
+  a12=(a12/a07);
+  a12=(a12*a08);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][100] : 0;
+  a13=arg[1]? arg[1][5] : 0;
+  a12=(a12+a13);
+  a12=(a12/a07);
+  a12=(a12*a10);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][120] : 0;
+  a13=arg[1]? arg[1][6] : 0;
+  a12=(a12+a13);
+  a12=(a12/a07);
+  a13=5.0000000000000000e-01;
+  a11=(2.*a11);
+  a14=(a05*a11);
+  a06=(2.*a06);
+  a15=(a01*a06);
+  a14=(a14+a15);
+  a15=(a05*a14);
+  a16=(a02*a11);
+  a17=(2.*a05);
+  a09=(-a09);
+  a09=(2.*a09);
+  a17=(a17*a09);
+  a16=(a16+a17);
+  a17=(a04*a06);
+  a16=(a16-a17);
+  a17=(a02*a16);
+  a18=(a01*a11);
+  a19=(a05*a06);
+  a18=(a18-a19);
+  a19=(a01*a18);
+  a17=(a17+a19);
+  a15=(a15-a17);
+  a11=(a04*a11);
+  a17=(2.*a01);
+  a17=(a17*a09);
+  a11=(a11+a17);
+  a06=(a02*a06);
+  a11=(a11+a06);
+  a06=(a04*a11);
+  a15=(a15+a06);
+  a15=(a13*a15);
+  a12=(a12*a15);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][140] : 0;
+  a06=arg[1]? arg[1][7] : 0;
+  a12=(a12+a06);
+  a12=(a12/a07);
+  a06=(a01*a16);
+  a17=(a02*a18);
+  a06=(a06-a17);
+  a17=(a04*a14);
+  a06=(a06+a17);
+  a17=(a05*a11);
+  a06=(a06-a17);
+  a06=(a13*a06);
+  a12=(a12*a06);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][160] : 0;
+  a17=arg[1]? arg[1][8] : 0;
+  a12=(a12+a17);
+  a12=(a12/a07);
+  a04=(a04*a16);
+  a05=(a05*a18);
+  a04=(a04-a05);
+  a01=(a01*a14);
+  a04=(a04-a01);
+  a02=(a02*a11);
+  a04=(a04+a02);
+  a13=(a13*a04);
+  a12=(a12*a13);
+  a00=(a00+a12);
+  if (res[1]!=0) res[1][0]=a00;
+  a00=arg[1]? arg[1][61] : 0;
+  a12=arg[1]? arg[1][23] : 0;
+  a00=(a00+a12);
+  a00=(a00/a07);
+  a00=(a00*a03);
+  a12=arg[1]? arg[1][81] : 0;
+  a04=arg[1]? arg[1][24] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a08);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][101] : 0;
+  a04=arg[1]? arg[1][25] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a10);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][121] : 0;
+  a04=arg[1]? arg[1][26] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a15);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][141] : 0;
+  a04=arg[1]? arg[1][27] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a06);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][161] : 0;
+  a04=arg[1]? arg[1][28] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a13);
+  a00=(a00+a12);
+  if (res[1]!=0) res[1][1]=a00;
+  a00=arg[1]? arg[1][62] : 0;
+  a12=arg[1]? arg[1][43] : 0;
+  a00=(a00+a12);
+  a00=(a00/a07);
+  a00=(a00*a03);
+  a12=arg[1]? arg[1][82] : 0;
+  a04=arg[1]? arg[1][44] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a08);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][102] : 0;
+  a04=arg[1]? arg[1][45] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a10);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][122] : 0;
+  a04=arg[1]? arg[1][46] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a15);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][142] : 0;
+  a04=arg[1]? arg[1][47] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a06);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][162] : 0;
+  a04=arg[1]? arg[1][48] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a13);
+  a00=(a00+a12);
+  if (res[1]!=0) res[1][2]=a00;
+  a00=arg[1]? arg[1][63] : 0;
+  a00=(a00*a03);
+  a12=arg[1]? arg[1][83] : 0;
+  a04=arg[1]? arg[1][64] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a04=(a12*a08);
+  a00=(a00+a04);
+  a04=arg[1]? arg[1][103] : 0;
+  a02=arg[1]? arg[1][65] : 0;
+  a04=(a04+a02);
+  a04=(a04/a07);
+  a02=(a04*a10);
+  a00=(a00+a02);
+  a02=arg[1]? arg[1][123] : 0;
+  a11=arg[1]? arg[1][66] : 0;
+  a02=(a02+a11);
+  a02=(a02/a07);
+  a11=(a02*a15);
+  a00=(a00+a11);
+  a11=arg[1]? arg[1][143] : 0;
+  a01=arg[1]? arg[1][67] : 0;
+  a11=(a11+a01);
+  a11=(a11/a07);
+  a01=(a11*a06);
+  a00=(a00+a01);
+  a01=arg[1]? arg[1][163] : 0;
+  a14=arg[1]? arg[1][68] : 0;
+  a01=(a01+a14);
+  a01=(a01/a07);
+  a14=(a01*a13);
+  a00=(a00+a14);
+  if (res[1]!=0) res[1][3]=a00;
+  a12=(a12*a03);
+  a14=arg[1]? arg[1][84] : 0;
+  a14=(a14*a08);
+  a12=(a12+a14);
+  a14=arg[1]? arg[1][104] : 0;
+  a05=arg[1]? arg[1][85] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a05=(a14*a10);
+  a12=(a12+a05);
+  a05=arg[1]? arg[1][124] : 0;
+  a18=arg[1]? arg[1][86] : 0;
+  a05=(a05+a18);
+  a05=(a05/a07);
+  a18=(a05*a15);
+  a12=(a12+a18);
+  a18=arg[1]? arg[1][144] : 0;
+  a16=arg[1]? arg[1][87] : 0;
+  a18=(a18+a16);
+  a18=(a18/a07);
+  a16=(a18*a06);
+  a12=(a12+a16);
+  a16=arg[1]? arg[1][164] : 0;
+  a17=arg[1]? arg[1][88] : 0;
+  a16=(a16+a17);
+  a16=(a16/a07);
+  a17=(a16*a13);
+  a12=(a12+a17);
+  if (res[1]!=0) res[1][4]=a12;
+  a04=(a04*a03);
+  a14=(a14*a08);
+  a04=(a04+a14);
+  a14=arg[1]? arg[1][105] : 0;
+  a14=(a14*a10);
+  a04=(a04+a14);
+  a14=arg[1]? arg[1][125] : 0;
+  a17=arg[1]? arg[1][106] : 0;
+  a14=(a14+a17);
+  a14=(a14/a07);
+  a17=(a14*a15);
+  a04=(a04+a17);
+  a17=arg[1]? arg[1][145] : 0;
+  a09=arg[1]? arg[1][107] : 0;
+  a17=(a17+a09);
+  a17=(a17/a07);
+  a09=(a17*a06);
+  a04=(a04+a09);
+  a09=arg[1]? arg[1][165] : 0;
+  a19=arg[1]? arg[1][108] : 0;
+  a09=(a09+a19);
+  a09=(a09/a07);
+  a19=(a09*a13);
+  a04=(a04+a19);
+  if (res[1]!=0) res[1][5]=a04;
+  a02=(a02*a03);
+  a05=(a05*a08);
+  a02=(a02+a05);
+  a14=(a14*a10);
+  a02=(a02+a14);
+  a14=arg[1]? arg[1][126] : 0;
+  a14=(a14*a15);
+  a02=(a02+a14);
+  a14=arg[1]? arg[1][146] : 0;
+  a05=arg[1]? arg[1][127] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a05=(a14*a06);
+  a02=(a02+a05);
+  a05=arg[1]? arg[1][166] : 0;
+  a19=arg[1]? arg[1][128] : 0;
+  a05=(a05+a19);
+  a05=(a05/a07);
+  a19=(a05*a13);
+  a02=(a02+a19);
+  if (res[1]!=0) res[1][6]=a02;
+  a11=(a11*a03);
+  a18=(a18*a08);
+  a11=(a11+a18);
+  a17=(a17*a10);
+  a11=(a11+a17);
+  a14=(a14*a15);
+  a11=(a11+a14);
+  a14=arg[1]? arg[1][147] : 0;
+  a14=(a14*a06);
+  a11=(a11+a14);
+  a14=arg[1]? arg[1][167] : 0;
+  a17=arg[1]? arg[1][148] : 0;
+  a14=(a14+a17);
+  a14=(a14/a07);
+  a17=(a14*a13);
+  a11=(a11+a17);
+  if (res[1]!=0) res[1][7]=a11;
+  a01=(a01*a03);
+  a16=(a16*a08);
+  a01=(a01+a16);
+  a09=(a09*a10);
+  a01=(a01+a09);
+  a05=(a05*a15);
+  a01=(a01+a05);
+  a14=(a14*a06);
+  a01=(a01+a14);
+  a14=arg[1]? arg[1][168] : 0;
+  a14=(a14*a13);
+  a01=(a01+a14);
+  if (res[1]!=0) res[1][8]=a01;
+  a14=arg[1]? arg[1][183] : 0;
+  a05=arg[1]? arg[1][69] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a14=(a14*a03);
+  a05=arg[1]? arg[1][184] : 0;
+  a09=arg[1]? arg[1][89] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a08);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][185] : 0;
+  a09=arg[1]? arg[1][109] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a10);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][186] : 0;
+  a09=arg[1]? arg[1][129] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a15);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][187] : 0;
+  a09=arg[1]? arg[1][149] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a06);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][188] : 0;
+  a09=arg[1]? arg[1][169] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a13);
+  a14=(a14+a05);
+  if (res[1]!=0) res[1][9]=a14;
+  a14=arg[1]? arg[1][203] : 0;
+  a05=arg[1]? arg[1][70] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a14=(a14*a03);
+  a05=arg[1]? arg[1][204] : 0;
+  a09=arg[1]? arg[1][90] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a08);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][205] : 0;
+  a09=arg[1]? arg[1][110] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a10);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][206] : 0;
+  a09=arg[1]? arg[1][130] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a15);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][207] : 0;
+  a09=arg[1]? arg[1][150] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a06);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][208] : 0;
+  a09=arg[1]? arg[1][170] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a13);
+  a14=(a14+a05);
+  if (res[1]!=0) res[1][10]=a14;
+  a14=arg[1]? arg[1][223] : 0;
+  a05=arg[1]? arg[1][71] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a14=(a14*a03);
+  a05=arg[1]? arg[1][224] : 0;
+  a09=arg[1]? arg[1][91] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a08);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][225] : 0;
+  a09=arg[1]? arg[1][111] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a10);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][226] : 0;
+  a09=arg[1]? arg[1][131] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a15);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][227] : 0;
+  a09=arg[1]? arg[1][151] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a06);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][228] : 0;
+  a09=arg[1]? arg[1][171] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a13);
+  a14=(a14+a05);
+  if (res[1]!=0) res[1][11]=a14;
+  a14=arg[1]? arg[1][243] : 0;
+  a05=arg[1]? arg[1][72] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a14=(a14*a03);
+  a05=arg[1]? arg[1][244] : 0;
+  a09=arg[1]? arg[1][92] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a08);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][245] : 0;
+  a09=arg[1]? arg[1][112] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a10);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][246] : 0;
+  a09=arg[1]? arg[1][132] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a15);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][247] : 0;
+  a09=arg[1]? arg[1][152] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a06);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][248] : 0;
+  a09=arg[1]? arg[1][172] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a13);
+  a14=(a14+a05);
+  if (res[1]!=0) res[1][12]=a14;
+  a14=arg[1]? arg[1][263] : 0;
+  a05=arg[1]? arg[1][73] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a14=(a14*a03);
+  a05=arg[1]? arg[1][264] : 0;
+  a09=arg[1]? arg[1][93] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a08);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][265] : 0;
+  a09=arg[1]? arg[1][113] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a10);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][266] : 0;
+  a09=arg[1]? arg[1][133] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a15);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][267] : 0;
+  a09=arg[1]? arg[1][153] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a06);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][268] : 0;
+  a09=arg[1]? arg[1][173] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a13);
+  a14=(a14+a05);
+  if (res[1]!=0) res[1][13]=a14;
+  a14=arg[1]? arg[1][283] : 0;
+  a05=arg[1]? arg[1][74] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a14=(a14*a03);
+  a05=arg[1]? arg[1][284] : 0;
+  a09=arg[1]? arg[1][94] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a08);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][285] : 0;
+  a09=arg[1]? arg[1][114] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a10);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][286] : 0;
+  a09=arg[1]? arg[1][134] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a15);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][287] : 0;
+  a09=arg[1]? arg[1][154] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a06);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][288] : 0;
+  a09=arg[1]? arg[1][174] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a13);
+  a14=(a14+a05);
+  if (res[1]!=0) res[1][14]=a14;
+  a14=arg[1]? arg[1][303] : 0;
+  a05=arg[1]? arg[1][75] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a14=(a14*a03);
+  a05=arg[1]? arg[1][304] : 0;
+  a09=arg[1]? arg[1][95] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a08);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][305] : 0;
+  a09=arg[1]? arg[1][115] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a10);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][306] : 0;
+  a09=arg[1]? arg[1][135] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a15);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][307] : 0;
+  a09=arg[1]? arg[1][155] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a06);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][308] : 0;
+  a09=arg[1]? arg[1][175] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a13);
+  a14=(a14+a05);
+  if (res[1]!=0) res[1][15]=a14;
+  a14=arg[1]? arg[1][323] : 0;
+  a05=arg[1]? arg[1][76] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a14=(a14*a03);
+  a05=arg[1]? arg[1][324] : 0;
+  a09=arg[1]? arg[1][96] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a08);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][325] : 0;
+  a09=arg[1]? arg[1][116] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a10);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][326] : 0;
+  a09=arg[1]? arg[1][136] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a15);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][327] : 0;
+  a09=arg[1]? arg[1][156] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a06);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][328] : 0;
+  a09=arg[1]? arg[1][176] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a13);
+  a14=(a14+a05);
+  if (res[1]!=0) res[1][16]=a14;
+  a14=arg[1]? arg[1][343] : 0;
+  a05=arg[1]? arg[1][77] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a14=(a14*a03);
+  a05=arg[1]? arg[1][344] : 0;
+  a09=arg[1]? arg[1][97] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a08);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][345] : 0;
+  a09=arg[1]? arg[1][117] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a10);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][346] : 0;
+  a09=arg[1]? arg[1][137] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a15);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][347] : 0;
+  a09=arg[1]? arg[1][157] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a06);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][348] : 0;
+  a09=arg[1]? arg[1][177] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a13);
+  a14=(a14+a05);
+  if (res[1]!=0) res[1][17]=a14;
+  a14=arg[1]? arg[1][363] : 0;
+  a05=arg[1]? arg[1][78] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a14=(a14*a03);
+  a05=arg[1]? arg[1][364] : 0;
+  a09=arg[1]? arg[1][98] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a08);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][365] : 0;
+  a09=arg[1]? arg[1][118] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a10);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][366] : 0;
+  a09=arg[1]? arg[1][138] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a15);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][367] : 0;
+  a09=arg[1]? arg[1][158] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a06);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][368] : 0;
+  a09=arg[1]? arg[1][178] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a13);
+  a14=(a14+a05);
+  if (res[1]!=0) res[1][18]=a14;
+  a14=arg[1]? arg[1][383] : 0;
+  a05=arg[1]? arg[1][79] : 0;
+  a14=(a14+a05);
+  a14=(a14/a07);
+  a14=(a14*a03);
+  a05=arg[1]? arg[1][384] : 0;
+  a09=arg[1]? arg[1][99] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a08);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][385] : 0;
+  a09=arg[1]? arg[1][119] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a10);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][386] : 0;
+  a09=arg[1]? arg[1][139] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a15);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][387] : 0;
+  a09=arg[1]? arg[1][159] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a06);
+  a14=(a14+a05);
+  a05=arg[1]? arg[1][388] : 0;
+  a09=arg[1]? arg[1][179] : 0;
+  a05=(a05+a09);
+  a05=(a05/a07);
+  a05=(a05*a13);
+  a14=(a14+a05);
+  if (res[1]!=0) res[1][19]=a14;
+  a03=(a03*a00);
+  a08=(a08*a12);
+  a03=(a03+a08);
+  a10=(a10*a04);
+  a03=(a03+a10);
+  a15=(a15*a02);
+  a03=(a03+a15);
+  a06=(a06*a11);
+  a03=(a03+a06);
+  a13=(a13*a01);
+  a03=(a03+a13);
+  a13=arg[3]? arg[3][0] : 0;
+  a03=(a03+a13);
+  if (res[2]!=0) res[2][0]=a03;
+  return 0;
+}
+
+/* leonav_update_nhc_y:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
+static int casadi_f53(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
+  const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
+  wr00 = arg[0] ? arg[0] : casadi_zeros;
+  wr01 = arg[1] ? arg[1] : casadi_zeros;
+  w02 = arg[2] ? arg[2][0] : 0;
+  w03 = arg[3] ? arg[3][0] : 0;
+  wr04 = arg[4] ? arg[4] : casadi_zeros;
+  wr05 = arg[5] ? arg[5] : casadi_zeros;
+  arg1[0]=wr00;
+  arg1[1]=wr01;
+  arg1[2]=(&w02);
+  arg1[3]=(&w03);
+  arg1[4]=wr04;
+  arg1[5]=wr05;
+  res1[0]=(&w06);
+  res1[1]=w07;
+  res1[2]=(&w08);
+  if (casadi_f54(arg1, res1, iw, w, 0)) return 1;
+  arg1[0]=wr00;
+  arg1[1]=wr01;
+  arg1[2]=(&w06);
+  arg1[3]=w07;
+  arg1[4]=(&w08);
+  res1[0]=w09;
+  res1[1]=w10;
+  if (casadi_f6(arg1, res1, iw, w, 0)) return 1;
+  casadi_copy(w09, 21, res[0]);
+  casadi_copy(w10, 400, res[1]);
+  if (res[2]) res[2][0] = w06;
+  if (res[3]) res[3][0] = w08;
+  w06 = casadi_sq( w06 );
+  w06 /= w08;
+  if (res[4]) res[4][0] = w06;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_nhc_y(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f53(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_nhc_y_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_nhc_y_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_nhc_y_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_nhc_y_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_update_nhc_y_n_in(void) { return 6;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_update_nhc_y_n_out(void) { return 5;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_update_nhc_y_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_update_nhc_y_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "P";
+    case 2: return "z";
+    case 3: return "R";
+    case 4: return "aux";
+    case 5: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_update_nhc_y_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "x_post";
+    case 1: return "P_post";
+    case 2: return "y";
+    case 3: return "S";
+    case 4: return "nis";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_update_nhc_y_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s4;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s5;
+    case 5: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_update_nhc_y_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s4;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_nhc_y_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 12;
+  if (sz_res) *sz_res = 8;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 566;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_nhc_y_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 12*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 8*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 566*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_pcrb_info_nhc_y:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
+static int casadi_f55(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;
+  const casadi_real **arg1=arg+5, *cr, *cs, *wr0, *wr2, *wr3, *wr4;
+  wr0 = arg[0] ? arg[0] : casadi_zeros;
+  casadi_clear(w1, 400);
+  wr2 = arg[1] ? arg[1] : casadi_zeros;
+  wr3 = arg[2] ? arg[2] : casadi_zeros;
+  wr4 = arg[3] ? arg[3] : casadi_zeros;
+  arg1[0]=wr2;
+  arg1[1]=wr3;
+  arg1[2]=wr4;
+  res1[0]=0;
+  res1[1]=w5;
+  if (casadi_f52(arg1, res1, iw, w, 0)) return 1;
+  casadi_copy(w5, 20, w6);
+  casadi_mtimes_dense(w6, 20, 1, w5, 20, w1, 0);
+  w7 = arg[4] ? arg[4][0] : 0;
+  for (i=0, rr=w1; i<400; ++i) (*rr++) /= w7;
+  for (i=0, rr=w0, cr=wr0, cs=w1; i<400; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  casadi_copy(w0, 400, res[0]);
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_nhc_y(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f55(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_nhc_y_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_nhc_y_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_nhc_y_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_nhc_y_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_pcrb_info_nhc_y_n_in(void) { return 5;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_pcrb_info_nhc_y_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_pcrb_info_nhc_y_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_pcrb_info_nhc_y_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "J";
+    case 1: return "x";
+    case 2: return "aux";
+    case 3: return "p";
+    case 4: return "R";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_pcrb_info_nhc_y_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "J_next";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_pcrb_info_nhc_y_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s4;
+    case 1: return casadi_s0;
+    case 2: return casadi_s5;
+    case 3: return casadi_s3;
+    case 4: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_pcrb_info_nhc_y_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s4;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_nhc_y_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 8;
+  if (sz_res) *sz_res = 3;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 860;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_nhc_y_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 8*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 3*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 860*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_h_nhc_z:(x[21],aux[36],p[14])->(h,H[1x20]) */
+static int casadi_f56(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13;
+  a00=arg[0]? arg[0][7] : 0;
+  a01=arg[0]? arg[0][9] : 0;
+  a02=(a00*a01);
+  a03=arg[0]? arg[0][6] : 0;
+  a04=arg[0]? arg[0][8] : 0;
+  a05=(a03*a04);
+  a02=(a02+a05);
+  a02=(2.*a02);
+  a05=arg[0]? arg[0][3] : 0;
+  a06=(a02*a05);
+  a07=(a04*a01);
+  a08=(a03*a00);
+  a07=(a07-a08);
+  a07=(2.*a07);
+  a08=arg[0]? arg[0][4] : 0;
+  a09=(a07*a08);
+  a06=(a06+a09);
+  a09=1.;
+  a10=casadi_sq(a00);
+  a11=casadi_sq(a04);
+  a10=(a10+a11);
+  a10=(2.*a10);
+  a09=(a09-a10);
+  a10=arg[0]? arg[0][5] : 0;
+  a11=(a09*a10);
+  a06=(a06+a11);
+  if (res[0]!=0) res[0][0]=a06;
+  a06=0.;
+  if (res[1]!=0) res[1][0]=a06;
+  if (res[1]!=0) res[1][1]=a06;
+  if (res[1]!=0) res[1][2]=a06;
+  if (res[1]!=0) res[1][3]=a02;
+  if (res[1]!=0) res[1][4]=a07;
+  if (res[1]!=0) res[1][5]=a09;
+  a09=5.0000000000000000e-01;
+  a07=(2.*a04);
+  a10=(-a10);
+  a10=(2.*a10);
+  a07=(a07*a10);
+  a08=(2.*a08);
+  a02=(a01*a08);
+  a07=(a07+a02);
+  a05=(2.*a05);
+  a02=(a03*a05);
+  a07=(a07+a02);
+  a02=(a01*a07);
+  a11=(a04*a05);
+  a12=(a00*a08);
+  a11=(a11-a12);
+  a12=(a00*a11);
+  a02=(a02-a12);
+  a12=(a04*a08);
+  a13=(a00*a05);
+  a12=(a12+a13);
+  a13=(a04*a12);
+  a02=(a02-a13);
+  a13=(2.*a00);
+  a13=(a13*a10);
+  a08=(a03*a08);
+  a13=(a13-a08);
+  a05=(a01*a05);
+  a13=(a13+a05);
+  a05=(a03*a13);
+  a02=(a02+a05);
+  a02=(a09*a02);
+  if (res[1]!=0) res[1][6]=a02;
+  a02=(a03*a07);
+  a05=(a04*a11);
+  a02=(a02-a05);
+  a05=(a00*a12);
+  a02=(a02+a05);
+  a05=(a01*a13);
+  a02=(a02-a05);
+  a02=(a09*a02);
+  if (res[1]!=0) res[1][7]=a02;
+  a03=(a03*a12);
+  a00=(a00*a07);
+  a01=(a01*a11);
+  a00=(a00+a01);
+  a03=(a03-a00);
+  a04=(a04*a13);
+  a03=(a03+a04);
+  a09=(a09*a03);
+  if (res[1]!=0) res[1][8]=a09;
+  if (res[1]!=0) res[1][9]=a06;
+  if (res[1]!=0) res[1][10]=a06;
+  if (res[1]!=0) res[1][11]=a06;
+  if (res[1]!=0) res[1][12]=a06;
+  if (res[1]!=0) res[1][13]=a06;
+  if (res[1]!=0) res[1][14]=a06;
+  if (res[1]!=0) res[1][15]=a06;
+  if (res[1]!=0) res[1][16]=a06;
+  if (res[1]!=0) res[1][17]=a06;
+  if (res[1]!=0) res[1][18]=a06;
+  if (res[1]!=0) res[1][19]=a06;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_nhc_z(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f56(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_nhc_z_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_nhc_z_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_nhc_z_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_nhc_z_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_h_nhc_z_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_h_nhc_z_n_out(void) { return 2;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_h_nhc_z_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_h_nhc_z_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "aux";
+    case 2: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_h_nhc_z_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "h";
+    case 1: return "H";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_h_nhc_z_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s5;
+    case 2: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_h_nhc_z_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    case 1: return casadi_s6;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_nhc_z_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 2;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_nhc_z_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 2*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_innovation_nhc_z:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
+static int casadi_f58(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16, a17, a18, a19;
+  a00=arg[2]? arg[2][0] : 0;
+  a01=arg[0]? arg[0][7] : 0;
+  a02=arg[0]? arg[0][9] : 0;
+  a03=(a01*a02);
+  a04=arg[0]? arg[0][6] : 0;
+  a05=arg[0]? arg[0][8] : 0;
+  a06=(a04*a05);
+  a03=(a03+a06);
+  a03=(2.*a03);
+  a06=arg[0]? arg[0][3] : 0;
+  a07=(a03*a06);
+  a08=(a05*a02);
+  a09=(a04*a01);
+  a08=(a08-a09);
+  a08=(2.*a08);
+  a09=arg[0]? arg[0][4] : 0;
+  a10=(a08*a09);
+  a07=(a07+a10);
+  a10=1.;
+  a11=casadi_sq(a01);
+  a12=casadi_sq(a05);
+  a11=(a11+a12);
+  a11=(2.*a11);
+  a10=(a10-a11);
+  a11=arg[0]? arg[0][5] : 0;
+  a12=(a10*a11);
+  a07=(a07+a12);
+  a00=(a00-a07);
+  if (res[0]!=0) res[0][0]=a00;
+  a00=arg[1]? arg[1][60] : 0;
+  a07=arg[1]? arg[1][3] : 0;
+  a00=(a00+a07);
+  a07=2.;
+  a00=(a00/a07);
+  a00=(a00*a03);
+  a12=arg[1]? arg[1][80] : 0;
+  a13=arg[1]? arg[1][4] : 0;
+  a12=(a12+a13);
+  a12=(a12/a07);
+  a12=(a12*a08);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][100] : 0;
+  a13=arg[1]? arg[1][5] : 0;
+  a12=(a12+a13);
+  a12=(a12/a07);
+  a12=(a12*a10);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][120] : 0;
+  a13=arg[1]? arg[1][6] : 0;
+  a12=(a12+a13);
+  a12=(a12/a07);
+  a13=5.0000000000000000e-01;
+  a14=(2.*a05);
+  a11=(-a11);
+  a11=(2.*a11);
+  a14=(a14*a11);
+  a09=(2.*a09);
+  a15=(a02*a09);
+  a14=(a14+a15);
+  a06=(2.*a06);
+  a15=(a04*a06);
+  a14=(a14+a15);
+  a15=(a02*a14);
+  a16=(a05*a06);
+  a17=(a01*a09);
+  a16=(a16-a17);
+  a17=(a01*a16);
+  a15=(a15-a17);
+  a17=(a05*a09);
+  a18=(a01*a06);
+  a17=(a17+a18);
+  a18=(a05*a17);
+  a15=(a15-a18);
+  a18=(2.*a01);
+  a18=(a18*a11);
+  a09=(a04*a09);
+  a18=(a18-a09);
+  a06=(a02*a06);
+  a18=(a18+a06);
+  a06=(a04*a18);
+  a15=(a15+a06);
+  a15=(a13*a15);
+  a12=(a12*a15);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][140] : 0;
+  a06=arg[1]? arg[1][7] : 0;
+  a12=(a12+a06);
+  a12=(a12/a07);
+  a06=(a04*a14);
+  a09=(a05*a16);
+  a06=(a06-a09);
+  a09=(a01*a17);
+  a06=(a06+a09);
+  a09=(a02*a18);
+  a06=(a06-a09);
+  a06=(a13*a06);
+  a12=(a12*a06);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][160] : 0;
+  a09=arg[1]? arg[1][8] : 0;
+  a12=(a12+a09);
+  a12=(a12/a07);
+  a04=(a04*a17);
+  a01=(a01*a14);
+  a02=(a02*a16);
+  a01=(a01+a02);
+  a04=(a04-a01);
+  a05=(a05*a18);
+  a04=(a04+a05);
+  a13=(a13*a04);
+  a12=(a12*a13);
+  a00=(a00+a12);
+  if (res[1]!=0) res[1][0]=a00;
+  a00=arg[1]? arg[1][61] : 0;
+  a12=arg[1]? arg[1][23] : 0;
+  a00=(a00+a12);
+  a00=(a00/a07);
+  a00=(a00*a03);
+  a12=arg[1]? arg[1][81] : 0;
+  a04=arg[1]? arg[1][24] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a08);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][101] : 0;
+  a04=arg[1]? arg[1][25] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a10);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][121] : 0;
+  a04=arg[1]? arg[1][26] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a15);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][141] : 0;
+  a04=arg[1]? arg[1][27] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a06);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][161] : 0;
+  a04=arg[1]? arg[1][28] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a13);
+  a00=(a00+a12);
+  if (res[1]!=0) res[1][1]=a00;
+  a00=arg[1]? arg[1][62] : 0;
+  a12=arg[1]? arg[1][43] : 0;
+  a00=(a00+a12);
+  a00=(a00/a07);
+  a00=(a00*a03);
+  a12=arg[1]? arg[1][82] : 0;
+  a04=arg[1]? arg[1][44] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a08);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][102] : 0;
+  a04=arg[1]? arg[1][45] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a10);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][122] : 0;
+  a04=arg[1]? arg[1][46] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a15);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][142] : 0;
+  a04=arg[1]? arg[1][47] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a06);
+  a00=(a00+a12);
+  a12=arg[1]? arg[1][162] : 0;
+  a04=arg[1]? arg[1][48] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a12=(a12*a13);
+  a00=(a00+a12);
+  if (res[1]!=0) res[1][2]=a00;
+  a00=arg[1]? arg[1][63] : 0;
+  a00=(a00*a03);
+  a12=arg[1]? arg[1][83] : 0;
+  a04=arg[1]? arg[1][64] : 0;
+  a12=(a12+a04);
+  a12=(a12/a07);
+  a04=(a12*a08);
+  a00=(a00+a04);
+  a04=arg[1]? arg[1][103] : 0;
+  a05=arg[1]? arg[1][65] : 0;
+  a04=(a04+a05);
+  a04=(a04/a07);
+  a05=(a04*a10);
+  a00=(a00+a05);
+  a05=arg[1]? arg[1][123] : 0;
+  a18=arg[1]? arg[1][66] : 0;
+  a05=(a05+a18);
+  a05=(a05/a07);
+  a18=(a05*a15);
+  a00=(a00+a18);
+  a18=arg[1]? arg[1][143] : 0;
+  a01=arg[1]? arg[1][67] : 0;
+  a18=(a18+a01);
+  a18=(a18/a07);
+  a01=(a18*a06);
+  a00=(a00+a01);
+  a01=arg[1]? arg[1][163] : 0;
+  a02=arg[1]? arg[1][68] : 0;
+  a01=(a01+a02);
+  a01=(a01/a07);
+  a02=(a01*a13);
+  a00=(a00+a02);
+  if (res[1]!=0) res[1][3]=a00;
+  a12=(a12*a03);
+  a02=arg[1]? arg[1][84] : 0;
+  a02=(a02*a08);
+  a12=(a12+a02);
+  a02=arg[1]? arg[1][104] : 0;
+  a16=arg[1]? arg[1][85] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a16=(a02*a10);
+  a12=(a12+a16);
+  a16=arg[1]? arg[1][124] : 0;
+  a14=arg[1]? arg[1][86] : 0;
+  a16=(a16+a14);
+  a16=(a16/a07);
+  a14=(a16*a15);
+  a12=(a12+a14);
+  a14=arg[1]? arg[1][144] : 0;
+  a17=arg[1]? arg[1][87] : 0;
+  a14=(a14+a17);
+  a14=(a14/a07);
+  a17=(a14*a06);
+  a12=(a12+a17);
+  a17=arg[1]? arg[1][164] : 0;
+  a09=arg[1]? arg[1][88] : 0;
+  a17=(a17+a09);
+  a17=(a17/a07);
+  a09=(a17*a13);
+  a12=(a12+a09);
+  if (res[1]!=0) res[1][4]=a12;
+  a04=(a04*a03);
+  a02=(a02*a08);
+  a04=(a04+a02);
+  a02=arg[1]? arg[1][105] : 0;
+  a02=(a02*a10);
+  a04=(a04+a02);
+  a02=arg[1]? arg[1][125] : 0;
+  a09=arg[1]? arg[1][106] : 0;
+  a02=(a02+a09);
+  a02=(a02/a07);
+  a09=(a02*a15);
+  a04=(a04+a09);
+  a09=arg[1]? arg[1][145] : 0;
+  a11=arg[1]? arg[1][107] : 0;
+  a09=(a09+a11);
+  a09=(a09/a07);
+  a11=(a09*a06);
+  a04=(a04+a11);
+  a11=arg[1]? arg[1][165] : 0;
+  a19=arg[1]? arg[1][108] : 0;
+  a11=(a11+a19);
+  a11=(a11/a07);
+  a19=(a11*a13);
+  a04=(a04+a19);
+  if (res[1]!=0) res[1][5]=a04;
+  a05=(a05*a03);
+  a16=(a16*a08);
+  a05=(a05+a16);
+  a02=(a02*a10);
+  a05=(a05+a02);
+  a02=arg[1]? arg[1][126] : 0;
+  a02=(a02*a15);
+  a05=(a05+a02);
+  a02=arg[1]? arg[1][146] : 0;
+  a16=arg[1]? arg[1][127] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a16=(a02*a06);
+  a05=(a05+a16);
+  a16=arg[1]? arg[1][166] : 0;
+  a19=arg[1]? arg[1][128] : 0;
+  a16=(a16+a19);
+  a16=(a16/a07);
+  a19=(a16*a13);
+  a05=(a05+a19);
+  if (res[1]!=0) res[1][6]=a05;
+  a18=(a18*a03);
+  a14=(a14*a08);
+  a18=(a18+a14);
+  a09=(a09*a10);
+  a18=(a18+a09);
+  a02=(a02*a15);
+  a18=(a18+a02);
+  a02=arg[1]? arg[1][147] : 0;
+  a02=(a02*a06);
+  a18=(a18+a02);
+  a02=arg[1]? arg[1][167] : 0;
+  a09=arg[1]? arg[1][148] : 0;
+  a02=(a02+a09);
+  a02=(a02/a07);
+  a09=(a02*a13);
+  a18=(a18+a09);
+  if (res[1]!=0) res[1][7]=a18;
+  a01=(a01*a03);
+  a17=(a17*a08);
+  a01=(a01+a17);
+  a11=(a11*a10);
+  a01=(a01+a11);
+  a16=(a16*a15);
+  a01=(a01+a16);
+  a02=(a02*a06);
+  a01=(a01+a02);
+  a02=arg[1]? arg[1][168] : 0;
+  a02=(a02*a13);
+  a01=(a01+a02);
+  if (res[1]!=0) res[1][8]=a01;
+  a02=arg[1]? arg[1][183] : 0;
+  a16=arg[1]? arg[1][69] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a02=(a02*a03);
+  a16=arg[1]? arg[1][184] : 0;
+  a11=arg[1]? arg[1][89] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a08);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][185] : 0;
+  a11=arg[1]? arg[1][109] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a10);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][186] : 0;
+  a11=arg[1]? arg[1][129] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a15);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][187] : 0;
+  a11=arg[1]? arg[1][149] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a06);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][188] : 0;
+  a11=arg[1]? arg[1][169] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a13);
+  a02=(a02+a16);
+  if (res[1]!=0) res[1][9]=a02;
+  a02=arg[1]? arg[1][203] : 0;
+  a16=arg[1]? arg[1][70] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a02=(a02*a03);
+  a16=arg[1]? arg[1][204] : 0;
+  a11=arg[1]? arg[1][90] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a08);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][205] : 0;
+  a11=arg[1]? arg[1][110] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a10);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][206] : 0;
+  a11=arg[1]? arg[1][130] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a15);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][207] : 0;
+  a11=arg[1]? arg[1][150] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a06);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][208] : 0;
+  a11=arg[1]? arg[1][170] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a13);
+  a02=(a02+a16);
+  if (res[1]!=0) res[1][10]=a02;
+  a02=arg[1]? arg[1][223] : 0;
+  a16=arg[1]? arg[1][71] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a02=(a02*a03);
+  a16=arg[1]? arg[1][224] : 0;
+  a11=arg[1]? arg[1][91] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a08);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][225] : 0;
+  a11=arg[1]? arg[1][111] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a10);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][226] : 0;
+  a11=arg[1]? arg[1][131] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a15);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][227] : 0;
+  a11=arg[1]? arg[1][151] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a06);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][228] : 0;
+  a11=arg[1]? arg[1][171] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a13);
+  a02=(a02+a16);
+  if (res[1]!=0) res[1][11]=a02;
+  a02=arg[1]? arg[1][243] : 0;
+  a16=arg[1]? arg[1][72] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a02=(a02*a03);
+  a16=arg[1]? arg[1][244] : 0;
+  a11=arg[1]? arg[1][92] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a08);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][245] : 0;
+  a11=arg[1]? arg[1][112] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a10);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][246] : 0;
+  a11=arg[1]? arg[1][132] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a15);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][247] : 0;
+  a11=arg[1]? arg[1][152] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a06);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][248] : 0;
+  a11=arg[1]? arg[1][172] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a13);
+  a02=(a02+a16);
+  if (res[1]!=0) res[1][12]=a02;
+  a02=arg[1]? arg[1][263] : 0;
+  a16=arg[1]? arg[1][73] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a02=(a02*a03);
+  a16=arg[1]? arg[1][264] : 0;
+  a11=arg[1]? arg[1][93] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a08);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][265] : 0;
+  a11=arg[1]? arg[1][113] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a10);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][266] : 0;
+  a11=arg[1]? arg[1][133] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a15);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][267] : 0;
+  a11=arg[1]? arg[1][153] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a06);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][268] : 0;
+  a11=arg[1]? arg[1][173] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a13);
+  a02=(a02+a16);
+  if (res[1]!=0) res[1][13]=a02;
+  a02=arg[1]? arg[1][283] : 0;
+  a16=arg[1]? arg[1][74] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a02=(a02*a03);
+  a16=arg[1]? arg[1][284] : 0;
+  a11=arg[1]? arg[1][94] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a08);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][285] : 0;
+  a11=arg[1]? arg[1][114] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a10);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][286] : 0;
+  a11=arg[1]? arg[1][134] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a15);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][287] : 0;
+  a11=arg[1]? arg[1][154] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a06);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][288] : 0;
+  a11=arg[1]? arg[1][174] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a13);
+  a02=(a02+a16);
+  if (res[1]!=0) res[1][14]=a02;
+  a02=arg[1]? arg[1][303] : 0;
+  a16=arg[1]? arg[1][75] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a02=(a02*a03);
+  a16=arg[1]? arg[1][304] : 0;
+  a11=arg[1]? arg[1][95] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a08);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][305] : 0;
+  a11=arg[1]? arg[1][115] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a10);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][306] : 0;
+  a11=arg[1]? arg[1][135] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a15);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][307] : 0;
+  a11=arg[1]? arg[1][155] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a06);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][308] : 0;
+  a11=arg[1]? arg[1][175] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a13);
+  a02=(a02+a16);
+  if (res[1]!=0) res[1][15]=a02;
+  a02=arg[1]? arg[1][323] : 0;
+  a16=arg[1]? arg[1][76] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a02=(a02*a03);
+  a16=arg[1]? arg[1][324] : 0;
+  a11=arg[1]? arg[1][96] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a08);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][325] : 0;
+  a11=arg[1]? arg[1][116] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a10);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][326] : 0;
+  a11=arg[1]? arg[1][136] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a15);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][327] : 0;
+  a11=arg[1]? arg[1][156] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a06);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][328] : 0;
+  a11=arg[1]? arg[1][176] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a13);
+  a02=(a02+a16);
+  if (res[1]!=0) res[1][16]=a02;
+  a02=arg[1]? arg[1][343] : 0;
+  a16=arg[1]? arg[1][77] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a02=(a02*a03);
+  a16=arg[1]? arg[1][344] : 0;
+  a11=arg[1]? arg[1][97] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a08);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][345] : 0;
+  a11=arg[1]? arg[1][117] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a10);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][346] : 0;
+  a11=arg[1]? arg[1][137] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a15);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][347] : 0;
+  a11=arg[1]? arg[1][157] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a06);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][348] : 0;
+  a11=arg[1]? arg[1][177] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a13);
+  a02=(a02+a16);
+  if (res[1]!=0) res[1][17]=a02;
+  a02=arg[1]? arg[1][363] : 0;
+  a16=arg[1]? arg[1][78] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a02=(a02*a03);
+  a16=arg[1]? arg[1][364] : 0;
+  a11=arg[1]? arg[1][98] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a08);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][365] : 0;
+  a11=arg[1]? arg[1][118] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a10);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][366] : 0;
+  a11=arg[1]? arg[1][138] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a15);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][367] : 0;
+  a11=arg[1]? arg[1][158] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a06);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][368] : 0;
+  a11=arg[1]? arg[1][178] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a13);
+  a02=(a02+a16);
+  if (res[1]!=0) res[1][18]=a02;
+  a02=arg[1]? arg[1][383] : 0;
+  a16=arg[1]? arg[1][79] : 0;
+  a02=(a02+a16);
+  a02=(a02/a07);
+  a02=(a02*a03);
+  a16=arg[1]? arg[1][384] : 0;
+  a11=arg[1]? arg[1][99] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a08);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][385] : 0;
+  a11=arg[1]? arg[1][119] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a10);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][386] : 0;
+  a11=arg[1]? arg[1][139] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a15);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][387] : 0;
+  a11=arg[1]? arg[1][159] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a06);
+  a02=(a02+a16);
+  a16=arg[1]? arg[1][388] : 0;
+  a11=arg[1]? arg[1][179] : 0;
+  a16=(a16+a11);
+  a16=(a16/a07);
+  a16=(a16*a13);
+  a02=(a02+a16);
+  if (res[1]!=0) res[1][19]=a02;
+  a03=(a03*a00);
+  a08=(a08*a12);
+  a03=(a03+a08);
+  a10=(a10*a04);
+  a03=(a03+a10);
+  a15=(a15*a05);
+  a03=(a03+a15);
+  a06=(a06*a18);
+  a03=(a03+a06);
+  a13=(a13*a01);
+  a03=(a03+a13);
+  a13=arg[3]? arg[3][0] : 0;
+  a03=(a03+a13);
+  if (res[2]!=0) res[2][0]=a03;
+  return 0;
+}
+
+/* leonav_update_nhc_z:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
+static int casadi_f57(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
+  const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
+  wr00 = arg[0] ? arg[0] : casadi_zeros;
+  wr01 = arg[1] ? arg[1] : casadi_zeros;
+  w02 = arg[2] ? arg[2][0] : 0;
+  w03 = arg[3] ? arg[3][0] : 0;
+  wr04 = arg[4] ? arg[4] : casadi_zeros;
+  wr05 = arg[5] ? arg[5] : casadi_zeros;
+  arg1[0]=wr00;
+  arg1[1]=wr01;
+  arg1[2]=(&w02);
+  arg1[3]=(&w03);
+  arg1[4]=wr04;
+  arg1[5]=wr05;
+  res1[0]=(&w06);
+  res1[1]=w07;
+  res1[2]=(&w08);
+  if (casadi_f58(arg1, res1, iw, w, 0)) return 1;
+  arg1[0]=wr00;
+  arg1[1]=wr01;
+  arg1[2]=(&w06);
+  arg1[3]=w07;
+  arg1[4]=(&w08);
+  res1[0]=w09;
+  res1[1]=w10;
+  if (casadi_f6(arg1, res1, iw, w, 0)) return 1;
+  casadi_copy(w09, 21, res[0]);
+  casadi_copy(w10, 400, res[1]);
+  if (res[2]) res[2][0] = w06;
+  if (res[3]) res[3][0] = w08;
+  w06 = casadi_sq( w06 );
+  w06 /= w08;
+  if (res[4]) res[4][0] = w06;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_nhc_z(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f57(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_nhc_z_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_nhc_z_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_nhc_z_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_nhc_z_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_update_nhc_z_n_in(void) { return 6;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_update_nhc_z_n_out(void) { return 5;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_update_nhc_z_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_update_nhc_z_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "P";
+    case 2: return "z";
+    case 3: return "R";
+    case 4: return "aux";
+    case 5: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_update_nhc_z_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "x_post";
+    case 1: return "P_post";
+    case 2: return "y";
+    case 3: return "S";
+    case 4: return "nis";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_update_nhc_z_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s4;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s5;
+    case 5: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_update_nhc_z_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s4;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_nhc_z_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 12;
+  if (sz_res) *sz_res = 8;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 566;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_nhc_z_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 12*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 8*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 566*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_pcrb_info_nhc_z:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
+static int casadi_f59(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;
+  const casadi_real **arg1=arg+5, *cr, *cs, *wr0, *wr2, *wr3, *wr4;
+  wr0 = arg[0] ? arg[0] : casadi_zeros;
+  casadi_clear(w1, 400);
+  wr2 = arg[1] ? arg[1] : casadi_zeros;
+  wr3 = arg[2] ? arg[2] : casadi_zeros;
+  wr4 = arg[3] ? arg[3] : casadi_zeros;
+  arg1[0]=wr2;
+  arg1[1]=wr3;
+  arg1[2]=wr4;
+  res1[0]=0;
+  res1[1]=w5;
+  if (casadi_f56(arg1, res1, iw, w, 0)) return 1;
+  casadi_copy(w5, 20, w6);
+  casadi_mtimes_dense(w6, 20, 1, w5, 20, w1, 0);
+  w7 = arg[4] ? arg[4][0] : 0;
+  for (i=0, rr=w1; i<400; ++i) (*rr++) /= w7;
+  for (i=0, rr=w0, cr=wr0, cs=w1; i<400; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  casadi_copy(w0, 400, res[0]);
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_nhc_z(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f59(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_nhc_z_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_nhc_z_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_nhc_z_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_nhc_z_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_pcrb_info_nhc_z_n_in(void) { return 5;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_pcrb_info_nhc_z_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_pcrb_info_nhc_z_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_pcrb_info_nhc_z_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "J";
+    case 1: return "x";
+    case 2: return "aux";
+    case 3: return "p";
+    case 4: return "R";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_pcrb_info_nhc_z_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "J_next";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_pcrb_info_nhc_z_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s4;
+    case 1: return casadi_s0;
+    case 2: return casadi_s5;
+    case 3: return casadi_s3;
+    case 4: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_pcrb_info_nhc_z_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s4;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_nhc_z_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 8;
+  if (sz_res) *sz_res = 3;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 860;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_nhc_z_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 8*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 3*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 860*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_h_zupt_e:(x[21],aux[36],p[14])->(h,H[1x20]) */
+static int casadi_f60(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1;
+  a0=arg[0]? arg[0][3] : 0;
+  if (res[0]!=0) res[0][0]=a0;
+  a0=0.;
+  if (res[1]!=0) res[1][0]=a0;
+  if (res[1]!=0) res[1][1]=a0;
+  if (res[1]!=0) res[1][2]=a0;
+  a1=1.;
+  if (res[1]!=0) res[1][3]=a1;
+  if (res[1]!=0) res[1][4]=a0;
+  if (res[1]!=0) res[1][5]=a0;
+  if (res[1]!=0) res[1][6]=a0;
+  if (res[1]!=0) res[1][7]=a0;
+  if (res[1]!=0) res[1][8]=a0;
+  if (res[1]!=0) res[1][9]=a0;
+  if (res[1]!=0) res[1][10]=a0;
+  if (res[1]!=0) res[1][11]=a0;
+  if (res[1]!=0) res[1][12]=a0;
+  if (res[1]!=0) res[1][13]=a0;
+  if (res[1]!=0) res[1][14]=a0;
+  if (res[1]!=0) res[1][15]=a0;
+  if (res[1]!=0) res[1][16]=a0;
+  if (res[1]!=0) res[1][17]=a0;
+  if (res[1]!=0) res[1][18]=a0;
+  if (res[1]!=0) res[1][19]=a0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_zupt_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f60(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_zupt_e_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_zupt_e_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_zupt_e_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_zupt_e_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_h_zupt_e_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_h_zupt_e_n_out(void) { return 2;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_h_zupt_e_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_h_zupt_e_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "aux";
+    case 2: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_h_zupt_e_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "h";
+    case 1: return "H";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_h_zupt_e_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s5;
+    case 2: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_h_zupt_e_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    case 1: return casadi_s6;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_zupt_e_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 2;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_zupt_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 2*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_innovation_zupt_e:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
+static int casadi_f62(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2, a3;
+  a0=arg[2]? arg[2][0] : 0;
+  a1=arg[0]? arg[0][3] : 0;
+  a0=(a0-a1);
+  if (res[0]!=0) res[0][0]=a0;
+  a0=arg[1]? arg[1][60] : 0;
+  a1=arg[1]? arg[1][3] : 0;
+  a0=(a0+a1);
+  a1=2.;
+  a0=(a0/a1);
+  if (res[1]!=0) res[1][0]=a0;
+  a0=arg[1]? arg[1][61] : 0;
+  a2=arg[1]? arg[1][23] : 0;
+  a0=(a0+a2);
+  a0=(a0/a1);
+  if (res[1]!=0) res[1][1]=a0;
+  a0=arg[1]? arg[1][62] : 0;
+  a2=arg[1]? arg[1][43] : 0;
+  a0=(a0+a2);
+  a0=(a0/a1);
+  if (res[1]!=0) res[1][2]=a0;
+  a0=arg[1]? arg[1][63] : 0;
+  if (res[1]!=0) res[1][3]=a0;
+  a2=arg[1]? arg[1][83] : 0;
+  a3=arg[1]? arg[1][64] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][4]=a2;
+  a2=arg[1]? arg[1][103] : 0;
+  a3=arg[1]? arg[1][65] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][5]=a2;
+  a2=arg[1]? arg[1][123] : 0;
+  a3=arg[1]? arg[1][66] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][6]=a2;
+  a2=arg[1]? arg[1][143] : 0;
+  a3=arg[1]? arg[1][67] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][7]=a2;
+  a2=arg[1]? arg[1][163] : 0;
+  a3=arg[1]? arg[1][68] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][8]=a2;
+  a2=arg[1]? arg[1][183] : 0;
+  a3=arg[1]? arg[1][69] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][9]=a2;
+  a2=arg[1]? arg[1][203] : 0;
+  a3=arg[1]? arg[1][70] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][10]=a2;
+  a2=arg[1]? arg[1][223] : 0;
+  a3=arg[1]? arg[1][71] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][11]=a2;
+  a2=arg[1]? arg[1][243] : 0;
+  a3=arg[1]? arg[1][72] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][12]=a2;
+  a2=arg[1]? arg[1][263] : 0;
+  a3=arg[1]? arg[1][73] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][13]=a2;
+  a2=arg[1]? arg[1][283] : 0;
+  a3=arg[1]? arg[1][74] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][14]=a2;
+  a2=arg[1]? arg[1][303] : 0;
+  a3=arg[1]? arg[1][75] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][15]=a2;
+  a2=arg[1]? arg[1][323] : 0;
+  a3=arg[1]? arg[1][76] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][16]=a2;
+  a2=arg[1]? arg[1][343] : 0;
+  a3=arg[1]? arg[1][77] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][17]=a2;
+  a2=arg[1]? arg[1][363] : 0;
+  a3=arg[1]? arg[1][78] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][18]=a2;
+  a2=arg[1]? arg[1][383] : 0;
+  a3=arg[1]? arg[1][79] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][19]=a2;
+  a2=arg[3]? arg[3][0] : 0;
+  a0=(a0+a2);
+  if (res[2]!=0) res[2][0]=a0;
+  return 0;
+}
+
+/* leonav_update_zupt_e:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
+static int casadi_f61(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
+  const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
+  wr00 = arg[0] ? arg[0] : casadi_zeros;
+  wr01 = arg[1] ? arg[1] : casadi_zeros;
+  w02 = arg[2] ? arg[2][0] : 0;
+  w03 = arg[3] ? arg[3][0] : 0;
+  wr04 = arg[4] ? arg[4] : casadi_zeros;
+  wr05 = arg[5] ? arg[5] : casadi_zeros;
+  arg1[0]=wr00;
+  arg1[1]=wr01;
+  arg1[2]=(&w02);
+  arg1[3]=(&w03);
+  arg1[4]=wr04;
+  arg1[5]=wr05;
+  res1[0]=(&w06);
+  res1[1]=w07;
+  res1[2]=(&w08);
+  if (casadi_f62(arg1, res1, iw, w, 0)) return 1;
+  arg1[0]=wr00;
+  arg1[1]=wr01;
+  arg1[2]=(&w06);
+  arg1[3]=w07;
+  arg1[4]=(&w08);
+  res1[0]=w09;
+  res1[1]=w10;
+  if (casadi_f6(arg1, res1, iw, w, 0)) return 1;
+  casadi_copy(w09, 21, res[0]);
+  casadi_copy(w10, 400, res[1]);
+  if (res[2]) res[2][0] = w06;
+  if (res[3]) res[3][0] = w08;
+  w06 = casadi_sq( w06 );
+  w06 /= w08;
+  if (res[4]) res[4][0] = w06;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_zupt_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f61(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_zupt_e_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_zupt_e_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_zupt_e_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_zupt_e_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_update_zupt_e_n_in(void) { return 6;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_update_zupt_e_n_out(void) { return 5;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_update_zupt_e_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_update_zupt_e_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "P";
+    case 2: return "z";
+    case 3: return "R";
+    case 4: return "aux";
+    case 5: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_update_zupt_e_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "x_post";
+    case 1: return "P_post";
+    case 2: return "y";
+    case 3: return "S";
+    case 4: return "nis";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_update_zupt_e_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s4;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s5;
+    case 5: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_update_zupt_e_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s4;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_zupt_e_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 12;
+  if (sz_res) *sz_res = 8;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 566;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_zupt_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 12*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 8*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 566*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_pcrb_info_zupt_e:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
+static int casadi_f63(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;
+  const casadi_real **arg1=arg+5, *cr, *cs, *wr0, *wr2, *wr3, *wr4;
+  wr0 = arg[0] ? arg[0] : casadi_zeros;
+  casadi_clear(w1, 400);
+  wr2 = arg[1] ? arg[1] : casadi_zeros;
+  wr3 = arg[2] ? arg[2] : casadi_zeros;
+  wr4 = arg[3] ? arg[3] : casadi_zeros;
+  arg1[0]=wr2;
+  arg1[1]=wr3;
+  arg1[2]=wr4;
+  res1[0]=0;
+  res1[1]=w5;
+  if (casadi_f60(arg1, res1, iw, w, 0)) return 1;
+  casadi_copy(w5, 20, w6);
+  casadi_mtimes_dense(w6, 20, 1, w5, 20, w1, 0);
+  w7 = arg[4] ? arg[4][0] : 0;
+  for (i=0, rr=w1; i<400; ++i) (*rr++) /= w7;
+  for (i=0, rr=w0, cr=wr0, cs=w1; i<400; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  casadi_copy(w0, 400, res[0]);
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f63(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_e_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_zupt_e_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_zupt_e_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_zupt_e_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_pcrb_info_zupt_e_n_in(void) { return 5;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_pcrb_info_zupt_e_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_pcrb_info_zupt_e_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_pcrb_info_zupt_e_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "J";
+    case 1: return "x";
+    case 2: return "aux";
+    case 3: return "p";
+    case 4: return "R";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_pcrb_info_zupt_e_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "J_next";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_pcrb_info_zupt_e_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s4;
+    case 1: return casadi_s0;
+    case 2: return casadi_s5;
+    case 3: return casadi_s3;
+    case 4: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_pcrb_info_zupt_e_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s4;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_e_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 8;
+  if (sz_res) *sz_res = 3;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 860;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 8*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 3*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 860*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_h_zupt_n:(x[21],aux[36],p[14])->(h,H[1x20]) */
+static int casadi_f64(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1;
+  a0=arg[0]? arg[0][4] : 0;
+  if (res[0]!=0) res[0][0]=a0;
+  a0=0.;
+  if (res[1]!=0) res[1][0]=a0;
+  if (res[1]!=0) res[1][1]=a0;
+  if (res[1]!=0) res[1][2]=a0;
+  if (res[1]!=0) res[1][3]=a0;
+  a1=1.;
+  if (res[1]!=0) res[1][4]=a1;
+  if (res[1]!=0) res[1][5]=a0;
+  if (res[1]!=0) res[1][6]=a0;
+  if (res[1]!=0) res[1][7]=a0;
+  if (res[1]!=0) res[1][8]=a0;
+  if (res[1]!=0) res[1][9]=a0;
+  if (res[1]!=0) res[1][10]=a0;
+  if (res[1]!=0) res[1][11]=a0;
+  if (res[1]!=0) res[1][12]=a0;
+  if (res[1]!=0) res[1][13]=a0;
+  if (res[1]!=0) res[1][14]=a0;
+  if (res[1]!=0) res[1][15]=a0;
+  if (res[1]!=0) res[1][16]=a0;
+  if (res[1]!=0) res[1][17]=a0;
+  if (res[1]!=0) res[1][18]=a0;
+  if (res[1]!=0) res[1][19]=a0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_zupt_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f64(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_zupt_n_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_zupt_n_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_zupt_n_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_zupt_n_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_h_zupt_n_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_h_zupt_n_n_out(void) { return 2;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_h_zupt_n_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_h_zupt_n_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "aux";
+    case 2: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_h_zupt_n_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "h";
+    case 1: return "H";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_h_zupt_n_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s5;
+    case 2: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_h_zupt_n_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    case 1: return casadi_s6;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_zupt_n_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 2;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_zupt_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 2*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_innovation_zupt_n:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
+static int casadi_f66(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2, a3;
+  a0=arg[2]? arg[2][0] : 0;
+  a1=arg[0]? arg[0][4] : 0;
+  a0=(a0-a1);
+  if (res[0]!=0) res[0][0]=a0;
+  a0=arg[1]? arg[1][80] : 0;
+  a1=arg[1]? arg[1][4] : 0;
+  a0=(a0+a1);
+  a1=2.;
+  a0=(a0/a1);
+  if (res[1]!=0) res[1][0]=a0;
+  a0=arg[1]? arg[1][81] : 0;
+  a2=arg[1]? arg[1][24] : 0;
+  a0=(a0+a2);
+  a0=(a0/a1);
+  if (res[1]!=0) res[1][1]=a0;
+  a0=arg[1]? arg[1][82] : 0;
+  a2=arg[1]? arg[1][44] : 0;
+  a0=(a0+a2);
+  a0=(a0/a1);
+  if (res[1]!=0) res[1][2]=a0;
+  a0=arg[1]? arg[1][83] : 0;
+  a2=arg[1]? arg[1][64] : 0;
+  a0=(a0+a2);
+  a0=(a0/a1);
+  if (res[1]!=0) res[1][3]=a0;
+  a0=arg[1]? arg[1][84] : 0;
+  if (res[1]!=0) res[1][4]=a0;
+  a2=arg[1]? arg[1][104] : 0;
+  a3=arg[1]? arg[1][85] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][5]=a2;
+  a2=arg[1]? arg[1][124] : 0;
+  a3=arg[1]? arg[1][86] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][6]=a2;
+  a2=arg[1]? arg[1][144] : 0;
+  a3=arg[1]? arg[1][87] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][7]=a2;
+  a2=arg[1]? arg[1][164] : 0;
+  a3=arg[1]? arg[1][88] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][8]=a2;
+  a2=arg[1]? arg[1][184] : 0;
+  a3=arg[1]? arg[1][89] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][9]=a2;
+  a2=arg[1]? arg[1][204] : 0;
+  a3=arg[1]? arg[1][90] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][10]=a2;
+  a2=arg[1]? arg[1][224] : 0;
+  a3=arg[1]? arg[1][91] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][11]=a2;
+  a2=arg[1]? arg[1][244] : 0;
+  a3=arg[1]? arg[1][92] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][12]=a2;
+  a2=arg[1]? arg[1][264] : 0;
+  a3=arg[1]? arg[1][93] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][13]=a2;
+  a2=arg[1]? arg[1][284] : 0;
+  a3=arg[1]? arg[1][94] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][14]=a2;
+  a2=arg[1]? arg[1][304] : 0;
+  a3=arg[1]? arg[1][95] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][15]=a2;
+  a2=arg[1]? arg[1][324] : 0;
+  a3=arg[1]? arg[1][96] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][16]=a2;
+  a2=arg[1]? arg[1][344] : 0;
+  a3=arg[1]? arg[1][97] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][17]=a2;
+  a2=arg[1]? arg[1][364] : 0;
+  a3=arg[1]? arg[1][98] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][18]=a2;
+  a2=arg[1]? arg[1][384] : 0;
+  a3=arg[1]? arg[1][99] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][19]=a2;
+  a2=arg[3]? arg[3][0] : 0;
+  a0=(a0+a2);
+  if (res[2]!=0) res[2][0]=a0;
+  return 0;
+}
+
+/* leonav_update_zupt_n:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
+static int casadi_f65(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
+  const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
+  wr00 = arg[0] ? arg[0] : casadi_zeros;
+  wr01 = arg[1] ? arg[1] : casadi_zeros;
+  w02 = arg[2] ? arg[2][0] : 0;
+  w03 = arg[3] ? arg[3][0] : 0;
+  wr04 = arg[4] ? arg[4] : casadi_zeros;
+  wr05 = arg[5] ? arg[5] : casadi_zeros;
+  arg1[0]=wr00;
+  arg1[1]=wr01;
+  arg1[2]=(&w02);
+  arg1[3]=(&w03);
+  arg1[4]=wr04;
+  arg1[5]=wr05;
+  res1[0]=(&w06);
+  res1[1]=w07;
+  res1[2]=(&w08);
+  if (casadi_f66(arg1, res1, iw, w, 0)) return 1;
+  arg1[0]=wr00;
+  arg1[1]=wr01;
+  arg1[2]=(&w06);
+  arg1[3]=w07;
+  arg1[4]=(&w08);
+  res1[0]=w09;
+  res1[1]=w10;
+  if (casadi_f6(arg1, res1, iw, w, 0)) return 1;
+  casadi_copy(w09, 21, res[0]);
+  casadi_copy(w10, 400, res[1]);
+  if (res[2]) res[2][0] = w06;
+  if (res[3]) res[3][0] = w08;
+  w06 = casadi_sq( w06 );
+  w06 /= w08;
+  if (res[4]) res[4][0] = w06;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_zupt_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f65(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_zupt_n_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_zupt_n_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_zupt_n_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_zupt_n_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_update_zupt_n_n_in(void) { return 6;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_update_zupt_n_n_out(void) { return 5;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_update_zupt_n_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_update_zupt_n_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "P";
+    case 2: return "z";
+    case 3: return "R";
+    case 4: return "aux";
+    case 5: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_update_zupt_n_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "x_post";
+    case 1: return "P_post";
+    case 2: return "y";
+    case 3: return "S";
+    case 4: return "nis";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_update_zupt_n_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s4;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s5;
+    case 5: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_update_zupt_n_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s4;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_zupt_n_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 12;
+  if (sz_res) *sz_res = 8;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 566;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_zupt_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 12*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 8*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 566*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_pcrb_info_zupt_n:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
+static int casadi_f67(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;
+  const casadi_real **arg1=arg+5, *cr, *cs, *wr0, *wr2, *wr3, *wr4;
+  wr0 = arg[0] ? arg[0] : casadi_zeros;
+  casadi_clear(w1, 400);
+  wr2 = arg[1] ? arg[1] : casadi_zeros;
+  wr3 = arg[2] ? arg[2] : casadi_zeros;
+  wr4 = arg[3] ? arg[3] : casadi_zeros;
+  arg1[0]=wr2;
+  arg1[1]=wr3;
+  arg1[2]=wr4;
+  res1[0]=0;
+  res1[1]=w5;
+  if (casadi_f64(arg1, res1, iw, w, 0)) return 1;
+  casadi_copy(w5, 20, w6);
+  casadi_mtimes_dense(w6, 20, 1, w5, 20, w1, 0);
+  w7 = arg[4] ? arg[4][0] : 0;
+  for (i=0, rr=w1; i<400; ++i) (*rr++) /= w7;
+  for (i=0, rr=w0, cr=wr0, cs=w1; i<400; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  casadi_copy(w0, 400, res[0]);
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f67(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_n_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_zupt_n_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_zupt_n_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_zupt_n_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_pcrb_info_zupt_n_n_in(void) { return 5;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_pcrb_info_zupt_n_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_pcrb_info_zupt_n_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_pcrb_info_zupt_n_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "J";
+    case 1: return "x";
+    case 2: return "aux";
+    case 3: return "p";
+    case 4: return "R";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_pcrb_info_zupt_n_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "J_next";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_pcrb_info_zupt_n_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s4;
+    case 1: return casadi_s0;
+    case 2: return casadi_s5;
+    case 3: return casadi_s3;
+    case 4: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_pcrb_info_zupt_n_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s4;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_n_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 8;
+  if (sz_res) *sz_res = 3;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 860;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 8*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 3*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 860*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_h_zupt_u:(x[21],aux[36],p[14])->(h,H[1x20]) */
+static int casadi_f68(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1;
+  a0=arg[0]? arg[0][5] : 0;
+  if (res[0]!=0) res[0][0]=a0;
+  a0=0.;
+  if (res[1]!=0) res[1][0]=a0;
+  if (res[1]!=0) res[1][1]=a0;
+  if (res[1]!=0) res[1][2]=a0;
+  if (res[1]!=0) res[1][3]=a0;
+  if (res[1]!=0) res[1][4]=a0;
+  a1=1.;
+  if (res[1]!=0) res[1][5]=a1;
+  if (res[1]!=0) res[1][6]=a0;
+  if (res[1]!=0) res[1][7]=a0;
+  if (res[1]!=0) res[1][8]=a0;
+  if (res[1]!=0) res[1][9]=a0;
+  if (res[1]!=0) res[1][10]=a0;
+  if (res[1]!=0) res[1][11]=a0;
+  if (res[1]!=0) res[1][12]=a0;
+  if (res[1]!=0) res[1][13]=a0;
+  if (res[1]!=0) res[1][14]=a0;
+  if (res[1]!=0) res[1][15]=a0;
+  if (res[1]!=0) res[1][16]=a0;
+  if (res[1]!=0) res[1][17]=a0;
+  if (res[1]!=0) res[1][18]=a0;
+  if (res[1]!=0) res[1][19]=a0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_zupt_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f68(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_zupt_u_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_zupt_u_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_zupt_u_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_h_zupt_u_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_h_zupt_u_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_h_zupt_u_n_out(void) { return 2;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_h_zupt_u_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_h_zupt_u_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "aux";
+    case 2: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_h_zupt_u_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "h";
+    case 1: return "H";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_h_zupt_u_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s5;
+    case 2: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_h_zupt_u_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    case 1: return casadi_s6;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_zupt_u_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 2;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_h_zupt_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 2*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_innovation_zupt_u:(i0[21],i1[20x20],i2,i3,i4[36],i5[14])->(o0,o1[20],o2) */
+static int casadi_f70(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2, a3;
+  a0=arg[2]? arg[2][0] : 0;
+  a1=arg[0]? arg[0][5] : 0;
+  a0=(a0-a1);
+  if (res[0]!=0) res[0][0]=a0;
+  a0=arg[1]? arg[1][100] : 0;
+  a1=arg[1]? arg[1][5] : 0;
+  a0=(a0+a1);
+  a1=2.;
+  a0=(a0/a1);
+  if (res[1]!=0) res[1][0]=a0;
+  a0=arg[1]? arg[1][101] : 0;
+  a2=arg[1]? arg[1][25] : 0;
+  a0=(a0+a2);
+  a0=(a0/a1);
+  if (res[1]!=0) res[1][1]=a0;
+  a0=arg[1]? arg[1][102] : 0;
+  a2=arg[1]? arg[1][45] : 0;
+  a0=(a0+a2);
+  a0=(a0/a1);
+  if (res[1]!=0) res[1][2]=a0;
+  a0=arg[1]? arg[1][103] : 0;
+  a2=arg[1]? arg[1][65] : 0;
+  a0=(a0+a2);
+  a0=(a0/a1);
+  if (res[1]!=0) res[1][3]=a0;
+  a0=arg[1]? arg[1][104] : 0;
+  a2=arg[1]? arg[1][85] : 0;
+  a0=(a0+a2);
+  a0=(a0/a1);
+  if (res[1]!=0) res[1][4]=a0;
+  a0=arg[1]? arg[1][105] : 0;
+  if (res[1]!=0) res[1][5]=a0;
+  a2=arg[1]? arg[1][125] : 0;
+  a3=arg[1]? arg[1][106] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][6]=a2;
+  a2=arg[1]? arg[1][145] : 0;
+  a3=arg[1]? arg[1][107] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][7]=a2;
+  a2=arg[1]? arg[1][165] : 0;
+  a3=arg[1]? arg[1][108] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][8]=a2;
+  a2=arg[1]? arg[1][185] : 0;
+  a3=arg[1]? arg[1][109] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][9]=a2;
+  a2=arg[1]? arg[1][205] : 0;
+  a3=arg[1]? arg[1][110] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][10]=a2;
+  a2=arg[1]? arg[1][225] : 0;
+  a3=arg[1]? arg[1][111] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][11]=a2;
+  a2=arg[1]? arg[1][245] : 0;
+  a3=arg[1]? arg[1][112] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][12]=a2;
+  a2=arg[1]? arg[1][265] : 0;
+  a3=arg[1]? arg[1][113] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][13]=a2;
+  a2=arg[1]? arg[1][285] : 0;
+  a3=arg[1]? arg[1][114] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][14]=a2;
+  a2=arg[1]? arg[1][305] : 0;
+  a3=arg[1]? arg[1][115] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][15]=a2;
+  a2=arg[1]? arg[1][325] : 0;
+  a3=arg[1]? arg[1][116] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][16]=a2;
+  a2=arg[1]? arg[1][345] : 0;
+  a3=arg[1]? arg[1][117] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][17]=a2;
+  a2=arg[1]? arg[1][365] : 0;
+  a3=arg[1]? arg[1][118] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][18]=a2;
+  a2=arg[1]? arg[1][385] : 0;
+  a3=arg[1]? arg[1][119] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][19]=a2;
+  a2=arg[3]? arg[3][0] : 0;
+  a0=(a0+a2);
+  if (res[2]!=0) res[2][0]=a0;
+  return 0;
+}
+
+/* leonav_update_zupt_u:(x[21],P[20x20],z,R,aux[36],p[14])->(x_post[21],P_post[20x20],y,S,nis) */
+static int casadi_f69(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real **res1=res+5, w02, w03, w06, *w07=w+125, w08, *w09=w+145, *w10=w+166;
+  const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
+  wr00 = arg[0] ? arg[0] : casadi_zeros;
+  wr01 = arg[1] ? arg[1] : casadi_zeros;
+  w02 = arg[2] ? arg[2][0] : 0;
+  w03 = arg[3] ? arg[3][0] : 0;
+  wr04 = arg[4] ? arg[4] : casadi_zeros;
+  wr05 = arg[5] ? arg[5] : casadi_zeros;
+  arg1[0]=wr00;
+  arg1[1]=wr01;
+  arg1[2]=(&w02);
+  arg1[3]=(&w03);
+  arg1[4]=wr04;
+  arg1[5]=wr05;
+  res1[0]=(&w06);
+  res1[1]=w07;
+  res1[2]=(&w08);
+  if (casadi_f70(arg1, res1, iw, w, 0)) return 1;
+  arg1[0]=wr00;
+  arg1[1]=wr01;
+  arg1[2]=(&w06);
+  arg1[3]=w07;
+  arg1[4]=(&w08);
+  res1[0]=w09;
+  res1[1]=w10;
+  if (casadi_f6(arg1, res1, iw, w, 0)) return 1;
+  casadi_copy(w09, 21, res[0]);
+  casadi_copy(w10, 400, res[1]);
+  if (res[2]) res[2][0] = w06;
+  if (res[3]) res[3][0] = w08;
+  w06 = casadi_sq( w06 );
+  w06 /= w08;
+  if (res[4]) res[4][0] = w06;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_zupt_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f69(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_zupt_u_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_zupt_u_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_zupt_u_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_update_zupt_u_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_update_zupt_u_n_in(void) { return 6;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_update_zupt_u_n_out(void) { return 5;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_update_zupt_u_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_update_zupt_u_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "P";
+    case 2: return "z";
+    case 3: return "R";
+    case 4: return "aux";
+    case 5: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_update_zupt_u_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "x_post";
+    case 1: return "P_post";
+    case 2: return "y";
+    case 3: return "S";
+    case 4: return "nis";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_update_zupt_u_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s4;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s5;
+    case 5: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_update_zupt_u_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s4;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_zupt_u_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 12;
+  if (sz_res) *sz_res = 8;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 566;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_update_zupt_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 12*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 8*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 566*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_pcrb_info_zupt_u:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
+static int casadi_f71(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;
+  const casadi_real **arg1=arg+5, *cr, *cs, *wr0, *wr2, *wr3, *wr4;
+  wr0 = arg[0] ? arg[0] : casadi_zeros;
+  casadi_clear(w1, 400);
+  wr2 = arg[1] ? arg[1] : casadi_zeros;
+  wr3 = arg[2] ? arg[2] : casadi_zeros;
+  wr4 = arg[3] ? arg[3] : casadi_zeros;
+  arg1[0]=wr2;
+  arg1[1]=wr3;
+  arg1[2]=wr4;
+  res1[0]=0;
+  res1[1]=w5;
+  if (casadi_f68(arg1, res1, iw, w, 0)) return 1;
+  casadi_copy(w5, 20, w6);
+  casadi_mtimes_dense(w6, 20, 1, w5, 20, w1, 0);
+  w7 = arg[4] ? arg[4][0] : 0;
+  for (i=0, rr=w1; i<400; ++i) (*rr++) /= w7;
+  for (i=0, rr=w0, cr=wr0, cs=w1; i<400; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  casadi_copy(w0, 400, res[0]);
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f71(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_u_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_zupt_u_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_zupt_u_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_pcrb_info_zupt_u_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_pcrb_info_zupt_u_n_in(void) { return 5;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_pcrb_info_zupt_u_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_pcrb_info_zupt_u_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_pcrb_info_zupt_u_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "J";
+    case 1: return "x";
+    case 2: return "aux";
+    case 3: return "p";
+    case 4: return "R";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_pcrb_info_zupt_u_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "J_next";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_pcrb_info_zupt_u_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s4;
+    case 1: return casadi_s0;
+    case 2: return casadi_s5;
+    case 3: return casadi_s3;
+    case 4: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_pcrb_info_zupt_u_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s4;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_u_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 8;
+  if (sz_res) *sz_res = 3;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 860;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 8*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 3*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 860*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_pcrb_update:(B[20x20],H[1x20],R)->(B_next[20x20],S) */
+static int casadi_f72(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real *rr, *w0=w+20, *w1=w+420, *w2=w+820, *w4=w+840, w5;
   const casadi_real *cr, *cs, *wr0, *wr3, *wr4;
@@ -27150,7 +32263,7 @@ static int casadi_f52(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_pcrb_update(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f52(arg, res, iw, w, mem);
+  return casadi_f72(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_pcrb_update_checkout(void) {
@@ -27227,7 +32340,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_update_work_bytes(casadi_int *sz_arg, casad
 }
 
 /* leonav_boxplus:(x[21],dx[20])->(x_out[21]) */
-static int casadi_f53(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f73(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14;
   a00=arg[0]? arg[0][0] : 0;
@@ -27380,7 +32493,7 @@ static int casadi_f53(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_boxplus(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f53(arg, res, iw, w, mem);
+  return casadi_f73(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_boxplus_checkout(void) {
@@ -27453,7 +32566,7 @@ CASADI_SYMBOL_EXPORT int leonav_boxplus_work_bytes(casadi_int *sz_arg, casadi_in
 }
 
 /* leonav_boxminus:(x1[21],x0[21])->(dx[20]) */
-static int casadi_f54(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f74(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15;
   a00=arg[0]? arg[0][0] : 0;
@@ -27614,7 +32727,7 @@ static int casadi_f54(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_boxminus(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f54(arg, res, iw, w, mem);
+  return casadi_f74(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_boxminus_checkout(void) {
@@ -27687,7 +32800,7 @@ CASADI_SYMBOL_EXPORT int leonav_boxminus_work_bytes(casadi_int *sz_arg, casadi_i
 }
 
 /* leonav_q_from_euler:(rpy[3])->(q[4]) */
-static int casadi_f55(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f75(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9;
   a0=arg[0]? arg[0][2] : 0;
   a1=2.;
@@ -27726,7 +32839,7 @@ static int casadi_f55(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_q_from_euler(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f55(arg, res, iw, w, mem);
+  return casadi_f75(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_q_from_euler_checkout(void) {
@@ -27797,7 +32910,7 @@ CASADI_SYMBOL_EXPORT int leonav_q_from_euler_work_bytes(casadi_int *sz_arg, casa
 }
 
 /* leonav_euler_from_q:(q[4])->(rpy[3]) */
-static int casadi_f56(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f76(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7;
   a0=arg[0]? arg[0][2] : 0;
   a1=arg[0]? arg[0][3] : 0;
@@ -27839,7 +32952,7 @@ static int casadi_f56(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_euler_from_q(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f56(arg, res, iw, w, mem);
+  return casadi_f76(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_euler_from_q_checkout(void) {
@@ -27909,8 +33022,8 @@ CASADI_SYMBOL_EXPORT int leonav_euler_from_q_work_bytes(casadi_int *sz_arg, casa
   return 0;
 }
 
-/* leonav_gravity_enu:(p_enu[3],p[11])->(g_enu[3]) */
-static int casadi_f57(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* leonav_gravity_enu:(p_enu[3],p[14])->(g_enu[3]) */
+static int casadi_f77(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   a00=9.7803253359000006e+00;
@@ -28050,7 +33163,7 @@ static int casadi_f57(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_gravity_enu(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f57(arg, res, iw, w, mem);
+  return casadi_f77(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_gravity_enu_checkout(void) {
@@ -28122,8 +33235,8 @@ CASADI_SYMBOL_EXPORT int leonav_gravity_enu_work_bytes(casadi_int *sz_arg, casad
   return 0;
 }
 
-/* leonav_earth_rate_enu:(p[11])->(w_ie_enu[3]) */
-static int casadi_f58(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* leonav_earth_rate_enu:(p[14])->(w_ie_enu[3]) */
+static int casadi_f78(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=0.;
   if (res[0]!=0) res[0][0]=a0;
@@ -28139,7 +33252,7 @@ static int casadi_f58(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_earth_rate_enu(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f58(arg, res, iw, w, mem);
+  return casadi_f78(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_earth_rate_enu_checkout(void) {
@@ -28209,8 +33322,8 @@ CASADI_SYMBOL_EXPORT int leonav_earth_rate_enu_work_bytes(casadi_int *sz_arg, ca
   return 0;
 }
 
-/* leonav_accel_enu:(x[21],f_b[3],p[11])->(a_enu[3]) */
-static int casadi_f59(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* leonav_accel_enu:(x[21],f_b[3],p[14])->(a_enu[3]) */
+static int casadi_f79(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
@@ -28428,7 +33541,7 @@ static int casadi_f59(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_accel_enu(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f59(arg, res, iw, w, mem);
+  return casadi_f79(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_accel_enu_checkout(void) {
@@ -28502,8 +33615,8 @@ CASADI_SYMBOL_EXPORT int leonav_accel_enu_work_bytes(casadi_int *sz_arg, casadi_
   return 0;
 }
 
-/* leonav_receiver_ecef:(x[21],p[11])->(r_ecef[3],v_ecef[3]) */
-static int casadi_f60(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* leonav_receiver_ecef:(x[21],p[14])->(r_ecef[3],v_ecef[3]) */
+static int casadi_f80(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15;
   a00=6378137.;
@@ -28578,7 +33691,7 @@ static int casadi_f60(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_receiver_ecef(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f60(arg, res, iw, w, mem);
+  return casadi_f80(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_receiver_ecef_checkout(void) {
@@ -28653,7 +33766,7 @@ CASADI_SYMBOL_EXPORT int leonav_receiver_ecef_work_bytes(casadi_int *sz_arg, cas
 }
 
 /* leonav_transmit_state:(r_S_ecef[3],v_S_ecef[3],a_S_ecef[3],r_rx_ecef[3])->(r_tx_ecef[3],v_tx_ecef[3],tau_s) */
-static int casadi_f61(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f81(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18;
   a00=arg[0]? arg[0][0] : 0;
@@ -28746,7 +33859,7 @@ static int casadi_f61(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_transmit_state(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f61(arg, res, iw, w, mem);
+  return casadi_f81(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_transmit_state_checkout(void) {
@@ -28827,7 +33940,7 @@ CASADI_SYMBOL_EXPORT int leonav_transmit_state_work_bytes(casadi_int *sz_arg, ca
 }
 
 /* leonav_level:(f_b[3])->(roll_pitch[2]) */
-static int casadi_f62(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f82(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=arg[0]? arg[0][1] : 0;
   a1=arg[0]? arg[0][2] : 0;
@@ -28845,7 +33958,7 @@ static int casadi_f62(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_level(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f62(arg, res, iw, w, mem);
+  return casadi_f82(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_level_checkout(void) {
@@ -28915,8 +34028,8 @@ CASADI_SYMBOL_EXPORT int leonav_level_work_bytes(casadi_int *sz_arg, casadi_int*
   return 0;
 }
 
-/* leonav_doppler_rate_variance:(sigma_hz_s,f_b_span_s,p[11])->(R) */
-static int casadi_f63(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* leonav_doppler_rate_variance:(sigma_hz_s,f_b_span_s,p[14])->(R) */
+static int casadi_f83(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=arg[0]? arg[0][0] : 0;
   a0=casadi_sq(a0);
@@ -28935,7 +34048,7 @@ static int casadi_f63(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f63(arg, res, iw, w, mem);
+  return casadi_f83(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance_checkout(void) {
@@ -29009,8 +34122,8 @@ CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance_work_bytes(casadi_int *sz_
   return 0;
 }
 
-/* leonav_gnss_terms:(x[21],aux[36],p[11])->(el_az_iono_tropo[4]) */
-static int casadi_f64(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* leonav_gnss_terms:(x[21],aux[36],p[14])->(el_az_iono_tropo[4]) */
+static int casadi_f84(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19;
   a00=9.9330562000985867e-01;
@@ -29296,7 +34409,7 @@ static int casadi_f64(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 CASADI_SYMBOL_EXPORT int leonav_gnss_terms(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f64(arg, res, iw, w, mem);
+  return casadi_f84(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int leonav_gnss_terms_checkout(void) {

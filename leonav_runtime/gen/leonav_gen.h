@@ -721,6 +721,276 @@ int leonav_pcrb_info_gnss_range_rate_work_bytes(casadi_int *sz_arg, casadi_int* 
 #define leonav_pcrb_info_gnss_range_rate_SZ_RES 3
 #define leonav_pcrb_info_gnss_range_rate_SZ_IW 0
 #define leonav_pcrb_info_gnss_range_rate_SZ_W 870
+int leonav_h_nhc_y(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_h_nhc_y_checkout(void);
+void leonav_h_nhc_y_release(int mem);
+void leonav_h_nhc_y_incref(void);
+void leonav_h_nhc_y_decref(void);
+casadi_int leonav_h_nhc_y_n_in(void);
+casadi_int leonav_h_nhc_y_n_out(void);
+casadi_real leonav_h_nhc_y_default_in(casadi_int i);
+const char* leonav_h_nhc_y_name_in(casadi_int i);
+const char* leonav_h_nhc_y_name_out(casadi_int i);
+const casadi_int* leonav_h_nhc_y_sparsity_in(casadi_int i);
+const casadi_int* leonav_h_nhc_y_sparsity_out(casadi_int i);
+int leonav_h_nhc_y_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_h_nhc_y_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_h_nhc_y_SZ_ARG 3
+#define leonav_h_nhc_y_SZ_RES 2
+#define leonav_h_nhc_y_SZ_IW 0
+#define leonav_h_nhc_y_SZ_W 0
+int leonav_update_nhc_y(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_update_nhc_y_checkout(void);
+void leonav_update_nhc_y_release(int mem);
+void leonav_update_nhc_y_incref(void);
+void leonav_update_nhc_y_decref(void);
+casadi_int leonav_update_nhc_y_n_in(void);
+casadi_int leonav_update_nhc_y_n_out(void);
+casadi_real leonav_update_nhc_y_default_in(casadi_int i);
+const char* leonav_update_nhc_y_name_in(casadi_int i);
+const char* leonav_update_nhc_y_name_out(casadi_int i);
+const casadi_int* leonav_update_nhc_y_sparsity_in(casadi_int i);
+const casadi_int* leonav_update_nhc_y_sparsity_out(casadi_int i);
+int leonav_update_nhc_y_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_update_nhc_y_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_update_nhc_y_SZ_ARG 12
+#define leonav_update_nhc_y_SZ_RES 8
+#define leonav_update_nhc_y_SZ_IW 0
+#define leonav_update_nhc_y_SZ_W 566
+int leonav_pcrb_info_nhc_y(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_pcrb_info_nhc_y_checkout(void);
+void leonav_pcrb_info_nhc_y_release(int mem);
+void leonav_pcrb_info_nhc_y_incref(void);
+void leonav_pcrb_info_nhc_y_decref(void);
+casadi_int leonav_pcrb_info_nhc_y_n_in(void);
+casadi_int leonav_pcrb_info_nhc_y_n_out(void);
+casadi_real leonav_pcrb_info_nhc_y_default_in(casadi_int i);
+const char* leonav_pcrb_info_nhc_y_name_in(casadi_int i);
+const char* leonav_pcrb_info_nhc_y_name_out(casadi_int i);
+const casadi_int* leonav_pcrb_info_nhc_y_sparsity_in(casadi_int i);
+const casadi_int* leonav_pcrb_info_nhc_y_sparsity_out(casadi_int i);
+int leonav_pcrb_info_nhc_y_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_pcrb_info_nhc_y_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_pcrb_info_nhc_y_SZ_ARG 8
+#define leonav_pcrb_info_nhc_y_SZ_RES 3
+#define leonav_pcrb_info_nhc_y_SZ_IW 0
+#define leonav_pcrb_info_nhc_y_SZ_W 860
+int leonav_h_nhc_z(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_h_nhc_z_checkout(void);
+void leonav_h_nhc_z_release(int mem);
+void leonav_h_nhc_z_incref(void);
+void leonav_h_nhc_z_decref(void);
+casadi_int leonav_h_nhc_z_n_in(void);
+casadi_int leonav_h_nhc_z_n_out(void);
+casadi_real leonav_h_nhc_z_default_in(casadi_int i);
+const char* leonav_h_nhc_z_name_in(casadi_int i);
+const char* leonav_h_nhc_z_name_out(casadi_int i);
+const casadi_int* leonav_h_nhc_z_sparsity_in(casadi_int i);
+const casadi_int* leonav_h_nhc_z_sparsity_out(casadi_int i);
+int leonav_h_nhc_z_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_h_nhc_z_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_h_nhc_z_SZ_ARG 3
+#define leonav_h_nhc_z_SZ_RES 2
+#define leonav_h_nhc_z_SZ_IW 0
+#define leonav_h_nhc_z_SZ_W 0
+int leonav_update_nhc_z(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_update_nhc_z_checkout(void);
+void leonav_update_nhc_z_release(int mem);
+void leonav_update_nhc_z_incref(void);
+void leonav_update_nhc_z_decref(void);
+casadi_int leonav_update_nhc_z_n_in(void);
+casadi_int leonav_update_nhc_z_n_out(void);
+casadi_real leonav_update_nhc_z_default_in(casadi_int i);
+const char* leonav_update_nhc_z_name_in(casadi_int i);
+const char* leonav_update_nhc_z_name_out(casadi_int i);
+const casadi_int* leonav_update_nhc_z_sparsity_in(casadi_int i);
+const casadi_int* leonav_update_nhc_z_sparsity_out(casadi_int i);
+int leonav_update_nhc_z_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_update_nhc_z_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_update_nhc_z_SZ_ARG 12
+#define leonav_update_nhc_z_SZ_RES 8
+#define leonav_update_nhc_z_SZ_IW 0
+#define leonav_update_nhc_z_SZ_W 566
+int leonav_pcrb_info_nhc_z(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_pcrb_info_nhc_z_checkout(void);
+void leonav_pcrb_info_nhc_z_release(int mem);
+void leonav_pcrb_info_nhc_z_incref(void);
+void leonav_pcrb_info_nhc_z_decref(void);
+casadi_int leonav_pcrb_info_nhc_z_n_in(void);
+casadi_int leonav_pcrb_info_nhc_z_n_out(void);
+casadi_real leonav_pcrb_info_nhc_z_default_in(casadi_int i);
+const char* leonav_pcrb_info_nhc_z_name_in(casadi_int i);
+const char* leonav_pcrb_info_nhc_z_name_out(casadi_int i);
+const casadi_int* leonav_pcrb_info_nhc_z_sparsity_in(casadi_int i);
+const casadi_int* leonav_pcrb_info_nhc_z_sparsity_out(casadi_int i);
+int leonav_pcrb_info_nhc_z_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_pcrb_info_nhc_z_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_pcrb_info_nhc_z_SZ_ARG 8
+#define leonav_pcrb_info_nhc_z_SZ_RES 3
+#define leonav_pcrb_info_nhc_z_SZ_IW 0
+#define leonav_pcrb_info_nhc_z_SZ_W 860
+int leonav_h_zupt_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_h_zupt_e_checkout(void);
+void leonav_h_zupt_e_release(int mem);
+void leonav_h_zupt_e_incref(void);
+void leonav_h_zupt_e_decref(void);
+casadi_int leonav_h_zupt_e_n_in(void);
+casadi_int leonav_h_zupt_e_n_out(void);
+casadi_real leonav_h_zupt_e_default_in(casadi_int i);
+const char* leonav_h_zupt_e_name_in(casadi_int i);
+const char* leonav_h_zupt_e_name_out(casadi_int i);
+const casadi_int* leonav_h_zupt_e_sparsity_in(casadi_int i);
+const casadi_int* leonav_h_zupt_e_sparsity_out(casadi_int i);
+int leonav_h_zupt_e_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_h_zupt_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_h_zupt_e_SZ_ARG 3
+#define leonav_h_zupt_e_SZ_RES 2
+#define leonav_h_zupt_e_SZ_IW 0
+#define leonav_h_zupt_e_SZ_W 0
+int leonav_update_zupt_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_update_zupt_e_checkout(void);
+void leonav_update_zupt_e_release(int mem);
+void leonav_update_zupt_e_incref(void);
+void leonav_update_zupt_e_decref(void);
+casadi_int leonav_update_zupt_e_n_in(void);
+casadi_int leonav_update_zupt_e_n_out(void);
+casadi_real leonav_update_zupt_e_default_in(casadi_int i);
+const char* leonav_update_zupt_e_name_in(casadi_int i);
+const char* leonav_update_zupt_e_name_out(casadi_int i);
+const casadi_int* leonav_update_zupt_e_sparsity_in(casadi_int i);
+const casadi_int* leonav_update_zupt_e_sparsity_out(casadi_int i);
+int leonav_update_zupt_e_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_update_zupt_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_update_zupt_e_SZ_ARG 12
+#define leonav_update_zupt_e_SZ_RES 8
+#define leonav_update_zupt_e_SZ_IW 0
+#define leonav_update_zupt_e_SZ_W 566
+int leonav_pcrb_info_zupt_e(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_pcrb_info_zupt_e_checkout(void);
+void leonav_pcrb_info_zupt_e_release(int mem);
+void leonav_pcrb_info_zupt_e_incref(void);
+void leonav_pcrb_info_zupt_e_decref(void);
+casadi_int leonav_pcrb_info_zupt_e_n_in(void);
+casadi_int leonav_pcrb_info_zupt_e_n_out(void);
+casadi_real leonav_pcrb_info_zupt_e_default_in(casadi_int i);
+const char* leonav_pcrb_info_zupt_e_name_in(casadi_int i);
+const char* leonav_pcrb_info_zupt_e_name_out(casadi_int i);
+const casadi_int* leonav_pcrb_info_zupt_e_sparsity_in(casadi_int i);
+const casadi_int* leonav_pcrb_info_zupt_e_sparsity_out(casadi_int i);
+int leonav_pcrb_info_zupt_e_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_pcrb_info_zupt_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_pcrb_info_zupt_e_SZ_ARG 8
+#define leonav_pcrb_info_zupt_e_SZ_RES 3
+#define leonav_pcrb_info_zupt_e_SZ_IW 0
+#define leonav_pcrb_info_zupt_e_SZ_W 860
+int leonav_h_zupt_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_h_zupt_n_checkout(void);
+void leonav_h_zupt_n_release(int mem);
+void leonav_h_zupt_n_incref(void);
+void leonav_h_zupt_n_decref(void);
+casadi_int leonav_h_zupt_n_n_in(void);
+casadi_int leonav_h_zupt_n_n_out(void);
+casadi_real leonav_h_zupt_n_default_in(casadi_int i);
+const char* leonav_h_zupt_n_name_in(casadi_int i);
+const char* leonav_h_zupt_n_name_out(casadi_int i);
+const casadi_int* leonav_h_zupt_n_sparsity_in(casadi_int i);
+const casadi_int* leonav_h_zupt_n_sparsity_out(casadi_int i);
+int leonav_h_zupt_n_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_h_zupt_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_h_zupt_n_SZ_ARG 3
+#define leonav_h_zupt_n_SZ_RES 2
+#define leonav_h_zupt_n_SZ_IW 0
+#define leonav_h_zupt_n_SZ_W 0
+int leonav_update_zupt_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_update_zupt_n_checkout(void);
+void leonav_update_zupt_n_release(int mem);
+void leonav_update_zupt_n_incref(void);
+void leonav_update_zupt_n_decref(void);
+casadi_int leonav_update_zupt_n_n_in(void);
+casadi_int leonav_update_zupt_n_n_out(void);
+casadi_real leonav_update_zupt_n_default_in(casadi_int i);
+const char* leonav_update_zupt_n_name_in(casadi_int i);
+const char* leonav_update_zupt_n_name_out(casadi_int i);
+const casadi_int* leonav_update_zupt_n_sparsity_in(casadi_int i);
+const casadi_int* leonav_update_zupt_n_sparsity_out(casadi_int i);
+int leonav_update_zupt_n_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_update_zupt_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_update_zupt_n_SZ_ARG 12
+#define leonav_update_zupt_n_SZ_RES 8
+#define leonav_update_zupt_n_SZ_IW 0
+#define leonav_update_zupt_n_SZ_W 566
+int leonav_pcrb_info_zupt_n(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_pcrb_info_zupt_n_checkout(void);
+void leonav_pcrb_info_zupt_n_release(int mem);
+void leonav_pcrb_info_zupt_n_incref(void);
+void leonav_pcrb_info_zupt_n_decref(void);
+casadi_int leonav_pcrb_info_zupt_n_n_in(void);
+casadi_int leonav_pcrb_info_zupt_n_n_out(void);
+casadi_real leonav_pcrb_info_zupt_n_default_in(casadi_int i);
+const char* leonav_pcrb_info_zupt_n_name_in(casadi_int i);
+const char* leonav_pcrb_info_zupt_n_name_out(casadi_int i);
+const casadi_int* leonav_pcrb_info_zupt_n_sparsity_in(casadi_int i);
+const casadi_int* leonav_pcrb_info_zupt_n_sparsity_out(casadi_int i);
+int leonav_pcrb_info_zupt_n_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_pcrb_info_zupt_n_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_pcrb_info_zupt_n_SZ_ARG 8
+#define leonav_pcrb_info_zupt_n_SZ_RES 3
+#define leonav_pcrb_info_zupt_n_SZ_IW 0
+#define leonav_pcrb_info_zupt_n_SZ_W 860
+int leonav_h_zupt_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_h_zupt_u_checkout(void);
+void leonav_h_zupt_u_release(int mem);
+void leonav_h_zupt_u_incref(void);
+void leonav_h_zupt_u_decref(void);
+casadi_int leonav_h_zupt_u_n_in(void);
+casadi_int leonav_h_zupt_u_n_out(void);
+casadi_real leonav_h_zupt_u_default_in(casadi_int i);
+const char* leonav_h_zupt_u_name_in(casadi_int i);
+const char* leonav_h_zupt_u_name_out(casadi_int i);
+const casadi_int* leonav_h_zupt_u_sparsity_in(casadi_int i);
+const casadi_int* leonav_h_zupt_u_sparsity_out(casadi_int i);
+int leonav_h_zupt_u_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_h_zupt_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_h_zupt_u_SZ_ARG 3
+#define leonav_h_zupt_u_SZ_RES 2
+#define leonav_h_zupt_u_SZ_IW 0
+#define leonav_h_zupt_u_SZ_W 0
+int leonav_update_zupt_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_update_zupt_u_checkout(void);
+void leonav_update_zupt_u_release(int mem);
+void leonav_update_zupt_u_incref(void);
+void leonav_update_zupt_u_decref(void);
+casadi_int leonav_update_zupt_u_n_in(void);
+casadi_int leonav_update_zupt_u_n_out(void);
+casadi_real leonav_update_zupt_u_default_in(casadi_int i);
+const char* leonav_update_zupt_u_name_in(casadi_int i);
+const char* leonav_update_zupt_u_name_out(casadi_int i);
+const casadi_int* leonav_update_zupt_u_sparsity_in(casadi_int i);
+const casadi_int* leonav_update_zupt_u_sparsity_out(casadi_int i);
+int leonav_update_zupt_u_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_update_zupt_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_update_zupt_u_SZ_ARG 12
+#define leonav_update_zupt_u_SZ_RES 8
+#define leonav_update_zupt_u_SZ_IW 0
+#define leonav_update_zupt_u_SZ_W 566
+int leonav_pcrb_info_zupt_u(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_pcrb_info_zupt_u_checkout(void);
+void leonav_pcrb_info_zupt_u_release(int mem);
+void leonav_pcrb_info_zupt_u_incref(void);
+void leonav_pcrb_info_zupt_u_decref(void);
+casadi_int leonav_pcrb_info_zupt_u_n_in(void);
+casadi_int leonav_pcrb_info_zupt_u_n_out(void);
+casadi_real leonav_pcrb_info_zupt_u_default_in(casadi_int i);
+const char* leonav_pcrb_info_zupt_u_name_in(casadi_int i);
+const char* leonav_pcrb_info_zupt_u_name_out(casadi_int i);
+const casadi_int* leonav_pcrb_info_zupt_u_sparsity_in(casadi_int i);
+const casadi_int* leonav_pcrb_info_zupt_u_sparsity_out(casadi_int i);
+int leonav_pcrb_info_zupt_u_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_pcrb_info_zupt_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_pcrb_info_zupt_u_SZ_ARG 8
+#define leonav_pcrb_info_zupt_u_SZ_RES 3
+#define leonav_pcrb_info_zupt_u_SZ_IW 0
+#define leonav_pcrb_info_zupt_u_SZ_W 860
 int leonav_pcrb_update(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_pcrb_update_checkout(void);
 void leonav_pcrb_update_release(int mem);

@@ -5,7 +5,7 @@
 
 #define LEONAV_NX 21
 #define LEONAV_NDX 20
-#define LEONAV_NP 11
+#define LEONAV_NP 14
 #define LEONAV_NAUX 36
 #define LEONAV_NU 6
 #define LEONAV_NNAV 9  /* the 9D navigation error (dp, dv, dtheta) = dx[0:NNAV] */
@@ -91,6 +91,9 @@
 #define LEONAV_P_Q_CDDT 8  /* m^2/s^3: clock random-walk-frequency PSD (drives c_ddt) */
 #define LEONAV_P_Q_BLO 9  /* Hz^2/s: LO offset random-walk PSD */
 #define LEONAV_P_F_C_HZ 10  /* Hz: beacon carrier frequency */
+#define LEONAV_P_LEVER_X_M 11  /* m: GNSS antenna lever arm, body forward (from the IMU to the antenna phase centre) */
+#define LEONAV_P_LEVER_Y_M 12  /* m: GNSS antenna lever arm, body left */
+#define LEONAV_P_LEVER_Z_M 13  /* m: GNSS antenna lever arm, body up */
 
 #define LEONAV_MEAS_IMU (-1)  /* record kind of an IMU interval */
 #define LEONAV_KIND_CV (-2)  /* record kind of a constant-velocity predict over dt (no IMU) */
@@ -106,7 +109,12 @@
 #define LEONAV_MEAS_OFDM_RANGE_DIFF 9  /* m */
 #define LEONAV_MEAS_GNSS_PSEUDORANGE 10  /* m */
 #define LEONAV_MEAS_GNSS_RANGE_RATE 11  /* m/s */
-#define LEONAV_NMEAS 12
+#define LEONAV_MEAS_NHC_Y 12  /* m/s */
+#define LEONAV_MEAS_NHC_Z 13  /* m/s */
+#define LEONAV_MEAS_ZUPT_E 14  /* m/s */
+#define LEONAV_MEAS_ZUPT_N 15  /* m/s */
+#define LEONAV_MEAS_ZUPT_U 16  /* m/s */
+#define LEONAV_NMEAS 17
 
 /* Observables: X(kind id, function suffix, dimension of z, name, unit of z), in kind-id order.
  * The driver builds its dispatch table from this list (leonav_h_<suffix>, leonav_update_<suffix>),
@@ -123,7 +131,12 @@
     X(LEONAV_MEAS_DOPPLER, doppler, 1, "DOPPLER", "Hz") \
     X(LEONAV_MEAS_OFDM_RANGE_DIFF, ofdm_range_diff, 1, "OFDM_RANGE_DIFF", "m") \
     X(LEONAV_MEAS_GNSS_PSEUDORANGE, gnss_pseudorange, 1, "GNSS_PSEUDORANGE", "m") \
-    X(LEONAV_MEAS_GNSS_RANGE_RATE, gnss_range_rate, 1, "GNSS_RANGE_RATE", "m/s")
+    X(LEONAV_MEAS_GNSS_RANGE_RATE, gnss_range_rate, 1, "GNSS_RANGE_RATE", "m/s") \
+    X(LEONAV_MEAS_NHC_Y, nhc_y, 1, "NHC_Y", "m/s") \
+    X(LEONAV_MEAS_NHC_Z, nhc_z, 1, "NHC_Z", "m/s") \
+    X(LEONAV_MEAS_ZUPT_E, zupt_e, 1, "ZUPT_E", "m/s") \
+    X(LEONAV_MEAS_ZUPT_N, zupt_n, 1, "ZUPT_N", "m/s") \
+    X(LEONAV_MEAS_ZUPT_U, zupt_u, 1, "ZUPT_U", "m/s")
 
 /* Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome,
  * < 0 an error (codegen/driver_codes.py). */

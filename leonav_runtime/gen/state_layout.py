@@ -5,7 +5,7 @@ from collections import namedtuple
 
 NX = 21
 NDX = 20
-NP = 11
+NP = 14
 NAUX = 36
 NU = 6
 NNAV = 9  # the 9D navigation error (dp, dv, dtheta) = dx[DX_NAV9_SLICE]
@@ -125,6 +125,9 @@ P_Q_CDT = 7  # m^2/s: clock white-frequency PSD (drives c_dt)
 P_Q_CDDT = 8  # m^2/s^3: clock random-walk-frequency PSD (drives c_ddt)
 P_Q_BLO = 9  # Hz^2/s: LO offset random-walk PSD
 P_F_C_HZ = 10  # Hz: beacon carrier frequency
+P_LEVER_X_M = 11  # m: GNSS antenna lever arm, body forward (from the IMU to the antenna phase centre)
+P_LEVER_Y_M = 12  # m: GNSS antenna lever arm, body left
+P_LEVER_Z_M = 13  # m: GNSS antenna lever arm, body up
 
 MEAS_IMU = -1  # record kind of an IMU interval
 KIND_CV = -2  # record kind of a constant-velocity predict over dt (no IMU)
@@ -140,7 +143,12 @@ MEAS_DOPPLER = 8  # Hz
 MEAS_OFDM_RANGE_DIFF = 9  # m
 MEAS_GNSS_PSEUDORANGE = 10  # m
 MEAS_GNSS_RANGE_RATE = 11  # m/s
-NMEAS = 12
+MEAS_NHC_Y = 12  # m/s
+MEAS_NHC_Z = 13  # m/s
+MEAS_ZUPT_E = 14  # m/s
+MEAS_ZUPT_N = 15  # m/s
+MEAS_ZUPT_U = 16  # m/s
+NMEAS = 17
 
 # Observables in kind-id order (twin of LEONAV_MEAS_TABLE): kind id, function suffix
 # (leonav_h_<suffix>, leonav_update_<suffix>), dimension of z, name, unit.
@@ -158,8 +166,13 @@ MEAS_TABLE = (
     Observable(MEAS_OFDM_RANGE_DIFF, 'ofdm_range_diff', 1, 'OFDM_RANGE_DIFF', 'm'),
     Observable(MEAS_GNSS_PSEUDORANGE, 'gnss_pseudorange', 1, 'GNSS_PSEUDORANGE', 'm'),
     Observable(MEAS_GNSS_RANGE_RATE, 'gnss_range_rate', 1, 'GNSS_RANGE_RATE', 'm/s'),
+    Observable(MEAS_NHC_Y, 'nhc_y', 1, 'NHC_Y', 'm/s'),
+    Observable(MEAS_NHC_Z, 'nhc_z', 1, 'NHC_Z', 'm/s'),
+    Observable(MEAS_ZUPT_E, 'zupt_e', 1, 'ZUPT_E', 'm/s'),
+    Observable(MEAS_ZUPT_N, 'zupt_n', 1, 'ZUPT_N', 'm/s'),
+    Observable(MEAS_ZUPT_U, 'zupt_u', 1, 'ZUPT_U', 'm/s'),
 )
-P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz']
+P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz', 'lever_x_m', 'lever_y_m', 'lever_z_m']
 
 # Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome, < 0 an error.
 OK = 0  # success: the step was applied / the value computed

@@ -1,4 +1,5 @@
-"""Replay outputs: metrics.json, rmse_vs_time.csv, trajectory.csv, columns.txt and the plots."""
+"""Replay outputs: metrics.json, rmse_vs_time.csv, trajectory.csv, columns.txt, the plots, and per mode
+the geodetic trajectory files (trajectory_<mode>.csv/.pos/.kml/.gpx, `dataset.export`)."""
 from __future__ import annotations
 
 import math
@@ -49,3 +50,20 @@ def write_outputs(out_dir: Path, inputs: FilterInputs, scored: dict, metrics: di
     (out_dir / "columns.txt").write_text(COLUMNS_TEXT)
     plot_rmse_vs_time(out_dir / "rmse_vs_time.png", scored, metrics, L)
     plot_trajectories(out_dir / "trajectories.png", scored, ref, inputs, L)
+
+
+def write_geodetic_trajectories(out_dir: Path, inputs: FilterInputs, runs: dict, layout, rate_hz: float = 10.0,
+                                source: str = "") -> dict[str, list[str]]:
+    """trajectory_<mode>.csv/.pos/.kml/.gpx (WGS84 lat/lon/h, ECEF, ENU, per-epoch sigma) of each
+    run, as `leonav run` writes them; none when the run has no UTC epoch or ENU origin."""
+    from leonav_runtime.dataset import export
+
+    if inputs.epoch_utc is None or inputs.origin is None:
+        return {}
+    out = {}
+    for mode, (_, res, _) in runs.items():
+        traj = export.trajectory(res, layout, inputs.origin, inputs.epoch_utc.timestamp(),
+                                 float(inputs.init.get("start_s", res.t[0])), rate_hz)
+        stem = out_dir / f"trajectory_{mode.replace('+', '_')}"
+        out[mode] = [p.name for p in export.write_all(stem, traj, mode, [source])]
+    return out

@@ -232,5 +232,7 @@ def replay_session(folder: str | Path, out_dir: str | Path, options: ReplayOptio
         "f_c_hz": inputs.f_c_hz, "f_c_source": inputs.beacons.get("f_c_source"),
         "doppler_rate_sigma_floor_hz_s": options.doppler_rate_sigma_floor_hz_s, "gate_nis": options.gate_nis,
     }
+    metrics["trajectory_files"] = report.write_geodetic_trajectories(out_dir, inputs, runs, nav.layout,
+                                                                      source=str(folder))
     report.write_outputs(out_dir, inputs, scored, metrics, ref, nav)
     return metrics

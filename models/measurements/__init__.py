@@ -9,7 +9,7 @@ from __future__ import annotations
 def models() -> dict:
     """{suffix: h(x, aux, p) -> scalar SX} for every observable, in models.state.MEASUREMENTS order."""
     from models.measurements import (doppler, doppler_rate, gnss_code, gnss_fix, gnss_pseudorange,
-                                     ofdm_range_difference)
+                                     motion_constraints, ofdm_range_difference)
     from models.state import MEASUREMENTS
 
     table = {
@@ -21,5 +21,8 @@ def models() -> dict:
         "ofdm_range_diff": ofdm_range_difference.h,
         "gnss_pseudorange": gnss_code.h_pseudorange,
         "gnss_range_rate": gnss_code.h_range_rate,
+        "nhc_y": motion_constraints.h_nhc_y, "nhc_z": motion_constraints.h_nhc_z,
+        "zupt_e": motion_constraints.h_zupt_e, "zupt_n": motion_constraints.h_zupt_n,
+        "zupt_u": motion_constraints.h_zupt_u,
     }
     return {m.suffix: table[m.suffix] for m in MEASUREMENTS}

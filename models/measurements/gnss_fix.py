@@ -1,28 +1,40 @@
 """GNSS position fix and velocity components in the local ENU frame (m, m/s).
 
-A receiver's geodetic fix is converted to ENU at the edge (runtime geometry); the antenna
-is taken co-located with the IMU (no lever arm).
+A receiver's geodetic fix is converted to ENU at the edge (runtime geometry). The fix is
+the antenna's position: p_enu + C_b_n l_b with the lever arm l_b (parameters `lever_*_m`,
+body FLU, from the IMU to the antenna; zeros = co-located). The velocity components are
+the IMU's (the lever arm's rotation term omega x l_b is not modelled: at the rates of a
+ground vehicle it is below a receiver's velocity noise).
 """
 from __future__ import annotations
 
-from models.state import X
+import casadi as ca
+
+from models import frames
+from models.state import P, X
 
 _P, _V = X["p_enu"].offset, X["v_enu"].offset
 
 
+def antenna_enu(x, p):
+    """Antenna position (m, ENU): IMU position plus the body lever arm rotated to ENU."""
+    lever_b = ca.vertcat(p[P["lever_x_m"].offset], p[P["lever_y_m"].offset], p[P["lever_z_m"].offset])
+    return x[X["p_enu"].slice] + frames.rot_from_quat(x[X["q_nb"].slice]) @ lever_b
+
+
 def h_pos_e(x, aux, p):
-    """East position (m)."""
-    return x[_P + 0]
+    """East antenna position (m)."""
+    return antenna_enu(x, p)[0]
 
 
 def h_pos_n(x, aux, p):
-    """North position (m)."""
-    return x[_P + 1]
+    """North antenna position (m)."""
+    return antenna_enu(x, p)[1]
 
 
 def h_pos_u(x, aux, p):
-    """Up position (m)."""
-    return x[_P + 2]
+    """Up antenna position (m)."""
+    return antenna_enu(x, p)[2]
 
 
 def h_vel_e(x, aux, p):

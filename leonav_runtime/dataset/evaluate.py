@@ -1,0 +1,152 @@
+"""`leonav run DATASET.toml`: every mode and outage run of a dataset, scored, with files.
+
+Writes into the results folder: metrics.json (scores per mode, GPS alone, outages, fix NIS,
+time per IMU step, counts of skipped rows, alignment and calibration reports),
+errors.csv (per reference epoch and mode), trajectory_<mode>.csv/.pos/.kml/.gpx,
+error_vs_time.png (outages shaded), error_cdf.png, trajectory.png.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from leonav_runtime import output
+from leonav_runtime.dataset import export, load, plots, runner, scoring
+from leonav_runtime.dataset.spec import DatasetSpec
+from leonav_runtime.errors import UserInputError
+
+GOALS = {"kf_gins_horizontal_rmse_m": 0.947, "yaw_rmse_deg": 5.0, "outage_median_ratio": 0.5,
+         "kf_gins_us_per_imu_step": 14.6, "nis_band": [0.5, 2.0]}
+"""Issue 11's Done-when figures (KF-GINS on the CPET run, as quoted there)."""
+
+
+def _slug(mode: str) -> str:
+    return mode.replace("+", "_")
+
+
+def run_dataset(spec: DatasetSpec, out_dir: Path, reference: dict | None = None, t_end_s: float | None = None,
+                outages: bool = True, files: bool = True, progress: Callable[[str], None] | None = None) -> dict:
+    """Run and score the dataset (module doc); returns the metrics. reference: a `[reference]`
+    mapping with a `path` (the --reference file) replacing the description's; t_end_s: cut."""
+    say = progress or (lambda _msg: None)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    say("reading files")
+    ds = load.load(spec)
+    if reference is not None:
+        ds.reference = load.reference_from_file(Path(reference["path"]), reference, ds.t0_unix, ds.origin, ds.counts)
+    ref = ds.reference
+    if ref is None:
+        raise UserInputError(f"{spec.source}: no reference trajectory: set [reference] file or give --reference FILE")
+    if t_end_s is not None:
+        keep = ref.t <= t_end_s
+        ref = ds.reference = load.Reference(ref.t[keep], ref.p_enu_m[keep],
+                                            None if ref.yaw_rad is None else ref.yaw_rad[keep], ref.source)
+    say("alignment and records")
+    prep = runner.prepare(ds, t_end_s=t_end_s)
+    L = prep.nav.layout
+    sc = spec["scoring"]
+    metrics: dict = {"dataset": spec.name, "description": spec.description, "source": spec.source,
+                     "reference": ref.source, "reference_epochs": int(ref.t.size), "t0_unix_s": ds.t0_unix,
+                     "origin_deg_m": [float(np.degrees(ds.origin[0])), float(np.degrees(ds.origin[1])), ds.origin[2]],
+                     "counts": ds.counts | {"records": {k: int(v.size) for k, v in prep.streams.items()}},
+                     "notes": prep.inputs.notes, "goals_issue_11": GOALS} | prep.report
+    gps_err = scoring.hold_last_fix(prep.all_fixes, ref.t) - ref.p_enu_m
+    metrics["gps_alone"] = scoring.error_stats(gps_err)
+    series, modes, tracks = {}, {}, {}
+    for mode in spec["filter"]["modes"]:
+        say(f"run {mode}")
+        recs, res, seconds = runner.run_mode(prep, mode)
+        scores, series[mode] = scoring.run_scores(res, L, ref, sc["yaw_skip_s"])
+        nis = {k: runner.fix_nis(prep, res, (k,)) for k in runner.FIX_KINDS}
+        scores["fix_nis_mean"] = scoring.fix_nis_stats(nis)
+        scores["records"] = {"total": int(recs.size), "imu": res.n_imu, "applied": res.n_applied,
+                             "gated": res.n_gated, "failed": res.n_failed}
+        scores["filter_seconds"] = seconds
+        scores["us_per_imu_step"] = seconds / max(res.n_imu, 1) * 1e6
+        if files:
+            traj = export.trajectory(res, L, ds.origin, ds.t0_unix, prep.inputs.init["start_s"],
+                                     spec["filter"]["output_rate_hz"])
+            tracks[mode] = traj["p_enu"]
+            scores["files"] = [p.name for p in export.write_all(out_dir / f"trajectory_{_slug(mode)}", traj,
+                                                                 f"{spec.name} {mode}", [spec.source])]
+        modes[mode] = scores
+    metrics["modes"] = modes
+    outage_series: dict = {}
+    if outages and sc["outage_starts_s"]:
+        for mode in spec["filter"]["modes"]:
+            runs = {}
+            for start in sc["outage_starts_s"]:
+                if start + sc["outage_length_s"] > ref.t[-1] or start < prep.inputs.init["start_s"]:
+                    continue
+                say(f"run {mode}, outage at {start:g} s")
+                runs[start] = runner.run_mode(prep, mode, (start, start + sc["outage_length_s"]))[1]
+            modes[mode]["outages"] = scoring.outage_scores(prep.all_fixes, ref, sc["outage_starts_s"],
+                                                           sc["outage_length_s"], runs, L)
+            outage_series[mode] = {s: scoring.run_scores(r, L, ref, sc["yaw_skip_s"])[1] for s, r in runs.items()}
+    metrics["summary"] = summary(metrics)
+    if files:
+        say("writing files")
+        _write_files(out_dir, metrics, series, outage_series, gps_err, prep, ref, spec, tracks)
+    output.write_json(out_dir / "metrics.json", metrics)
+    return metrics
+
+
+def best_mode(metrics: dict) -> str:
+    """The last mode given (the one with every stream the description asks for)."""
+    return list(metrics["modes"])[-1]
+
+
+def summary(metrics: dict) -> dict:
+    """Issue 11's goals, each with the value reached and whether it is met."""
+    mode = best_mode(metrics)
+    m = metrics["modes"][mode]
+    out = {"mode": mode}
+    h = m["rmse_horizontal_m"]
+    out["horizontal_rmse_m"] = {"value": h, "gps_alone": metrics["gps_alone"]["rmse_horizontal_m"],
+                                "met": h is not None and h < GOALS["kf_gins_horizontal_rmse_m"]
+                                and h < metrics["gps_alone"]["rmse_horizontal_m"]}
+    y = m.get("rmse_yaw_deg_after_skip")
+    out["yaw_rmse_deg_after_skip"] = {"value": y, "met": None if y is None else y <= GOALS["yaw_rmse_deg"]}
+    o = m.get("outages")
+    if o:
+        out["outages"] = {"median_ratio": o["median_ratio"], "worse_than_hold": o["worse_than_hold"],
+                          "met": o["median_ratio"] is not None and o["median_ratio"] <= GOALS["outage_median_ratio"]
+                          and o["worse_than_hold"] == 0}
+    us = m["us_per_imu_step"]
+    out["us_per_imu_step"] = {"value": us, "met": us < GOALS["kf_gins_us_per_imu_step"]}
+    nis = m["fix_nis_mean"]["all"]
+    out["fix_nis_mean"] = {"value": nis, "met": nis is not None and GOALS["nis_band"][0] <= nis <= GOALS["nis_band"][1]}
+    return out
+
+
+def _write_files(out_dir: Path, metrics: dict, series: dict, outage_series: dict, gps_err: np.ndarray, prep, ref,
+                 spec: DatasetSpec, tracks: dict) -> None:
+    header = ["t_s", "gps_alone_horizontal_m"] + [f"{m}_{c}" for m in series for c in
+                                                   ("e_m", "n_m", "u_m", "horizontal_m", "sigma_e_m", "sigma_n_m",
+                                                    "yaw_err_deg")]
+    rows = []
+    for i, t in enumerate(ref.t):
+        row = [f"{t:.3f}", f"{np.hypot(*gps_err[i, :2]):.4f}"]
+        for s in series.values():
+            e, sg = s["err_enu"][i], s["sigma_enu"][i]
+            row += [f"{v:.4f}" for v in e] + [f"{np.hypot(e[0], e[1]):.4f}", f"{sg[0]:.4f}", f"{sg[1]:.4f}",
+                                              f"{np.degrees(s['yaw_err_rad'][i]):.3f}"]
+        rows.append(row)
+    output.write_csv(out_dir / "errors.csv", header, rows)
+    gps = {"t": ref.t, "err_enu": gps_err, "hold_outage": {}}
+    length = spec["scoring"]["outage_length_s"]
+    for start in next(iter(outage_series.values()), {}):
+        tt = ref.t[(ref.t >= start) & (ref.t <= start + length)]
+        k = np.searchsorted(prep.all_fixes.t, start) - 1
+        gps["hold_outage"][start] = {"t": tt, "err_h": np.hypot(*(prep.all_fixes.p_enu_m[k, :2] -
+                                                                  scoring.reference_at(ref, tt)[:, :2]).T)}
+    best = best_mode(metrics)
+    s = metrics["summary"]
+    title = (f"{spec.name}: {best} horizontal RMSE {plots.fmt(s['horizontal_rmse_m']['value'])} m "
+             f"(GPS alone {plots.fmt(s['horizontal_rmse_m']['gps_alone'])} m)")
+    plots.error_vs_time(out_dir / "error_vs_time.png", series, gps, {best: outage_series.get(best, {})}, length, title)
+    plots.error_cdf(out_dir / "error_cdf.png", series, gps)
+    plots.trajectory_on_reference(out_dir / "trajectory.png", ref.p_enu_m, prep.all_fixes.p_enu_m, tracks)

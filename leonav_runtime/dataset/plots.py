@@ -1,0 +1,93 @@
+"""Figures of a dataset run: error vs time with the outages shaded, CDF, trajectory on the reference."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from leonav_runtime.dataset.scoring import cdf
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def error_vs_time(path: Path, series: dict, gps: dict, outage_series: dict, length_s: float, title: str) -> Path:
+    """Top: horizontal error per mode and GPS alone at the reference epochs. Middle: the best mode
+    with each outage run over its own outage (shaded) and hold-last-fix. Bottom: yaw error."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
+    h = lambda e: np.hypot(e[:, 0], e[:, 1])  # noqa: E731
+    axes[0].plot(gps["t"], h(gps["err_enu"]), color="0.6", lw=0.8, label="GPS alone (hold last fix)")
+    for mode, s in series.items():
+        axes[0].plot(s["t"], h(s["err_enu"]), lw=0.9, label=mode)
+    axes[0].set_ylabel("horizontal error (m)")
+    axes[0].legend(fontsize=8, loc="upper right")
+    for mode, runs in outage_series.items():
+        for k, (start, s) in enumerate(runs.items()):
+            sel = (s["t"] >= start - 5) & (s["t"] <= start + length_s + 5)
+            axes[1].plot(s["t"][sel], h(s["err_enu"][sel]), color="C3", lw=1.0,
+                         label=f"{mode}, fixes removed" if k == 0 else None)
+            hold = gps["hold_outage"][start]
+            axes[1].plot(hold["t"], hold["err_h"], color="0.4", ls="--", lw=0.9,
+                         label="hold last fix" if k == 0 else None)
+    for ax in axes:
+        for start in next(iter(outage_series.values()), {}):
+            ax.axvspan(start, start + length_s, color="C1", alpha=0.15, lw=0)
+        ax.grid(True, alpha=0.3)
+    axes[1].set_ylabel("horizontal error in outages (m)")
+    axes[1].legend(fontsize=8, loc="upper left")
+    for mode, s in series.items():
+        axes[2].plot(s["t"], np.degrees(s["yaw_err_rad"]), lw=0.9, label=mode)
+    axes[2].set_ylabel("yaw error (deg)")
+    axes[2].set_ylim(-30, 30)
+    axes[2].set_xlabel("time since the first GNSS fix (s); shaded: 30 s GPS outages")
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def error_cdf(path: Path, series: dict, gps: dict) -> Path:
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    for label, e in [("GPS alone", gps["err_enu"])] + [(m, s["err_enu"]) for m, s in series.items()]:
+        v, c = cdf(np.hypot(e[:, 0], e[:, 1]))
+        ax.plot(v, c, label=label)
+    ax.set_xlabel("horizontal error (m)")
+    ax.set_ylabel("fraction of reference epochs")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def trajectory_on_reference(path: Path, ref_enu: np.ndarray, fixes_enu: np.ndarray, tracks: dict) -> Path:
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 7))
+    ax.plot(fixes_enu[:, 0], fixes_enu[:, 1], ".", ms=1, color="0.7", label="GNSS fixes")
+    ax.plot(ref_enu[:, 0], ref_enu[:, 1], "k-", lw=1.6, label="reference")
+    for k, (mode, p) in enumerate(tracks.items()):
+        ax.plot(p[:, 0], p[:, 1], lw=0.9, color=f"C{k}", label=mode)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("East (m)")
+    ax.set_ylabel("North (m)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def fmt(v, digits: int = 3) -> str:
+    return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{digits}f}"

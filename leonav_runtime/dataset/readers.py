@@ -1,0 +1,149 @@
+"""Read the columns a dataset description names from CSV (or MATLAB .mat) files.
+
+`read_columns` returns float columns and the file line of each row. Header: the first line
+that is not a comment ('#', '%') when any column is named; indices need no header. Bad
+rows are counted and skipped, never fatal on their own: too few fields, a cell that is not
+a number or not finite (`rows_nan`). Time stamps that repeat (`rows_duplicate_time`) or go
+back (`rows_non_monotonic`) are counted and skipped by `monotonic_rows`. A missing column,
+a missing file or a file with no good row is one UserInputError naming the file (and line,
+column).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from leonav_runtime.errors import UserInputError
+
+COMMENTS = ("#", "%")
+
+
+@dataclass
+class Columns:
+    """Float columns (n, k) of the good rows, their 1-based file lines, and counts of skipped rows."""
+
+    path: Path
+    values: np.ndarray
+    lines: np.ndarray
+    counts: dict = field(default_factory=dict)
+
+
+def resolve(path: Path, what: str, where: str, shared: bool = False) -> Path:
+    """The file, or a UserInputError naming it and the key that points at it (shared: the data
+    folder is the project's shared public data, so say where it is looked for)."""
+    if not path.is_file():
+        hint = (" (the shared public data is not here: set LEONAV_SHARED_DATA to its folder or put it at "
+                "../shared/data beside the repository; see its SOURCES.md)" if shared else "")
+        raise UserInputError(f"{path}: {what} file not found ({where}){hint}")
+    return path
+
+
+def _header_index(header: list[str], name: str | int, path: Path, line_no: int, key: str) -> int:
+    if isinstance(name, int):
+        return name
+    if name not in header:
+        raise UserInputError(f"{path}:{line_no}: column {name!r} ({key}) not in the header; expected one of "
+                             f"{', '.join(header[:12])}")
+    return header.index(name)
+
+
+def read_columns(path: Path, columns: list[tuple[str, str | int]], delimiter: str = ",") -> Columns:
+    """The named columns [(key, header name or 0-based index)] of a delimited text file (module doc)."""
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise UserInputError(f"{path}: not UTF-8 text (byte {exc.start}); expected a delimited text file") from None
+    lines = text.splitlines()
+    split = (lambda s: s.split()) if delimiter in (" ", "whitespace") else (lambda s: s.split(delimiter))
+    start, header = 0, None
+    if any(isinstance(c, str) for _, c in columns):
+        for i, line in enumerate(lines):
+            if line.strip() and not line.lstrip().startswith(COMMENTS):
+                start, header = i + 1, [h.strip() for h in split(line)]
+                break
+        if header is None:
+            raise UserInputError(f"{path}: no header line: expected one naming the columns")
+    idx = [_header_index(header or [], c, path, start, key) for key, c in columns]
+    need = max(idx) + 1
+    vals, line_nos = [], []
+    short = bad = 0
+    for i in range(start, len(lines)):
+        line = lines[i]
+        if not line.strip() or line.lstrip().startswith(COMMENTS):
+            continue
+        cells = split(line)
+        if len(cells) < need:
+            short += 1
+            continue
+        try:
+            row = [float(cells[j]) for j in idx]
+        except ValueError:
+            bad += 1
+            continue
+        vals.append(row)
+        line_nos.append(i + 1)
+    values = np.array(vals, float).reshape(-1, len(idx))
+    finite = np.isfinite(values).all(axis=1)
+    bad += int((~finite).sum())
+    if not finite.all():
+        values, line_nos = values[finite], np.asarray(line_nos)[finite]
+    if values.shape[0] == 0:
+        names = ", ".join(f"{k}={c!r}" for k, c in columns)
+        raise UserInputError(f"{path}: no row with finite numbers in {names} ({short} short, {bad} bad rows): "
+                             "expected numeric rows")
+    return Columns(path, values, np.asarray(line_nos, int), {"rows_short": short, "rows_nan": bad})
+
+
+def read_mat_columns(path: Path, struct: str, columns: list[tuple[str, str | int]]) -> Columns:
+    """Fields of a MATLAB v5 .mat file (optionally inside struct `struct`), each (n,) or (n, 3),
+    as columns in the order given; keys name the field ('gyro' -> 3 columns for a (n, 3) field)."""
+    try:
+        import scipy.io
+    except ImportError:   # pragma: no cover - scipy is a dependency
+        raise UserInputError(f"{path}: reading .mat needs scipy (pip install scipy)") from None
+    try:
+        mat = scipy.io.loadmat(str(path), squeeze_me=True, struct_as_record=False)
+    except (ValueError, NotImplementedError, OSError) as exc:
+        raise UserInputError(f"{path}: not a MATLAB v5 .mat file scipy can read ({exc})") from None
+    holder = mat.get(struct) if struct else None
+    if struct and holder is None:
+        raise UserInputError(f"{path}: struct {struct!r} not found; expected one of "
+                             f"{', '.join(k for k in mat if not k.startswith('__'))}")
+    parts = []
+    for key, name in columns:
+        arr = getattr(holder, str(name), None) if struct else mat.get(str(name))
+        if arr is None:
+            raise UserInputError(f"{path}: field {name!r} ({key}) not found")
+        arr = np.asarray(arr, float)
+        parts.append(arr.reshape(arr.shape[0], -1))
+    n = min(p.shape[0] for p in parts)
+    if any(p.shape[0] != n for p in parts):
+        raise UserInputError(f"{path}: fields {[c for _, c in columns]} have different lengths "
+                             f"{[p.shape[0] for p in parts]}: expected one row per sample")
+    values = np.hstack(parts)
+    finite = np.isfinite(values).all(axis=1)
+    return Columns(path, values[finite], np.flatnonzero(finite) + 1, {"rows_short": 0,
+                                                                     "rows_nan": int((~finite).sum())})
+
+
+def monotonic_rows(t: np.ndarray) -> tuple[np.ndarray, dict]:
+    """Mask of rows to keep so that time strictly increases: a repeated time stamp
+    (`rows_duplicate_time`) or one earlier than the last kept (`rows_non_monotonic`) is skipped.
+    NaN times (rows the caller already rejected) are skipped without being counted here."""
+    keep = np.isfinite(t)
+    if t.size > 1 and keep.all() and np.all(np.diff(t) > 0):
+        return keep, {"rows_duplicate_time": 0, "rows_non_monotonic": 0}
+    dup = back = 0
+    last = -np.inf
+    for i, v in enumerate(t):
+        if not keep[i]:
+            continue
+        if v == last:
+            keep[i], dup = False, dup + 1
+        elif v < last:
+            keep[i], back = False, back + 1
+        else:
+            last = v
+    return keep, {"rows_duplicate_time": dup, "rows_non_monotonic": back}

@@ -1,0 +1,231 @@
+"""A loaded dataset through the generated filter: parameters, coarse alignment, records, runs.
+
+- Parameters: ENU origin = first fix; IMU white noise measured at the initial standstill
+  (`[filter] imu_noise = "standstill"`) or a profile's; bias sigmas and random walks from
+  `bias_profile`; the antenna lever arm (`[gnss] lever_arm_m`, to body FLU).
+- Coarse alignment (`initial_state`): roll and pitch by the generated `leonav_level` from
+  the specific force at the initial standstill (else the second before the start), gyro
+  bias = the mean rate at that standstill; heading = the course of the GNSS velocity at
+  the first time the vehicle moves (`[alignment] speed_mps` held for 1 s), where the filter
+  starts, or a given yaw. Position = the antenna fix there minus the rotated lever arm.
+- Records: IMU and fixes through `inputs.assemble` (the one road into the filter), plus the
+  motion constraints (`constraints.py`); each mode merges the streams it names.
+- Time-correlated fix errors: `[gnss] rate_hz` thins the fixes; `sigma_scale = "auto"`
+  runs the last mode once and scales every fix sigma by sqrt(mean fix NIS) (reported).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from leonav_runtime import filter as lfilter
+from leonav_runtime import navfuncs, records
+from leonav_runtime.dataset import align, constraints
+from leonav_runtime.dataset.load import Dataset, ImuSamples
+from leonav_runtime.dataset.spec import MODE_STREAMS
+from leonav_runtime.errors import UserInputError
+from leonav_runtime.gen.profiles import IMU_PROFILES
+from leonav_runtime.inputs import FilterInputs, FixTable, ImuTable, Prior, assemble, prior_sigmas
+from leonav_runtime.params import ImuProfile, build_params
+
+FIX_KINDS = ("POS_E", "POS_N", "POS_U")
+
+
+@dataclass
+class Prepared:
+    """Everything the runs share: inputs (IMU + fix records), constraint records per stream,
+    the IMU samples on the run axis, all fixes (for the GPS-alone baseline), report items."""
+
+    inputs: FilterInputs
+    streams: dict[str, np.ndarray]
+    imu: ImuSamples
+    all_fixes: FixTable
+    nav: navfuncs.NavFunctions
+    gate: float
+    report: dict = field(default_factory=dict)
+
+
+def imu_table(imu: ImuSamples) -> ImuTable:
+    """IMU intervals between consecutive samples, at the mean of their two samples' rates."""
+    dt = np.diff(imu.t)
+    w = 0.5 * (imu.w_b_radps[1:] + imu.w_b_radps[:-1])
+    f = 0.5 * (imu.f_b_mps2[1:] + imu.f_b_mps2[:-1])
+    return ImuTable.from_rates(imu.t[1:], dt, w, f)
+
+
+def thin_fixes(fixes: FixTable, rate_hz: float) -> FixTable:
+    """At most one fix per 1/rate_hz s bin (the first of the bin); all when rate_hz is 0."""
+    if rate_hz <= 0 or fixes.t.size == 0:
+        return fixes
+    bins = np.floor(fixes.t * rate_hz + 1e-9)
+    first = np.r_[True, bins[1:] != bins[:-1]]
+    return fixes.select(first)
+
+
+def _profile(spec, rest: align.Rest, report: dict) -> ImuProfile:
+    f = spec["filter"]
+    bias = IMU_PROFILES[f["bias_profile"]]
+    if f["imu_noise"] == "standstill":
+        if rest.vrw is None:
+            raise UserInputError(f"{spec.where('filter', 'imu_noise')} = 'standstill': no standstill at the start "
+                                 "of the IMU record: choose a profile (tactical, wt901)")
+        vrw, arw, src = rest.vrw, rest.arw, f"measured over the first {rest.seconds:.2f} s at rest"
+    else:
+        white = IMU_PROFILES[f["imu_noise"]]
+        vrw, arw, src = white.vrw, white.arw, f"profile {white.name}"
+    report["imu_noise"] = {"vrw_mps_sqrts": vrw, "arw_rad_sqrts": arw, "source": src,
+                           "bias_profile": bias.name}
+    return ImuProfile("dataset", vrw, arw, bias.acc_bias_rw, bias.gyro_bias_rw, bias.acc_bias_sigma,
+                      bias.gyro_bias_sigma, src)
+
+
+def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuProfile, nav, report: dict) -> Prior:
+    """Prior at the filter start from the coarse alignment (module doc)."""
+    spec, L = ds.spec, nav.layout
+    al = spec["alignment"]
+    t_v, v = align.gnss_velocity(ds.fixes, al["window_s"])
+    k = align.moving_start(t_v, v, al["speed_mps"], 1.0)
+    if al["yaw_rad"] is None and k is None:
+        raise UserInputError(f"{spec.where('alignment', 'yaw_deg')} = 'gnss': the GNSS speed never stays above "
+                             f"{al['speed_mps']} m/s for 1 s: give yaw_deg")
+    t_start = max(float(t_v[k]) if k is not None else float(imu.t[0]), float(imu.t[0]), float(ds.fixes.t[0]))
+    if rest.n:
+        f_level, level_src = rest.f_mean, f"specific force over the initial standstill ({rest.seconds:.2f} s)"
+    else:
+        sel = (imu.t > t_start - 1.0) & (imu.t <= t_start)
+        f_level, level_src = imu.f_b_mps2[sel].mean(axis=0), "specific force over the second before the start"
+    roll, pitch = nav.level(f_level)
+    if al["yaw_rad"] is None:
+        j = int(np.searchsorted(t_v, t_start))
+        yaw, yaw_src = float(np.arctan2(v[j, 1], v[j, 0])), f"GNSS course at t={t_start:.2f} s"
+    else:
+        yaw, yaw_src = al["yaw_rad"], "given"
+    x0 = np.zeros(L.NX)
+    q = nav.quat_from_euler(np.array([roll, pitch, yaw]))[0]
+    x0[L.X_Q_NB_SLICE] = q
+    lever = np.asarray(spec["gnss"]["lever_arm_flu_m"])
+    C_b_n = _dcm(q)
+    antenna = np.array([np.interp(t_start, ds.fixes.t, ds.fixes.p_enu_m[:, j]) for j in range(3)])
+    x0[L.X_P_ENU_SLICE] = antenna - C_b_n @ lever
+    jv = int(np.clip(np.searchsorted(t_v, t_start), 0, max(t_v.size - 1, 0)))
+    if t_v.size:
+        x0[L.X_V_ENU_SLICE][:2] = v[jv, :2]
+    x0[L.X_B_G_SLICE] = rest.gyro_mean if rest.n else 0.0
+    f = spec["filter"]
+    i_fix = int(np.clip(np.searchsorted(ds.fixes.t, t_start), 0, ds.fixes.t.size - 1))
+    sig = prior_sigmas(L, profile, ds.fixes.sigma_enu_m[i_fix], f["velocity_sigma_mps"],
+                       [f["roll_pitch_sigma_rad"]] * 2 + [al["yaw_sigma_rad"]])
+    report["alignment"] = {"start_s": t_start, "roll_pitch_yaw_deg": np.degrees([roll, pitch, yaw]).tolist(),
+                           "roll_pitch": f"generated leonav_level on the {level_src}", "yaw": yaw_src,
+                           "gyro_bias_radps": x0[L.X_B_G_SLICE].tolist(),
+                           "velocity_enu_mps": x0[L.X_V_ENU_SLICE].tolist()}
+    return Prior(x0, np.diag(sig**2), dict(report["alignment"]), t_start)
+
+
+def _dcm(q: np.ndarray) -> np.ndarray:
+    """C_b_n of q_nb [w x y z] (numpy; the generated convention, models/frames.rot_from_quat)."""
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def time_offset(ds: Dataset, report: dict) -> float:
+    """The IMU time offset to use (s): given, or calibrated (`align.calibrate_time_offset`)
+    against the reference's yaw when it has one, else the GNSS course; both estimates reported."""
+    spec = ds.spec
+    given = spec["imu"]["time_offset_s"]
+    imu0 = ds.imu_on_axis(0.0)
+    al = spec["alignment"]
+    cal = {"gnss_course": align.calibrate_time_offset(
+        imu0.t, imu0.w_b_radps[:, 2], *align.heading_source_gnss(ds.fixes, al["window_s"], 1.5 * al["speed_mps"]))}
+    if ds.reference is not None and ds.reference.yaw_rad is not None:
+        cal["reference_yaw"] = align.calibrate_time_offset(imu0.t, imu0.w_b_radps[:, 2], ds.reference.t,
+                                                           ds.reference.yaw_rad)
+    report["time_offset_calibration"] = cal
+    if isinstance(given, str):
+        best = cal.get("reference_yaw", cal["gnss_course"])
+        if best.get("offset_s") is None:
+            raise UserInputError(f"{spec.where('imu', 'time_offset_s')} = 'calibrate': {best.get('reason')}: give "
+                                 "the offset in s")
+        report["time_offset_s"] = {"value": best["offset_s"], "source": "calibrated on " +
+                                   ("the reference yaw" if "reference_yaw" in cal else "the GNSS course")}
+        return float(best["offset_s"])
+    report["time_offset_s"] = {"value": given, "source": "given ([imu] time_offset_s)"}
+    return float(given)
+
+
+def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: float | None = None) -> Prepared:
+    """Parameters, alignment, records of every stream (module doc); t_end_s cuts the run (s)."""
+    spec = ds.spec
+    report: dict = {}
+    imu = ds.imu_on_axis(time_offset(ds, report))
+    if t_end_s is not None:
+        keep = imu.t <= t_end_s
+        imu = ImuSamples(imu.t[keep], imu.w_b_radps[keep], imu.f_b_mps2[keep])
+    con = spec["constraints"]
+    still = align.standstill(imu, con["standstill_window_s"], con["standstill_accel_std_mps2"],
+                             con["standstill_gyro_std_radps"])
+    rest = align.initial_rest(imu, still, spec["alignment"]["static_max_s"])
+    profile = _profile(spec, rest, report)
+    params = np.asarray(build_params(*ds.origin, imu=profile, lever_b_m=tuple(spec["gnss"]["lever_arm_flu_m"])))
+    nav = nav or navfuncs.NavFunctions(params=params)
+    nav.params = params
+    prior = initial_state(ds, imu, rest, profile, nav, report)
+    table, _ = imu_table(imu).from_time(prior.t_start_s)
+    fixes = thin_fixes(ds.fixes, spec["gnss"]["rate_hz"])
+    scale = spec["gnss"]["sigma_scale"]
+    fixes = FixTable(fixes.t, fixes.p_enu_m, fixes.sigma_enu_m * (1.0 if isinstance(scale, str) else scale),
+                     fixes.v_en_mps)
+    inputs = assemble(table, params, prior, fixes=fixes, nav=nav, notes=list(ds.notes), origin=ds.origin)
+    streams = constraints.records_for(imu, still, prior.t_start_s, float(imu.t[-1]), con, nav)
+    report["standstill"] = {"seconds": float(np.sum(np.diff(imu.t)[still[1:]])), "initial_s": rest.seconds}
+    prep = Prepared(inputs, {"fix": inputs.records["fix"]} | streams, imu, ds.fixes, nav,
+                    spec["filter"]["gate_nis"], report)
+    if isinstance(scale, str):
+        auto_scale(prep, spec["filter"]["modes"][-1])
+    report["fix_sigma_scale"] = prep.report.get("fix_sigma_scale", {"value": scale, "source": "given"})
+    return prep
+
+
+def auto_scale(prep: Prepared, mode: str) -> None:
+    """Scale each fix axis's R (E, N, U) by the mean NIS of that axis in one run of `mode`, so
+    a fix is weighted by how well it agrees with the rest of the run (module doc)."""
+    recs, res, _ = run_mode(prep, mode)
+    fix = prep.streams["fix"].copy()
+    factors = {}
+    for kind in FIX_KINDS:
+        k = prep.nav.kind_id(kind)
+        nis = fix_nis(prep, res, (kind,))
+        s2 = float(np.mean(nis)) if nis.size else 1.0
+        fix["R"][fix["kind"] == k] *= s2
+        factors[kind] = math.sqrt(s2)
+    prep.streams["fix"] = fix
+    prep.report["fix_sigma_scale"] = {"value": factors, "source": f"sqrt of each axis's fix NIS mean in a first "
+                                      f"{mode} run"}
+
+
+def fix_nis(prep: Prepared, res: lfilter.RunResult, kinds=FIX_KINDS) -> np.ndarray:
+    """NIS of the fix records (of `kinds`) that were applied or gated."""
+    ids = [prep.nav.kind_id(k) for k in kinds]
+    sel = np.isin(res.kind, ids) & ((res.status == lfilter.STATUS_APPLIED) | (res.status == lfilter.STATUS_GATED))
+    return res.nis[sel]
+
+
+def run_mode(prep: Prepared, mode: str, outage: tuple[float, float] | None = None):
+    """(records, RunResult, filter seconds) of one mode; fixes inside `outage` [start, end) s removed."""
+    parts = [prep.inputs.records["imu"]]
+    for s in MODE_STREAMS[mode]:
+        r = prep.streams[s]
+        if s == "fix" and outage is not None:
+            r = r[(r["t"] < outage[0]) | (r["t"] >= outage[1])]
+        parts.append(r)
+    recs = records.merge_records(*parts)
+    ekf = lfilter.EKF(prep.inputs.x0, prep.inputs.P0, prep.inputs.params, gate=prep.gate or None,
+                      library=prep.nav.library)
+    t0 = time.perf_counter()
+    res = ekf.run(recs)
+    return recs, res, time.perf_counter() - t0

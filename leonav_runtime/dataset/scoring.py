@@ -1,0 +1,131 @@
+"""Scores of a dataset run against its reference trajectory.
+
+Every line is scored the same way, at the reference epochs (the CPET run: its 800
+ground-truth poses): the estimate is the filter state after the last record at or before the
+epoch (position of the IMU point, which the reference is taken to be), errors in ENU at the
+run's origin. GPS alone holds the last fix (the antenna's position as the receiver gave it).
+Outages: fixes removed over [start, start + length); the horizontal error at the end
+(state just before the first fix after it; reference interpolated linearly) against holding
+the last fix before the outage. Yaw: wrapped difference to the reference yaw from
+`yaw_skip_s` on.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from leonav_runtime import filter as lfilter
+from leonav_runtime.dataset.load import Reference
+from leonav_runtime.inputs import FixTable
+
+
+def states_at(res: lfilter.RunResult, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(rows, x (n, NX), P_diag (n, NDX)) of the state after the last record at or before each t
+    (rows -1 where t precedes the run: x, P NaN)."""
+    rows = np.searchsorted(res.t, t, side="right") - 1
+    ok = rows >= 0
+    x = np.full((t.size, res.x.shape[1]), np.nan)
+    pd = np.full((t.size, res.P_diag.shape[1]), np.nan)
+    x[ok], pd[ok] = res.x[rows[ok]], res.P_diag[rows[ok]]
+    return rows, x, pd
+
+
+def yaw_of(q: np.ndarray) -> np.ndarray:
+    """Yaw (rad, from East towards North) of q_nb rows [w x y z] (C_b_n = Rz Ry Rx)."""
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def _rms(e: np.ndarray) -> float | None:
+    e = e[np.all(np.isfinite(e), axis=1)] if e.ndim == 2 else e[np.isfinite(e)]
+    if e.size == 0:
+        return None
+    return float(np.sqrt(np.mean(np.sum(e**2, axis=1) if e.ndim == 2 else e**2)))
+
+
+def error_stats(err_enu: np.ndarray) -> dict:
+    """Horizontal, vertical and 3-D RMSE (m), horizontal 50/68/95 % and max (m), epochs."""
+    ok = np.all(np.isfinite(err_enu), axis=1)
+    e = err_enu[ok]
+    h = np.hypot(e[:, 0], e[:, 1])
+    q = (lambda p: float(np.percentile(h, p)) if h.size else None)
+    return {"rmse_horizontal_m": _rms(e[:, :2]), "rmse_vertical_m": _rms(e[:, 2:]), "rmse_3d_m": _rms(e),
+            "horizontal_p50_m": q(50), "horizontal_p68_m": q(68), "horizontal_p95_m": q(95),
+            "horizontal_max_m": float(h.max()) if h.size else None, "epochs": int(ok.sum()),
+            "epochs_without_estimate": int((~ok).sum())}
+
+
+def hold_last_fix(fixes: FixTable, t: np.ndarray) -> np.ndarray:
+    """(n, 3) the last fix at or before each t (NaN before the first)."""
+    k = np.searchsorted(fixes.t, t, side="right") - 1
+    out = np.full((t.size, 3), np.nan)
+    out[k >= 0] = fixes.p_enu_m[k[k >= 0]]
+    return out
+
+
+def reference_at(ref: Reference, t: float | np.ndarray) -> np.ndarray:
+    """Reference position (m, ENU) interpolated linearly at t."""
+    t = np.atleast_1d(t)
+    return np.column_stack([np.interp(t, ref.t, ref.p_enu_m[:, j]) for j in range(3)])
+
+
+def run_scores(res: lfilter.RunResult, layout, ref: Reference, yaw_skip_s: float) -> tuple[dict, dict]:
+    """(scores, series) of one run: position stats at the reference epochs, yaw RMSE after
+    `yaw_skip_s`, and the per-epoch series (t, err_enu, sigma_enu, yaw_err_rad) for plots."""
+    _, x, pd = states_at(res, ref.t)
+    err = x[:, layout.X_P_ENU_SLICE] - ref.p_enu_m
+    out = error_stats(err)
+    yaw_err = np.full(ref.t.size, np.nan)
+    if ref.yaw_rad is not None:
+        yaw_err = wrap(yaw_of(x[:, layout.X_Q_NB_SLICE]) - ref.yaw_rad)
+        late = (ref.t >= yaw_skip_s) & np.isfinite(yaw_err)
+        out["rmse_yaw_deg_after_skip"] = math.degrees(_rms(yaw_err[late])) if late.any() else None
+        out["rmse_yaw_deg"] = math.degrees(_rms(yaw_err)) if np.isfinite(yaw_err).any() else None
+        out["yaw_skip_s"] = yaw_skip_s
+    series = {"t": ref.t, "err_enu": err, "sigma_enu": np.sqrt(pd[:, layout.DX_DP_SLICE]), "yaw_err_rad": yaw_err}
+    return out, series
+
+
+def outage_scores(fixes: FixTable, ref: Reference, starts_s, length_s: float, runs: dict, layout) -> dict:
+    """Per outage start: the filter's horizontal error at its end (runs: {start: RunResult}) and
+    holding the last fix; summary: medians, their ratio, and outages worse than holding."""
+    rows = []
+    for start in starts_s:
+        end = start + length_s
+        if start < fixes.t[0] or end > ref.t[-1] or start not in runs:
+            rows.append({"start_s": start, "skipped": "outside the reference or fix span"})
+            continue
+        p_ref = reference_at(ref, end)[0]
+        _, x, _ = states_at(runs[start], np.array([end - 1e-6]))
+        k = np.searchsorted(fixes.t, start) - 1
+        filt = float(np.hypot(*(x[0, layout.X_P_ENU_SLICE][:2] - p_ref[:2])))
+        hold = float(np.hypot(*(fixes.p_enu_m[k, :2] - p_ref[:2])))
+        rows.append({"start_s": start, "end_s": end, "filter_horizontal_m": filt, "hold_last_fix_horizontal_m": hold,
+                     "ratio": filt / hold if hold > 0 else None})
+    done = [r for r in rows if "filter_horizontal_m" in r]
+    med_f = float(np.median([r["filter_horizontal_m"] for r in done])) if done else None
+    med_h = float(np.median([r["hold_last_fix_horizontal_m"] for r in done])) if done else None
+    return {"length_s": length_s, "outages": rows, "median_filter_m": med_f, "median_hold_last_fix_m": med_h,
+            "median_ratio": med_f / med_h if done and med_h else None,
+            "median_of_ratios": float(np.median([r["ratio"] for r in done])) if done else None,
+            "worse_than_hold": int(sum(r["filter_horizontal_m"] > r["hold_last_fix_horizontal_m"] for r in done))}
+
+
+def fix_nis_stats(nis_by_kind: dict[str, np.ndarray]) -> dict:
+    """Mean NIS per fix axis and over all fix records."""
+    allv = np.concatenate(list(nis_by_kind.values())) if nis_by_kind else np.zeros(0)
+    out = {k: (float(np.mean(v)) if v.size else None) for k, v in nis_by_kind.items()}
+    out["all"] = float(np.mean(allv)) if allv.size else None
+    out["records"] = int(allv.size)
+    return out
+
+
+def cdf(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(sorted finite values, cumulative fraction) for a CDF plot."""
+    v = np.sort(values[np.isfinite(values)])
+    return v, np.arange(1, v.size + 1) / max(v.size, 1)

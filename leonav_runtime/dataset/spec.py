@@ -1,0 +1,286 @@
+"""Dataset description files (TOML): which files and columns hold the IMU, the GNSS fixes and
+the reference trajectory, in which units, axes and time base; how to run and score them.
+
+Validated like scenarios (`scenario._check_value`): one `UserInputError` naming the file,
+the section and the key, with what was expected. Paths are relative to the `[data] dir`,
+itself relative to the TOML file; `{shared}` in it is `$LEONAV_SHARED_DATA`, else the
+`shared/data` folder beside the repository (the project's public fixtures). The schema with
+every key, unit and default is `SCHEMA` (and docs/datasets.md).
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from leonav_runtime.errors import UserInputError
+from leonav_runtime.scenario import Field, _check_value, _numbers, _show, _where
+
+try:
+    import tomllib
+except ModuleNotFoundError:   # pragma: no cover - Python < 3.11
+    import tomli as tomllib
+
+REQ = ...
+MAX_FILE_BYTES = 1_000_000
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180}
+ACCEL_UNITS = {"m/s^2": 1.0, "g": 9.80665}
+BODY_FRAMES = ("FRD", "FLU")
+MODES = ("fix+imu", "fix+imu+nhc", "fix+imu+nhc+zupt")
+MODE_STREAMS = {"fix+imu": ("fix",), "fix+imu+nhc": ("fix", "nhc"), "fix+imu+nhc+zupt": ("fix", "nhc", "zupt")}
+AXES = re.compile(r"^\s*[-+]?[xyz]\s*,\s*[-+]?[xyz]\s*,\s*[-+]?[xyz]\s*$")
+Column = (str, int)   # a header name, or a 0-based column index
+
+SCHEMA: dict[str, dict[str, Field]] = {
+    "": {"name": Field(str, "-", default="dataset", doc="short name (results folder)"),
+         "description": Field(str, "-", default="", doc="one line for the results")},
+    "data": {"dir": Field(str, "-", default=".", doc="folder of the files; relative to this file; {shared} = "
+                          "$LEONAV_SHARED_DATA or ../shared/data beside the repository")},
+    "imu": {
+        "file": Field(str, "-", default=REQ, doc="IMU samples (CSV, or MATLAB .mat with format = 'mat')"),
+        "format": Field(str, "-", default="csv", choices=("csv", "mat"), doc="csv or mat (scipy.io)"),
+        "mat_struct": Field(str, "-", default="", doc="mat: struct holding the fields (empty: top level)"),
+        "delimiter": Field(str, "-", default=",", doc="csv field separator"),
+        "time_column": Field(Column, "-", default=0, doc="header name or 0-based index (mat: field name)"),
+        "gyro_columns": Field(list, "-", default=REQ, doc="3 names or indices, sensor x y z (mat: one (n, 3) field)"),
+        "accel_columns": Field(list, "-", default=REQ, doc="3 names or indices, sensor x y z"),
+        "time_unit": Field(str, "-", default="s", choices=tuple(TIME_UNITS)),
+        "gyro_unit": Field(str, "-", default="rad/s", choices=tuple(GYRO_UNITS)),
+        "accel_unit": Field(str, "-", default="m/s^2", choices=tuple(ACCEL_UNITS)),
+        "axes": Field(str, "-", default="x,y,z", doc="vehicle axes as signed sensor axes, e.g. '-y,x,z'"),
+        "frame": Field(str, "-", default="FRD", choices=BODY_FRAMES, doc="vehicle frame `axes` gives"),
+        "time_base": Field(str, "-", default="unix", choices=("unix", "first_fix"),
+                           doc="IMU time is unix time, or seconds from the first GNSS fix"),
+        "time_offset_s": Field((float, str), "s", default=0.0,
+                               doc="added to the IMU time; 'calibrate' estimates it (gyro vs GNSS course rate)"),
+        "accel_range_mps2": Field(float, "m/s^2", 0, 1e4, default=0.0, doc="full scale; samples at it are "
+                                  "clipped and skipped (0: unknown)"),
+        "gyro_range_radps": Field(float, "rad/s", 0, 1e3, default=0.0, doc="full scale (0: unknown)"),
+    },
+    "gnss": {
+        "file": Field(str, "-", default=REQ, doc="fixes: CSV, NMEA or UBX log"),
+        "format": Field(str, "-", default="csv", choices=("csv", "nmea", "ubx")),
+        "delimiter": Field(str, "-", default=","),
+        "time_column": Field(Column, "-", default=0, doc="unix time"),
+        "time_unit": Field(str, "-", default="s", choices=tuple(TIME_UNITS)),
+        "lat_column": Field(Column, "-", default=1, doc="deg"),
+        "lon_column": Field(Column, "-", default=2, doc="deg"),
+        "height_column": Field(Column, "-", default=3, doc="m"),
+        "sigma_columns": Field(list, "-", default=[], doc="per-fix 1-sigma E N U columns (m), if the receiver "
+                               "gives them"),
+        "sigma_m": Field(list, "m", default=[1.5, 1.5, 3.0], doc="1-sigma E N U without sigma columns"),
+        "sigma_scale": Field((float, str), "-", default=1.0, doc="multiplies every fix sigma; 'auto' scales it "
+                             "so the fix NIS mean of a first pass is 1 (time-correlated errors)"),
+        "rate_hz": Field(float, "Hz", 0, 100, default=0.0, doc="use at most this many fixes per second (0: all)"),
+        "lever_arm_m": Field(list, "m", default=[0.0, 0.0, 0.0], doc="IMU -> antenna, in `lever_arm_frame`"),
+        "lever_arm_frame": Field(str, "-", default="FRD", choices=BODY_FRAMES),
+    },
+    "reference": {
+        "file": Field(str, "-", default="", doc="reference trajectory (CSV or RTKLIB .pos); empty: none"),
+        "format": Field(str, "-", default="csv", choices=("csv", "pos")),
+        "delimiter": Field(str, "-", default=","),
+        "crs": Field(str, "-", default="llh", doc="llh (deg, deg, m), ecef (m), or EPSG:code (x, y, h)"),
+        "time_column": Field(Column, "-", default=0, doc="unix time"),
+        "time_unit": Field(str, "-", default="s", choices=tuple(TIME_UNITS)),
+        "position_columns": Field(list, "-", default=[1, 2, 3]),
+        "quaternion_columns": Field(list, "-", default=[],
+                                    doc="x y z w of body -> local level ENU (CRS grid); its yaw (body x) is scored"),
+    },
+    "filter": {
+        "modes": Field(list, "-", default=list(MODES), doc=", ".join(MODES)),
+        "imu_noise": Field(str, "-", default="standstill", choices=("standstill", "tactical", "wt901"),
+                           doc="white noise measured at the first standstill, or a profile"),
+        "bias_profile": Field(str, "-", default="wt901", choices=("tactical", "wt901"),
+                              doc="bias sigmas and random walks"),
+        "gate_nis": Field(float, "-", 0, 1e6, default=10.83, doc="chi2(1) 99.9 %; 0 disables"),
+        "velocity_sigma_mps": Field(float, "m/s", 1e-3, 100, default=0.3),
+        "roll_pitch_sigma_deg": Field(float, "deg", 1e-3, 90, default=2.0),
+        "output_rate_hz": Field(float, "Hz", 0.1, 1000, default=10.0, doc="trajectory file rate"),
+    },
+    "alignment": {
+        "yaw_deg": Field((float, str), "deg", default="gnss", doc="'gnss': course of the GNSS velocity once "
+                         "moving; or a given yaw from East towards North"),
+        "speed_mps": Field(float, "m/s", 0.01, 100, default=0.2, doc="moving above this GNSS speed"),
+        "window_s": Field(float, "s", 0.1, 60, default=2.0, doc="GNSS velocity window (course, speed)"),
+        "yaw_sigma_deg": Field(float, "deg", 0.1, 180, default=15.0),
+        "static_max_s": Field(float, "s", 0, 600, default=5.0, doc="longest initial standstill used for "
+                              "leveling, gyro bias and noise"),
+    },
+    "constraints": {
+        "nhc_rate_hz": Field(float, "Hz", 0.1, 200, default=10.0),
+        "nhc_sigma_mps": Field(list, "m/s", default=[0.1, 0.1], doc="lateral, vertical"),
+        "zupt_rate_hz": Field(float, "Hz", 0.1, 200, default=10.0),
+        "zupt_sigma_mps": Field(float, "m/s", 1e-4, 10, default=0.02),
+        "standstill_window_s": Field(float, "s", 0.05, 60, default=0.5),
+        "standstill_accel_std_mps2": Field(float, "m/s^2", 0, 10, default=0.05),
+        "standstill_gyro_std_radps": Field(float, "rad/s", 0, 10, default=0.02),
+    },
+    "scoring": {
+        "outage_starts_s": Field(list, "s", default=[60.0, 120.0, 180.0, 240.0, 300.0],
+                                 doc="seconds from the first GNSS fix"),
+        "outage_length_s": Field(float, "s", 0.1, 3600, default=30.0),
+        "yaw_skip_s": Field(float, "s", 0, 3600, default=60.0, doc="yaw RMSE from this time on"),
+    },
+}
+
+
+@dataclass
+class DatasetSpec:
+    """A validated dataset description: `sections[name][key]` with SI values (angles in rad
+    where the key says deg in the file), file paths resolved, and `source` (the TOML)."""
+
+    name: str
+    description: str
+    source: str
+    data_dir: Path
+    sections: dict[str, dict[str, Any]] = field(default_factory=dict)
+    shared: bool = False     # data_dir is the shared public data ({shared})
+
+    def __getitem__(self, section: str) -> dict[str, Any]:
+        return self.sections[section]
+
+    def where(self, section: str, key: str) -> str:
+        return _where(self.source, section, key)
+
+
+def shared_data_dir() -> Path:
+    """$LEONAV_SHARED_DATA, else ../shared/data beside the repository."""
+    env = os.environ.get("LEONAV_SHARED_DATA")
+    return Path(env) if env else Path(__file__).resolve().parents[2].parent / "shared" / "data"
+
+
+def _columns(source: str, section: str, key: str, value: Any, n: int | None) -> list:
+    ok = isinstance(value, list) and all(isinstance(v, str) or (isinstance(v, int) and not isinstance(v, bool)
+                                                                and v >= 0) for v in value)
+    if not ok or (n is not None and len(value) != n):
+        raise UserInputError(f"{_where(source, section, key)} = {_show(value)}: expected "
+                             f"{n if n is not None else 'a list of'} column names or 0-based indices")
+    return list(value)
+
+
+def parse_axes(text: str, where: str) -> list[tuple[int, float]]:
+    """'-y,x,z' -> [(sensor axis index, sign)] per vehicle axis; a UserInputError unless each
+    sensor axis appears once."""
+    if not AXES.match(text):
+        raise UserInputError(f"{where} = {text!r}: expected three signed sensor axes such as '-y,x,z'")
+    out = []
+    for part in text.replace(" ", "").split(","):
+        sign = -1.0 if part.startswith("-") else 1.0
+        out.append(("xyz".index(part[-1]), sign))
+    if len({a for a, _ in out}) != 3:
+        raise UserInputError(f"{where} = {text!r}: expected each of x, y, z once")
+    return out
+
+
+def spec_from_dict(data: dict[str, Any], source: str = "<dict>", base_dir: Path | None = None) -> DatasetSpec:
+    """Validate a parsed dataset TOML mapping (module doc)."""
+    top = SCHEMA[""]
+    for key in data:
+        if key not in SCHEMA and key not in top:
+            raise UserInputError(f"{source}: unknown section or key {key!r}; expected one of "
+                                 f"{', '.join(sorted({k for k in SCHEMA if k} | set(top)))}")
+    values: dict[str, dict[str, Any]] = {}
+    for section, fields in SCHEMA.items():
+        given = data if section == "" else data.get(section, {})
+        if section and not isinstance(given, dict):
+            raise UserInputError(f"{source}: [{section}] must be a table, got {_show(given)}")
+        if section:
+            unknown = set(given) - set(fields)
+            if unknown:
+                raise UserInputError(f"{source}: [{section}] unknown key {_show(sorted(unknown)[0])}; expected one "
+                                     f"of {', '.join(fields)}")
+        out: dict[str, Any] = {}
+        for key, spec in fields.items():
+            if key in given:
+                out[key] = _check_value(source, section, key, spec, given[key])
+            elif spec.default is REQ and (section != "reference" or data.get("reference")):
+                raise UserInputError(f"{_where(source, section, key)} is missing: required")
+            else:
+                out[key] = spec.default
+        values[section] = out
+    _finish(values, source)
+    base = base_dir or Path.cwd()
+    text = values["data"]["dir"].replace("{shared}", str(shared_data_dir()))
+    data_dir = Path(text) if Path(text).is_absolute() else base / text
+    return DatasetSpec(values[""]["name"], values[""]["description"], source, data_dir, values,
+                       "{shared}" in values["data"]["dir"])
+
+
+def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
+    """Lists, choices and conversions the per-key check cannot do."""
+    imu, gnss, ref = v["imu"], v["gnss"], v["reference"]
+    for key in ("gyro_columns", "accel_columns"):
+        imu[key] = _columns(source, "imu", key, imu[key], None)
+        if len(imu[key]) != 3 and not (imu["format"] == "mat" and len(imu[key]) == 1):
+            raise UserInputError(f"{_where(source, 'imu', key)} = {_show(imu[key])}: expected 3 column names or "
+                                 "indices (x y z; mat: also one (n, 3) field)")
+    imu["axis_map"] = parse_axes(imu["axes"], _where(source, "imu", "axes"))
+    for sec, key in (("imu", "time_offset_s"), ("gnss", "sigma_scale"), ("alignment", "yaw_deg")):
+        val, word = v[sec][key], {"time_offset_s": "calibrate", "sigma_scale": "auto", "yaw_deg": "gnss"}[key]
+        if isinstance(val, str) and val != word:
+            raise UserInputError(f"{_where(source, sec, key)} = {_show(val)}: expected a number or {word!r}")
+    if not isinstance(imu["time_offset_s"], str) and abs(imu["time_offset_s"]) > 3600:
+        raise UserInputError(f"{_where(source, 'imu', 'time_offset_s')}: expected seconds within +-3600")
+    if isinstance(gnss["sigma_scale"], float) and not 0.01 <= gnss["sigma_scale"] <= 100:
+        raise UserInputError(f"{_where(source, 'gnss', 'sigma_scale')}: expected 0.01..100 or 'auto'")
+    gnss["sigma_columns"] = _columns(source, "gnss", "sigma_columns", gnss["sigma_columns"], None)
+    if len(gnss["sigma_columns"]) not in (0, 3):
+        raise UserInputError(f"{_where(source, 'gnss', 'sigma_columns')}: expected 3 columns (E N U) or none")
+    gnss["sigma_m"] = _numbers(source, "gnss", "sigma_m", gnss["sigma_m"], 3, "m", limit=1e4)
+    if min(gnss["sigma_m"]) <= 0:
+        raise UserInputError(f"{_where(source, 'gnss', 'sigma_m')}: expected 3 numbers > 0 (m)")
+    arm = _numbers(source, "gnss", "lever_arm_m", gnss["lever_arm_m"], 3, "m", limit=100.0)
+    gnss["lever_arm_flu_m"] = arm if gnss["lever_arm_frame"] == "FLU" else [arm[0], -arm[1], -arm[2]]
+    ref["position_columns"] = _columns(source, "reference", "position_columns", ref["position_columns"], 3)
+    ref["quaternion_columns"] = _columns(source, "reference", "quaternion_columns", ref["quaternion_columns"], None)
+    if len(ref["quaternion_columns"]) not in (0, 4):
+        raise UserInputError(f"{_where(source, 'reference', 'quaternion_columns')}: expected 4 columns (x y z w) "
+                             "or none")
+    crs = ref["crs"]
+    if crs not in ("llh", "ecef") and not re.fullmatch(r"EPSG:\d{4,6}", crs):
+        raise UserInputError(f"{_where(source, 'reference', 'crs')} = {crs!r}: expected llh, ecef or EPSG:<code>")
+    modes = v["filter"]["modes"]
+    bad = [m for m in modes if m not in MODES]
+    if not modes or bad:
+        raise UserInputError(f"{_where(source, 'filter', 'modes')} contains {_show(bad[0] if bad else modes)}: "
+                             f"expected a non-empty list of {', '.join(MODES)}")
+    v["filter"]["modes"] = list(dict.fromkeys(modes))
+    v["filter"]["roll_pitch_sigma_rad"] = math.radians(v["filter"]["roll_pitch_sigma_deg"])
+    al = v["alignment"]
+    if not isinstance(al["yaw_deg"], str) and not -360 <= al["yaw_deg"] <= 360:
+        raise UserInputError(f"{_where(source, 'alignment', 'yaw_deg')}: expected deg in [-360, 360] or 'gnss'")
+    al["yaw_rad"] = None if isinstance(al["yaw_deg"], str) else math.radians(al["yaw_deg"])
+    al["yaw_sigma_rad"] = math.radians(al["yaw_sigma_deg"])
+    con = v["constraints"]
+    con["nhc_sigma_mps"] = _numbers(source, "constraints", "nhc_sigma_mps", con["nhc_sigma_mps"], 2, "m/s", 100.0)
+    if min(con["nhc_sigma_mps"]) <= 0:
+        raise UserInputError(f"{_where(source, 'constraints', 'nhc_sigma_mps')}: expected 2 numbers > 0 (m/s)")
+    sc = v["scoring"]
+    sc["outage_starts_s"] = _numbers(source, "scoring", "outage_starts_s", sc["outage_starts_s"], None, "s", 1e6)
+
+
+def load_spec(path: str | Path) -> DatasetSpec:
+    """Load and validate a dataset TOML file; a bare name like `cpet_run3` picks a shipped one
+    (leonav_runtime/datasets/)."""
+    path = Path(path)
+    shipped = Path(__file__).resolve().parents[1] / "datasets"
+    if not path.exists() and (shipped / f"{path.stem}.toml").exists() and path.parent == Path("."):
+        path = shipped / f"{path.stem}.toml"
+    if not path.is_file():
+        names = ", ".join(sorted(p.stem for p in shipped.glob("*.toml")))
+        raise UserInputError(f"{path}: dataset file not found (shipped: {names})")
+    with open(path, "rb") as fh:
+        raw = fh.read(MAX_FILE_BYTES + 1)
+    if len(raw) > MAX_FILE_BYTES:
+        raise UserInputError(f"{path}: more than {MAX_FILE_BYTES / 1e6:g} MB: not a dataset description")
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise UserInputError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise UserInputError(f"{path}: not valid TOML: {exc}") from None
+    return spec_from_dict(data, source=str(path), base_dir=path.parent)
