@@ -164,8 +164,9 @@ def _receiver_ecef(scn: Scenario, p_enu: np.ndarray) -> np.ndarray:
     return geometry.enu_to_ecef(p_enu, r0, scn.lat_rad, scn.lon_rad)
 
 
-def _visible_ranked(scn, es, t_s, p_enu, mask_rad, notes: list[str], acceleration=True):
-    """States of `es` at t_s and, per epoch, visible satellites sorted by elevation.
+def _visible_ranked(scn, es, t_s, p_enu, mask_rad, notes: list[str], acceleration=True, priority=None):
+    """States of `es` at t_s and, per epoch, visible satellites sorted by elevation (or, given
+    `priority` (one number per satellite), by descending priority: the `random` rule).
 
     Satellites SGP4 cannot propagate are left out (NaN) and named in `notes`.
     """
@@ -178,7 +179,8 @@ def _visible_ranked(scn, es, t_s, p_enu, mask_rad, notes: list[str], acceleratio
     ranked = []
     for j in range(t_s.size):
         vis = np.flatnonzero(el[:, j] >= mask_rad)
-        ranked.append(vis[np.argsort(-el[vis, j], kind="stable")])
+        key = el[vis, j] if priority is None else priority[vis]
+        ranked.append(vis[np.argsort(-key, kind="stable")])
     return states, ranked, rho
 
 
@@ -224,7 +226,11 @@ def _starlink_rows(scn, nav, es, t_imu, x_true, f_b, notes):
     p_enu = x_true[idx, nav.layout.X_P_ENU_SLICE]
     # Only satellites that can be above the mask need states: pre-filter on the first epoch
     # would miss risers over long runs, so propagate all (vectorized SGP4 is cheap).
-    states, ranked, _ = _visible_ranked(scn, es, t, p_enu, scn.starlink["elevation_mask_rad"], notes)
+    priority = None
+    if scn.starlink["selection"] == "random":   # one draw per run: the tracked subset persists
+        priority = np.random.default_rng(scn.starlink["selection_seed"]).random(len(es.norad_ids))
+    states, ranked, _ = _visible_ranked(scn, es, t, p_enu, scn.starlink["elevation_mask_rad"], notes,
+                                        priority=priority)
     n_max = max(scn.starlink["counts"])
     doppler_rate, doppler, ofdm = [], [], []   # rows: see _series
     for j, k in enumerate(idx):
