@@ -101,7 +101,8 @@ def run_trial(scn: Scenario, mode: str, count: int, index: int) -> TrialResult:
     rng = trial_rng(scn.seed, index)
     trial = simulate.trial_records(setup, mode, count, rng, nav)
     gate = scn.filter["gate_nis"] or None
-    ekf = lfilter.EKF(trial.x0, setup.P0, setup.params, gate=gate, library=nav.library)
+    params = setup.params if trial.params is None else trial.params   # realism compensation may differ
+    ekf = lfilter.EKF(trial.x0, setup.P0, params, gate=gate, library=nav.library)
     t_c = time.perf_counter()
     rows, k = eval_rows(trial.records, setup.t_imu, EVAL_RATE_HZ, scn.imu_rate_hz)
     res = ekf.run(trial.records, P_rows=rows)  # full P only on the output grid, for NEES

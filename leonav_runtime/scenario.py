@@ -70,6 +70,7 @@ class Scenario:
     modes: list[str]
     source: str = "<defaults>"
     raw: dict[str, Any] = field(default_factory=dict, repr=False)
+    realism: dict[str, dict[str, Any]] = field(default_factory=dict)  # "ephemeris", "imu": SI, see realism.py
 
 
 def _where(source: str, section: str, key: str) -> str:
@@ -93,7 +94,7 @@ def _check_value(source: str, section: str, key: str, spec: Field, value: Any) -
     kinds = spec.kind if isinstance(spec.kind, tuple) else (spec.kind,)
     if float in kinds and isinstance(value, int) and not isinstance(value, bool):
         value = float(value) if _finite(value) else math.inf
-    if not isinstance(value, kinds) or isinstance(value, bool):
+    if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
         names = " or ".join(k.__name__ for k in kinds)
         raise UserInputError(f"{where} = {_show(value)}: expected a {names} in {spec.unit}")
     if isinstance(value, (int, float)):
@@ -223,6 +224,7 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
                                  f"within duration_s = {duration:g} s; expected a rate >= {1 / duration:g} Hz")
 
     return Scenario(
+        realism=_realism(source, values["ephemeris_error"], values["imu_errors"]),
         name=values[""]["name"],
         description=values[""]["description"],
         lat_rad=math.radians(values["site"]["lat_deg"]),
@@ -244,6 +246,29 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
         source=source,
         raw=data,
     )
+
+
+def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """The realism sections in SI: sigmas (m), rad, m/s^2 and rad/s per degC, rates."""
+    eph = dict(eph)
+    for key in ("starlink_sigma_rac_m", "gps_sigma_rac_m"):
+        eph[key] = _numbers(source, "ephemeris_error", key, eph[key], 3, "m", limit=1e7)
+        if min(eph[key]) < 0:
+            raise UserInputError(f"{source}: [ephemeris_error] {key} = {_show(eph[key])}: expected sigmas >= 0 m")
+    bad = [c for c in eph["apply_to"] if c not in ("starlink", "gps")] if isinstance(eph["apply_to"], list) else [1]
+    if bad:
+        raise UserInputError(f"{source}: [ephemeris_error] apply_to = {_show(eph['apply_to'])}: expected a list of "
+                             "starlink, gps")
+    g0 = 9.80665
+    imu_si = {"enabled": imu["enabled"], "process_noise_inflation": imu["process_noise_inflation"],
+              "accel_scale_factor": 1e-6 * imu["accel_scale_factor_ppm"],
+              "gyro_scale_factor": 1e-6 * imu["gyro_scale_factor_ppm"],
+              "misalignment_rad": 1e-3 * imu["misalignment_mrad"],
+              "g_sensitivity_rad_s_per_mps2": math.radians(imu["g_sensitivity_deg_s_per_g"]) / g0,
+              "temperature_rate_c_per_s": imu["temperature_rate_c_per_s"],
+              "accel_bias_tempco_mps2_per_c": 1e-3 * g0 * imu["accel_bias_tempco_mg_per_c"],
+              "gyro_bias_tempco_rad_s_per_c": math.radians(imu["gyro_bias_tempco_deg_s_per_c"])}
+    return {"ephemeris": eph, "imu": imu_si}
 
 
 def load_scenario(path: str | Path) -> Scenario:

@@ -111,6 +111,38 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "initial_attitude_sigma_deg": Field(float, "deg", 1e-4, 180, default=1.0, doc="prior per axis"),
         "gate_nis": Field(float, "-", 0, 1e6, default=CHI2_1DOF_999, doc="chi2(1) 99.9 %; 0 disables"),
     },
+    # Realism switches: the truth differs from what the filter assumes (off by default).
+    # `enabled` switches the truth; the compensation keys switch the filter, on or off alone.
+    "ephemeris_error": {
+        "enabled": Field(bool, "-", default=False, doc="true satellite orbits differ from the elements"),
+        # Starlink: Jankovic (2026, arXiv:2605.19850), SGP4 vs next TLE, pooled median 3D error ~1 km
+        # at 6 h, shaped like the GPS split below; GPS: TLE vs broadcast RMS, docs/gnss.md.
+        "starlink_sigma_rac_m": Field(list, "m", default=[240.0, 960.0, 170.0],
+                                      doc="Starlink radial, along, cross 1-sigma at `reference_age_days`"),
+        "gps_sigma_rac_m": Field(list, "m", default=[1180.0, 4770.0, 860.0],
+                                 doc="GPS radial, along, cross 1-sigma (TLE vs broadcast, no growth)"),
+        "apply_to": Field(list, "-", default=["starlink"], doc="constellations perturbed: starlink, gps"),
+        "element_age_days": Field(float, "d", 0, 30, default=0.25, doc="age of the Starlink elements"),
+        "reference_age_days": Field(float, "d", 1e-3, 30, default=0.25, doc="age the Starlink sigmas hold at"),
+        "growth_exponent": Field(float, "-", 0, 3, default=1.09,
+                                 doc="sigma ~ age^k (1 km at 6 h to 38 km at 7 d: k = 1.09)"),
+        "compensate": Field(str, "-", default="none", choices=("none", "inflate-r"),
+                            doc="filter: R plus the orbit error's effect on each measurement"),
+    },
+    "imu_errors": {
+        "enabled": Field(bool, "-", default=False, doc="IMU errors the filter does not model"),
+        # 1-sigma = a third of the InvenSense MPU-9250 spec tolerances (consumer MEMS)
+        "accel_scale_factor_ppm": Field(float, "ppm", 0, 1e5, default=10000.0, doc="per-axis scale factor"),
+        "gyro_scale_factor_ppm": Field(float, "ppm", 0, 1e5, default=10000.0, doc="per-axis scale factor"),
+        "misalignment_mrad": Field(float, "mrad", 0, 100, default=6.7, doc="cross-axis terms, per element"),
+        "g_sensitivity_deg_s_per_g": Field(float, "deg/s/g", 0, 10, default=0.1,
+                                           doc="gyro error per specific force, per element"),
+        "temperature_rate_c_per_s": Field(float, "degC/s", -1, 1, default=0.02, doc="warm-up ramp"),
+        "accel_bias_tempco_mg_per_c": Field(float, "mg/degC", 0, 100, default=0.5, doc="per axis"),
+        "gyro_bias_tempco_deg_s_per_c": Field(float, "deg/s/degC", 0, 10, default=0.01, doc="per axis"),
+        "process_noise_inflation": Field(float, "-", 1, 1e4, default=1.0,
+                                         doc="filter: VRW, ARW and bias walks times this"),
+    },
     "monte_carlo": {
         "trials": Field(int, "-", 1, 100000, default=100, doc="trials per (mode, count)"),
         "seed": Field(int, "-", 0, 2**63 - 1, default=1, doc="master seed"),

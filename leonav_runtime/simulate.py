@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from leonav_runtime import navfuncs
+from leonav_runtime import navfuncs, realism
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gen import state_layout
 from leonav_runtime.inputs import (CLOCK_BIAS_SIGMA_M, CLOCK_DRIFT_SIGMA_MPS, F_B_AVERAGE_S,
@@ -271,6 +271,7 @@ class Trial:
     records: np.ndarray
     x0: np.ndarray
     x_true: np.ndarray   # (n+1, NX) truth including this trial's biases, clock and LO
+    params: np.ndarray | None = None   # the filter's parameters (realism compensation), else the setup's
 
 
 def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
@@ -301,7 +302,7 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
 
     u = measured_increments(rng, prof, setup.u_true, b_a, b_g, dt, g)
     imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
-    tables = []
+    parts = []   # [kind_name, rows, z, sigma]
     for kind_name in SERIES:
         s = setup.series[kind_name]
         sigma = noise_sigma(scn, kind_name)
@@ -315,7 +316,7 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
         for off, dx_off in ((L.X_C_DT, L.DX_DC_DT), (L.X_C_DDT, L.DX_DC_DDT), (L.X_B_LO, L.DX_DB_LO)):
             z += s.H[rows, dx_off] * x_true[k, off]
         z += g * sigma * noise[rows]
-        tables.append(_table(kind_name, s, rows, z, sigma))
+        parts.append([kind_name, rows, z, sigma])
 
     # the initial error is drawn over the states with a prior (not states a scenario leaves at
     # zero), so adding an uncoupled state to the layout leaves every draw unchanged
@@ -324,9 +325,14 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     if not noise_free:
         dx0[live] = rng.multivariate_normal(np.zeros(live.size), setup.P0[np.ix_(live, live)])
     x0 = nav.boxplus(x_true[0], dx0)
+    params = setup.params
+    if not noise_free and realism.active(scn):   # truth != filter; draws after all of the above
+        u, params = realism.apply(setup, nav, rng, u, parts)
+        imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
+    tables = [_table(kind_name, setup.series[kind_name], rows, z, sigma) for kind_name, rows, z, sigma in parts]
     # the road every source takes: tables -> records (aux f_b averaged from these IMU increments)
-    inputs = assemble(imu, setup.params, Prior(x0, setup.P0), satellites=tables, nav=nav)
-    return Trial(inputs.merged(), x0, x_true)
+    inputs = assemble(imu, params, Prior(x0, setup.P0), satellites=tables, nav=nav)
+    return Trial(inputs.merged(), x0, x_true, params)
 
 
 def _table(kind_name: str, s: SatSeries, rows: np.ndarray, z: np.ndarray, sigma: float):
