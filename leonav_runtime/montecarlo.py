@@ -34,6 +34,7 @@ NAV = L.DX_NAV9_SLICE  # the 9D error (dp, dv, dtheta): the leading NNAV entries
 BLOCKS = {"position": L.DX_DP_SLICE, "velocity": L.DX_DV_SLICE, "attitude": L.DX_DTHETA_SLICE}
 
 _SETUPS: dict[str, simulate.Setup] = {}
+MAX_SETUPS = 4   # prepared scenarios kept per process (bounded memory over a study's cells)
 _NAV: dict[str, navfuncs.NavFunctions] = {}
 
 
@@ -47,6 +48,9 @@ def setup_for(scn: Scenario) -> tuple[simulate.Setup, navfuncs.NavFunctions]:
     """The prepared scenario for this process (prepared on first use)."""
     key = scenario_key(scn)
     if key not in _SETUPS:
+        while len(_SETUPS) >= MAX_SETUPS:   # a study's cells come one after another: keep the latest
+            oldest = next(iter(_SETUPS))
+            del _SETUPS[oldest], _NAV[oldest]
         nav = navfuncs.NavFunctions()
         _SETUPS[key] = simulate.prepare(scn, nav)
         nav.params = _SETUPS[key].params
