@@ -17,7 +17,7 @@ def register(subparsers) -> None:
             "units). Every cell runs the study's modes at its Starlink count with the same trial seeds. "
             "Writes study.csv, study.json and study.png (heat map for two fields, lines for one) with "
             "time-averaged and final-epoch position RMSE and sqrt(PCRB). A bare name runs a shipped "
-            "study (where-is-6-9m, paper-hardware-counts)."
+            "study (where-is-6-9m, where-is-6-9m-prior, paper-hardware-seeds, realism-ephemeris, realism-imu)."
         ),
     )
     p.add_argument("study", metavar="STUDY", help="study TOML file or shipped study name")
