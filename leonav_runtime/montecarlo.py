@@ -34,6 +34,7 @@ NAV = L.DX_NAV9_SLICE  # the 9D error (dp, dv, dtheta): the leading NNAV entries
 BLOCKS = {"position": L.DX_DP_SLICE, "velocity": L.DX_DV_SLICE, "attitude": L.DX_DTHETA_SLICE}
 
 _SETUPS: dict[str, simulate.Setup] = {}
+MAX_SETUPS = 4   # prepared scenarios kept per process (bounded memory over a study's cells)
 _NAV: dict[str, navfuncs.NavFunctions] = {}
 
 
@@ -47,6 +48,9 @@ def setup_for(scn: Scenario) -> tuple[simulate.Setup, navfuncs.NavFunctions]:
     """The prepared scenario for this process (prepared on first use)."""
     key = scenario_key(scn)
     if key not in _SETUPS:
+        while len(_SETUPS) >= MAX_SETUPS:   # a study's cells come one after another: keep the latest
+            oldest = next(iter(_SETUPS))
+            del _SETUPS[oldest], _NAV[oldest]
         nav = navfuncs.NavFunctions()
         _SETUPS[key] = simulate.prepare(scn, nav)
         nav.params = _SETUPS[key].params
@@ -101,7 +105,8 @@ def run_trial(scn: Scenario, mode: str, count: int, index: int) -> TrialResult:
     rng = trial_rng(scn.seed, index)
     trial = simulate.trial_records(setup, mode, count, rng, nav)
     gate = scn.filter["gate_nis"] or None
-    ekf = lfilter.EKF(trial.x0, setup.P0, setup.params, gate=gate, library=nav.library)
+    params = setup.params if trial.params is None else trial.params   # realism compensation may differ
+    ekf = lfilter.EKF(trial.x0, setup.P0, params, gate=gate, library=nav.library)
     t_c = time.perf_counter()
     rows, k = eval_rows(trial.records, setup.t_imu, EVAL_RATE_HZ, scn.imu_rate_hz)
     res = ekf.run(trial.records, P_rows=rows)  # full P only on the output grid, for NEES

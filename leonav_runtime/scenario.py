@@ -10,9 +10,12 @@ Limits, checked before anything is allocated: a scenario file of at most 1 MB; m
 rates that divide the IMU rate and give an epoch within the run; manoeuvres within 100 m/s^2,
 180 deg/s and 0..400 m/s; the memory a run needs at most LEONAV_MAX_MEMORY_MB (`run_size`).
 
-Satellite-selection rule (`starlink.selection`, one rule today: `"highest-elevation"`): at
-every Starlink epoch the N satellites above the mask with the highest elevation are used,
-so over a long run the set follows the sky as satellites rise and set. Asking for more
+Satellite-selection rules (`starlink.selection`): `"highest-elevation"`: at every Starlink
+epoch the N satellites above the mask with the highest elevation are used, so over a long
+run the set follows the sky as satellites rise and set. `"random"`: every satellite gets a
+random priority drawn once from `starlink.selection_seed`, and at every epoch the N visible
+satellites of highest priority are used (a receiver that tracks an arbitrary subset and keeps
+it while it stays above the mask; all trials of a run share the draw). Asking for more
 satellites than are above the mask at some epoch is an error that names the count
 available, never a silent cap.
 """
@@ -34,118 +37,13 @@ else:  # pragma: no cover - exercised on Python 3.10 only
 from leonav_runtime import run_size
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.utc import parse_utc
-from leonav_runtime.params import IMU_PROFILES as IMU_PROFILE_DATA
-from leonav_runtime.gen.constants import CHI2_1DOF_999, STARLINK_BEACON_HZ, STARLINK_MASK_DEG
+from leonav_runtime.scenario_schema import (IMU_PROFILES, MODE_OBSERVABLES, MODES, SCHEMA,  # noqa: F401
+                                         SELECTION_RULES, TRAJECTORY_KINDS, Field, _REQUIRED)
 
 BUILTIN_DIR = Path(__file__).with_name("scenarios")
 MAX_FILE_BYTES = 1_000_000
 MAX_ACCEL_MPS2, MAX_TURN_DEG_S, MAX_COUNT = 100.0, 180.0, 10_000
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,63}")
-
-MODES = ("gps+imu", "leo-alpha+imu", "gps+leo-alpha+imu", "leo-ofdm+imu", "leo-alpha+ofdm+imu", "leo-doppler+alpha+imu")
-"""Fusion modes: which observables feed the filter (IMU always propagates)."""
-
-MODE_OBSERVABLES: dict[str, tuple[str, ...]] = {
-    "gps+imu": ("pseudorange",),
-    "leo-alpha+imu": ("doppler_rate",),
-    "gps+leo-alpha+imu": ("pseudorange", "doppler_rate"),
-    "leo-ofdm+imu": ("ofdm_range_diff",),
-    "leo-alpha+ofdm+imu": ("doppler_rate", "ofdm_range_diff"),
-    "leo-doppler+alpha+imu": ("doppler", "doppler_rate"),
-}
-
-IMU_PROFILES = tuple(IMU_PROFILE_DATA)  # names of the emitted profiles (gen/profiles.py): tactical, wt901
-TRAJECTORY_KINDS, SELECTION_RULES = ("static", "maneuvers"), ("highest-elevation",)
-
-
-@dataclass(frozen=True)
-class Field:
-    """One scenario key: its type, unit (conversion to SI), bounds and default."""
-
-    kind: type | tuple[type, ...]
-    unit: str  # "deg" converts to rad; others are already SI
-    lo: float | None = None
-    hi: float | None = None
-    default: Any = ...
-    choices: tuple[str, ...] | None = None
-    doc: str = ""
-
-
-_REQUIRED = ...
-
-# section -> key -> Field. The unit suffix in the key name is the unit in the file.
-SCHEMA: dict[str, dict[str, Field]] = {
-    "": {
-        "name": Field(str, "-", default="scenario", doc="short name used in output folders"),
-        "description": Field(str, "-", default="", doc="one line shown in metrics.json"),
-    },
-    "site": {
-        "lat_deg": Field(float, "deg", -90, 90, default=43.0848638, doc="WGS84 geodetic latitude"),
-        "lon_deg": Field(float, "deg", -180, 360, default=-77.6786127, doc="WGS84 longitude"),
-        "alt_m": Field(float, "m", -500, 1e5, default=170.0, doc="WGS84 ellipsoidal height"),
-    },
-    "time": {
-        "epoch": Field(str, "UTC", default=_REQUIRED, doc="scenario start, ISO 8601 UTC"),
-        "duration_s": Field(float, "s", 1e-3, 86400, default=_REQUIRED, doc="length of the run"),
-    },
-    "trajectory": {
-        "kind": Field(str, "-", default="static", choices=TRAJECTORY_KINDS,
-                      doc="static receiver, or a vessel driven by `maneuvers`"),
-        "attitude_deg": Field(list, "deg", default=[0.0, 0.0, 90.0],
-                              doc="initial roll, pitch, yaw; yaw from East towards North"),
-        "speed_mps": Field(float, "m/s", 0, 400, default=0.0, doc="initial speed along heading"),
-        # Each manoeuvre: [duration_s, acceleration_mps2, turn_rate_deg_s]
-        "maneuvers": Field(list, "mixed", default=[],
-                           doc="[[duration_s, acceleration_mps2, turn_rate_deg_s], ...] in order"),
-        "roll_amplitude_deg": Field(float, "deg", 0, 45, default=0.0, doc="wave-induced roll"),
-        "pitch_amplitude_deg": Field(float, "deg", 0, 45, default=0.0, doc="wave-induced pitch"),
-        "wave_period_s": Field(float, "s", 0.5, 60, default=8.0, doc="period of the roll/pitch motion"),
-    },
-    "imu": {
-        "profile": Field(str, "-", default="tactical", choices=IMU_PROFILES,
-                         doc="noise figures: models/imu.py (sources cited there)"),
-        "rate_hz": Field(float, "Hz", 1, 2000, default=100.0, doc="IMU sample rate"),
-    },
-    "gps": {
-        "rate_hz": Field(float, "Hz", 0.01, 100, default=10.0, doc="pseudorange epoch rate"),
-        "pseudorange_sigma_m": Field(float, "m", 1e-3, 1e3, default=3.0, doc="1-sigma pseudorange noise"),
-        "elevation_mask_deg": Field(float, "deg", -5, 90, default=10.0, doc="GPS mask (paper: 10 deg)"),
-        "max_satellites": Field(int, "-", 4, 64, default=8, doc="highest GPS satellites used per epoch"),
-        "clock_bias_m": Field(float, "m", -1e6, 1e6, default=100.0, doc="true initial c*dt"),
-        "clock_drift_mps": Field(float, "m/s", -1e3, 1e3, default=0.1, doc="true initial c*ddt"),
-        "outages_s": Field(list, "s", default=[], doc="[[start_s, end_s], ...] GPS denied"),
-    },
-    "starlink": {
-        "rate_hz": Field(float, "Hz", 0.01, 100, default=1.0, doc="Starlink measurement epoch rate"),
-        "carrier_hz": Field(float, "Hz", 1e9, 3e10, default=STARLINK_BEACON_HZ, doc="beacon channel centre"),
-        "elevation_mask_deg": Field(float, "deg", -5, 90, default=STARLINK_MASK_DEG, doc="Starlink mask (paper: 28 deg)"),
-        "counts": Field(list, "-", default=[5, 10, 15, 20, 25, 30, 35, 40, 45],
-                        doc="Starlink satellite counts swept"),
-        "selection": Field(str, "-", default="highest-elevation", choices=SELECTION_RULES,
-                           doc="which N satellites are used (see the rules above)"),
-        # Paper's five matched beacons: median |d alpha| 0.8 Hz/s -> sigma = 0.8/0.6745 = 1.19.
-        "doppler_rate_sigma_hz_s": Field(float, "Hz/s", 1e-4, 1e3, default=1.2, doc="beacon Doppler-rate noise"),
-        "doppler_sigma_hz": Field(float, "Hz", 1e-3, 1e4, default=5.0, doc="beacon Doppler noise"),
-        "lo_offset_hz": Field(float, "Hz", -5e6, 5e6, default=120e3, doc="true LNB LO offset"),
-        "ofdm_sigma_m": Field(float, "m", 1e-3, 1e4, default=3.0, doc="OFDM differenced-range noise"),
-    },
-    "elements": {
-        "source": Field(str, "-", default="builtin", choices=("builtin", "files"),
-                        doc="generated Walker constellations at the epoch, or `files`"),
-        "files": Field(list, "-", default=[], doc="TLE/OMM paths, relative to the scenario file"),
-    },
-    "filter": {
-        "initial_position_sigma_m": Field(float, "m", 1e-3, 1e6, default=10.0, doc="prior per ENU axis"),
-        "initial_velocity_sigma_mps": Field(float, "m/s", 1e-4, 1e3, default=0.5, doc="prior per ENU axis"),
-        "initial_attitude_sigma_deg": Field(float, "deg", 1e-4, 180, default=1.0, doc="prior per axis"),
-        "gate_nis": Field(float, "-", 0, 1e6, default=CHI2_1DOF_999, doc="chi2(1) 99.9 %; 0 disables"),
-    },
-    "monte_carlo": {
-        "trials": Field(int, "-", 1, 100000, default=100, doc="trials per (mode, count)"),
-        "seed": Field(int, "-", 0, 2**63 - 1, default=1, doc="master seed"),
-        "modes": Field(list, "-", default=list(MODES), doc=", ".join(MODES)),
-    },
-}
 
 
 @dataclass
@@ -172,6 +70,7 @@ class Scenario:
     modes: list[str]
     source: str = "<defaults>"
     raw: dict[str, Any] = field(default_factory=dict, repr=False)
+    realism: dict[str, dict[str, Any]] = field(default_factory=dict)  # "ephemeris", "imu": SI, see realism.py
 
 
 def _where(source: str, section: str, key: str) -> str:
@@ -195,7 +94,7 @@ def _check_value(source: str, section: str, key: str, spec: Field, value: Any) -
     kinds = spec.kind if isinstance(spec.kind, tuple) else (spec.kind,)
     if float in kinds and isinstance(value, int) and not isinstance(value, bool):
         value = float(value) if _finite(value) else math.inf
-    if not isinstance(value, kinds) or isinstance(value, bool):
+    if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
         names = " or ".join(k.__name__ for k in kinds)
         raise UserInputError(f"{where} = {_show(value)}: expected a {names} in {spec.unit}")
     if isinstance(value, (int, float)):
@@ -325,6 +224,7 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
                                  f"within duration_s = {duration:g} s; expected a rate >= {1 / duration:g} Hz")
 
     return Scenario(
+        realism=_realism(source, values["ephemeris_error"], values["imu_errors"]),
         name=values[""]["name"],
         description=values[""]["description"],
         lat_rad=math.radians(values["site"]["lat_deg"]),
@@ -346,6 +246,29 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
         source=source,
         raw=data,
     )
+
+
+def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """The realism sections in SI: sigmas (m), rad, m/s^2 and rad/s per degC, rates."""
+    eph = dict(eph)
+    for key in ("starlink_sigma_rac_m", "gps_sigma_rac_m"):
+        eph[key] = _numbers(source, "ephemeris_error", key, eph[key], 3, "m", limit=1e7)
+        if min(eph[key]) < 0:
+            raise UserInputError(f"{source}: [ephemeris_error] {key} = {_show(eph[key])}: expected sigmas >= 0 m")
+    bad = [c for c in eph["apply_to"] if c not in ("starlink", "gps")] if isinstance(eph["apply_to"], list) else [1]
+    if bad:
+        raise UserInputError(f"{source}: [ephemeris_error] apply_to = {_show(eph['apply_to'])}: expected a list of "
+                             "starlink, gps")
+    g0 = 9.80665
+    imu_si = {"enabled": imu["enabled"], "process_noise_inflation": imu["process_noise_inflation"],
+              "accel_scale_factor": 1e-6 * imu["accel_scale_factor_ppm"],
+              "gyro_scale_factor": 1e-6 * imu["gyro_scale_factor_ppm"],
+              "misalignment_rad": 1e-3 * imu["misalignment_mrad"],
+              "g_sensitivity_rad_s_per_mps2": math.radians(imu["g_sensitivity_deg_s_per_g"]) / g0,
+              "temperature_rate_c_per_s": imu["temperature_rate_c_per_s"],
+              "accel_bias_tempco_mps2_per_c": 1e-3 * g0 * imu["accel_bias_tempco_mg_per_c"],
+              "gyro_bias_tempco_rad_s_per_c": math.radians(imu["gyro_bias_tempco_deg_s_per_c"])}
+    return {"ephemeris": eph, "imu": imu_si}
 
 
 def load_scenario(path: str | Path) -> Scenario:

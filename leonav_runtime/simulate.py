@@ -29,15 +29,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from leonav_runtime import geometry, navfuncs
+from leonav_runtime import navfuncs, realism
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gen import state_layout
 from leonav_runtime.inputs import (CLOCK_BIAS_SIGMA_M, CLOCK_DRIFT_SIGMA_MPS, F_B_AVERAGE_S,
                                    LO_OFFSET_SIGMA_HZ, LO_RANDOM_WALK_HZ2_S, SATELLITE_TABLES, ImuTable, Prior,
                                    assemble, averaged_specific_force, filter_params, prior_sigmas, satellite_aux,
                                    states_from_aux)
-from leonav_runtime.orbits import (ElementSet, default_elements, group_by_constellation, load_elements,
-                                   propagate_ecef)
+from leonav_runtime.sim_visibility import (_receiver_ecef, _visible_ranked, needed_constellations,  # noqa: F401
+                                           scenario_elements)
 from leonav_runtime.params import IMU_PROFILES
 from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
 from leonav_runtime.trajectory import motion
@@ -124,30 +124,6 @@ def truth(scn: Scenario, params: np.ndarray, nav: navfuncs.NavFunctions):
 
 # ---- satellites -------------------------------------------------------------------------
 
-def needed_constellations(scn: Scenario) -> tuple[str, ...]:
-    """Constellations the scenario's modes use (GPS for pseudoranges, Starlink for the rest)."""
-    used = {k for m in scn.modes for k in MODE_OBSERVABLES[m]}
-    return tuple(c for c, needed in (("gps", "pseudorange" in used), ("starlink", bool(used - {"pseudorange"})))
-                 if needed)
-
-
-def scenario_elements(scn: Scenario) -> dict[str, ElementSet]:
-    """Element sets of the scenario: built-in Walker constellations at its epoch, or its files.
-
-    Files must give every constellation the scenario's modes use (`needed_constellations`).
-    """
-    if scn.element_source == "builtin":
-        return default_elements(scn.epoch_utc)
-    out = group_by_constellation([load_elements(path) for path in scn.element_files])
-    for need in needed_constellations(scn):
-        if need not in out:
-            raise UserInputError(
-                f"{scn.source}: [elements] files give no {need} element sets "
-                f"(found: {', '.join(sorted(out)) or 'none'})"
-            )
-    return out
-
-
 def _epochs(scn: Scenario, rate_hz: float, t_imu: np.ndarray) -> np.ndarray:
     """Measurement epochs on IMU sample times, from the first sample after 0."""
     step = int(round(scn.imu_rate_hz / rate_hz))
@@ -157,29 +133,6 @@ def _epochs(scn: Scenario, rate_hz: float, t_imu: np.ndarray) -> np.ndarray:
             f"{scn.imu_rate_hz} Hz (measurements are tagged on IMU sample times)"
         )
     return np.arange(step, t_imu.size, step)
-
-
-def _receiver_ecef(scn: Scenario, p_enu: np.ndarray) -> np.ndarray:
-    r0 = geometry.geodetic_to_ecef(scn.lat_rad, scn.lon_rad, scn.alt_m)
-    return geometry.enu_to_ecef(p_enu, r0, scn.lat_rad, scn.lon_rad)
-
-
-def _visible_ranked(scn, es, t_s, p_enu, mask_rad, notes: list[str], acceleration=True):
-    """States of `es` at t_s and, per epoch, visible satellites sorted by elevation.
-
-    Satellites SGP4 cannot propagate are left out (NaN) and named in `notes`.
-    """
-    states = propagate_ecef(es, scn.epoch_utc, t_s, acceleration=acceleration)
-    for name, norad, reason in states.failures:
-        notes.append(f"{es.constellation} {name} ({norad}) left out: {reason}")
-    r_rx = _receiver_ecef(scn, p_enu)                         # (nt, 3)
-    _, el, rho = geometry.az_el_range(states.r_ecef_m, r_rx[None, :, :], scn.lat_rad, scn.lon_rad)
-    el = np.where(np.isfinite(el), el, -np.inf)
-    ranked = []
-    for j in range(t_s.size):
-        vis = np.flatnonzero(el[:, j] >= mask_rad)
-        ranked.append(vis[np.argsort(-el[vis, j], kind="stable")])
-    return states, ranked, rho
 
 
 def _series(nav, kind_name, rows, x_true, f_b) -> SatSeries:
@@ -203,7 +156,7 @@ def _gps_rows(scn, nav, es, t_imu, x_true, f_b, notes):
     idx = _epochs(scn, scn.gps["rate_hz"], t_imu)
     t = t_imu[idx]
     p_enu = x_true[idx, nav.layout.X_P_ENU_SLICE]
-    states, ranked, _ = _visible_ranked(scn, es, t, p_enu, scn.gps["elevation_mask_rad"], notes)
+    states, ranked, _, es = _visible_ranked(scn, es, t, p_enu, scn.gps["elevation_mask_rad"], notes)
     r_rx = _receiver_ecef(scn, p_enu)
     rows = []
     for j, k in enumerate(idx):
@@ -222,9 +175,12 @@ def _starlink_rows(scn, nav, es, t_imu, x_true, f_b, notes):
     idx = _epochs(scn, scn.starlink["rate_hz"], t_imu)
     t = t_imu[idx]
     p_enu = x_true[idx, nav.layout.X_P_ENU_SLICE]
-    # Only satellites that can be above the mask need states: pre-filter on the first epoch
-    # would miss risers over long runs, so propagate all (vectorized SGP4 is cheap).
-    states, ranked, _ = _visible_ranked(scn, es, t, p_enu, scn.starlink["elevation_mask_rad"], notes)
+    # Only satellites that can be above the mask need states at every epoch (`_candidates`).
+    priority = None
+    if scn.starlink["selection"] == "random":   # one draw per run: the tracked subset persists
+        priority = np.random.default_rng(scn.starlink["selection_seed"]).random(len(es.norad_ids))
+    states, ranked, _, es = _visible_ranked(scn, es, t, p_enu, scn.starlink["elevation_mask_rad"], notes,
+                                        priority=priority)
     n_max = max(scn.starlink["counts"])
     doppler_rate, doppler, ofdm = [], [], []   # rows: see _series
     for j, k in enumerate(idx):
@@ -315,6 +271,7 @@ class Trial:
     records: np.ndarray
     x0: np.ndarray
     x_true: np.ndarray   # (n+1, NX) truth including this trial's biases, clock and LO
+    params: np.ndarray | None = None   # the filter's parameters (realism compensation), else the setup's
 
 
 def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
@@ -345,7 +302,7 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
 
     u = measured_increments(rng, prof, setup.u_true, b_a, b_g, dt, g)
     imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
-    tables = []
+    parts = []   # [kind_name, rows, z, sigma]
     for kind_name in SERIES:
         s = setup.series[kind_name]
         sigma = noise_sigma(scn, kind_name)
@@ -359,7 +316,7 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
         for off, dx_off in ((L.X_C_DT, L.DX_DC_DT), (L.X_C_DDT, L.DX_DC_DDT), (L.X_B_LO, L.DX_DB_LO)):
             z += s.H[rows, dx_off] * x_true[k, off]
         z += g * sigma * noise[rows]
-        tables.append(_table(kind_name, s, rows, z, sigma))
+        parts.append([kind_name, rows, z, sigma])
 
     # the initial error is drawn over the states with a prior (not states a scenario leaves at
     # zero), so adding an uncoupled state to the layout leaves every draw unchanged
@@ -368,9 +325,14 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     if not noise_free:
         dx0[live] = rng.multivariate_normal(np.zeros(live.size), setup.P0[np.ix_(live, live)])
     x0 = nav.boxplus(x_true[0], dx0)
+    params = setup.params
+    if not noise_free and realism.active(scn):   # truth != filter; draws after all of the above
+        u, params = realism.apply(setup, nav, rng, u, parts)
+        imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
+    tables = [_table(kind_name, setup.series[kind_name], rows, z, sigma) for kind_name, rows, z, sigma in parts]
     # the road every source takes: tables -> records (aux f_b averaged from these IMU increments)
-    inputs = assemble(imu, setup.params, Prior(x0, setup.P0), satellites=tables, nav=nav)
-    return Trial(inputs.merged(), x0, x_true)
+    inputs = assemble(imu, params, Prior(x0, setup.P0), satellites=tables, nav=nav)
+    return Trial(inputs.merged(), x0, x_true, params)
 
 
 def _table(kind_name: str, s: SatSeries, rows: np.ndarray, z: np.ndarray, sigma: float):

@@ -16,7 +16,8 @@ Hann window's 1.76 dB processing loss (e.g. 40 dB-Hz -> ~19.6 dB in 73 Hz bins).
 8-bit quantization as `rtl_sdr` writes it: value*127.5 + 127.5 rounded and clipped to
 0..255, with the noise at ~10 codes rms (the AGC-off gain a user would set so the
 noise fills a few bits without clipping). An optional DC offset (codes) reproduces the
-RTL-SDR DC spike.
+RTL-SDR DC spike. `impairments` adds the rest of a real capture's departures (IQ
+imbalance, LO phase noise and warm-up, SDR ppm drift, a CW interferer; `impairments.py`).
 
 Tones of the comb beyond `passband_fraction * fs / 2` are left out (block by block), as the
 SDR's anti-alias filter would, instead of aliasing back into the band.
@@ -32,6 +33,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from leonav_runtime.beacons import capture_io
+from leonav_runtime.beacons.impairments import BlockImpairer, Impairments, lo_error_hz
 from leonav_runtime.beacons.predict import Predictions, Site, STARLINK_BEACON_HZ, predict_visible
 
 from leonav_runtime.beacons.comb import COMB_SPACING_HZ  # noqa: F401  (re-exported: spacing of the ~9 tones)
@@ -57,6 +59,7 @@ class SynthConfig:
     full_comb_in_band: bool = True        # False: only the central tone must stay in the band
     passband_fraction: float = 0.9        # tones beyond this fraction of fs/2 are not generated
     seed: int = 0
+    impairments: Impairments | None = None  # receiver/capture impairments (`impairments.py`)
 
 
 @dataclasses.dataclass
@@ -114,6 +117,8 @@ def build_truth(elements, site: Site, start_utc: _dt.datetime, cfg: SynthConfig,
     if cfg.lo_rw_hz2_s > 0:
         steps = rng.normal(0.0, np.sqrt(cfg.lo_rw_hz2_s * np.diff(t)))
         lo = lo + np.concatenate([[0.0], np.cumsum(steps)])
+    if cfg.impairments is not None:   # LNB warm-up and SDR crystal: a common frequency error
+        lo = lo + lo_error_hz(cfg.impairments, t, cfg.center_freq_hz)
     cn0 = np.broadcast_to(np.asarray(cfg.cn0_dbhz, float), (rows.size,)).copy()
     bb = pred.doppler_hz[rows] + cfg.f_c_hz - rf_center - lo[None, :]
     return SynthTruth(start_utc, pred.sat_index[rows], [pred.names[i] for i in rows], pred.norad_ids[rows],
@@ -136,6 +141,8 @@ def iter_synthetic_iq(truth: SynthTruth, cfg: SynthConfig) -> Iterator[np.ndarra
     phase0 = rng.uniform(0, 1, (len(amps), offsets.size))
     dc = cfg.dc_offset_codes / 127.5 * (1 + 1j)
     n_total = int(round(cfg.duration_s * fs))
+    imp = cfg.impairments if cfg.impairments is not None and cfg.impairments.any_on() else None
+    impair = BlockImpairer(imp, fs, sigma, cfg.seed) if imp else None
     k0 = 0
     while k0 < n_total:
         t_first = k0 / fs
@@ -157,8 +164,10 @@ def iter_synthetic_iq(truth: SynthTruth, cfg: SynthConfig) -> Iterator[np.ndarra
                 ph = (2 * np.pi * c).astype(np.float32)
                 xr += amp * np.cos(ph)
                 xi += amp * np.sin(ph)
+        if impair:
+            x = impair(x)
         x += dc
-        yield x
+        yield impair.iq_imbalance(x) if impair else x
         k0 += n
 
 

@@ -1,0 +1,192 @@
+"""Realism switches: the simulated truth differs from what the filter assumes.
+
+Each switch is a scenario section (`[ephemeris_error]`, `[imu_errors]`), off by default.
+`enabled` changes the truth the sensors see; the compensation keys change only the filter,
+so "errors on, no compensation", "errors on, compensated" and "compensation alone" can
+all be run. Draws come from the trial's stream after every draw of the ideal simulation,
+so with the switches off a trial is unchanged bit for bit.
+
+Ephemeris error: every satellite's true orbit is offset from the one its elements give,
+by a constant radial / along-track / cross-track error per satellite and trial (the
+orbit error is correlated over an orbit, ~95 min for Starlink, so constant over the short
+runs simulated here). The along-track part is a time shift of the state (r, v, a stay
+consistent), radial and cross-track parts shift the position. Starlink sigmas grow with
+element age as (age / reference_age)^k. The measurement is evaluated with the generated
+model at the true orbit; the filter keeps the element orbit. Compensation `inflate-r`:
+each measurement's sigma grows by the spread the orbit error causes in it (the model
+evaluated with the satellite moved by one sigma along each axis), which treats an error
+that is constant over the run as if it were white (a Schmidt consider filter would carry
+the correlation; not done).
+
+IMU errors the filter does not model: per-axis scale factors, misalignment (cross-axis
+terms), gyro g-sensitivity (rad/s per m/s^2 of specific force) and bias drift with a
+temperature ramp, all drawn per trial. Compensation: the filter's VRW, ARW and bias
+random walks times `process_noise_inflation`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from leonav_runtime.inputs.measurements import aux_blocks
+
+KIND_CONSTELLATION = {"pseudorange": "gps", "doppler_rate": "starlink", "doppler": "starlink",
+                      "ofdm_range_diff": "starlink"}
+
+
+def starlink_sigma_rac(eph: dict) -> np.ndarray:
+    """Starlink radial, along, cross 1-sigma (m) at the configured element age."""
+    age = max(eph["element_age_days"], 1.0 / 24.0)   # an element set is at least an hour old in use
+    return np.asarray(eph["starlink_sigma_rac_m"]) * (age / eph["reference_age_days"]) ** eph["growth_exponent"]
+
+
+def sigma_rac(eph: dict, constellation: str) -> np.ndarray:
+    return starlink_sigma_rac(eph) if constellation == "starlink" else np.asarray(eph["gps_sigma_rac_m"])
+
+
+def rac_axes(state9: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) unit radial, along-track, cross-track axes (rows) of states (n, 9) [r v a]."""
+    r, v = state9[:, 0:3], state9[:, 3:6]
+    R = r / np.linalg.norm(r, axis=1, keepdims=True)
+    C = np.cross(r, v)
+    C /= np.linalg.norm(C, axis=1, keepdims=True)
+    return np.stack([R, np.cross(C, R), C], axis=1)
+
+
+def perturb_states(state9: np.ndarray, d_rac: np.ndarray) -> np.ndarray:
+    """True satellite states (n, 9) [r v a] (m, m/s, m/s^2, ECEF) from the element states and
+    radial/along/cross offsets d_rac (n, 3) m: along-track as a time shift, the rest as offsets."""
+    r, v, a = state9[:, 0:3], state9[:, 3:6], state9[:, 6:9]
+    axes = rac_axes(state9)
+    dt = (d_rac[:, 1] / np.einsum("ni,ni->n", v, axes[:, 1]))[:, None]   # s along the velocity
+    out = state9.copy()
+    out[:, 0:3] = r + v * dt + 0.5 * a * dt**2 + d_rac[:, :1] * axes[:, 0] + d_rac[:, 2:] * axes[:, 2]
+    out[:, 3:6] = v + a * dt
+    return out
+
+
+def draw_orbit_errors(rng: np.random.Generator, setup) -> dict[str, dict[int, np.ndarray]]:
+    """Per constellation, per NORAD id: radial/along/cross offsets (m) of this trial. Every
+    satellite of the run gets one, in id order, whatever the mode (common random numbers)."""
+    eph, out = setup.scn.realism["ephemeris"], {}
+    for constellation, kinds in (("gps", ("pseudorange",)), ("starlink", ("doppler_rate", "doppler"))):
+        ids = np.unique(np.concatenate([setup.series[k].sat_id for k in kinds]))
+        d = rng.standard_normal((ids.size, 3)) * sigma_rac(eph, constellation)
+        out[constellation] = dict(zip(ids.tolist(), d))
+    return out
+
+
+def _ref_ids(series, rows: np.ndarray) -> np.ndarray:
+    """NORAD id of each row's reference satellite: the rank-0 satellite of its epoch."""
+    top = series.rank == 0
+    by_t = dict(zip(series.t_s[top].tolist(), series.sat_id[top].tolist()))
+    return np.array([by_t[t] for t in series.t_s[rows].tolist()])
+
+
+def _offsets(errors: dict[int, np.ndarray], ids: np.ndarray) -> np.ndarray:
+    return np.array([errors[i] for i in ids.tolist()]).reshape(-1, 3)
+
+
+def _model(setup, nav, kind_name: str, rows: np.ndarray, aux: np.ndarray) -> np.ndarray:
+    k = np.rint(setup.series[kind_name].t_s[rows] * setup.scn.imu_rate_hz).astype(int)
+    h, _ = nav.h_many(kind_name, setup.x_true[k], aux, params=setup.params, jacobian=False)
+    return h
+
+
+def _moved_aux(setup, kind_name: str, rows: np.ndarray, d_sat: np.ndarray, d_ref: np.ndarray | None,
+               layout) -> np.ndarray:
+    s = setup.series[kind_name]
+    sat_block, ref_block, _ = aux_blocks(layout)
+    aux = s.aux[rows].copy()
+    aux[:, sat_block] = perturb_states(s.sat_ecef[rows], d_sat)
+    if d_ref is not None:
+        aux[:, ref_block] = perturb_states(s.ref_ecef[rows], d_ref)
+    return aux
+
+
+def ephemeris_delta(setup, nav, kind_name: str, rows: np.ndarray, errors: dict) -> np.ndarray:
+    """Change (measurement unit) of each row's noise-free value when its satellite (and its
+    reference) fly their true orbits instead of the element orbits."""
+    s, constellation = setup.series[kind_name], KIND_CONSTELLATION[kind_name]
+    d_sat = _offsets(errors[constellation], s.sat_id[rows])
+    d_ref = None if kind_name == "pseudorange" else _offsets(errors[constellation], _ref_ids(s, rows))
+    aux = _moved_aux(setup, kind_name, rows, d_sat, d_ref, nav.layout)
+    return _model(setup, nav, kind_name, rows, aux) - s.z_true[rows]
+
+
+def ephemeris_sigma(setup, nav, kind_name: str, rows: np.ndarray) -> np.ndarray:
+    """1-sigma (measurement unit) the orbit error adds to each row: the model's change with
+    the satellite (and, independently, the reference) moved one sigma along each axis."""
+    s = setup.series[kind_name]
+    sig = sigma_rac(setup.scn.realism["ephemeris"], KIND_CONSTELLATION[kind_name])
+    base = s.z_true[rows]
+    var = np.zeros(rows.size)
+    for moved in (("sat",) if kind_name == "pseudorange" else ("sat", "ref")):
+        for axis in range(3):
+            d = np.zeros((rows.size, 3))
+            d[:, axis] = sig[axis]
+            zero = np.zeros_like(d)
+            aux = _moved_aux(setup, kind_name, rows, d if moved == "sat" else zero,
+                             None if kind_name == "pseudorange" else (d if moved == "ref" else zero), nav.layout)
+            var += (_model(setup, nav, kind_name, rows, aux) - base) ** 2
+    return np.sqrt(var)
+
+
+def imu_error_increments(rng: np.random.Generator, cfg: dict, u_true: np.ndarray, t_start: np.ndarray,
+                         dt: float, layout) -> np.ndarray:
+    """Increments (n, 6) the unmodelled IMU errors add to the ideal ones u_true (n, 6):
+    scale factor and misalignment of both triads, gyro g-sensitivity and the bias drift of a
+    temperature ramp (t_start: start of each interval, s). Draw order: scale factors,
+    misalignments, g-sensitivity, temperature coefficients."""
+    g_sl, a_sl = layout.U_DTHETA_B_SLICE, layout.U_DVEL_B_SLICE
+    s_a, s_g = (rng.standard_normal(3) * cfg[k] for k in ("accel_scale_factor", "gyro_scale_factor"))
+    m_a, m_g = (rng.standard_normal((3, 3)) * cfg["misalignment_rad"] for _ in range(2))
+    np.fill_diagonal(m_a, 0.0)
+    np.fill_diagonal(m_g, 0.0)
+    G = rng.standard_normal((3, 3)) * cfg["g_sensitivity_rad_s_per_mps2"]
+    k_a = rng.standard_normal(3) * cfg["accel_bias_tempco_mps2_per_c"]
+    k_g = rng.standard_normal(3) * cfg["gyro_bias_tempco_rad_s_per_c"]
+    dtheta, dvel = u_true[:, g_sl], u_true[:, a_sl]
+    temp = (cfg["temperature_rate_c_per_s"] * (t_start + 0.5 * dt))[:, None]   # degC above the start
+    du = np.zeros_like(u_true)
+    du[:, g_sl] = dtheta @ (np.diag(s_g) + m_g).T + dvel @ G.T + k_g * temp * dt
+    du[:, a_sl] = dvel @ (np.diag(s_a) + m_a).T + k_a * temp * dt
+    return du
+
+
+def filter_params(params: np.ndarray, cfg: dict, layout) -> np.ndarray:
+    """The filter's parameters with the IMU noise densities inflated (compensation)."""
+    f = cfg["process_noise_inflation"]
+    if f == 1.0:
+        return params
+    out = params.copy()
+    for i in (layout.P_VRW, layout.P_ARW, layout.P_ACC_BIAS_RW, layout.P_GYRO_BIAS_RW):
+        out[i] *= f
+    return out
+
+
+def apply(setup, nav, rng: np.random.Generator, u: np.ndarray, parts: list) -> tuple[np.ndarray, np.ndarray]:
+    """Apply the scenario's switches to one trial: `parts` [kind_name, rows, z, sigma] are
+    changed in place; returns the measured increments and the filter's parameters."""
+    scn, L = setup.scn, nav.layout
+    eph, imu = scn.realism.get("ephemeris", {}), scn.realism.get("imu", {})
+    if eph.get("enabled"):
+        errors = draw_orbit_errors(rng, setup)
+        for part in parts:
+            if KIND_CONSTELLATION[part[0]] in eph["apply_to"]:
+                part[2] = part[2] + ephemeris_delta(setup, nav, part[0], part[1], errors)
+    if eph.get("compensate") == "inflate-r":
+        for part in parts:
+            if KIND_CONSTELLATION[part[0]] in eph["apply_to"]:
+                part[3] = np.sqrt(part[3] ** 2 + ephemeris_sigma(setup, nav, part[0], part[1]) ** 2)
+    if imu.get("enabled"):
+        dt = 1.0 / scn.imu_rate_hz
+        u = u + imu_error_increments(rng, imu, setup.u_true, setup.t_imu[:-1], dt, L)
+    return u, (filter_params(setup.params, imu, L) if imu else setup.params)
+
+
+def active(scn) -> bool:
+    """Whether any switch or compensation changes a trial of `scn`."""
+    eph, imu = scn.realism.get("ephemeris", {}), scn.realism.get("imu", {})
+    return bool(eph.get("enabled") or eph.get("compensate", "none") != "none" or imu.get("enabled")
+                or imu.get("process_noise_inflation", 1.0) != 1.0)
+

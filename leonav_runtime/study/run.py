@@ -1,0 +1,148 @@
+"""Running a study: every cell x mode on an executor, then the table, JSON and figure.
+
+A task is (cell scenario, mode, count, a block of trial indices), the sweep's own work unit
+(`montecarlo.run_block`), so a study runs on the same executors (local process pool, Dask)
+and trial i of every cell draws from the same seed stream (common random numbers across
+cells: differences between cells are the varied field's, not the draw's). The block with
+trial 0 also computes the cell's PCRB along its truth.
+
+Writes into the results folder:
+- `study.csv`: one row per (cell, mode): the varied values, position RMSE and sqrt(PCRB)
+  time-averaged over the run and at its final epoch, velocity and attitude the same, NEES;
+- `study.json`: the study as run, the same numbers per cell, timings;
+- `study.png`: a heat map per mode (2 varied fields) or lines (1 field), time-averaged and
+  final-epoch RMSE with sqrt(PCRB);
+- `study.toml`: the study file as given.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from leonav_runtime import montecarlo as mc
+from leonav_runtime import output
+from leonav_runtime.executors import make_executor, map_in_order
+from leonav_runtime.scenario import check_run_size
+from leonav_runtime.study.spec import Study
+
+BLOCK_TRIALS = 50   # a whole cell per task at the usual 20 trials: one setup per task
+BLOCK_UNITS = {"position": ("m", 1.0), "velocity": ("m/s", 1.0), "attitude": ("deg", 180.0 / math.pi)}
+
+
+@dataclass
+class StudyResult:
+    """Per (cell index, mode): the summary row; timing of the run."""
+
+    rows: dict[tuple[tuple[int, ...], str], dict]
+    timing: dict
+
+
+def _tasks(study: Study) -> list[tuple]:
+    tasks = []
+    for cell in study.cells:
+        scn = cell.scenario
+        for mode in study.modes:
+            for start in range(0, study.trials, BLOCK_TRIALS):
+                idx = list(range(start, min(study.trials, start + BLOCK_TRIALS)))
+                tasks.append(((cell.index, mode), (scn.raw, scn.source, str(Path(study.base.source).parent),
+                                                   mode, cell.count, idx)))
+    return tasks
+
+
+def _row(summary: dict) -> dict:
+    row = {"trials": summary["trials"], "gated": summary["gated"], "failed": summary["failed"]}
+    for block, (_, scale) in BLOCK_UNITS.items():
+        b = summary[block]
+        for k in ("rmse", "pcrb", "final_rmse", "final_pcrb"):
+            row[f"{block}_{k}"] = scale * b[k]
+    n = summary["nees"]
+    row.update(nees_mean=n["mean"], nees_lo=n["band95"][0], nees_hi=n["band95"][1],
+               nees_fraction_inside=n["fraction_inside"])
+    nis = summary["nis"]
+    row["nis_mean"] = {str(k): v["mean"] for k, v in nis.items()}
+    return row
+
+
+def run_study(study: Study, out_dir: Path, *, workers: int | None = None, dask_address: str | None = None,
+              progress: bool = True, figures: bool = True) -> StudyResult:
+    """Run every cell and mode of `study` and write the results folder (see module doc)."""
+    for cell in study.cells:   # memory per run, before any work is sent out
+        check_run_size(cell.scenario, trials=min(study.trials, BLOCK_TRIALS), workers=1 if dask_address else workers)
+    t_start = time.perf_counter()
+    tasks = _tasks(study)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(tasks), unit="task", desc=f"study {study.name}", smoothing=0.05)
+    with make_executor(workers, dask_address) as ex:
+        blocks = map_in_order(ex, mc.run_block, [t for _, t in tasks], on_done=(bar.update if bar else None))
+    t_trials = time.perf_counter() - t_start
+    if bar:
+        bar.close()
+    results: dict = {}
+    bounds: dict = {}
+    for (key, _), block in zip(tasks, blocks):
+        results.setdefault(key, []).extend(block.results)
+        if block.pcrb is not None:
+            bounds[key] = block.pcrb
+    rows = {key: _row(mc.summarize(res, bounds[key])) for key, res in results.items()}
+    n_trials = sum(len(b.results) for b in blocks)
+    cpu = sum(b.seconds for b in blocks)
+    timing = {"wall_s": time.perf_counter() - t_start, "trials_run": n_trials, "cells": len(study.cells),
+              "trial_cpu_ms": 1e3 * cpu / max(n_trials, 1),
+              "executor": f"dask {dask_address}" if dask_address else f"process pool ({workers or 'all cores'})"}
+    result = StudyResult(rows, timing)
+    write_results(study, out_dir, result, figures=figures)
+    return result
+
+
+def write_results(study: Study, out_dir: Path, res: StudyResult, figures: bool = True) -> None:
+    """study.csv, study.json, study.toml and study.png."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    src = Path(study.source)
+    if src.is_file():
+        (out_dir / "study.toml").write_text(src.read_text())
+    keys = [a.key for a in study.axes]
+    metric_keys = [k for k in next(iter(res.rows.values())) if k != "nis_mean"]
+    csv_rows, cells = [], []
+    for cell in study.cells:
+        for mode in study.modes:
+            row = res.rows[(cell.index, mode)]
+            csv_rows.append([cell.values[k] for k in keys] + [mode, cell.count] + [row[k] for k in metric_keys])
+            cells.append({"values": cell.values, "mode": mode, "count": cell.count, **row})
+    output.write_csv(out_dir / "study.csv", keys + ["mode", "count"] + metric_keys, csv_rows)
+    meta = {"name": study.name, "description": study.description, "source": study.source,
+            "base_scenario": study.base.source, "modes": study.modes, "trials_per_cell": study.trials,
+            "set": study.sets, "axes": [{"key": a.key, "label": a.label, "values": list(a.values)} for a in study.axes],
+            "units": {"position": "m", "velocity": "m/s", "attitude": "deg",
+                      "rmse": "root mean square over trials and the output grid (10 Hz) of the run",
+                      "final_rmse": "over trials at the last output epoch",
+                      "pcrb": "sqrt of the posterior CRB trace, time-averaged like rmse"},
+            "timing": res.timing, "cells": cells}
+    output.write_json(out_dir / "study.json", meta)
+    if figures:
+        from leonav_runtime.study import plots
+
+        plots.plot_study(study, res.rows, out_dir / "study.png")
+
+
+def summary_table(study: Study, res: StudyResult) -> str:
+    """Position RMSE / sqrt(PCRB), time-averaged and final, per cell and mode (plain text)."""
+    keys = [a.key for a in study.axes]
+    lines = [f"study {study.name}: {len(study.cells)} cells x {len(study.modes)} modes, {study.trials} trials each",
+             "position, m: RMSE / sqrt(PCRB) time-averaged | at the final epoch; NEES (95 % band)"]
+    for cell in study.cells:
+        for mode in study.modes:
+            r = res.rows[(cell.index, mode)]
+            vals = " ".join(f"{k.split('.')[-1]}={cell.values[k]}" for k in keys)
+            lines.append(f"  {vals:44s} {mode:22s} N={cell.count:<3d} {r['position_rmse']:7.2f} / "
+                         f"{r['position_pcrb']:<7.2f}| {r['position_final_rmse']:7.2f} / {r['position_final_pcrb']:<7.2f}"
+                         f" NEES {r['nees_mean']:.2f} [{r['nees_lo']:.2f}, {r['nees_hi']:.2f}]")
+    t = res.timing
+    lines.append(f"{t['trials_run']} trials in {t['wall_s']:.1f} s wall ({t['trial_cpu_ms']:.1f} ms CPU per trial "
+                 f"incl. setup, {t['executor']})")
+    return "\n".join(lines)

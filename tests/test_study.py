@@ -1,0 +1,110 @@
+"""Studies: grid expansion, validation naming the key, a tiny study end to end (CLI included)."""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+
+from leonav_runtime.cli import main
+from leonav_runtime.errors import UserInputError
+from leonav_runtime.study.run import run_study
+from leonav_runtime.study.spec import Axis, expand_grid, load_study, parse_set, study_from_dict
+from leonav_runtime.sweep import run_sweep
+
+TINY = {   # 2 s static run, 5 satellites: a cell prepares in a fraction of a second
+    "scenario": "paper", "modes": ["leo-alpha+imu"], "count": 5, "trials": 3,
+    "set": {"time.duration_s": 2.0, "monte_carlo.seed": 11},
+}
+
+
+def _study(tmp_path, vary, **extra):
+    return study_from_dict({**TINY, **extra, "vary": vary}, str(tmp_path / "s.toml"), tmp_path)
+
+
+def test_grid_is_every_combination_first_axis_slowest():
+    axes = [Axis("a.x", (1, 2, 3), "x"), Axis("b.y", ("p", "q"), "y")]
+    grid = expand_grid(axes)
+    assert [idx for idx, _ in grid] == [(0, 0), (0, 1), (1, 0), (1, 1), (2, 0), (2, 1)]
+    assert grid[3][1] == {"a.x": 2, "b.y": "q"}
+
+
+def test_cells_carry_the_varied_and_fixed_values_in_si(tmp_path):
+    s = _study(tmp_path, [{"key": "starlink.elevation_mask_deg", "values": [20.0, 28.0]},
+                          {"key": "filter.initial_position_sigma_m", "values": [3, 10]}])
+    assert len(s.cells) == 4 and s.modes == ["leo-alpha+imu"]
+    c = s.cells[1]
+    assert c.values == {"starlink.elevation_mask_deg": 20.0, "filter.initial_position_sigma_m": 10}
+    assert c.scenario.starlink["elevation_mask_rad"] == pytest.approx(0.3490658503988659)
+    assert c.scenario.filter["initial_position_sigma_m"] == 10.0
+    assert c.scenario.duration_s == 2.0 and c.scenario.seed == 11 and c.count == 5
+    # counts as the varied field: each cell runs its own count
+    s = _study(tmp_path, [{"key": "starlink.counts", "values": [5, 8]}])
+    assert [c.count for c in s.cells] == [5, 8]
+
+
+@pytest.mark.parametrize("vary, fragment", [
+    ([{"key": "starlink.doppler_rate_sigma", "values": [1.0]}], "starlink.doppler_rate_sigma_hz_s"),
+    ([{"key": "starlink.doppler_rate_sigma_hz_s", "values": [-1.0]}], "doppler_rate_sigma_hz_s = -1.0"),
+    ([{"key": "imu.profile", "values": ["navigation"]}], "profile = 'navigation': expected one of"),
+    ([{"key": "starlink.rate_hz", "values": [3.0]}], "rate_hz = 3: measurements are tagged on IMU samples"),
+    ([{"key": "filter.gate_nis", "values": []}], "filter.gate_nis: values"),
+    ([], "one or two [[vary]]"),
+    ([{"key": "time.duration_s", "values": [1.0]}], "also fixed by [set]"),
+])
+def test_bad_studies_name_the_key(tmp_path, vary, fragment):
+    with pytest.raises(UserInputError) as exc:
+        _study(tmp_path, vary)
+    assert fragment in str(exc.value)
+    assert "s.toml" in str(exc.value)
+
+
+def test_set_values_parse_as_toml_and_unknown_keys_are_named():
+    assert parse_set("starlink.doppler_rate_sigma_hz_s=0.3") == ("starlink.doppler_rate_sigma_hz_s", 0.3)
+    assert parse_set("imu.profile=wt901") == ("imu.profile", "wt901")
+    assert parse_set("starlink.counts=[5, 10]") == ("starlink.counts", [5, 10])
+    with pytest.raises(UserInputError, match="--set 'filter.prior=3'.*unknown scenario key 'filter.prior'"):
+        parse_set("filter.prior=3")
+    with pytest.raises(UserInputError, match="expected key=value"):
+        parse_set("imu.profile")
+
+
+def test_tiny_study_matches_the_sweep_and_the_bound_orders_by_noise(tmp_path):
+    study = _study(tmp_path, [{"key": "starlink.doppler_rate_sigma_hz_s", "values": [0.1, 1.2]}])
+    res = run_study(study, tmp_path / "out", workers=1, progress=False, figures=False)
+    lo, hi = (res.rows[(c.index, "leo-alpha+imu")] for c in study.cells)
+    # the bound is deterministic: 12x less alpha noise carries more position information
+    assert lo["position_pcrb"] < hi["position_pcrb"] and lo["position_final_pcrb"] < hi["position_final_pcrb"]
+    # a cell is the sweep of the same scenario: same seeds, same numbers
+    sweep = run_sweep(study.cells[1].scenario, tmp_path / "sweep", trials=3, workers=1, progress=False,
+                      figures=False)
+    s = sweep.summaries[("leo-alpha+imu", 5)]["position"]
+    assert (hi["position_rmse"], hi["position_final_rmse"], hi["position_pcrb"]) == \
+        (s["rmse"], s["final_rmse"], s["pcrb"])
+    rows = list(csv.DictReader(open(tmp_path / "out" / "study.csv")))
+    assert [float(r["starlink.doppler_rate_sigma_hz_s"]) for r in rows] == [0.1, 1.2]
+    assert float(rows[1]["position_final_rmse"]) == pytest.approx(hi["position_final_rmse"])
+
+
+def test_study_cli_writes_table_json_figure(tmp_path, capsys):
+    path = tmp_path / "one.toml"
+    path.write_text('name = "one"\nscenario = "paper"\nmodes = ["leo-alpha+imu"]\ncount = 5\ntrials = 2\n'
+                    '[set]\n"time.duration_s" = 2.0\n'
+                    '[[vary]]\nkey = "filter.initial_position_sigma_m"\nvalues = [3.0, 30.0]\n')
+    out = tmp_path / "out"
+    assert main(["study", str(path), "--out", str(out), "--workers", "1", "--no-progress",
+                 "--set", "starlink.elevation_mask_deg=25"]) == 0
+    meta = json.loads((out / "study.json").read_text())
+    assert meta["set"]["starlink.elevation_mask_deg"] == 25 and len(meta["cells"]) == 2
+    assert meta["cells"][0]["position_pcrb"] < meta["cells"][1]["position_pcrb"]   # tighter prior, lower bound
+    assert (out / "study.png").stat().st_size > 10_000 and (out / "study.toml").exists()
+    assert "initial_position_sigma_m=3.0" in capsys.readouterr().out
+    assert main(["study", str(path), "--out", str(out), "--set", "filter.bogus=1"]) == 2
+    assert "unknown scenario key 'filter.bogus'" in capsys.readouterr().err
+
+
+def test_shipped_studies_load():
+    for name in sorted(p.stem for p in (Path(__file__).parents[1] / "leonav_runtime/study/studies").glob("*.toml")):
+        study = load_study(name)
+        assert study.cells and study.trials >= 1
