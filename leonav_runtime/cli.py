@@ -21,6 +21,7 @@ import sys
 import traceback
 
 from leonav_runtime import commands as _commands_pkg
+from leonav_runtime import provenance
 from leonav_runtime.errors import UserInputError
 
 EXIT_OK = 0
@@ -66,6 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    parser.add_argument("--version", action="version", version=provenance.version_text(),
+                        help="print the leonav version and the git commit of this checkout, then exit")
     parser.add_argument("--debug", action="store_true",
                         help="print the Python traceback of an error (also accepted after the command)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -198,6 +201,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the `leonav` console script; returns the process exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     argv, debug = _split_debug(argv)
+    provenance.set_command_line(argv)
     debug = debug or os.environ.get("LEONAV_DEBUG", "") not in ("", "0")
     parser = build_parser()
     args = parser.parse_args(argv)

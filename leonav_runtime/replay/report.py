@@ -33,7 +33,9 @@ def write_outputs(out_dir: Path, inputs: FilterInputs, scored: dict, metrics: di
                   nav: navfuncs.NavFunctions) -> None:
     """metrics.json, rmse_vs_time.csv, trajectory.csv, columns.txt, rmse_vs_time.png, trajectories.png."""
     L = nav.layout
-    write_json(out_dir / "metrics.json", metrics)
+    from leonav_runtime.provenance import provenance
+
+    write_json(out_dir / "metrics.json", {"provenance": provenance(), **metrics})
     rows, traj = [], []
     for mode, s in scored.items():
         e, x, sigma = s["err"], s["x"], s["sigma"]
