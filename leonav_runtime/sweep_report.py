@@ -90,15 +90,32 @@ def metrics_dict(scn, res) -> dict:
     return metrics
 
 
+def write_config(scn, path: Path) -> None:
+    """config.toml: the scenario file as given (comments kept) or, when the run changed it
+    (command-line options, the Python API), the effective scenario."""
+    import tomli_w
+
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+
+    src = Path(scn.source)
+    text = src.read_text() if src.is_file() else None
+    if text is not None and tomllib.loads(text) == scn.raw:
+        path.write_text(text)
+        return
+    head = f"# effective scenario of this run (from {scn.source}, changed by the run's options)\n"
+    path.write_text(head + tomli_w.dumps(scn.raw))
+
+
 def write_results(scn, out_dir: Path, res, figures: bool = True) -> None:
     """Every file of the module doc into `out_dir`."""
     from leonav_runtime import sweep_plots
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    src = Path(scn.source)
-    if src.exists():
-        (out_dir / "config.toml").write_text(src.read_text())
+    write_config(scn, out_dir / "config.toml")
     time_rows = []
     deg = 180 / math.pi
     for (mode, count), s in sorted(res.summaries.items()):

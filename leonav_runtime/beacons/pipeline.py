@@ -85,6 +85,15 @@ def _finite_in(value, lo: float, hi: float) -> bool:
         return False
 
 
+def min_capture_s(cfg: PipelineConfig, sample_rate_hz: float) -> float:
+    """Shortest capture (s) from which a satellite can be associated: `min_epochs` epochs on
+    the `meas_interval_s` grid, each needing +/-`fit_half_window_s` of ridge, inside the
+    span of the STFT slice centres (the capture minus one slice)."""
+    stft = StftConfig.for_rate(sample_rate_hz, cfg.band_hz, cfg.fft_size, cfg.overlap, cfg.dc_notch_hz)
+    return (stft.fft_size / sample_rate_hz + 2.0 * cfg.fit_half_window_s
+            + cfg.association.min_epochs * cfg.meas_interval_s)
+
+
 def validate_config(cfg: PipelineConfig, sample_rate_hz: float | None = None) -> None:
     """UserInputError naming the `leonav beacons` option when a setting cannot work.
 

@@ -69,7 +69,7 @@ LATEST_UTC = _dt.datetime(2200, 1, 1, tzinfo=_dt.timezone.utc)
 def _start_time(text: str) -> _dt.datetime:
     """--start as UTC, within the years element sets can describe (so the window end exists)."""
     try:
-        start = parse_utc(text, "--start")
+        start = parse_utc(text, "--start", require_zone=True)
     except OverflowError:
         start = None
     if start is None or not EARLIEST_UTC <= start <= LATEST_UTC:
