@@ -14,9 +14,11 @@ Files (units in every CSV header; attitude in degrees, as printed on the console
 """
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
+from leonav_runtime import html_report
 from leonav_runtime import montecarlo as mc
 from leonav_runtime import output
 from leonav_runtime.provenance import provenance
@@ -122,7 +124,8 @@ def write_results(scn, out_dir: Path, res, figures: bool = True) -> None:
         for i, t in enumerate(res.t_eval):
             vals = [s[b][k][i] * (deg if b == "attitude" else 1.0) for b in mc.BLOCKS for k in ("rmse_t", "pcrb_t")]
             time_rows.append([mode, count, t, *vals, s["nees"]["nees_t"][i]])
-    output.write_json(out_dir / "metrics.json", metrics_dict(scn, res))
+    metrics = metrics_dict(scn, res)
+    output.write_json(out_dir / "metrics.json", metrics)
     output.write_csv(out_dir / "rmse.csv", rmse_columns(), rmse_rows(res))
     output.write_csv(out_dir / "findings.csv", FINDINGS_COLUMNS, findings_rows(res.findings))
     output.write_csv(out_dir / "rmse_vs_time.csv",
@@ -130,6 +133,7 @@ def write_results(scn, out_dir: Path, res, figures: bool = True) -> None:
                       "att_rmse_deg", "att_sqrt_pcrb_deg", "nees_mean"], time_rows)
     if figures:
         sweep_plots.plot_all(scn, res, out_dir)
+    html_report.write_sweep_report(out_dir, json.loads((out_dir / "metrics.json").read_text()))
 
 
 def summary_table(res) -> str:

@@ -35,7 +35,8 @@ def write_outputs(out_dir: Path, inputs: FilterInputs, scored: dict, metrics: di
     L = nav.layout
     from leonav_runtime.provenance import provenance
 
-    write_json(out_dir / "metrics.json", {"provenance": provenance(), **metrics})
+    metrics = {"provenance": provenance(), **metrics}
+    write_json(out_dir / "metrics.json", metrics)
     rows, traj = [], []
     for mode, s in scored.items():
         e, x, sigma = s["err"], s["x"], s["sigma"]
@@ -51,3 +52,6 @@ def write_outputs(out_dir: Path, inputs: FilterInputs, scored: dict, metrics: di
     (out_dir / "columns.txt").write_text(COLUMNS_TEXT)
     plot_rmse_vs_time(out_dir / "rmse_vs_time.png", scored, metrics, L)
     plot_trajectories(out_dir / "trajectories.png", scored, ref, inputs, L)
+    from leonav_runtime import html_report
+
+    html_report.write_replay_report(out_dir, metrics)
