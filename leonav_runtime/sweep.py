@@ -10,6 +10,7 @@ and are reported at every count.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import time
 from dataclasses import dataclass
@@ -23,6 +24,8 @@ from leonav_runtime.executors import make_executor, map_in_order
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.paper_values import PAPER_FINDINGS
 from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
+
+log = logging.getLogger("leonav.sweep")
 
 BLOCK_TRIALS = 10  # trials per executor task: enough work per task to hide scheduling cost
 
@@ -147,6 +150,8 @@ def run_sweep(scn: Scenario, out_dir: Path | None = None, *, trials: int | None 
     setup, nav = mc.setup_for(scn)  # validates visibility before any work is sent out
     t_setup = time.perf_counter() - t_start
     tasks = _tasks(scn, trials)
+    log.info("sweep %s: %d modes x %d counts, %d trials each, %d tasks; setup %.2f s", scn.name, len(scn.modes),
+             len(scn.starlink["counts"]), trials, len(tasks), t_setup)
     bar = None
     if progress:
         from tqdm import tqdm

@@ -55,3 +55,19 @@ def test_bad_changes_are_user_errors():
     with pytest.raises(UserInputError, match="--modes"):
         leonav.load_scenario("paper", modes=["warp"])
     assert leonav.__version__ and "run_replay" in leonav.__all__
+
+
+def test_run_replay_in_memory_leaves_no_folder(tmp_path, monkeypatch):
+    from leonav_runtime.cli import main
+
+    session = tmp_path / "s"
+    assert main(["session", "synth", str(session), "--seconds", "3", "--sdr-rate", "200e3"]) == 0
+    monkeypatch.chdir(tmp_path)
+    before = set(tmp_path.iterdir())
+    out = leonav.run_replay(session, modes=["fix+imu"])
+    assert set(tmp_path.iterdir()) == before and out["out_dir"] is None
+    err = out["errors"]["fix+imu"]
+    assert err["t_s"].size > 10 and np.all(np.isfinite(err["position_error_m"]))
+    rms = float(np.sqrt(np.mean(err["position_error_m"] ** 2)))
+    assert rms == pytest.approx(out["metrics"]["modes"]["fix+imu"]["rmse_position_m"], rel=1e-6)
+    assert set(out["trajectory"]["fix+imu"]) >= {"t_s", "p_e_m", "yaw_deg"}

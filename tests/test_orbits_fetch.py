@@ -176,3 +176,14 @@ def test_fetch_cli_defaults_to_omm_json(tmp_path, capsys):
         rc = leonav_main(["tle", "fetch", "gps", "--cache", str(tmp_path), "--url-base", url])
     assert rc == 0 and requests == ["/gp.php?GROUP=gps-ops&FORMAT=json"]
     assert f"{len(records)} element sets of group 'gps' (JSON)" in capsys.readouterr().out
+
+
+def test_verbose_flag_shows_the_download_steps(tmp_path, capsys):
+    body_json, _, _ = _omm_bodies()
+    with serve({"/gp.php?GROUP=gps-ops&FORMAT=json": (200, body_json)}) as (url, _):
+        assert leonav_main(["tle", "fetch", "gps", "--cache", str(tmp_path), "--url-base", url]) == 0
+        assert "info:" not in capsys.readouterr().err
+        assert leonav_main(["-v", "tle", "fetch", "gps", "--cache", str(tmp_path), "--url-base", url]) == 0
+    err = capsys.readouterr().err
+    assert f"leonav tle fetch: info: GET {url}?GROUP=gps-ops&FORMAT=json" in err
+    assert f"info: received {len(body_json)} bytes" in err

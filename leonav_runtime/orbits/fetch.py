@@ -30,6 +30,7 @@ import datetime as _dt
 import errno as _errno
 import http.client
 import json
+import logging
 import math
 import os
 import re
@@ -45,6 +46,8 @@ from pathlib import Path
 from leonav_runtime import __version__
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.orbits.elements import load_elements, parse_elements_text
+
+log = logging.getLogger("leonav.orbits.fetch")
 
 CELESTRAK_URL_BASE = "https://celestrak.org/NORAD/elements/gp.php"
 KNOWN_GROUPS = ("starlink", "gps", "gnss", "oneweb", "iridium-NEXT", "stations", "active")
@@ -275,7 +278,9 @@ def fetch_group(
         _check_url(url_base, "--url-base")
     name = canonical_group(group)
     url = group_url(name, url_base, fmt)
+    log.info("GET %s (deadline %g s, at most %d bytes)", url, timeout_s, max_bytes)
     body = _download(url, float(timeout_s), max_bytes)
+    log.info("received %d bytes", len(body))
     downloaded = _dt.datetime.now(_dt.timezone.utc)
 
     text = body.decode("utf-8", errors="replace")
