@@ -146,7 +146,9 @@ def run(args: argparse.Namespace) -> int:
     summary["window"]["start_source"] = start_source
     summary["elements"] = sources
     out_dir = output.results_dir(args.out, "sky")
-    output.write_json(out_dir / "sky.json", summary)
+    from leonav_runtime.provenance import provenance
+
+    output.write_json(out_dir / "sky.json", {"provenance": provenance(), **summary})
     names = list(view.constellations)
     output.write_csv(
         out_dir / "visible_counts.csv",

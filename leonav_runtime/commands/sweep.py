@@ -17,7 +17,8 @@ def register(subparsers) -> None:
             "GPS+LEO(alpha)+IMU, LEO(OFDM)+IMU, LEO(alpha+OFDM)+IMU, LEO(Doppler+alpha)+IMU) and every "
             "Starlink satellite count, run the generated C filter on simulated IMU, GPS pseudorange and "
             "Starlink measurements, and compare its RMSE with the posterior Cramer-Rao bound. Writes "
-            "metrics.json, rmse.csv, rmse_vs_time.csv and PNG figures. Without SCENARIO it runs the "
+            "report.html, metrics.json, rmse.csv, findings.csv, rmse_vs_time.csv and PNG figures; --modes, "
+            "--counts, --seed and --trials change the scenario without editing it. Without SCENARIO it runs the "
             "paper's setup (paper.toml) on the built-in constellations."
         ),
     )
