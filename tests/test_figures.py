@@ -96,3 +96,35 @@ def test_sky_labels_are_short():
     assert short_label("GPS BIIR-2  (PRN 13)", 24876) == "G13"
     assert short_label("STARLINK-31190", 58897) == "31190"
     assert short_label("ONEWEB", 1234) == "1234"
+
+
+def test_waterfall_labels_each_satellite_once_and_predictions_lie_on_the_ridges(tmp_path, monkeypatch):
+    from matplotlib.colors import to_rgba
+
+    from leonav_runtime.cli import main
+    from tests.conftest import shared_file
+
+    tle = shared_file("tle/starlink_2026-02-23.txt")
+    figs = _capture(monkeypatch)
+    assert main(["-q", "beacons", str(tmp_path / "sim"), "--simulate", "--tle", str(tle), "--duration", "5",
+                 "--sim-rate", "500e3", "--band", "500e3", "--n-sats", "2", "--tones", "3", "--cn0", "40",
+                 "--start", "2026-02-23T06:00:00Z", "--out", str(tmp_path / "o")]) == 0
+    fig = figs[-1]
+    ax = fig.axes[0]
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    names = {a["name"] for a in summary["associations"] if a["status"] == "associated"}
+    labels = [t.get_text() for t in ax.texts]
+    assert len(names) == 2 and len(labels) == len(names) and all(any(n in s for s in labels) for n in names)
+    assert any("[dB]" in a.get_ylabel() for a in fig.axes[1:])  # the colour bar
+    white = to_rgba("white")
+    predicted = [ln for ln in ax.lines if to_rgba(ln.get_color()) == white]
+    ridges = [ln for ln in ax.lines if to_rgba(ln.get_color()) != white]
+    assert len(predicted) == summary["counts"]["associated"] >= 4
+    bin_khz = summary["stft"]["bin_hz"] / 1e3
+    assert len(ridges) == summary["counts"]["ridges"]
+    for i, p in enumerate(ax.lines):  # a prediction is drawn right after its ridge, at the ridge's times
+        if to_rgba(p.get_color()) != white:
+            continue
+        ridge = ax.lines[i - 1]
+        assert np.array_equal(ridge.get_ydata(), p.get_ydata())
+        assert np.max(np.abs(np.asarray(p.get_xdata()) - np.asarray(ridge.get_xdata()))) < 3 * bin_khz
