@@ -21,6 +21,7 @@ import sys
 import traceback
 
 from leonav_runtime import commands as _commands_pkg
+from leonav_runtime import provenance
 from leonav_runtime.errors import UserInputError
 
 EXIT_OK = 0
@@ -66,8 +67,14 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    parser.add_argument("--version", action="version", version=provenance.version_text(),
+                        help="print the leonav version and the git commit of this checkout, then exit")
     parser.add_argument("--debug", action="store_true",
                         help="print the Python traceback of an error (also accepted after the command)")
+    parser.add_argument("-v", "--verbose", action="count", default=0,
+                        help="more log messages: -v info, -vv debug (short forms also accepted after the command)")
+    parser.add_argument("-q", "--quiet", action="count", default=0,
+                        help="only errors: warnings are not printed (short form also accepted after the command)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for info in sorted(pkgutil.iter_modules(_commands_pkg.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):
@@ -88,6 +95,23 @@ def _split_debug(argv: list[str]) -> tuple[list[str], bool]:
             literal = True
         out.append(arg)
     return out, debug
+
+
+_VERBOSITY = {"-v": 1, "-vv": 2, "-vvv": 3, "-q": -1, "-qq": -2}
+
+
+def _split_verbosity(argv: list[str]) -> tuple[list[str], int]:
+    """Remove the short `-v`/`-vv`/`-q` from anywhere before `--` (no subcommand uses them);
+    (remaining argv, verbosity: 0 default, > 0 more, < 0 less)."""
+    out, level, literal = [], 0, False
+    for arg in argv:
+        if not literal and arg in _VERBOSITY:
+            level += _VERBOSITY[arg]
+            continue
+        if arg == "--":
+            literal = True
+        out.append(arg)
+    return out, level
 
 
 def _command_name(args: argparse.Namespace) -> str:
@@ -196,18 +220,24 @@ def report_error(command: str, exc: BaseException, debug: bool = False) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `leonav` console script; returns the process exit code."""
+    from leonav_runtime import log_setup
+
     argv = list(sys.argv[1:] if argv is None else argv)
+    provenance.set_command_line(argv)
     argv, debug = _split_debug(argv)
+    argv, verbosity = _split_verbosity(argv)
     debug = debug or os.environ.get("LEONAV_DEBUG", "") not in ("", "0")
     parser = build_parser()
     args = parser.parse_args(argv)
+    verbosity += args.verbose - args.quiet
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_BAD_INPUT
-    try:
-        return int(args.func(args) or 0)
-    except (KeyboardInterrupt, Exception) as exc:  # noqa: BLE001 (one place turns every error into one line)
-        return report_error(_command_name(args), exc, debug)
+    with log_setup.cli_logging(_command_name(args), verbosity):
+        try:
+            return int(args.func(args) or 0)
+        except (KeyboardInterrupt, Exception) as exc:  # noqa: BLE001 (one place turns every error into one line)
+            return report_error(_command_name(args), exc, debug)
 
 
 if __name__ == "__main__":

@@ -1,14 +1,8 @@
 """The Monte Carlo sweep of a scenario: every mode x Starlink count, trials on an executor.
 
-`run_sweep(scn, out_dir, ...)` writes:
-- `config.toml`: the scenario as given;
-- `metrics.json`: per mode and count, RMSE / PCRB / ratio for position (m), velocity
-  (m/s) and attitude (rad; deg copies), NEES and NIS with their 95 % chi-square bands,
-  gated/failed counts, the paper's findings checked against ours, timings;
-- `rmse.csv`: one row per (mode, count, block) with RMSE, sqrt(PCRB), ratio;
-- `rmse_vs_time.csv`: per mode at every count, RMSE and sqrt(PCRB) on the output grid;
-- figures (`sweep_plots.py`): `rmse_vs_count.png`, `rmse_vs_time.png`,
-  `trajectories.png`, `visibility.png`.
+`run_sweep(scn, out_dir, ...)` returns a `SweepResult` and, given `out_dir`, writes the
+results folder (`sweep_report.py`: metrics.json, rmse.csv, rmse_vs_time.csv, findings.csv,
+figures, report.html). The summaries hold SI values; their `pcrb` keys are sqrt(PCRB).
 
 Modes that use no Starlink observable (GPS+IMU) do not depend on the count: they run once
 and are reported at every count.
@@ -16,6 +10,7 @@ and are reported at every count.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import time
 from dataclasses import dataclass
@@ -27,15 +22,13 @@ from leonav_runtime import montecarlo as mc
 from leonav_runtime import output
 from leonav_runtime.executors import make_executor, map_in_order
 from leonav_runtime.gen import state_layout as L
+from leonav_runtime.paper_values import PAPER_FINDINGS
 from leonav_runtime.scenario import MODE_OBSERVABLES, Scenario
+
+log = logging.getLogger("leonav.sweep")
 
 BLOCK_TRIALS = 10  # trials per executor task: enough work per task to hide scheduling cost
 
-# The paper's simulation figures (Fig. "Performance in simulation and lower bound", text):
-PAPER_FINDINGS = {
-    "gps_aided_position_m": (1.0, 2.0),
-    "leo_alpha_position_m": (6.0, 9.0),
-}
 
 
 def uses_starlink(mode: str) -> bool:
@@ -72,7 +65,12 @@ def outage_end_error(summary: dict, end_s: float, t_eval: np.ndarray) -> float:
 
 
 def check_findings(scn: Scenario, summaries: dict[tuple[str, int], dict], t_eval: np.ndarray) -> list[dict]:
-    """The paper's simulation findings, evaluated on our results (ok True/False + numbers)."""
+    """The paper's simulation findings (kind "paper") and this scenario's own checks (kind
+    "scenario", e.g. the GPS outage), evaluated on our results.
+
+    Each entry: finding, kind, holds, detail (text), and `values`: per (mode, count) the
+    position RMSE averaged over time and at the final epoch (m); the paper's band if any.
+    """
     counts = scn.starlink["counts"]
     lo_c, hi_c = counts[0], counts[-1]
 
@@ -80,45 +78,59 @@ def check_findings(scn: Scenario, summaries: dict[tuple[str, int], dict], t_eval
         s = summaries.get((mode, count))
         return None if s is None else s["position"]["rmse"]
 
+    def values(pairs):
+        return [{"mode": m, "count": c, "position_rmse_time_avg_m": summaries[(m, c)]["position"]["rmse"],
+                 "position_rmse_final_m": summaries[(m, c)]["position"]["final_rmse"]} for m, c in pairs]
+
+    def both(m, c):
+        p = summaries[(m, c)]["position"]
+        return f"{p['rmse']:.2f} m (final epoch {p['final_rmse']:.2f} m)"
+
     out = []
 
-    def add(name, ok, detail):
+    def add(name, ok, detail, pairs=(), band=None, kind="paper"):
         if ok is not None:
-            out.append({"finding": name, "holds": bool(ok), "detail": detail})
+            out.append({"finding": name, "kind": kind, "holds": bool(ok), "detail": detail,
+                        "values": values(pairs), "paper_band_m": list(band) if band else None})
 
     leo = [m for m in scn.modes if uses_starlink(m)]
     if leo and len(counts) > 1:
         falls = {m: (pos(m, lo_c), pos(m, hi_c)) for m in leo}
         add("position RMSE falls as Starlink satellites are added",
             all(b < a for a, b in falls.values()),
-            {m: f"{a:.2f} m at {lo_c} -> {b:.2f} m at {hi_c}" for m, (a, b) in falls.items()})
+            {m: f"{a:.2f} m at {lo_c} -> {b:.2f} m at {hi_c}" for m, (a, b) in falls.items()},
+            [(m, c) for m in leo for c in (lo_c, hi_c)])
     gps_modes = [m for m in scn.modes if "pseudorange" in MODE_OBSERVABLES[m]]
     static_paper_like = not scn.gps["outages"]  # the paper's 1-2 m / 6-9 m are for its static run
     if gps_modes and static_paper_like:
         vals = {m: pos(m, hi_c) for m in gps_modes}
         lo, hi = PAPER_FINDINGS["gps_aided_position_m"]
         add(f"GPS-aided modes reach {lo:g}-{hi:g} m", all(v <= hi for v in vals.values()),
-            {m: f"{v:.2f} m" for m, v in vals.items()})
+            {m: both(m, hi_c) for m in gps_modes}, [(m, hi_c) for m in gps_modes], (lo, hi))
     if "leo-alpha+imu" in scn.modes and static_paper_like:
         lo, hi = PAPER_FINDINGS["leo_alpha_position_m"]
         v = pos("leo-alpha+imu", hi_c)
-        add(f"LEO(alpha)+IMU lands in {lo:g}-{hi:g} m", lo <= v <= hi, f"{v:.2f} m at {hi_c} satellites")
+        add(f"LEO(alpha)+IMU lands in {lo:g}-{hi:g} m", lo <= v <= hi,
+            f"{both('leo-alpha+imu', hi_c)} at {hi_c} satellites", [("leo-alpha+imu", hi_c)], (lo, hi))
     if {"leo-ofdm+imu", "leo-alpha+imu"} <= set(scn.modes):
         pairs = {c: (pos("leo-ofdm+imu", c), pos("leo-alpha+imu", c)) for c in counts}
         add("range-type OFDM beats alpha", all(o < a for o, a in pairs.values()),
-            {c: f"OFDM {o:.2f} m vs alpha {a:.2f} m" for c, (o, a) in pairs.items()})
+            {c: f"OFDM {o:.2f} m vs alpha {a:.2f} m" for c, (o, a) in pairs.items()},
+            [(m, c) for c in counts for m in ("leo-ofdm+imu", "leo-alpha+imu")])
     if "leo-alpha+ofdm+imu" in scn.modes:
         others = [m for m in ("leo-alpha+imu", "leo-ofdm+imu") if m in scn.modes]
         best = pos("leo-alpha+ofdm+imu", hi_c)
         add("alpha+OFDM is the best LEO mode (paper's modes)",
             all(best <= pos(m, hi_c) for m in others),
-            {m: f"{pos(m, hi_c):.2f} m" for m in others + ["leo-alpha+ofdm+imu"]})
+            {m: f"{pos(m, hi_c):.2f} m" for m in others + ["leo-alpha+ofdm+imu"]},
+            [(m, hi_c) for m in others + ["leo-alpha+ofdm+imu"]])
     for a, b in scn.gps["outages"]:
         end = {m: outage_end_error(summaries[(m, hi_c)], b, t_eval) for m in gps_modes}
         if "gps+imu" in end and "gps+leo-alpha+imu" in end:
             add(f"GPS+LEO(alpha)+IMU stays bounded through the GPS outage {a:g}-{b:g} s while GPS+IMU drifts",
                 end["gps+leo-alpha+imu"] < end["gps+imu"],
-                {m: f"{e:.2f} m at the outage end" for m, e in end.items()})
+                {m: f"{e:.2f} m at the outage end" for m, e in end.items()}, [(m, hi_c) for m in gps_modes],
+                kind="scenario")
     # Judged on the bound (no sampling noise): how much the attitude PCRB moves across modes.
     att = {m: summaries[(m, hi_c if uses_starlink(m) else counts[0])]["attitude"]["pcrb"] for m in scn.modes}
     spread = (max(att.values()) - min(att.values())) / max(att.values())
@@ -127,9 +139,10 @@ def check_findings(scn: Scenario, summaries: dict[tuple[str, int], dict], t_eval
     return out
 
 
-def run_sweep(scn: Scenario, out_dir: Path, *, trials: int | None = None, workers: int | None = None,
+def run_sweep(scn: Scenario, out_dir: Path | None = None, *, trials: int | None = None, workers: int | None = None,
               dask_address: str | None = None, progress: bool = True, figures: bool = True) -> SweepResult:
-    """Run every (mode, count) of `scn` and write the results folder (see module doc)."""
+    """Run every (mode, count) of `scn`; write the results folder (see module doc) unless
+    `out_dir` is None."""
     trials = trials or scn.trials
     if trials != scn.trials:
         scn = dataclasses.replace(scn, trials=trials)
@@ -137,6 +150,8 @@ def run_sweep(scn: Scenario, out_dir: Path, *, trials: int | None = None, worker
     setup, nav = mc.setup_for(scn)  # validates visibility before any work is sent out
     t_setup = time.perf_counter() - t_start
     tasks = _tasks(scn, trials)
+    log.info("sweep %s: %d modes x %d counts, %d trials each, %d tasks; setup %.2f s", scn.name, len(scn.modes),
+             len(scn.starlink["counts"]), trials, len(tasks), t_setup)
     bar = None
     if progress:
         from tqdm import tqdm
@@ -180,78 +195,15 @@ def run_sweep(scn: Scenario, out_dir: Path, *, trials: int | None = None, worker
     k = mc.eval_grid(setup.t_imu, scn.imu_rate_hz)
     result = SweepResult(summaries, check_findings(scn, summaries, setup.t_imu[k]), timing, trajectories,
                          setup.x_true[k, L.X_P_ENU_SLICE], setup.t_imu[k], scn, list(setup.notes))
-    write_results(scn, out_dir, result, figures=figures)
+    if out_dir is not None:
+        from leonav_runtime.sweep_report import write_results
+
+        write_results(scn, out_dir, result, figures=figures)
     return result
 
 
-def write_results(scn: Scenario, out_dir: Path, res: SweepResult, figures: bool = True) -> None:
-    """config.toml, metrics.json, rmse.csv, rmse_vs_time.csv and the figures."""
-    from leonav_runtime import sweep_plots
-
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    src = Path(scn.source)
-    if src.exists():
-        (out_dir / "config.toml").write_text(src.read_text())
-    metrics = {
-        "scenario": {"name": scn.name, "source": scn.source, "epoch_utc": scn.epoch_utc,
-                     "duration_s": scn.duration_s, "trials": scn.trials, "modes": scn.modes,
-                     "counts": scn.starlink["counts"]},
-        "findings": res.findings,
-        "notes": res.notes,  # e.g. satellites SGP4 could not propagate, left out by name
-        "timing": res.timing,
-        "results": [],
-    }
-    csv_rows, time_rows = [], []
-    for (mode, count), s in sorted(res.summaries.items()):
-        entry = {"mode": mode, "count": count, "trials": s["trials"], "gated": s["gated"], "failed": s["failed"],
-                 "nees": {k: v for k, v in s["nees"].items() if k != "nees_t"},
-                 "nis": {str(k): v for k, v in s["nis"].items()}}
-        for block in mc.BLOCKS:
-            b = s[block]
-            entry[block] = {k: v for k, v in b.items() if not k.endswith("_t")}
-            if block == "attitude":
-                entry["attitude_deg"] = {k: math.degrees(v) for k, v in entry[block].items() if k != "ratio"}
-            csv_rows.append([mode, count, block, b["rmse"], b["pcrb"], b["ratio"], b["final_rmse"], b["final_pcrb"]])
-        metrics["results"].append(entry)
-        for i, t in enumerate(res.t_eval):
-            time_rows.append([mode, count, t] + [s[b][k][i] for b in mc.BLOCKS for k in ("rmse_t", "pcrb_t")]
-                             + [s["nees"]["nees_t"][i]])
-    output.write_json(out_dir / "metrics.json", metrics)
-    output.write_csv(out_dir / "rmse.csv", ["mode", "count", "block", "rmse", "sqrt_pcrb", "ratio",
-                                            "final_rmse", "final_sqrt_pcrb"], csv_rows)
-    output.write_csv(out_dir / "rmse_vs_time.csv",
-                     ["mode", "count", "t_s", "pos_rmse_m", "pos_sqrt_pcrb_m", "vel_rmse_mps", "vel_sqrt_pcrb_mps",
-                      "att_rmse_rad", "att_sqrt_pcrb_rad", "nees_mean"], time_rows)
-    if figures:
-        sweep_plots.plot_all(scn, res, out_dir)
-
-
 def summary_table(scn: Scenario, res: SweepResult) -> str:
-    """Human summary: RMSE / sqrt(PCRB) per mode and count, then the paper's findings."""
-    scn = res.scenario  # as run (e.g. with --trials)
-    counts = scn.starlink["counts"]
-    lines = [f"position RMSE / sqrt(PCRB), m  ({scn.trials} trials per point)",
-             f"{'mode':24s}" + "".join(f"{c:>14d}" for c in counts)]
-    for mode in scn.modes:
-        cells = []
-        for c in counts:
-            p = res.summaries[(mode, c)]["position"]
-            cells.append(f"{p['rmse']:6.2f}/{p['pcrb']:<6.2f} ")
-        lines.append(f"{mode:24s}" + "".join(f"{x:>14s}" for x in cells))
-    hi = counts[-1]
-    lines.append(f"\nat {hi} satellites: velocity m/s, attitude deg, NEES (95 % band)")
-    for mode in scn.modes:
-        s = res.summaries[(mode, hi)]
-        v, a, n = s["velocity"], s["attitude"], s["nees"]
-        lines.append(f"  {mode:24s} vel {v['rmse']:.3f}/{v['pcrb']:.3f} (x{v['ratio']:.2f})  "
-                     f"att {math.degrees(a['rmse']):.3f}/{math.degrees(a['pcrb']):.3f}  "
-                     f"pos x{s['position']['ratio']:.2f}  NEES {n['mean']:.2f} "
-                     f"[{n['band95'][0]:.2f}, {n['band95'][1]:.2f}]")
-    lines.append("\nthe paper's findings:")
-    for f in res.findings:
-        lines.append(f"  [{'holds' if f['holds'] else 'DIFFERS'}] {f['finding']}: {f['detail']}")
-    t = res.timing
-    lines.append(f"\n{t['trials_run']} trials in {t['trials_wall_s']:.1f} s wall ({t['trial_cpu_ms']:.1f} ms CPU "
-                 f"per trial, {100 * t['c_share']:.0f} % in the C filter loop); total {t['wall_s']:.1f} s")
-    return "\n".join(lines)
+    """The console summary (kept here for callers; see sweep_report.summary_table)."""
+    from leonav_runtime.sweep_report import summary_table as table
+
+    return table(res)

@@ -29,7 +29,8 @@ def parse_utc(text: str, where: str, *, require_zone: bool = False) -> _dt.datet
         ) from None
     if t.tzinfo is None:
         if require_zone:
-            raise UserInputError(f"{where}: {text!r}: expected an explicit UTC offset (end with Z)")
+            raise UserInputError(f"{where}: {text!r} has no time zone: expected an explicit one, e.g. "
+                                 f"{s}Z for UTC or {s}+01:00 (a time without one is not guessed)")
         t = t.replace(tzinfo=_dt.timezone.utc)
     try:
         return t.astimezone(_dt.timezone.utc)

@@ -63,7 +63,7 @@ def test_bad_compiler_is_a_build_error_in_one_line(tmp_path, capsys, monkeypatch
     compiled.clear_process_cache()
     predict._nav.cache_clear()  # the beacon predictions keep their loaded library per process
     try:
-        rc = main(["beacons", str(tmp_path / "s.cu8"), "--simulate", "--duration", "1", "--sim-rate", "1e5",
+        rc = main(["beacons", str(tmp_path / "s.cu8"), "--simulate", "--duration", "4.5", "--sim-rate", "1e5",
                    "--band", "1e5", "--tle", str(shared_file("tle/starlink_2026-02-23.txt")),
                    "--start", "2026-02-23T06:00:00Z", "--out", str(tmp_path / "o")])
     finally:

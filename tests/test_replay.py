@@ -100,7 +100,7 @@ def test_replay_outputs_and_time_axis(comparison, synth):
 
 def test_output_files(comparison):
     folder = comparison["out"]
-    for name in ("metrics.json", "rmse_vs_time.csv", "rmse_vs_time.png", "trajectories.png", "trajectory.csv",
+    for name in ("metrics.json", "report.html", "rmse_vs_time.csv", "rmse_vs_time.png", "trajectories.png", "trajectory.csv",
                  "replay_vs_direct.json", "beacons/doppler_rate_measurements.csv", "beacons/waterfall.png"):
         assert (folder / name).is_file(), name
     rows = (folder / "rmse_vs_time.csv").read_text().splitlines()

@@ -212,7 +212,7 @@ def open_capture(path: str | Path, sample_format: str | None = None, *,
     """
     path = Path(path)
     if isinstance(start_utc, str):
-        start_utc = parse_utc(start_utc, "--start")
+        start_utc = parse_utc(start_utc, "--start", require_zone=True)
     name = path.name
     sibling_meta = path.with_suffix(".sigmf-meta")
     if name.endswith(".sigmf-meta") or name.endswith(".sigmf-data") or sample_format == "sigmf":

@@ -85,6 +85,15 @@ def _finite_in(value, lo: float, hi: float) -> bool:
         return False
 
 
+def min_capture_s(cfg: PipelineConfig, sample_rate_hz: float) -> float:
+    """Shortest capture (s) from which a satellite can be associated: `min_epochs` epochs on
+    the `meas_interval_s` grid, each needing +/-`fit_half_window_s` of ridge, inside the
+    span of the STFT slice centres (the capture minus one slice)."""
+    stft = StftConfig.for_rate(sample_rate_hz, cfg.band_hz, cfg.fft_size, cfg.overlap, cfg.dc_notch_hz)
+    return (stft.fft_size / sample_rate_hz + 2.0 * cfg.fit_half_window_s
+            + cfg.association.min_epochs * cfg.meas_interval_s)
+
+
 def validate_config(cfg: PipelineConfig, sample_rate_hz: float | None = None) -> None:
     """UserInputError naming the `leonav beacons` option when a setting cannot work.
 
@@ -294,44 +303,14 @@ def write_outputs(res: PipelineResult, out_dir: Path) -> dict[str, Path]:
     cols.write_text("".join(f"{n} [{u}]: {d}\n" for n, u, d in MEASUREMENT_COLUMNS))
     paths["columns"] = cols
     paths["waterfall"] = plot_waterfall(res, out_dir / "waterfall.png")
-    paths["summary"] = write_json(out_dir / "summary.json", summary(res))
+    from leonav_runtime.provenance import provenance
+
+    paths["summary"] = write_json(out_dir / "summary.json", {"provenance": provenance(), **summary(res)})
     return paths
 
 
 def plot_waterfall(res: PipelineResult, path: Path) -> Path:
-    """Waterfall (dB above the noise floor) with ridges and satellite labels."""
-    import matplotlib
+    """Waterfall (dB above the noise floor) with ridges, satellite labels and predictions."""
+    from leonav_runtime.beacons.waterfall_plot import plot_waterfall as draw
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    t, f, img = res.waterfall
-    fig, ax = plt.subplots(figsize=(11, 6.5))
-    if img.size:
-        vmax = float(np.percentile(img, 99.9))
-        ax.imshow(img, aspect="auto", origin="lower", cmap="viridis", vmin=0, vmax=max(vmax, 6),
-                  extent=[f[0] / 1e3, f[-1] / 1e3, t[0], t[-1]], interpolation="nearest")
-    colors = {"associated": "white", "ambiguous": "orange", "unassociated": "red"}
-    for n, (ridge, a) in enumerate(zip(res.ridges, res.associations)):
-        col = colors.get(a.status, "red")
-        ax.plot(ridge.f_hz / 1e3, ridge.t_s, color=col, lw=0.6, alpha=0.6, ls="--")
-        label = f"#{ridge.ridge_id} " + (f"{a.name} ({a.norad_id})" if a.status != "unassociated" else "?")
-        if a.status == "ambiguous":
-            label += f" / {a.second_name}?"
-        # labels at staggered heights so neighbouring ridges (satellite trains) stay readable
-        k = int(np.clip(ridge.t_s.size - 1 - (n % 6) * ridge.t_s.size // 7, 0, ridge.t_s.size - 1))
-        ax.annotate(label, (ridge.f_hz[k] / 1e3, ridge.t_s[k]), color=col, fontsize=7, xytext=(4, 0),
-                    textcoords="offset points", bbox={"boxstyle": "round,pad=0.15", "fc": "black", "alpha": 0.5,
-                                                      "lw": 0})
-    info = res.info
-    ax.set_xlabel(f"baseband frequency (kHz), 0 = {info.rf_center_hz / 1e9:.6f} GHz RF "
-                  f"({info.center_freq_hz / 1e6:.3f} MHz IF)")
-    ax.set_ylabel("time since capture start (s)")
-    start = info.start_utc.isoformat() if info.start_utc else "unknown start"
-    c = summary(res)["counts"]
-    ax.set_title(f"{info.path.name}  {start}\nridges {c['ridges']}: associated {c['associated']}, "
-                 f"ambiguous {c['ambiguous']}, unassociated {c['unassociated']}", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return draw(res, path, summary(res)["counts"])

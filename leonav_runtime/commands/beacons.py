@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
+import json
 import math
 import shutil
 import warnings
@@ -48,6 +49,19 @@ def _check_simulation(args: argparse.Namespace) -> None:
                              f"{free / 1e9:.3g} GB are free in {folder}")
 
 
+def _check_long_enough(cfg, duration_s: float, sample_rate_hz: float, where: str) -> None:
+    """Refuse a capture too short to give any satellite the epochs association needs."""
+    from leonav_runtime.beacons.pipeline import min_capture_s
+
+    need = min_capture_s(cfg, sample_rate_hz)
+    if duration_s < need:
+        raise UserInputError(
+            f"{where}: the capture lasts {duration_s:.3g} s; association needs at least {need:.2f} s "
+            f"({cfg.association.min_epochs} epochs {cfg.meas_interval_s:g} s apart (--interval), each fitted "
+            f"over +/-{cfg.fit_half_window_s:g} s, plus one FFT slice): record a longer capture "
+            "(10 s or more is better)")
+
+
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "beacons",
@@ -63,7 +77,10 @@ def register(subparsers) -> None:
             "doppler_rate_measurements.csv (the filter's input; columns in "
             "doppler_rate_measurements.columns.txt), waterfall.png and summary.json. With --simulate, "
             "first writes a synthetic capture to CAPTURE from the element sets (or the built-in "
-            "Walker constellation) and then processes it."
+            "Walker constellation) and then processes it. "
+            "Minimum capture length: a satellite is associated from at least 2 measurement epochs, each "
+            "fitted over +/-1 s of ridge, so a capture must last 2 s + 2 x --interval + one FFT slice "
+            "(about 4.1 s at the defaults; 10 s or more gives steadier rates); a shorter one is refused."
         ),
     )
     p.add_argument("capture", metavar="CAPTURE",
@@ -106,7 +123,8 @@ def register(subparsers) -> None:
     sim = p.add_argument_group("simulation (--simulate)")
     sim.add_argument("--simulate", action="store_true",
                      help="write a synthetic capture to CAPTURE first, then process it")
-    sim.add_argument("--duration", type=float, default=20.0, metavar="S", help="capture length, s (default 20)")
+    sim.add_argument("--duration", type=float, default=20.0, metavar="S",
+                     help="capture length, s (default 20; at least the minimum below)")
     sim.add_argument("--sim-rate", type=float, default=2.4e6, metavar="HZ",
                      help="synthetic sample rate, Hz (default 2.4e6)")
     sim.add_argument("--cn0", type=float, default=40.0, metavar="DBHZ",
@@ -118,8 +136,9 @@ def register(subparsers) -> None:
                      help="tones per satellite, centred on the channel, 43.9495 kHz apart (default 1; "
                           "a real channel has 9); tones beyond the band are left out")
     sim.add_argument("--seed", type=int, default=0, help="random seed (satellite choice, noise)")
-    sim.add_argument("--sim-format", choices=["cu8", "sigmf", "cf32"], default="cu8",
-                     help="file format of the synthetic capture (default cu8 + CAPTURE.json)")
+    sim.add_argument("--sim-format", choices=["cu8", "sigmf", "cf32"], default="sigmf",
+                     help="file format of the synthetic capture (default sigmf: CAPTURE's stem + .sigmf-data "
+                          "and .sigmf-meta; cu8/cf32 write the raw file + CAPTURE.json)")
     output.add_out_argument(p)
     p.set_defaults(func=run)
 
@@ -157,7 +176,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError(f"--alt: {args.alt!r} out of range; expected metres in [-11000, 1e6]")
     site = Site.from_degrees(args.lat, args.lon, args.alt)
     try:
-        start = capture_io.parse_utc(args.start, "--start") if args.start else None
+        start = capture_io.parse_utc(args.start, "--start", require_zone=True) if args.start else None
     except OverflowError:  # e.g. year 1 with a positive UTC offset
         start = _dt.datetime.min.replace(tzinfo=_dt.timezone.utc)
     if start is not None and not 1900 <= start.year < 2200:
@@ -170,6 +189,7 @@ def run(args: argparse.Namespace) -> int:
     if args.simulate:
         _check_simulation(args)
         pipeline.validate_config(cfg, args.sim_rate)
+        _check_long_enough(cfg, args.duration, args.sim_rate, "--duration")
     out_dir = output.results_dir(args.out, "beacons")
     if args.tle:
         elements = load_element_files(args.tle)
@@ -195,7 +215,10 @@ def run(args: argparse.Namespace) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # stale-element warnings are reported in summary.json
             try:
-                info, truth = synth.write_synthetic_capture(args.capture, elements, site, start, sim_cfg,
+                capture = Path(args.capture)
+                if args.sim_format == "sigmf" and capture.suffix.lower() in (".cu8", ".bin", ".cf32", ".raw"):
+                    capture = capture.with_suffix("")  # sim.cu8 -> sim.sigmf-data + sim.sigmf-meta
+                info, truth = synth.write_synthetic_capture(capture, elements, site, start, sim_cfg,
                                                             args.sim_format, progress=tick)
             except UserInputError:
                 raise
@@ -216,6 +239,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError(f"{info.path}: capture start time unknown; give --start ISO-UTC "
                              "(or core:datetime / start_utc in the metadata)")
     pipeline.validate_config(cfg, info.sample_rate_hz)
+    _check_long_enough(cfg, info.duration_s, info.sample_rate_hz, str(info.path))
     bar, tick = _progress(info.n_samples, "processing")
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -228,7 +252,9 @@ def run(args: argparse.Namespace) -> int:
     notes = res.track_stats.notes()
     if caught or notes:
         s["warnings"] = sorted({str(w.message) for w in caught}) + notes
-        output.write_json(paths["summary"], s)
+        output.write_json(paths["summary"], {"provenance": json.loads(paths["summary"].read_text())["provenance"], **s})
+    for w in {str(w.message): w for w in caught}.values():  # shown once each (the CLI dedupes stale ones)
+        warnings.warn(str(w.message), w.category, stacklevel=1)
     for note in notes:
         print(f"note: {note}")
     c, r = s["counts"], s["rate_residual_abs_hz_s"]

@@ -73,8 +73,10 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError("no satellite counts to evaluate")
     output.write_csv(out_dir / "crb.csv", ["count", "sqrt_crb_3d_m", "sqrt_crb_e_m", "sqrt_crb_n_m",
                                           "sqrt_crb_u_m", "sqrt_pcrb_static_3d_m"], rows)
+    from leonav_runtime.provenance import provenance
+
     output.write_json(out_dir / "crb.json", {
-        "scenario": scn.name, "epoch_utc": scn.epoch_utc, "duration_s": scn.duration_s,
+        "provenance": provenance(scn.raw), "scenario": scn.name, "epoch_utc": scn.epoch_utc, "duration_s": scn.duration_s,
         "observable": args.observable, "sigma": simulate.noise_sigma(scn, args.observable),
         "elements": [str(f) for f in scn.element_files] or "built-in",
         "rows": [dict(zip(["count", "sqrt_crb_3d_m", "e_m", "n_m", "u_m", "sqrt_pcrb_static_3d_m"], r))

@@ -51,7 +51,7 @@ def eop_report(date_utc: _dt.datetime, days: int = 1) -> dict:
 
 
 def _run(args: argparse.Namespace) -> int:
-    date = parse_utc(args.date, "--date") if args.date else _dt.datetime.now(_dt.timezone.utc)
+    date = parse_utc(args.date, "--date", require_zone=True) if args.date else _dt.datetime.now(_dt.timezone.utc)
     report = eop_report(date, args.days)
     if args.json:
         print(json.dumps(report, indent=1))

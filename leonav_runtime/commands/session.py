@@ -57,7 +57,7 @@ def run_synth(args: argparse.Namespace) -> int:
     cfg = ss.SynthSessionConfig(seconds=args.seconds, seed=args.seed, sdr=not args.no_sdr, sdr_rate_hz=args.sdr_rate,
                                 n_satellites=args.n_sats, cn0_dbhz=args.cn0)
     if args.epoch:
-        cfg.epoch_utc = parse_utc(args.epoch, "--epoch")
+        cfg.epoch_utc = parse_utc(args.epoch, "--epoch", require_zone=True)
     elements = load_element_files(args.tle)
     total = int((cfg.seconds - cfg.sdr_start_s - 0.05) * cfg.sdr_rate_hz) if cfg.sdr else 0
     with tqdm(total=total, unit="S", unit_scale=True, desc="synthesizing IQ", leave=False, disable=None) as bar:

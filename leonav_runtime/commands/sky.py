@@ -69,7 +69,7 @@ LATEST_UTC = _dt.datetime(2200, 1, 1, tzinfo=_dt.timezone.utc)
 def _start_time(text: str) -> _dt.datetime:
     """--start as UTC, within the years element sets can describe (so the window end exists)."""
     try:
-        start = parse_utc(text, "--start")
+        start = parse_utc(text, "--start", require_zone=True)
     except OverflowError:
         start = None
     if start is None or not EARLIEST_UTC <= start <= LATEST_UTC:
@@ -146,7 +146,9 @@ def run(args: argparse.Namespace) -> int:
     summary["window"]["start_source"] = start_source
     summary["elements"] = sources
     out_dir = output.results_dir(args.out, "sky")
-    output.write_json(out_dir / "sky.json", summary)
+    from leonav_runtime.provenance import provenance
+
+    output.write_json(out_dir / "sky.json", {"provenance": provenance(), **summary})
     names = list(view.constellations)
     output.write_csv(
         out_dir / "visible_counts.csv",

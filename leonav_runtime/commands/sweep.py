@@ -5,7 +5,7 @@ import argparse
 
 from leonav_runtime import output
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import builtin_scenarios, check_run_size, load_scenario
+from leonav_runtime.scenario import MODES, builtin_scenarios, check_run_size, load_scenario
 
 
 def register(subparsers) -> None:
@@ -17,7 +17,8 @@ def register(subparsers) -> None:
             "GPS+LEO(alpha)+IMU, LEO(OFDM)+IMU, LEO(alpha+OFDM)+IMU, LEO(Doppler+alpha)+IMU) and every "
             "Starlink satellite count, run the generated C filter on simulated IMU, GPS pseudorange and "
             "Starlink measurements, and compare its RMSE with the posterior Cramer-Rao bound. Writes "
-            "metrics.json, rmse.csv, rmse_vs_time.csv and PNG figures. Without SCENARIO it runs the "
+            "report.html, metrics.json, rmse.csv, findings.csv, rmse_vs_time.csv and PNG figures; --modes, "
+            "--counts, --seed and --trials change the scenario without editing it. Without SCENARIO it runs the "
             "paper's setup (paper.toml) on the built-in constellations."
         ),
     )
@@ -25,6 +26,13 @@ def register(subparsers) -> None:
                    help=f"scenario TOML file or built-in name ({', '.join(builtin_scenarios())}); default paper")
     p.add_argument("--trials", type=int, default=None, metavar="N",
                    help="trials per (mode, count) (default: the scenario's [monte_carlo] trials)")
+    p.add_argument("--modes", nargs="+", default=None, metavar="MODE",
+                   help=f"fusion modes to run, comma- or space-separated (default: the scenario's); "
+                        f"any of {', '.join(MODES)}")
+    p.add_argument("--counts", nargs="+", default=None, metavar="N",
+                   help="Starlink satellite counts, e.g. 5,10,45 or 5:45:5 (default: the scenario's [starlink] counts)")
+    p.add_argument("--seed", type=int, default=None, metavar="N",
+                   help="master random seed (default: the scenario's [monte_carlo] seed)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="local worker processes (default: all cores; 1 runs in this process)")
     p.add_argument("--dask", default=None, metavar="ADDRESS",
@@ -41,12 +49,15 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError(f"--trials {args.trials}: expected an integer >= 1")
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"--workers {args.workers}: expected an integer >= 1")
-    scn = load_scenario(args.scenario)
+    from leonav_runtime.scenario_overrides import apply_overrides, parse_counts, split_list
+
+    scn, _changes = apply_overrides(load_scenario(args.scenario), modes=split_list(args.modes),
+                                    counts=parse_counts(args.counts), seed=args.seed)  # --trials: run_sweep
     check_run_size(scn, trials=args.trials, workers=1 if args.dask else args.workers)  # before any work
     out_dir = output.results_dir(args.out, f"sweep-{scn.name}")
     res = run_sweep(scn, out_dir, trials=args.trials, workers=args.workers, dask_address=args.dask,
                     progress=not args.no_progress)
     print(summary_table(scn, res))
-    print(f"\nresults: {out_dir}/ (metrics.json, rmse.csv, rmse_vs_time.csv, rmse_vs_count.png, "
-          "rmse_vs_time.png, trajectories.png, visibility.png)")
+    print(f"\nresults: {out_dir}/ (report.html, metrics.json, rmse.csv, findings.csv, rmse_vs_time.csv, "
+          "rmse_vs_count.png, rmse_vs_time.png, trajectories.png, visibility.png)")
     return 0

@@ -1,6 +1,6 @@
 """`leonav tle`: fetch element sets from CelesTrak, inspect an element file, write built-ins.
 
-    leonav tle fetch GROUP [--cache DIR] [--url-base URL] [--timeout S] [--max-mb MB] [--force]
+    leonav tle fetch GROUP [--format json|xml|tle] [--cache DIR] [--url-base URL] [--timeout S] [--max-mb MB] [--force]
     leonav tle info FILE [--epoch ISO-UTC] [--stale-days D] [--out DIR]
     leonav tle builtin {starlink,gps} [--epoch ISO-UTC] [--out DIR]
 """
@@ -22,7 +22,7 @@ def _parse_epoch(text: str | None) -> _dt.datetime:
     if text is None:
         return _dt.datetime.now(_dt.timezone.utc)
     try:
-        return parse_utc(text, "--epoch")
+        return parse_utc(text, "--epoch", require_zone=True)
     except OverflowError:  # e.g. year 1 with a positive UTC offset
         raise UserInputError(f"--epoch: {text!r} is out of the representable range; "
                              "expected e.g. 2026-02-23T12:00:00Z") from None
@@ -35,10 +35,12 @@ def _cmd_fetch(args: argparse.Namespace) -> int:
 
     if not (math.isfinite(args.max_mb) and args.max_mb > 0):
         raise UserInputError(f"--max-mb: {args.max_mb!r}: expected a positive number of megabytes")
+    from leonav_runtime.orbits.fetch import sidecar_path
+
     path = fetch_group(args.group, cache_dir=args.cache, url_base=args.url_base, timeout_s=args.timeout,
-                       max_bytes=max(1, int(args.max_mb * 1e6)), force=args.force)
-    meta = json.loads(path.with_suffix(".json").read_text())
-    print(f"{meta['count']} element sets of group {args.group!r} -> {path} "
+                       max_bytes=max(1, int(args.max_mb * 1e6)), force=args.force, fmt=args.format)
+    meta = json.loads(sidecar_path(path).read_text())
+    print(f"{meta['count']} element sets of group {meta['group']!r} ({args.format.upper()}) -> {path} "
           f"(epochs {meta['epoch_min_utc']} .. {meta['epoch_max_utc']}, {meta['rejected']} rejected)")
     for problem in meta.get("problems") or []:
         print(f"  accepted with --force despite: {problem}")
@@ -78,8 +80,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
         raise UserInputError(f"--stale-days: {args.stale_days!r}; expected a number of days >= 0")
     epoch = _parse_epoch(args.epoch)
     info = element_info(args.file, epoch, args.stale_days)
-    out = results_dir(args.out, "tle-info")
-    path = write_json(out / "tle_info.json", info)
+    path = write_json(results_dir(args.out, "tle-info") / "tle_info.json", info) if args.out else None
     age = info["age_days"]
     print(f"{info['file']}: {info['count']} {info['constellation']} element sets, epochs "
           f"{info['epoch_min_utc'].isoformat()} .. {info['epoch_max_utc'].isoformat()}")
@@ -88,7 +89,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
     print(f"  rejected: {info['rejected_count']}")
     for rej in info["rejected"][:10]:
         print(f"    line {rej['line']}: {rej['reason']}")
-    print(f"  -> {path}")
+    if path is not None:
+        print(f"  -> {path}")
     return 0
 
 
@@ -113,7 +115,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=lambda args: (parser.print_help(), 2)[1])
 
     fetch = actions.add_parser("fetch", help="download a CelesTrak group into the cache")
-    fetch.add_argument("group", metavar="GROUP", help="CelesTrak group, e.g. starlink, gps-ops")
+    fetch.add_argument("group", metavar="GROUP",
+                       help="group: starlink, gps (CelesTrak's gps-ops, also accepted) or another CelesTrak group")
+    fetch.add_argument("--format", choices=("json", "xml", "tle"), default="json",
+                       help="json (default) or xml: CCSDS OMM, no 5-digit catalogue-number limit; tle: "
+                            "TLE text (runs out of catalogue numbers). Cached as <group>.omm.json / .omm.xml / .tle")
     fetch.add_argument("--cache", metavar="DIR", default=None,
                        help="cache folder (default $XDG_CACHE_HOME/leonav/tle or ~/.cache/leonav/tle)")
     fetch.add_argument("--url-base", metavar="URL", default=None,
@@ -134,7 +140,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                       help="reference UTC time for ages (default: now), e.g. 2026-02-23T12:00:00Z")
     info.add_argument("--stale-days", metavar="D", type=float, default=3.0,
                       help="age beyond which elements count as stale, days (default 3)")
-    add_out_argument(info)
+    info.add_argument("--out", metavar="DIR", default=None,
+                      help="also write tle_info.json into DIR (default: print only, no files written)")
     info.set_defaults(func=_cmd_info)
 
     builtin = actions.add_parser("builtin", help="write a generated Walker constellation as 3LE text")

@@ -44,10 +44,10 @@ def plot_singular_values(runs: Sequence[dict], path, title: str = "") -> Path:
         ax.semilogy(run["t_s"], sv, lw=1)
         ax.axhline(1.0, color="k", ls="--", lw=0.8)
         ax.set_title(f"{run['mode']} (rank {int(run['rank'][-1])}/{sv.shape[1]} at the end)", fontsize=9)
-        ax.set_xlabel("time since start (s)")
+        ax.set_xlabel("time since start [s]")
         ax.grid(True, which="both", alpha=0.3)
     for ax in axes[:, 0]:
-        ax.set_ylabel("singular value (prior units)")
+        ax.set_ylabel("singular value [prior units]")
     if lows:
         axes[0, 0].set_ylim(bottom=max(min(lows) / 3, 1e-30))
     for ax in list(axes.flat)[len(runs):]:
@@ -78,7 +78,7 @@ def plot_index(mode: str, components: Sequence[str], by_motion: Mapping[str, np.
     ax.set_xticks(x)
     ax.set_xticklabels(components, rotation=60, ha="right", fontsize=8)
     ax.set_ylim(0, 1.05)
-    ax.set_ylabel("index: 1 - posterior/prior variance")
+    ax.set_ylabel("index: 1 - posterior/prior variance [-]")
     ax.set_title(f"{mode}: observability index per state (0 = no information)", fontsize=10)
     ax.legend(fontsize=7, ncol=min(len(series), 5))
     ax.grid(True, axis="y", alpha=0.3)

@@ -15,7 +15,6 @@ counted (see `omm`).
 from __future__ import annotations
 
 import datetime as _dt
-import logging
 import os
 import warnings
 from dataclasses import dataclass, field
@@ -31,7 +30,6 @@ from leonav_runtime.orbits import tle as _tle
 from leonav_runtime.orbits.element_checks import (DEFAULT_MAX_ELEMENT_MB, MAX_ELEMENT_MB_ENV,  # noqa: F401
                                                   _check_finite, _too_large, max_element_bytes)
 
-log = logging.getLogger("leonav.orbits")
 
 DEFAULT_STALE_AFTER_DAYS = 3.0
 _NAME_CHARS = 80  # names are at most 24 characters in a 3LE; longer text is cut in reports
@@ -251,7 +249,6 @@ def _parse_tle_text(text: str, source: str, strict_checksum: bool = True
     if checksum_only:
         message = (f"{source}: {len(checksum_only)} entries loaded despite a bad checksum "
                    f"(strict_checksum=False), lines {', '.join(map(str, checksum_only))}")
-        log.warning(message)
         warnings.warn(message, RejectedElementsWarning, stacklevel=4)
     return entries, rejected
 
@@ -313,7 +310,6 @@ def parse_elements_text(
         lines = ", ".join(str(r.line) for r in rejected[:20]) + (" ..." if len(rejected) > 20 else "")
         message = (f"{source}: rejected {len(rejected)} of {len(rejected) + len(entries)} entries "
                    f"(lines {lines}); first: {rejected[0].reason}")
-        log.warning(message)
         warnings.warn(message, RejectedElementsWarning, stacklevel=3)
     names = [e[0] for e in entries]
     if constellation is not None and constellation not in CONSTELLATIONS:

@@ -1,9 +1,12 @@
 """Download current element sets from CelesTrak into a local cache.
 
 `fetch_group("starlink")` GETs
-`https://celestrak.org/NORAD/elements/gp.php?GROUP=starlink&FORMAT=tle` and writes
-`<cache>/<group>.tle` and a JSON sidecar `<cache>/<group>.json` with the download time
-(UTC), URL and count. The cache is `$XDG_CACHE_HOME/leonav/tle`, else
+`https://celestrak.org/NORAD/elements/gp.php?GROUP=starlink&FORMAT=json` (OMM JSON: no
+5-digit catalogue-number limit, which TLE text runs out of) and writes
+`<cache>/<name>.omm.json` and a sidecar `<cache>/<name>.omm.json.meta.json` with the
+download time (UTC), URL and count. `fmt="tle"` / `"xml"` fetch TLE text (`<name>.tle`) or
+OMM XML (`<name>.omm.xml`) instead. `<name>` is leonav's name of the group: `gps` (the
+built-in constellation's name) is CelesTrak's `gps-ops`, which is accepted as well. The cache is `$XDG_CACHE_HOME/leonav/tle`, else
 `~/.cache/leonav/tle`. CelesTrak asks users not to download the same group more than
 once per update (about every 2 h); reuse the cached file.
 
@@ -27,6 +30,7 @@ import datetime as _dt
 import errno as _errno
 import http.client
 import json
+import logging
 import math
 import os
 import re
@@ -43,8 +47,14 @@ from leonav_runtime import __version__
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.orbits.elements import load_elements, parse_elements_text
 
+log = logging.getLogger("leonav.orbits.fetch")
+
 CELESTRAK_URL_BASE = "https://celestrak.org/NORAD/elements/gp.php"
-KNOWN_GROUPS = ("starlink", "gps-ops", "gnss", "oneweb", "iridium-NEXT", "stations", "active")
+KNOWN_GROUPS = ("starlink", "gps", "gnss", "oneweb", "iridium-NEXT", "stations", "active")
+CELESTRAK_GROUP = {"gps": "gps-ops"}   # leonav name -> CelesTrak GROUP
+ALIASES = {"gps-ops": "gps"}           # accepted spellings -> leonav name
+FORMATS = {"tle": ".tle", "json": ".omm.json", "xml": ".omm.xml"}  # FORMAT= value -> cache suffix
+DEFAULT_FORMAT = "json"
 _GROUP_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 DEFAULT_TIMEOUT_S = 60.0
@@ -65,9 +75,20 @@ def default_cache_dir() -> Path:
     return Path(root) / "leonav" / "tle"
 
 
-def group_url(group: str, url_base: str | None = None) -> str:
-    """The GP query URL of a CelesTrak group in TLE format."""
-    query = urllib.parse.urlencode({"GROUP": group, "FORMAT": "tle"})
+def canonical_group(group: str) -> str:
+    """leonav's name of a group (`gps-ops` -> `gps`); other names unchanged."""
+    return ALIASES.get(group, group)
+
+
+def sidecar_path(path: Path) -> Path:
+    """The JSON sidecar (download time, URL, count) of a cached element file."""
+    return path.with_name(path.name + ".meta.json")
+
+
+def group_url(group: str, url_base: str | None = None, fmt: str = DEFAULT_FORMAT) -> str:
+    """The GP query URL of a group (leonav or CelesTrak name) in format `fmt` (tle/json/xml)."""
+    name = canonical_group(group)
+    query = urllib.parse.urlencode({"GROUP": CELESTRAK_GROUP.get(name, name), "FORMAT": fmt})
     return f"{url_base or CELESTRAK_URL_BASE}?{query}"
 
 
@@ -236,8 +257,10 @@ def fetch_group(
     timeout_s: float = DEFAULT_TIMEOUT_S,
     max_bytes: int = DEFAULT_MAX_BYTES,
     force: bool = False,
+    fmt: str = DEFAULT_FORMAT,
 ) -> Path:
-    """Download a CelesTrak group (e.g. 'starlink', 'gps-ops') and return the cached TLE path.
+    """Download a CelesTrak group (e.g. 'starlink', 'gps') in `fmt` ('json' OMM by default,
+    'xml' OMM, 'tle') and return the cached file's path.
 
     Raises FetchError (a UserInputError) when the server cannot be reached, answers with
     an HTTP error, is slower than `timeout_s` in total, sends more than `max_bytes`, or
@@ -248,14 +271,26 @@ def fetch_group(
     if not _GROUP_NAME.match(group):
         raise UserInputError(f"group {group!r}: expected a CelesTrak group name such as "
                              f"{', '.join(KNOWN_GROUPS[:3])}")
+    if fmt not in FORMATS:
+        raise UserInputError(f"--format {fmt!r}: expected one of {', '.join(FORMATS)}")
     _check_limits(timeout_s, max_bytes)
     if url_base is not None:
         _check_url(url_base, "--url-base")
-    url = group_url(group, url_base)
+    name = canonical_group(group)
+    url = group_url(name, url_base, fmt)
+    log.info("GET %s (deadline %g s, at most %d bytes)", url, timeout_s, max_bytes)
     body = _download(url, float(timeout_s), max_bytes)
+    log.info("received %d bytes", len(body))
     downloaded = _dt.datetime.now(_dt.timezone.utc)
 
     text = body.decode("utf-8", errors="replace")
+    from leonav_runtime.orbits.omm import detect_omm_format
+
+    got = detect_omm_format(text) or "tle"
+    if text.strip() and got != fmt:
+        first = text.strip().splitlines()[0][:80]
+        raise FetchError(f"{url}: reply is {got.upper()} data where {fmt.upper()} was asked "
+                         f"(first line {first!r}); the cache is unchanged")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # rejections are judged below
@@ -265,7 +300,7 @@ def fetch_group(
         raise FetchError(f"{url}: reply is not element data (first line {first!r}): {exc}") from None
 
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    path = cache / f"{group}.tle"
+    path = cache / f"{name}{FORMATS[fmt]}"
     previous = _cached_count(path)
     problems = []
     if elements.rejected:
@@ -280,7 +315,8 @@ def fetch_group(
 
     epochs = sorted(elements.epochs_utc)
     sidecar = {
-        "group": group,
+        "group": name,
+        "format": fmt,
         "url": url,
         "downloaded_utc": downloaded.isoformat(),
         "count": len(elements),
@@ -296,7 +332,7 @@ def fetch_group(
     try:
         cache.mkdir(parents=True, exist_ok=True)
         _write_atomic(path, body)
-        _write_atomic(path.with_suffix(".json"), (json.dumps(sidecar, indent=2) + "\n").encode())
+        _write_atomic(sidecar_path(path), (json.dumps(sidecar, indent=2) + "\n").encode())
     except OSError as exc:
         where = cache if not cache.is_dir() else path
         raise _cache_error(exc, where) from None

@@ -137,7 +137,7 @@ def warn_if_stale(elements: ElementSet, epoch_utc: _dt.datetime, t_s: np.ndarray
             f"element epoch {elements.epochs_utc[k].isoformat()}); stale elements dominate the "
             "LEO Doppler error, fetch fresh ones (`leonav tle fetch`)"
         )
-        log.warning(message)
+        # one channel only: a warning (the CLI prints it once, as one line without a source path)
         warnings.warn(message, StaleElementsWarning, stacklevel=3)
 
 

@@ -8,42 +8,44 @@ import numpy as np
 
 
 def _pyplot():
-    import matplotlib
+    from leonav_runtime import plot_style
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return plot_style.pyplot()
 
 
 def plot_rmse_vs_time(path: Path, scored: dict, metrics: dict, layout) -> None:
     plt = _pyplot()
     L = layout
-    fig, axes = plt.subplots(3, 1, figsize=(9, 8.5), sharex=True)
+    from leonav_runtime import plot_style as ps
+
+    fig, axes = plt.subplots(3, 1, figsize=(ps.COLUMN_WIDTH_IN, 6.4), sharex=True)
+    styles = ps.series_styles(list(scored))
     blocks = (("position", L.DX_DP_SLICE, 1.0, "m"), ("velocity", L.DX_DV_SLICE, 1.0, "m/s"),
               ("attitude", L.DX_DTHETA_SLICE, 180 / math.pi, "deg"))
     for ax, (name, sl, scale, unit) in zip(axes, blocks):
         for mode, s in scored.items():
             e = np.sqrt(np.sum(s["err"][:, sl] ** 2, axis=1)) * scale
             if np.any(np.isfinite(e)):
-                ax.plot(s["t"], e, label=mode)
-        ax.set_ylabel(f"{name} error ({unit})")
-        ax.grid(True, alpha=0.3)
-    if axes[0].get_legend_handles_labels()[0]:
-        axes[0].legend(fontsize=8)
-    axes[-1].set_xlabel("time since the first IMU sample (s)")
+                ax.plot(s["t"], e, label=mode, color=styles[mode]["color"], linestyle=styles[mode]["linestyle"])
+        ax.set_ylabel(f"{name} error [{unit}]")
+    axes[-1].set_xlabel("time since the first IMU sample [s]")
     ref = metrics.get("reference") or "none"
-    fig.suptitle(f"Replay of {Path(metrics['session']).name}: error vs time (reference: {ref})", fontsize=10)
+    fig.suptitle(f"Replay of {Path(metrics['session']).name}: error vs time\n(reference: {ref})")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    handles, labels = axes[0].get_legend_handles_labels()
+    if handles:
+        ps.legend_below(fig, handles, labels, ncol=2, bottom=-0.06)
+    ps.save(fig, path)
 
 
 def plot_trajectories(path: Path, scored: dict, ref, inputs, layout) -> None:
+    from leonav_runtime import plot_style as ps
+
     plt = _pyplot()
-    fig = plt.figure(figsize=(13, 5.5))
-    ax2 = fig.add_subplot(1, 2, 1)
-    ax3 = fig.add_subplot(1, 2, 2, projection="3d")
+    fig = plt.figure(figsize=(ps.COLUMN_WIDTH_IN, 6.6))
+    ax2 = fig.add_subplot(2, 1, 1)
+    ax3 = fig.add_subplot(2, 1, 2, projection="3d")
+    styles = ps.series_styles(list(scored))
     if ref is not None:
         p = ref.p_enu_m
         if ref.rpy_rad is None:
@@ -57,17 +59,25 @@ def plot_trajectories(path: Path, scored: dict, ref, inputs, layout) -> None:
         ax2.scatter(inputs.fixes.p_enu_m[:, 0], inputs.fixes.p_enu_m[:, 1], s=5, color="0.7", label="GNSS fixes")
     for mode, s in scored.items():
         p = s["x"][:, layout.X_P_ENU_SLICE]
-        ax2.plot(p[:, 0], p[:, 1], lw=1.2, label=mode)
-        ax3.plot(p[:, 0], p[:, 1], p[:, 2], lw=1.2)
-    ax2.set_xlabel("East (m)")
-    ax2.set_ylabel("North (m)")
+        st = styles[mode]
+        # the path starts after the first filter step: the jump from the initial estimate
+        # to the first corrected state is not motion, it is shown as the hollow marker
+        ax2.plot(p[1:, 0], p[1:, 1], lw=1.0, label=mode, color=st["color"], linestyle=st["linestyle"])
+        ax2.plot(p[0, 0], p[0, 1], marker=st["marker"], mfc="none", color=st["color"], ms=6, linestyle="")
+        ax3.plot(p[1:, 0], p[1:, 1], p[1:, 2], lw=1.0, color=st["color"], linestyle=st["linestyle"])
+    if scored:
+        first = next(iter(scored.values()))["x"][1:, layout.X_P_ENU_SLICE]
+        if first.shape[0]:
+            ax2.plot(first[0, 0], first[0, 1], "k^", ms=6, label="start (first filter step)", zorder=6)
+    ax2.plot([], [], marker="o", mfc="none", color="0.3", linestyle="", label="initial estimate")
+    ax2.set_xlabel("East [m]")
+    ax2.set_ylabel("North [m]")
     ax2.axis("equal")
-    ax2.grid(True, alpha=0.3)
-    ax2.legend(fontsize=8)
-    ax3.set_xlabel("East (m)")
-    ax3.set_ylabel("North (m)")
-    ax3.set_zlabel("Up (m)")
-    fig.suptitle("2D and 3D trajectories (ENU at the origin)", fontsize=10)
+    ax3.set_xlabel("East [m]")
+    ax3.set_ylabel("North [m]")
+    ax3.set_zlabel("Up [m]")
+    fig.suptitle("2D and 3D trajectories (ENU at the origin)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    handles, labels = ax2.get_legend_handles_labels()
+    ps.legend_below(fig, handles, labels, ncol=2, bottom=-0.13)
+    ps.save(fig, path)

@@ -34,6 +34,9 @@ def write_outputs(out_dir: Path, inputs: FilterInputs, scored: dict, metrics: di
                   nav: navfuncs.NavFunctions) -> None:
     """metrics.json, rmse_vs_time.csv, trajectory.csv, columns.txt, rmse_vs_time.png, trajectories.png."""
     L = nav.layout
+    from leonav_runtime.provenance import provenance
+
+    metrics = {"provenance": provenance(), **metrics}
     write_json(out_dir / "metrics.json", metrics)
     rows, traj = [], []
     for mode, s in scored.items():
@@ -50,6 +53,9 @@ def write_outputs(out_dir: Path, inputs: FilterInputs, scored: dict, metrics: di
     (out_dir / "columns.txt").write_text(COLUMNS_TEXT)
     plot_rmse_vs_time(out_dir / "rmse_vs_time.png", scored, metrics, L)
     plot_trajectories(out_dir / "trajectories.png", scored, ref, inputs, L)
+    from leonav_runtime import html_report
+
+    html_report.write_replay_report(out_dir, metrics)
 
 
 def write_geodetic_trajectories(out_dir: Path, inputs: FilterInputs, runs: dict, layout, rate_hz: float = 10.0,

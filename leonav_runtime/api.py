@@ -1,0 +1,129 @@
+"""The Python API behind `import leonav`: load a scenario, run a sweep or a replay in
+memory and get plain dicts and NumPy arrays whose key names carry their units
+(`position_rmse_m`, `attitude_rmse_deg`, `t_s`). Nothing is written unless `out_dir` is
+given; then the same results folder as the command line (with report.html) is written.
+
+    import leonav
+    scn = leonav.load_scenario("paper", counts=[5, 45], modes=["gps+imu", "leo-alpha+imu"])
+    res = leonav.run_sweep(scn, trials=10)
+    res["position_rmse_m"]          # (modes, counts) array, metres
+"""
+from __future__ import annotations
+
+import csv
+import math
+import tempfile
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from leonav_runtime.scenario import MODES, Scenario
+from leonav_runtime.scenario import load_scenario as _load_scenario
+
+__all__ = ["MODES", "Scenario", "load_scenario", "run_sweep", "run_replay"]
+
+# block -> (key prefix, unit suffix, scale from the SI value in the summaries)
+_BLOCKS = {"position": ("position", "m", 1.0), "velocity": ("velocity", "mps", 1.0),
+           "attitude": ("attitude", "deg", 180.0 / math.pi)}
+
+
+def load_scenario(name_or_path: str | Path = "paper", *, modes: Sequence[str] | None = None,
+                  counts: Sequence[int] | None = None, seed: int | None = None,
+                  trials: int | None = None) -> Scenario:
+    """A built-in scenario by name (`paper`, `maritime-outage`) or a TOML file, with optional
+    changes validated like the file's values (modes, Starlink counts, seed, trials)."""
+    from leonav_runtime.scenario_overrides import apply_overrides
+
+    scn, _ = apply_overrides(_load_scenario(name_or_path), modes=modes, counts=counts, seed=seed, trials=trials)
+    return scn
+
+
+def sweep_arrays(res) -> dict[str, Any]:
+    """A `sweep.SweepResult` as plain dicts and arrays with units in the key names."""
+    scn = res.scenario
+    modes, counts = list(scn.modes), list(scn.starlink["counts"])
+    out: dict[str, Any] = {"scenario": scn.name, "modes": modes, "counts": counts, "trials": scn.trials,
+                           "t_s": np.asarray(res.t_eval, float)}
+    table, curves = [], {}
+    for block, (name, unit, k) in _BLOCKS.items():
+        for kind, src in (("rmse", "rmse"), ("sqrt_pcrb", "pcrb"), ("final_rmse", "final_rmse"),
+                          ("final_sqrt_pcrb", "final_pcrb")):
+            out[f"{name}_{kind}_{unit}"] = np.array([[k * res.summaries[(m, c)][block][src] for c in counts]
+                                                     for m in modes])
+    out["nees_mean"] = np.array([[res.summaries[(m, c)]["nees"]["mean"] for c in counts] for m in modes])
+    for m in modes:
+        for c in counts:
+            s = res.summaries[(m, c)]
+            row = {"mode": m, "count": c, "trials": s["trials"], "gated": s["gated"], "failed": s["failed"],
+                   "nees_mean": s["nees"]["mean"]}
+            curve = {}
+            for block, (name, unit, k) in _BLOCKS.items():
+                b = s[block]
+                row.update({f"{name}_rmse_{unit}": k * b["rmse"], f"{name}_sqrt_pcrb_{unit}": k * b["pcrb"],
+                            f"{name}_final_rmse_{unit}": k * b["final_rmse"],
+                            f"{name}_final_sqrt_pcrb_{unit}": k * b["final_pcrb"], f"{name}_ratio": b["ratio"]})
+                curve[f"{name}_rmse_{unit}"] = k * np.asarray(b["rmse_t"])
+                curve[f"{name}_sqrt_pcrb_{unit}"] = k * np.asarray(b["pcrb_t"])
+            table.append(row)
+            curves[(m, c)] = curve
+    out.update({"table": table, "curves": curves, "findings": res.findings, "timing": res.timing,
+                "truth_p_enu_m": np.asarray(res.truth_p_enu), "trial0_p_enu_m": dict(res.trajectories),
+                "notes": list(res.notes)})
+    return out
+
+
+def run_sweep(scenario: Scenario | str | Path = "paper", *, trials: int | None = None, workers: int | None = 1,
+              out_dir: str | Path | None = None, progress: bool = False, figures: bool = True) -> dict[str, Any]:
+    """Run the scenario's Monte Carlo sweep and return `sweep_arrays` of it.
+
+    `scenario`: a `Scenario` (see `load_scenario`) or its name/path. `workers`: local
+    processes (1: this process, None: all cores). `out_dir`: also write the results folder
+    (metrics.json, CSVs, figures unless `figures=False`, report.html); the dict then has it
+    under `out_dir`. The raw `SweepResult` is under `result`.
+    """
+    from leonav_runtime import sweep
+
+    scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    res = sweep.run_sweep(scn, None, trials=trials, workers=workers, progress=progress, figures=figures)
+    if out_dir is not None:
+        from leonav_runtime import sweep_report
+
+        sweep_report.write_results(res.scenario, Path(out_dir), res, figures=figures)
+    out = sweep_arrays(res)
+    out.update({"out_dir": None if out_dir is None else Path(out_dir), "result": res})
+    return out
+
+
+def _read_columns(path: Path) -> dict[str, dict[str, np.ndarray]]:
+    """{mode: {column: array}} of a replay CSV (t_s, mode, numeric columns with units)."""
+    by_mode: dict[str, dict[str, list]] = {}
+    with open(path, newline="") as fh:
+        for row in csv.DictReader(fh):
+            cols = by_mode.setdefault(row.pop("mode"), {})
+            for key, value in row.items():
+                cols.setdefault(key, []).append(float(value) if value not in ("", None) else math.nan)
+    return {m: {k: np.asarray(v, float) for k, v in cols.items()} for m, cols in by_mode.items()}
+
+
+def run_replay(session: str | Path, *, out_dir: str | Path | None = None, tle: Sequence[str | Path] = (),
+               modes: Sequence[str] | None = None, **options: Any) -> dict[str, Any]:
+    """Replay a recorded session (`leonav record` / `leonav session synth` folder).
+
+    Returns {"metrics": the metrics.json content, "errors": {mode: {t_s, position_error_m, ...}},
+    "trajectory": {mode: {t_s, p_e_m, ..., yaw_deg}}, "out_dir"}. `tle`: element files of the
+    capture's day (default: the built-in Walker constellation, right for synthetic sessions);
+    `options`: further `replay.ReplayOptions` fields (origin_deg, yaw_deg, gnss_latency_s, ...).
+    Without `out_dir` the files go to a temporary folder that is removed.
+    """
+    from leonav_runtime import replay
+    from leonav_runtime.orbits.elements import load_element_files
+
+    opts = replay.ReplayOptions(**({"modes": tuple(modes)} if modes else {}), **options)
+    elements = load_element_files([str(p) for p in tle]) if tle else None
+    with tempfile.TemporaryDirectory(prefix="leonav-replay-") as tmp:
+        folder = Path(out_dir) if out_dir is not None else Path(tmp)
+        metrics = replay.replay_session(session, folder, opts, elements=elements)
+        return {"metrics": metrics, "errors": _read_columns(folder / "rmse_vs_time.csv"),
+                "trajectory": _read_columns(folder / "trajectory.csv"),
+                "out_dir": None if out_dir is None else folder}
