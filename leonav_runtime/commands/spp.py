@@ -38,18 +38,10 @@ def _is_rinex(path: Path) -> bool:
 
 
 def _load_navs(paths: list[str]):
-    """(ephemerides, Klobuchar coefficients or None, sources) of RINEX navigation files."""
-    from leonav_runtime.gnss.ephemeris import Ephemerides
-    from leonav_runtime.gnss.rinex_nav import read_rinex_nav
-    from leonav_runtime.gnss.signals import klobuchar_coefficients
+    """(ephemerides, Klobuchar coefficients or None) of RINEX navigation files."""
+    from leonav_runtime.gnss.signals import load_nav_files
 
-    eph, klob = Ephemerides.empty(), None
-    for p in paths:
-        nf = read_rinex_nav(p)
-        eph = eph.concat(nf.ephemerides)
-        if klob is None:
-            klob = klobuchar_coefficients(nf.iono)
-    return eph.deduplicate(), klob
+    return load_nav_files(paths)
 
 
 def _check(args) -> None:

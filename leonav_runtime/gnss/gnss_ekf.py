@@ -66,14 +66,21 @@ class EkfSolution:
     params: np.ndarray
 
 
+def filter_rows(spp: SppResult) -> np.ndarray:
+    """Rows of a single-point result that a filter is given: above the masks at the single-point
+    state with a variance, used or RAIM-excluded or of an unsolved epoch (the filter's NIS gate
+    decides on them)."""
+    keep = (spp.epoch_index >= 0) & np.isin(spp.row_status, (0, RAIM_EXCLUDED, EPOCH_UNSOLVED)) \
+        & np.isfinite(spp.sigma_m)
+    keep &= spp.el_rad >= 0.0  # below-mask rows already carry their own status
+    return np.flatnonzero(keep)
+
+
 def build_records(spp: SppResult, *, use_range_rate: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """(records, epoch index per record) of the GNSS-only run; times in s since the first epoch."""
     rows = spp.rows
     t0 = spp.t_gps_s[0]
-    keep = (spp.epoch_index >= 0) & np.isin(spp.row_status, (0, RAIM_EXCLUDED, EPOCH_UNSOLVED)) \
-        & np.isfinite(spp.sigma_m)
-    keep &= spp.el_rad >= 0.0  # below-mask rows already carry their own status
-    idx = np.flatnonzero(keep)
+    idx = filter_rows(spp)
     kind_pr = L.MEAS_GNSS_PSEUDORANGE
     parts, epochs = [], []
     t_ep = spp.t_gps_s - t0
@@ -81,7 +88,7 @@ def build_records(spp: SppResult, *, use_range_rate: bool = True) -> tuple[np.nd
     parts.append(cv)
     epochs.append(np.arange(1, t_ep.size))
     pr = records.measurement_records(rows.t_gps_s[idx] - t0, kind_pr, rows.pseudorange_m[idx], spp.sigma_m[idx] ** 2,
-                                     rows.aux[idx], sat_id=_sat_ids(rows, idx))
+                                     rows.aux[idx], sat_id=sat_ids(rows, idx))
     parts.append(pr)
     epochs.append(spp.epoch_index[idx])
     if use_range_rate:
@@ -89,7 +96,7 @@ def build_records(spp: SppResult, *, use_range_rate: bool = True) -> tuple[np.nd
         if rr.size:
             parts.append(records.measurement_records(rows.t_gps_s[rr] - t0, L.MEAS_GNSS_RANGE_RATE,
                                                      rows.range_rate_mps[rr], K.RANGE_RATE_SIGMA_MPS**2,
-                                                     rows.aux[rr], sat_id=_sat_ids(rows, rr)))
+                                                     rows.aux[rr], sat_id=sat_ids(rows, rr)))
             epochs.append(spp.epoch_index[rr])
     recs = np.concatenate(parts)
     ep = np.concatenate(epochs)
@@ -98,7 +105,7 @@ def build_records(spp: SppResult, *, use_range_rate: bool = True) -> tuple[np.nd
     return recs[order], ep[order]
 
 
-def _sat_ids(rows, idx) -> np.ndarray:
+def sat_ids(rows, idx) -> np.ndarray:
     """sat_id of a record: ord(system letter) * 1000 + PRN (e.g. G07 -> 71007)."""
     return np.array([ord(s) * 1000 + int(p) for s, p in zip(rows.system[idx], rows.prn[idx])], dtype=np.int32)
 

@@ -64,6 +64,20 @@ def klobuchar_coefficients(iono: dict | None) -> np.ndarray | None:
     return c if c.size == 8 and np.all(np.isfinite(c)) and np.any(c != 0.0) else None
 
 
+def load_nav_files(paths) -> tuple[Ephemerides, np.ndarray | None]:
+    """(ephemerides, Klobuchar coefficients of the first file that has them, or None) of RINEX
+    navigation files."""
+    from leonav_runtime.gnss.rinex_nav import read_rinex_nav
+
+    eph, klob = Ephemerides.empty(), None
+    for p in paths:
+        nf = read_rinex_nav(p)
+        eph = eph.concat(nf.ephemerides)
+        if klob is None:
+            klob = klobuchar_coefficients(nf.iono)
+    return eph.deduplicate(), klob
+
+
 def ura_m(eph_rows: np.ndarray) -> np.ndarray:
     """User range accuracy (m) of ephemeris rows as the error model uses it: GPS/QZSS the upper
     bound of the URA class (IS-GPS-200 20.3.3.3.1.3; 8192 m for index 15), Galileo SISA and
