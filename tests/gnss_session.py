@@ -60,11 +60,12 @@ def sfrbx_frames(eph_rows, klobuchar=None, tow_count: int = 100) -> bytes:
 
 def write_rawx_session(folder: Path, t_gps_s, prn, pseudorange_m, doppler_hz, cn0_dbhz, eph_rows, site_ecef_m,
                        *, klobuchar=None, imu_rate_hz: float = 2.0, lead_s: float = 1.0, seed: int = 0,
-                       nmea: bool = False, sdr: bool = False, nav=None):
+                       nmea: bool = False, sdr: bool = False, elements=None, nav=None):
     """A session of a static receiver at `site_ecef_m` (module doc). Per-row arrays: reception
     GPS time (s), PRN, pseudorange (m), Doppler (Hz, NaN none), C/N0 (dB-Hz, NaN unknown);
     klobuchar: coefficients sent in a page 18; nmea: also the NMEA fixes of `session_synth`
-    (truth plus noise) at the IMU rate; sdr: also its Starlink beacon capture.
+    (truth plus noise) at 1 Hz; sdr: also its Starlink beacon capture (of `elements`, default
+    the built-in Walker set at the start).
     Returns (SyntheticSession, epoch_utc)."""
     t_gps_s = np.asarray(t_gps_s, float)
     epochs = np.unique(t_gps_s)
@@ -81,8 +82,9 @@ def write_rawx_session(folder: Path, t_gps_s, prn, pseudorange_m, doppler_hz, cn
     cfg = SynthSessionConfig(seconds=seconds, seed=seed, epoch_utc=epoch_utc, lat_deg=math.degrees(lat),
                              lon_deg=math.degrees(lon), alt_m=h, imu_rate_hz=imu_rate_hz,
                              gnss_rate_hz=1.0 if nmea else imu_rate_hz,
-                             gnss_start_s=0.0 if nmea else seconds + 10.0, sdr=sdr, gnss_baud=115200)
-    return write_synthetic_session(folder, cfg, nav=nav, extra_gnss=extra), epoch_utc
+                             gnss_start_s=0.0 if nmea else seconds + 10.0, sdr=sdr, sdr_rate_hz=200e3,
+                             gnss_baud=115200)
+    return write_synthetic_session(folder, cfg, elements, nav=nav, extra_gnss=extra), epoch_utc
 
 
 def simulated_pseudoranges(obs, eph, klobuchar, r_ecef_m, clock_m, clock_drift_mps, rng, nav):

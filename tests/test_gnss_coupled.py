@@ -11,7 +11,7 @@ Reference: rnx2rtkp's single-point positions with the same atmosphere models
 tens of metres), so the filter's positions are single-point-like: they are compared epoch by
 epoch with a bound of the single-point scatter, and their mean with a tight one.
 
-Simulated: a 20-s session at the 0759 site with pseudoranges and Doppler made by the
+Simulated: a 10-s session at the 0759 site with pseudoranges and Doppler made by the
 generated models at the true position and clock plus white noise of the error model's sigma
 (1 Hz), NMEA fixes and a Starlink beacon capture; scored against truth.csv.
 """
@@ -203,26 +203,26 @@ def _one_hz_observations(obs, seconds: int):
 
 
 def test_simulated_session_with_truth_pseudorange_and_beacons(tmp_path):
-    """20 s, truth known: both tightly coupled modes near the truth, NIS of the pseudoranges
+    """10 s, truth known: both tightly coupled modes near the truth, NIS of the pseudoranges
     (whose noise has the error model's sigma) in the chi-square band, beacons applied."""
     nav = nav_funcs()
     obs, eph, klob = geonet("0759")
-    o = _one_hz_observations(obs, 19)
+    o = _one_hz_observations(obs, 10)
     site = obs.approx_position_ecef_m
     rng = np.random.default_rng(3)
     sim, _sigma = simulated_pseudoranges(o, eph, klob, site, -7.7e4, 418.0, rng, nav)
     folder = tmp_path / "s"
-    write_rawx_session(folder, sim.t_gps_s, sim.prn, sim.pseudorange_m, sim.doppler_hz, sim.cn0_dbhz, eph.data,
-                       site, klobuchar=klob, imu_rate_hz=10.0, nmea=True, sdr=True, nav=nav)
+    synth, _ = write_rawx_session(folder, sim.t_gps_s, sim.prn, sim.pseudorange_m, sim.doppler_hz, sim.cn0_dbhz,
+                                  eph.data, site, klobuchar=klob, imu_rate_hz=10.0, nmea=True, sdr=True, nav=nav)
     options = replay.ReplayOptions(modes=("pseudorange+imu", "pseudorange+leo-alpha+imu", "fix+imu"))
-    m = replay.replay_session(folder, tmp_path / "out", options, nav=nav)
+    m = replay.replay_session(folder, tmp_path / "out", options, elements=synth.elements, nav=nav)
     assert m["reference"] == "truth.csv" and m["skipped_modes"] == {}
     pr, prl = m["modes"]["pseudorange+imu"], m["modes"]["pseudorange+leo-alpha+imu"]
     print({k: (v["rmse_position_m"], v["records"]) for k, v in m["modes"].items()})
     per = pr["per_observable"]
     print(per)
     n = per["gnss_pseudorange"]["applied"]
-    assert n >= 100 and per["gnss_range_rate"]["applied"] >= 100
+    assert n >= 60 and per["gnss_range_rate"]["applied"] >= 60
     band = 3.0 * np.sqrt(2.0 / n)
     assert abs(per["gnss_pseudorange"]["nis_mean"] - 1.0) <= band
     assert pr["records"]["failed"] == 0 and prl["per_observable"]["doppler_rate"]["applied"] > 0

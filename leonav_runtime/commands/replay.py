@@ -51,9 +51,9 @@ def register(subparsers) -> None:
 
 
 def _modes():
-    from leonav_runtime.replay.options import DEFAULT_MODES, MODES
+    from leonav_runtime.replay.options import ALL_MODES, MODES
 
-    return DEFAULT_MODES, MODES
+    return MODES, ALL_MODES
 
 
 def _fmt(v, scale=1.0, digits=2) -> str:

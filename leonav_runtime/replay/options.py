@@ -19,9 +19,10 @@ from leonav_runtime.errors import UserInputError
 from leonav_runtime.gen.constants import GNSS_MASK_DEG
 from leonav_runtime.inputs import COUPLED_MODE_STREAMS
 
-DEFAULT_MODES = ("fix+imu", "leo-alpha+imu", "fix+leo-alpha+imu")
+MODES = ("fix+imu", "leo-alpha+imu", "fix+leo-alpha+imu")
+"""The modes a replay runs by default."""
 PSEUDORANGE_MODES = tuple(COUPLED_MODE_STREAMS)
-MODES = DEFAULT_MODES + PSEUDORANGE_MODES
+ALL_MODES = MODES + PSEUDORANGE_MODES
 MODE_STREAMS = {"fix+imu": ("fix",), "leo-alpha+imu": ("doppler_rate",), "fix+leo-alpha+imu": ("fix", "doppler_rate"),
                 **COUPLED_MODE_STREAMS}
 """Record streams (`inputs.STREAMS`) each mode merges with the IMU records."""
@@ -32,7 +33,7 @@ DOPPLER_RATE_SIGMA_FLOOR_HZ_S = 0.5   # the fit sigma can be optimistic for shor
 
 @dataclasses.dataclass
 class ReplayOptions:
-    modes: tuple[str, ...] = DEFAULT_MODES
+    modes: tuple[str, ...] = MODES
     origin_deg: tuple[float, float, float] | None = None   # lat deg, lon deg, ellipsoidal height m
     yaw_deg: float | None = None                           # initial heading, from East towards North
     doppler_rate_sigma_floor_hz_s: float = DOPPLER_RATE_SIGMA_FLOOR_HZ_S
@@ -59,9 +60,9 @@ def canonical_modes(modes) -> tuple[tuple[str, ...], list[str]]:
 def check_options(options: ReplayOptions) -> ReplayOptions:
     """The options with canonical mode names, or a UserInputError naming the bad one."""
     modes, _ = canonical_modes(options.modes)
-    bad = [m for m in modes if m not in MODES]
+    bad = [m for m in modes if m not in ALL_MODES]
     if bad:
-        raise UserInputError(f"--modes: {bad[0]!r}: expected some of {', '.join(MODES)}")
+        raise UserInputError(f"--modes: {bad[0]!r}: expected some of {', '.join(ALL_MODES)}")
     if not 0.0 <= options.elevation_mask_deg <= 90.0:
         raise UserInputError(f"--elevation-mask: {options.elevation_mask_deg!r}: expected degrees in 0..90")
     if options.origin_deg is not None and not all(math.isfinite(v) for v in options.origin_deg):
