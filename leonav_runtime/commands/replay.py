@@ -7,7 +7,6 @@ import math
 
 from leonav_runtime import output
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.orbits.elements import load_element_files
 
 
 def register(subparsers) -> None:
@@ -81,6 +80,8 @@ def run(args: argparse.Namespace) -> int:
         lat, lon, h = args.origin
         if not (abs(lat) <= 90 and abs(lon) <= 360 and -11_000 <= h <= 1e5):
             raise UserInputError(f"--origin: {args.origin}: expected LAT in [-90, 90] deg, LON deg, H in m")
+    from leonav_runtime.orbits.elements import load_element_files
+
     elements = load_element_files(args.tle)
     out = output.results_dir(args.out, "replay")
     with tqdm(unit="S", unit_scale=True, desc="beacon capture", leave=False, disable=None) as bar:
