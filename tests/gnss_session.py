@@ -90,15 +90,16 @@ def write_rawx_session(folder: Path, t_gps_s, prn, pseudorange_m, doppler_hz, cn
 def simulated_pseudoranges(obs, eph, klobuchar, r_ecef_m, clock_m, clock_drift_mps, rng, nav):
     """(pseudorange m, Doppler Hz, sigma m) of the primary GPS rows of `obs` made by the
     generated GNSS_PSEUDORANGE / GNSS_RANGE_RATE models at a static receiver r_ecef_m with
-    receiver clock clock_m + clock_drift_mps * (t - t_first), plus white noise of the
-    single-point error model's sigma (pseudorange) and RANGE_RATE_SIGMA_MPS (range rate).
+    receiver clock clock_m + clock_drift_mps * (t - t_first), plus white noise of the filters'
+    error model's sigma (`signals.filter_pseudorange_variance`, pseudorange) and
+    RANGE_RATE_SIGMA_MPS (range rate).
     Satellite states depend on the pseudorange (transmit time), so the rows are made again
     from the simulated values until they agree (three passes: < 1 um).
     Returns (observation table of the primary rows with the simulated values, sigma_m)."""
     from leonav_runtime.gen import constants as K
     from leonav_runtime.gen import state_layout as L
     from leonav_runtime.gnss import spp as _spp
-    from leonav_runtime.gnss.signals import gnss_rows, primary_rows
+    from leonav_runtime.gnss.signals import filter_pseudorange_variance, gnss_rows, primary_rows
     from leonav_runtime.params import params_array
 
     rows_idx, _ = primary_rows(obs, "G")
@@ -120,7 +121,8 @@ def simulated_pseudoranges(obs, eph, klobuchar, r_ecef_m, clock_m, clock_drift_m
         o.pseudorange_m[:] = z
     nav.params = saved
     res = _spp.solve(rows, nav=nav)
-    sigma = np.where(np.isfinite(res.sigma_m), res.sigma_m, 3.0)
+    var = filter_pseudorange_variance(res.el_rad, res.iono_m, rows.iono_on, rows.tropo_on)
+    sigma = np.where(np.isfinite(var), np.sqrt(var), 3.0)
     ok = np.isfinite(z)
     o.pseudorange_m[ok] = z[ok] + sigma[ok] * rng.standard_normal(int(ok.sum()))
     lam = K.C_LIGHT_MPS / K.GPS_L1_HZ

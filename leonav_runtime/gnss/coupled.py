@@ -34,7 +34,7 @@ from leonav_runtime.gen import constants as K
 from leonav_runtime.gnss import spp as _spp
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import Ephemerides
-from leonav_runtime.gnss.gnss_ekf import filter_rows, sat_ids
+from leonav_runtime.gnss.gnss_ekf import filter_rows, filter_sigma_m, sat_ids
 from leonav_runtime.gnss.observations import ObservationTable
 from leonav_runtime.gnss.signals import REASONS, gnss_rows
 from leonav_runtime.inputs import COUPLED_MODE_STREAMS as MODE_STREAMS
@@ -57,8 +57,9 @@ def single_point(obs: ObservationTable, eph: Ephemerides, klobuchar: np.ndarray 
     res = _spp.solve(rows, _spp.SppOptions(elevation_mask_deg=elevation_mask_deg, raim=raim),
                      approx_ecef_m=obs.approx_position_ecef_m, nav=nav)
     if not res.solved.any():
+        by_status = {k: v for k, v in res.counts.items() if k.startswith("epochs_")}
         raise UserInputError(f"{obs.source or 'GNSS observations'}: no epoch has a single-point solution "
-                             f"(epochs by status: { {k: v for k, v in res.counts.items() if k.startswith('epochs_')} })")
+                             f"(epochs by status: {by_status})")
     return res
 
 
@@ -77,7 +78,7 @@ def observation_table(spp: _spp.SppResult, epoch_utc: _dt.datetime, *, use_range
     ok = spp.solved
     return GnssObservationTable(
         t=rows.t_gps_s[idx] - t0, sat_id=sat_ids(rows, idx), pseudorange_m=rows.pseudorange_m[idx].copy(),
-        sigma_pr_m=spp.sigma_m[idx].copy(), range_rate_mps=np.asarray(rr, float).copy(),
+        sigma_pr_m=filter_sigma_m(spp, idx), range_rate_mps=np.asarray(rr, float).copy(),
         sigma_rr_mps=np.full(idx.size, float(range_rate_sigma_mps)), aux=rows.aux[idx].copy(),
         clock_t=spp.t_gps_s[ok] - t0, clock_m=spp.clock_m[ok].copy(), isb_m=spp.isb_m[ok].copy())
 

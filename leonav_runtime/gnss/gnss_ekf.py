@@ -32,7 +32,7 @@ from leonav_runtime.filter import EKF, STATUS_APPLIED, STATUS_GATED, RunResult
 from leonav_runtime.gen import constants as K
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gen.profiles import ClockProfile, ImuProfile
-from leonav_runtime.gnss.signals import EPOCH_UNSOLVED, RAIM_EXCLUDED
+from leonav_runtime.gnss.signals import EPOCH_UNSOLVED, RAIM_EXCLUDED, filter_pseudorange_variance
 from leonav_runtime.gnss.spp import SppResult
 from leonav_runtime.navfuncs import NavFunctions
 from leonav_runtime.params import params_array
@@ -76,7 +76,24 @@ def filter_rows(spp: SppResult) -> np.ndarray:
     return np.flatnonzero(keep)
 
 
-def build_records(spp: SppResult, *, use_range_rate: bool = True) -> tuple[np.ndarray, np.ndarray]:
+ERROR_MODELS = ("filter", "snapshot")
+"""R of the pseudoranges: "filter" (`signals.filter_pseudorange_variance`, the default) or
+"snapshot" (the single-point solution's RTKLIB model with URA and code bias, for comparison)."""
+
+
+def filter_sigma_m(spp: SppResult, idx: np.ndarray, error_model: str = "filter") -> np.ndarray:
+    """1-sigma (m) of the pseudorange rows `idx` in a filter (`ERROR_MODELS`), at the
+    single-point elevation and ionosphere delay."""
+    if error_model == "snapshot":
+        return spp.sigma_m[idx].copy()
+    if error_model != "filter":
+        raise ValueError(f"error_model {error_model!r}: expected one of {ERROR_MODELS}")
+    rows = spp.rows
+    return np.sqrt(filter_pseudorange_variance(spp.el_rad[idx], spp.iono_m[idx], rows.iono_on, rows.tropo_on))
+
+
+def build_records(spp: SppResult, *, use_range_rate: bool = True,
+                  error_model: str = "filter") -> tuple[np.ndarray, np.ndarray]:
     """(records, epoch index per record) of the GNSS-only run; times in s since the first epoch."""
     rows = spp.rows
     t0 = spp.t_gps_s[0]
@@ -87,7 +104,8 @@ def build_records(spp: SppResult, *, use_range_rate: bool = True) -> tuple[np.nd
     cv = records.cv_records(t_ep[1:], np.diff(t_ep))
     parts.append(cv)
     epochs.append(np.arange(1, t_ep.size))
-    pr = records.measurement_records(rows.t_gps_s[idx] - t0, kind_pr, rows.pseudorange_m[idx], spp.sigma_m[idx] ** 2,
+    pr = records.measurement_records(rows.t_gps_s[idx] - t0, kind_pr, rows.pseudorange_m[idx],
+                                     filter_sigma_m(spp, idx, error_model) ** 2,
                                      rows.aux[idx], sat_id=sat_ids(rows, idx))
     parts.append(pr)
     epochs.append(spp.epoch_index[idx])
@@ -112,7 +130,7 @@ def sat_ids(rows, idx) -> np.ndarray:
 
 def run(spp: SppResult, *, q_acc_m2ps3: float = DEFAULT_Q_ACC_M2PS3, q_cdt_m2ps: float = DEFAULT_Q_CDT_M2PS,
         q_cddt_m2ps3: float = DEFAULT_Q_CDDT_M2PS3, gate: float = K.CHI2_1DOF_999,
-        nav: NavFunctions | None = None) -> EkfSolution:
+        nav: NavFunctions | None = None, error_model: str = "filter") -> EkfSolution:
     """GNSS-only EKF over the epochs of a single-point result (see the module doc)."""
     ok = np.flatnonzero(spp.solved)
     if ok.size == 0:
@@ -138,7 +156,7 @@ def run(spp: SppResult, *, q_acc_m2ps3: float = DEFAULT_Q_ACC_M2PS3, q_cdt_m2ps:
     sd[L.DX_DC_DT], sd[L.DX_DC_DDT] = P0_CLOCK_M, P0_DRIFT_MPS
     sd[L.DX_DISB_SLICE] = P0_ISB_M  # an inter-system bias first seen later needs room too
     P0 = np.diag(sd**2)
-    recs, ep = build_records(spp)
+    recs, ep = build_records(spp, error_model=error_model)
     # records before the first solved epoch are dropped (nothing to start from there)
     first_t = spp.t_gps_s[e0] - spp.t_gps_s[0]
     recs, ep = recs[recs["t"] >= first_t], ep[recs["t"] >= first_t]
