@@ -156,7 +156,7 @@ def test_replay_pseudorange_imu_of_a_ubx_session_agrees_with_rnx2rtkp(geonet_ses
     check_against_rtklib(r, rtklib_positions("0759", epochs), "0759 replay pseudorange+imu vs rnx2rtkp")
 
 
-def test_replay_names_why_pseudorange_modes_cannot_run(geonet_session, tmp_path):
+def test_replay_names_why_pseudorange_modes_cannot_run(geonet_session, tmp_path, capsys):
     """Without SFRBX ephemerides nor --nav: skipped with the reason; with --nav: they run."""
     folder, _, _ = geonet_session
     bare = tmp_path / "bare"
@@ -180,11 +180,21 @@ def test_replay_names_why_pseudorange_modes_cannot_run(geonet_session, tmp_path)
     m = replay.replay_session(bare, tmp_path / "o1", options, nav=nav_funcs())
     assert "no broadcast ephemeris" in m["skipped_modes"]["pseudorange+imu"] and "--nav" in \
         m["skipped_modes"]["pseudorange+imu"]
+    # through the command line: --nav gives the ephemerides and the Klobuchar coefficients
+    import json
+
+    from leonav_runtime.cli import main as leonav_main
+
     nav_file = str(shared_file("gnss_rinex/07590920.05n"))
-    options = replay.ReplayOptions(modes=("pseudorange+imu",), use_truth=False, nav_paths=(nav_file,))
-    m = replay.replay_session(bare, tmp_path / "o2", options, nav=nav_funcs())
+    assert leonav_main(["replay", str(bare), "--modes", "pseudorange+imu", "--nav", nav_file, "--no-truth",
+                        "--out", str(tmp_path / "o2")]) == 0
+    assert "pseudorange+imu" in capsys.readouterr().out
+    m = json.loads((tmp_path / "o2" / "metrics.json").read_text())
     assert m["skipped_modes"] == {} and m["raw_gnss"]["klobuchar"] == "RINEX header"
     assert m["modes"]["pseudorange+imu"]["records"]["gated"] == 0
+    assert leonav_main(["replay", str(bare), "--modes", "pseudorange+imu", "--elevation-mask", "95",
+                        "--out", str(tmp_path / "o3")]) == 2
+    assert "--elevation-mask" in capsys.readouterr().err
 
 
 def _one_hz_observations(obs, seconds: int):
@@ -228,3 +238,27 @@ def test_simulated_session_with_truth_pseudorange_and_beacons(tmp_path):
     assert abs(per["gnss_pseudorange"]["nis_mean"] - 1.0) <= band
     assert pr["records"]["failed"] == 0 and prl["per_observable"]["doppler_rate"]["applied"] > 0
     assert pr["rmse_position_m"] < 3.0 and prl["rmse_position_m"] < 3.0
+
+
+def test_gnss_observation_table_check_names_the_field_and_row():
+    from leonav_runtime.errors import UserInputError
+    from leonav_runtime.inputs import GnssObservationTable
+
+    n = 4
+    good = dict(t=np.arange(n, dtype=float), sat_id=np.full(n, 71007), pseudorange_m=np.full(n, 2.1e7),
+                sigma_pr_m=np.ones(n), range_rate_mps=np.full(n, np.nan), sigma_rr_mps=np.full(n, np.nan),
+                aux=np.zeros((n, L.NAUX)), clock_t=np.zeros(1), clock_m=np.zeros(1), isb_m=np.zeros((1, 2)))
+    GnssObservationTable(**good).check()
+    cases = {
+        "pseudorange_m": (dict(pseudorange_m=np.array([2.1e7, 2.1e7, np.nan, 2.1e7])), "row 2"),
+        "t": (dict(t=np.array([0.0, 2.0, 1.0, 3.0])), "row 2 is earlier"),
+        "sigma_pr_m": (dict(sigma_pr_m=np.array([1.0, 0.0, 1.0, 1.0])), "row 1"),
+        "sigma_rr_mps": (dict(range_rate_mps=np.array([np.nan, 5.0, np.nan, np.nan])), "row 1"),
+        "aux": (dict(aux=np.zeros((n, 3))), "shape"),
+        "isb_m": (dict(isb_m=np.zeros((2, 2))), "shape"),
+    }
+    for field, (change, where) in cases.items():
+        with pytest.raises(UserInputError) as err:
+            GnssObservationTable(**(good | change)).check()
+        text = str(err.value)
+        assert text.startswith(f"GNSS observation table: {field}: ") and where in text and "expected" in text, text
