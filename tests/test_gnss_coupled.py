@@ -262,3 +262,40 @@ def test_gnss_observation_table_check_names_the_field_and_row():
             GnssObservationTable(**(good | change)).check()
         text = str(err.value)
         assert text.startswith(f"GNSS observation table: {field}: ") and where in text and "expected" in text, text
+
+
+def test_millisecond_receiver_clock_jumps_are_taken_out():
+    """0759 with the receiver clock stepped by +1 ms after 20 min and -2 ms after 40 min (as
+    receivers that keep their clock within 1 ms do): the filters see a continuous clock; the
+    positions are those of the run without steps."""
+    import datetime as dt
+
+    from leonav_runtime.gen import constants as K
+    from leonav_runtime.gnss import time as gtime
+
+    nav = nav_funcs()
+    obs, eph, klob = geonet("0759")
+    t_rel = obs.t_gps_s - obs.t_gps_s[0]
+    stepped = obs.take(np.arange(len(obs)))
+    ms = K.C_LIGHT_MPS * 1e-3
+    steps = (t_rel > 1200.0).astype(float) - 3.0 * (t_rel > 2400.0)
+    # a step of the receiver clock moves its time tags and its pseudoranges alike
+    stepped.pseudorange_m[:] = obs.pseudorange_m + ms * steps
+    stepped.t_gps_s[:] = obs.t_gps_s + 1e-3 * steps
+    runs = {}
+    for name, o in (("plain", obs), ("stepped", stepped)):
+        spp = coupled.single_point(o, eph, klob, systems="G", nav=nav)
+        jumps = gnss_ekf.clock_jumps_m(spp)
+        epoch_utc = gtime.gps_seconds_to_utc(float(spp.t_gps_s[0]) - 1.0).replace(tzinfo=dt.timezone.utc)
+        imu = static_imu(spp.t_gps_s, obs.approx_position_ecef_m, epoch_utc)
+        inputs = coupled.coupled_inputs(imu, spp, epoch_utc, filter_profile(0.5), nav=nav)
+        recs, res = coupled.run_mode(inputs, "pseudorange+imu", nav=nav)
+        t_run = spp.t_gps_s - coupled.gps_epoch(epoch_utc) + 0.01   # after the updates of the epoch
+        ekf = gnss_ekf.run(spp, nav=nav)
+        runs[name] = (jumps, pr_stats(recs, res), epoch_positions(recs, res, t_run, inputs.params, nav), ekf)
+    jumps, stats, r, ekf = runs["stepped"]
+    assert np.unique(np.round(jumps / ms)).tolist() == [-2.0, 0.0, 1.0]
+    assert np.all(runs["plain"][0] == 0.0)
+    assert stats["gated"] == 0 and ekf.gated.sum() == 0
+    assert np.abs(r - runs["plain"][2]).max() < 0.01
+    assert np.nanmax(np.linalg.norm(ekf.r_ecef_m - runs["plain"][3].r_ecef_m, axis=1)) < 0.01

@@ -12,7 +12,8 @@ Steps, all on the generated models (no equations here):
    cannot know before it has a position: the elevation (mask) and with it the variance of
    RTKLIB's error model, RAIM flags, and per epoch the receiver clock to start from.
 3. `observation_table`: the rows the GNSS-only EKF takes (`gnss_ekf.filter_rows`) on the
-   run's time axis (s since `epoch_utc`: t = t_gps - t_gps(epoch_utc)) as an
+   run's time axis (s since `epoch_utc`: t = t_gps - t_gps(epoch_utc)), whole-millisecond
+   receiver clock jumps taken out of the pseudoranges (`gnss_ekf.clock_jumps_m`), as an
    `inputs.GnssObservationTable`; `inputs.assemble(..., gnss=table)` makes the records and
    starts the receiver clock.
 4. `coupled_inputs` / `run_mode`: the Python API around steps 1-3 for an IMU table.
@@ -34,7 +35,7 @@ from leonav_runtime.gen import constants as K
 from leonav_runtime.gnss import spp as _spp
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import Ephemerides
-from leonav_runtime.gnss.gnss_ekf import filter_rows, filter_sigma_m, sat_ids
+from leonav_runtime.gnss.gnss_ekf import clock_jumps_m, filter_rows, filter_sigma_m, sat_ids
 from leonav_runtime.gnss.observations import ObservationTable
 from leonav_runtime.gnss.signals import REASONS, gnss_rows
 from leonav_runtime.inputs import COUPLED_MODE_STREAMS as MODE_STREAMS
@@ -76,11 +77,13 @@ def observation_table(spp: _spp.SppResult, epoch_utc: _dt.datetime, *, use_range
     idx = filter_rows(spp)
     rr = rows.range_rate_mps[idx] if use_range_rate else np.full(idx.size, np.nan)
     ok = spp.solved
+    jumps = clock_jumps_m(spp)   # whole-millisecond receiver clock steps, taken out (gnss_ekf.py)
     return GnssObservationTable(
-        t=rows.t_gps_s[idx] - t0, sat_id=sat_ids(rows, idx), pseudorange_m=rows.pseudorange_m[idx].copy(),
+        t=rows.t_gps_s[idx] - t0, sat_id=sat_ids(rows, idx),
+        pseudorange_m=rows.pseudorange_m[idx] - jumps[spp.epoch_index[idx]],
         sigma_pr_m=filter_sigma_m(spp, idx), range_rate_mps=np.asarray(rr, float).copy(),
         sigma_rr_mps=np.full(idx.size, float(range_rate_sigma_mps)), aux=rows.aux[idx].copy(),
-        clock_t=spp.t_gps_s[ok] - t0, clock_m=spp.clock_m[ok].copy(), isb_m=spp.isb_m[ok].copy())
+        clock_t=spp.t_gps_s[ok] - t0, clock_m=spp.clock_m[ok] - jumps[ok], isb_m=spp.isb_m[ok].copy())
 
 
 def spp_fixes(spp: _spp.SppResult, epoch_utc: _dt.datetime, origin) -> FixTable:

@@ -66,6 +66,40 @@ class EkfSolution:
     params: np.ndarray
 
 
+MS_M = K.C_LIGHT_MPS * 1e-3
+"""One millisecond of receiver clock as range (m)."""
+CLOCK_JUMP_TOLERANCE_M = 1000.0
+"""A clock change is a jump of whole milliseconds when it is within this of one (m)."""
+
+
+def clock_jumps_m(spp: SppResult) -> np.ndarray:
+    """Receiver clock steps of whole milliseconds accumulated up to each epoch (E,) (m).
+
+    Receivers that keep their clock within +-1 ms (u-blox without clock steering, many
+    geodetic receivers) jump by 1 ms = 299.79 km at once; a filter with a loose clock model
+    would gate every satellite after it, and never recover. Between consecutive solved
+    single-point epochs the clock change less the drift of the interval before is a jump
+    when it lies within CLOCK_JUMP_TOLERANCE_M of a non-zero number of milliseconds; the
+    filters subtract the accumulated jumps from the pseudoranges (and the clock start), so
+    their clock runs on continuously. Unsolved epochs take the value of the solved one before."""
+    E = spp.t_gps_s.size
+    out = np.zeros(E)
+    ok = np.flatnonzero(spp.solved)
+    jump, drift = 0.0, 0.0
+    for a, b in zip(ok[:-1], ok[1:]):
+        dt = spp.t_gps_s[b] - spp.t_gps_s[a]
+        r = spp.clock_m[b] - jump - (spp.clock_m[a] - out[a]) - drift * dt
+        k = round(r / MS_M)
+        if k and abs(r - k * MS_M) < CLOCK_JUMP_TOLERANCE_M:
+            jump += k * MS_M
+        out[a + 1:b + 1] = jump
+        if dt > 0:
+            drift = (spp.clock_m[b] - jump - (spp.clock_m[a] - out[a])) / dt
+    if ok.size:
+        out[ok[-1]:] = jump
+    return out
+
+
 def filter_rows(spp: SppResult) -> np.ndarray:
     """Rows of a single-point result that a filter is given: above the masks at the single-point
     state with a variance, used or RAIM-excluded or of an unsolved epoch (the filter's NIS gate
@@ -104,7 +138,9 @@ def build_records(spp: SppResult, *, use_range_rate: bool = True,
     cv = records.cv_records(t_ep[1:], np.diff(t_ep))
     parts.append(cv)
     epochs.append(np.arange(1, t_ep.size))
-    pr = records.measurement_records(rows.t_gps_s[idx] - t0, kind_pr, rows.pseudorange_m[idx],
+    jumps = clock_jumps_m(spp)
+    pr = records.measurement_records(rows.t_gps_s[idx] - t0, kind_pr,
+                                     rows.pseudorange_m[idx] - jumps[spp.epoch_index[idx]],
                                      filter_sigma_m(spp, idx, error_model) ** 2,
                                      rows.aux[idx], sat_id=sat_ids(rows, idx))
     parts.append(pr)
@@ -144,10 +180,11 @@ def run(spp: SppResult, *, q_acc_m2ps3: float = DEFAULT_Q_ACC_M2PS3, q_cdt_m2ps:
     p = params_array(lat0, lon0, h0, imu=imu, clock=clock)
     x0 = np.zeros(L.NX)
     x0[L.X_Q_NB] = 1.0
-    x0[L.X_C_DT] = spp.clock_m[e0]
+    clock = spp.clock_m - clock_jumps_m(spp)
+    x0[L.X_C_DT] = clock[e0]
     if ok.size > 1:
         e1 = int(ok[1])
-        x0[L.X_C_DDT] = (spp.clock_m[e1] - spp.clock_m[e0]) / (spp.t_gps_s[e1] - spp.t_gps_s[e0])
+        x0[L.X_C_DDT] = (clock[e1] - clock[e0]) / (spp.t_gps_s[e1] - spp.t_gps_s[e0])
     isb = spp.isb_m[e0]
     x0[L.X_ISB_SLICE] = np.nan_to_num(isb)
     sd = np.zeros(L.NDX)

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from leonav_runtime import navfuncs
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gnss.spp import SppResult
@@ -59,6 +61,10 @@ def raw_gnss(gnss_records, options, nav: navfuncs.NavFunctions, source: str) -> 
                                    nav=nav)
     except UserInputError as exc:
         return RawGnss(None, summary, str(exc))
-    summary |= {"epochs_solved": int(spp.solved.sum()), "rows_by_reason": {
+    from leonav_runtime.gnss.gnss_ekf import MS_M, clock_jumps_m
+
+    jumps = clock_jumps_m(spp)
+    summary |= {"receiver_clock_jumps_ms": int(round(np.abs(np.diff(jumps, prepend=0.0)).sum() / MS_M)),
+                "epochs_solved": int(spp.solved.sum()), "rows_by_reason": {
         k: int(v) for k, v in sorted(spp.counts.items()) if not k.startswith("epochs_")}}
     return RawGnss(spp, summary)
