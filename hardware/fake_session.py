@@ -198,14 +198,18 @@ def write_capture_metadata(folder: Path, epoch_utc: _dt.datetime, timing: HostTi
 
 def write_fake_session(folder: Path, epoch_utc: _dt.datetime, duration_s: float, gnss: GnssOutput,
                        imu: ImuOutput, timing: HostTiming, rng: np.random.Generator,
-                       sdr: SdrOutput | None = None) -> dict:
+                       sdr: SdrOutput | None = None, extra_gnss: list[tuple[float, bytes]] = ()) -> dict:
     """Raw logs, chunk indexes, live CSVs, SigMF metadata (with `sdr`) and session.json of a
     session of `duration_s` in the existing folder `folder` (see the module doc). `rng` draws
-    the host's read times (GNSS first, then IMU). Returns session.json's content."""
+    the host's read times (GNSS first, then IMU). extra_gnss: (epoch time s, bytes) the
+    receiver sends besides the NMEA of `gnss` (e.g. UBX RXM-RAWX / RXM-SFRBX frames), leaving
+    it `gnss_latency_s` after the time. Returns session.json's content."""
     mono0 = timing.mono_at_epoch_s
     t_start, t_stop = SESSION_START_S, duration_s + SESSION_STOP_AFTER_S
-    gnss_chunks = serial_chunks(gnss_bursts(epoch_utc, gnss, timing.gnss_latency_s), timing.gnss_baud, rng,
-                                timing.host_read_s, t_stop)
+    bursts = gnss_bursts(epoch_utc, gnss, timing.gnss_latency_s)
+    if len(extra_gnss):
+        bursts = sorted(bursts + [(float(t) + timing.gnss_latency_s, b) for t, b in extra_gnss], key=lambda e: e[0])
+    gnss_chunks = serial_chunks(bursts, timing.gnss_baud, rng, timing.host_read_s, t_stop)
     imu_chunks = serial_chunks(imu_bursts(imu, timing.imu_latency_s), timing.imu_baud, rng, timing.host_read_s,
                                t_stop)
     _write_raw(folder, "gnss", gnss_chunks, mono0)

@@ -244,11 +244,13 @@ def _truth_rows(cfg: SynthSessionConfig, sim: dict, nav: navfuncs.NavFunctions) 
 
 def write_synthetic_session(folder: str | Path, cfg: SynthSessionConfig | None = None, elements=None,
                             overwrite: bool = False, progress: Callable[[int], None] | None = None,
-                            nav: navfuncs.NavFunctions | None = None) -> SyntheticSession:
+                            nav: navfuncs.NavFunctions | None = None,
+                            extra_gnss: list[tuple[float, bytes]] = ()) -> SyntheticSession:
     """Write a synthetic session (see the module doc) into `folder`.
 
     elements: Starlink ElementSet for the tones (default: `builtin_starlink(cfg.epoch_utc)`).
-    progress(n): called with IQ samples written.
+    progress(n): called with IQ samples written. extra_gnss: (time s, bytes) the receiver
+    sends besides its NMEA (e.g. UBX RXM-RAWX and RXM-SFRBX frames made by the caller).
     """
     cfg = cfg or SynthSessionConfig()
     folder = Path(folder)
@@ -266,7 +268,7 @@ def write_synthetic_session(folder: str | Path, cfg: SynthSessionConfig | None =
     timing = HostTiming(cfg.gnss_baud, cfg.imu_baud, cfg.gnss_latency_s, cfg.imu_latency_s, cfg.host_read_s,
                         cfg.mono_at_epoch_s, cfg.host_clock_error_s)
     write_fake_session(folder, cfg.epoch_utc, cfg.seconds, gnss, imu, timing, np.random.default_rng([cfg.seed, 7]),
-                       sdr)
+                       sdr, extra_gnss)
 
     write_csv(folder / "truth.csv", TRUTH_COLUMNS, _truth_rows(cfg, sim, nav))
     sdr_info = sdr_truth.describe() if sdr_truth is not None else {}

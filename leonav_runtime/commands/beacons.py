@@ -12,7 +12,6 @@ from pathlib import Path
 from leonav_runtime import output
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gen.constants import STARLINK_BEACON_HZ, STARLINK_MASK_DEG
-from leonav_runtime.orbits.elements import load_element_files
 
 ROCHESTER_DEG = (43.0848638, -77.6786127, 170.0)  # the paper's site
 MAX_SIM_DURATION_S = 3600.0
@@ -192,6 +191,8 @@ def run(args: argparse.Namespace) -> int:
         _check_long_enough(cfg, args.duration, args.sim_rate, "--duration")
     out_dir = output.results_dir(args.out, "beacons")
     if args.tle:
+        from leonav_runtime.orbits.elements import load_element_files
+
         elements = load_element_files(args.tle)
     elif args.simulate:
         from leonav_runtime.orbits import default_elements

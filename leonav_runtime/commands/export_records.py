@@ -28,7 +28,10 @@ def register(subparsers) -> None:
                      "export.json (sizes, counts, epoch, origin, the command to run). Run them with "
                      "`make -C hardware/pi && hardware/pi/build/leonav_filter records.bin init.bin out.csv`."))
     p.add_argument("session", metavar="SESSION", help="session folder (`leonav record`, `leonav nav`, `leonav session synth`)")
-    p.add_argument("--mode", default="fix+imu", help="fix+imu, leo-alpha+imu or fix+leo-alpha+imu (default fix+imu)")
+    p.add_argument("--mode", default="fix+imu", help="fix+imu, leo-alpha+imu, fix+leo-alpha+imu, pseudorange+imu or "
+                                                      "pseudorange+leo-alpha+imu (default fix+imu)")
+    p.add_argument("--nav", action="append", default=[], metavar="RINEX_NAV",
+                   help="RINEX navigation file(s) for the pseudorange modes (besides the session's RXM-SFRBX)")
     p.add_argument("--tle", action="append", default=[], metavar="FILE", help="Starlink element sets (LEO modes)")
     p.add_argument("--origin", nargs=3, type=float, default=None, metavar=("LAT", "LON", "H"),
                    help="ENU origin, deg deg m (default: the first GNSS fix)")
@@ -79,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.gnss_latency) and 0 <= args.gnss_latency < 1):
         raise UserInputError(f"--gnss-latency: {args.gnss_latency!r}: expected seconds in [0, 1)")
     options = check_options(ReplayOptions(modes=(args.mode,), origin_deg=tuple(args.origin) if args.origin else None,
-                                          yaw_deg=args.yaw_deg, gnss_latency_s=args.gnss_latency))
+                                          yaw_deg=args.yaw_deg, gnss_latency_s=args.gnss_latency,
+                                          nav_paths=tuple(args.nav)))
     out = output.results_dir(args.out, "export-records")
     info = export(Path(args.session), out, options, load_element_files(args.tle))
     print(f"export-records {args.session} ({info['mode']}) -> {out}: {info['records']} records "

@@ -1,4 +1,5 @@
-"""`leonav replay SESSION`: a recorded session through the filter in fix+imu, leo-alpha+imu, fix+leo-alpha+imu."""
+"""`leonav replay SESSION`: a recorded session through the filter in fix+imu, leo-alpha+imu, fix+leo-alpha+imu,
+and (asked for with --modes) the tightly coupled pseudorange+imu and pseudorange+leo-alpha+imu."""
 from __future__ import annotations
 
 import argparse
@@ -6,7 +7,6 @@ import math
 
 from leonav_runtime import output
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.orbits.elements import load_element_files
 
 
 def register(subparsers) -> None:
@@ -18,7 +18,10 @@ def register(subparsers) -> None:
             "every record on one time axis (host monotonic stamps -> UTC through the GNSS time map), build the IMU, "
             "GNSS fix (NMEA/UBX position fixes) and Doppler-rate (beacon pipeline on the capture) tables, turn them "
             "into filter inputs (leonav_runtime.inputs) and run the generated filter per mode: fix+imu (position "
-            "fixes; the old name gps+imu is accepted), leo-alpha+imu, fix+leo-alpha+imu. Writes metrics.json, "
+            "fixes; the old name gps+imu is accepted), leo-alpha+imu, fix+leo-alpha+imu, and on request the tightly "
+            "coupled pseudorange+imu and pseudorange+leo-alpha+imu (the receiver's RXM-RAWX pseudoranges and Doppler "
+            "with ephemerides from its RXM-SFRBX or --nav; a session without position fixes starts from and is "
+            "scored against the single-point solutions). Writes metrics.json, "
             "rmse_vs_time.csv/.png, trajectory.csv, trajectories.png and the beacon outputs (beacons/). "
             "Reference: truth.csv if the session has one (synthetic sessions), else the GNSS fixes."),
     )
@@ -26,8 +29,13 @@ def register(subparsers) -> None:
     p.add_argument("--tle", action="append", default=[], metavar="FILE",
                    help="Starlink element sets (TLE/3LE/OMM) of the session's day, repeatable (default: the built-in "
                         "Walker constellation, only right for synthetic sessions)")
-    p.add_argument("--modes", default=",".join(_modes()), metavar="LIST",
-                   help="comma-separated modes (default %(default)s)")
+    p.add_argument("--modes", default=",".join(_modes()[0]), metavar="LIST",
+                   help=f"comma-separated modes of {', '.join(_modes()[1])} (default %(default)s)")
+    p.add_argument("--nav", action="append", default=[], metavar="RINEX_NAV",
+                   help="RINEX navigation file(s) for the pseudorange modes, repeatable (besides the RXM-SFRBX "
+                        "ephemerides in gnss.raw)")
+    p.add_argument("--elevation-mask", type=float, default=10.0, metavar="DEG",
+                   help="pseudorange modes: elevation mask, deg (default %(default)g)")
     p.add_argument("--origin", nargs=3, type=float, default=None, metavar=("LAT", "LON", "H"),
                    help="ENU origin and site: deg, deg, m above the ellipsoid (default: the first GNSS fix)")
     p.add_argument("--yaw-deg", type=float, default=None, metavar="DEG",
@@ -42,9 +50,9 @@ def register(subparsers) -> None:
 
 
 def _modes():
-    from leonav_runtime.replay import MODES
+    from leonav_runtime.replay.options import ALL_MODES, MODES
 
-    return MODES
+    return MODES, ALL_MODES
 
 
 def _fmt(v, scale=1.0, digits=2) -> str:
@@ -66,11 +74,14 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError("--yaw-deg: expected a finite angle in degrees")
     options = replay.ReplayOptions(modes=modes, origin_deg=tuple(args.origin) if args.origin else None,
                                    yaw_deg=args.yaw_deg, doppler_rate_sigma_floor_hz_s=args.doppler_rate_sigma_floor,
-                                   use_truth=not args.no_truth, gnss_latency_s=args.gnss_latency)
+                                   use_truth=not args.no_truth, gnss_latency_s=args.gnss_latency,
+                                   nav_paths=tuple(args.nav), elevation_mask_deg=args.elevation_mask)
     if args.origin:
         lat, lon, h = args.origin
         if not (abs(lat) <= 90 and abs(lon) <= 360 and -11_000 <= h <= 1e5):
             raise UserInputError(f"--origin: {args.origin}: expected LAT in [-90, 90] deg, LON deg, H in m")
+    from leonav_runtime.orbits.elements import load_element_files
+
     elements = load_element_files(args.tle)
     out = output.results_dir(args.out, "replay")
     with tqdm(unit="S", unit_scale=True, desc="beacon capture", leave=False, disable=None) as bar:

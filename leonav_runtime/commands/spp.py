@@ -37,19 +37,17 @@ def _is_rinex(path: Path) -> bool:
     return _RINEX_LABEL in first
 
 
-def _load_navs(paths: list[str]):
-    """(ephemerides, Klobuchar coefficients or None, sources) of RINEX navigation files."""
-    from leonav_runtime.gnss.ephemeris import Ephemerides
-    from leonav_runtime.gnss.rinex_nav import read_rinex_nav
-    from leonav_runtime.gnss.signals import klobuchar_coefficients
+def _load_navs(paths: list[str], cache: dict | None = None):
+    """(ephemerides, Klobuchar coefficients or None) of RINEX navigation files; with `cache`
+    (one dict per run) read once for every OBS file of the run."""
+    from leonav_runtime.gnss.signals import load_nav_files
 
-    eph, klob = Ephemerides.empty(), None
-    for p in paths:
-        nf = read_rinex_nav(p)
-        eph = eph.concat(nf.ephemerides)
-        if klob is None:
-            klob = klobuchar_coefficients(nf.iono)
-    return eph.deduplicate(), klob
+    key = tuple(str(p) for p in paths)
+    if cache is None:
+        return load_nav_files(paths)
+    if key not in cache:
+        cache[key] = load_nav_files(paths)
+    return cache[key]
 
 
 def _check(args) -> None:
@@ -68,8 +66,10 @@ def _check(args) -> None:
         raise UserInputError(f"--q-acc {args.q_acc}: expected a PSD >= 0 (m^2/s^3)")
 
 
-def process(obs_path: Path, nav_paths: list[str], args, nav_funcs, out: Path, reference: str | None = None) -> dict:
-    """Solve one observation file and write its outputs; returns its summary."""
+def process(obs_path: Path, nav_paths: list[str], args, nav_funcs, out: Path, reference: str | None = None,
+            nav_cache: dict | None = None) -> dict:
+    """Solve one observation file and write its outputs; returns its summary. nav_cache: a
+    dict shared by the files of one run, so that the --nav files are read once."""
     from leonav_runtime.gnss import gnss_ekf, solution_io, spp
     from leonav_runtime.gnss.rinex_obs import read_rinex_obs
     from leonav_runtime.gnss.signals import REASONS, SYSTEM_NAMES, gnss_rows
@@ -79,7 +79,7 @@ def process(obs_path: Path, nav_paths: list[str], args, nav_funcs, out: Path, re
         if not nav_paths:
             raise UserInputError(f"{obs_path}: a RINEX observation file needs --nav NAV (broadcast ephemerides)")
         obs = read_rinex_obs(obs_path)
-        eph, klob = _load_navs(nav_paths)
+        eph, klob = _load_navs(nav_paths, nav_cache)
         inputs = [str(obs_path)] + [str(p) for p in nav_paths]
     else:
         from leonav_runtime.gnss.signals import klobuchar_coefficients
@@ -88,7 +88,7 @@ def process(obs_path: Path, nav_paths: list[str], args, nav_funcs, out: Path, re
         log = read_ubx_log(obs_path)
         obs, eph, klob = log.observations, log.ephemerides, klobuchar_coefficients(log.iono)
         if nav_paths:
-            eph2, klob2 = _load_navs(nav_paths)
+            eph2, klob2 = _load_navs(nav_paths, nav_cache)
             eph, klob = eph.concat(eph2).deduplicate(), klob2 if klob2 is not None else klob
         inputs = [str(obs_path)] + [str(p) for p in nav_paths]
     if len(obs) == 0:
@@ -224,7 +224,8 @@ def _run(args: argparse.Namespace) -> int:
     out = results_dir(args.out, "spp")
     nav_funcs = NavFunctions()
     refs = args.compare or [None] * len(args.obs)
-    summaries = [process(Path(p), args.nav, args, nav_funcs, out, ref) for p, ref in zip(args.obs, refs)]
+    nav_cache: dict = {}
+    summaries = [process(Path(p), args.nav, args, nav_funcs, out, ref, nav_cache) for p, ref in zip(args.obs, refs)]
     write_json(out / "spp.json", {"options": {k: v for k, v in vars(args).items() if k != "func"},
                                   "files": summaries, "total_s": time.perf_counter() - t0})
     for s in summaries:

@@ -32,7 +32,7 @@ from leonav_runtime.filter import EKF, STATUS_APPLIED, STATUS_GATED, RunResult
 from leonav_runtime.gen import constants as K
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gen.profiles import ClockProfile, ImuProfile
-from leonav_runtime.gnss.signals import EPOCH_UNSOLVED, RAIM_EXCLUDED
+from leonav_runtime.gnss.signals import EPOCH_UNSOLVED, RAIM_EXCLUDED, filter_pseudorange_variance
 from leonav_runtime.gnss.spp import SppResult
 from leonav_runtime.navfuncs import NavFunctions
 from leonav_runtime.params import params_array
@@ -66,22 +66,83 @@ class EkfSolution:
     params: np.ndarray
 
 
-def build_records(spp: SppResult, *, use_range_rate: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """(records, epoch index per record) of the GNSS-only run; times in s since the first epoch."""
-    rows = spp.rows
-    t0 = spp.t_gps_s[0]
+MS_M = K.C_LIGHT_MPS * 1e-3
+"""One millisecond of receiver clock as range (m)."""
+CLOCK_JUMP_TOLERANCE_M = 1000.0
+"""A clock change is a jump of whole milliseconds when it is within this of one (m)."""
+
+
+def clock_jumps_m(spp: SppResult) -> np.ndarray:
+    """Receiver clock steps of whole milliseconds accumulated up to each epoch (E,) (m).
+
+    Receivers that keep their clock within +-1 ms (u-blox without clock steering, many
+    geodetic receivers) jump by 1 ms = 299.79 km at once; a filter with a loose clock model
+    would gate every satellite after it, and never recover. Between consecutive solved
+    single-point epochs the clock change less the drift of the interval before is a jump
+    when it lies within CLOCK_JUMP_TOLERANCE_M of a non-zero number of milliseconds; the
+    filters subtract the accumulated jumps from the pseudoranges (and the clock start), so
+    their clock runs on continuously. Unsolved epochs take the value of the solved one before."""
+    E = spp.t_gps_s.size
+    out = np.zeros(E)
+    ok = np.flatnonzero(spp.solved)
+    jump, drift = 0.0, 0.0
+    for a, b in zip(ok[:-1], ok[1:]):
+        dt = spp.t_gps_s[b] - spp.t_gps_s[a]
+        r = spp.clock_m[b] - jump - (spp.clock_m[a] - out[a]) - drift * dt
+        k = round(r / MS_M)
+        if k and abs(r - k * MS_M) < CLOCK_JUMP_TOLERANCE_M:
+            jump += k * MS_M
+        out[a + 1:b + 1] = jump
+        if dt > 0:
+            drift = (spp.clock_m[b] - jump - (spp.clock_m[a] - out[a])) / dt
+    if ok.size:
+        out[ok[-1]:] = jump
+    return out
+
+
+def filter_rows(spp: SppResult) -> np.ndarray:
+    """Rows of a single-point result that a filter is given: above the masks at the single-point
+    state with a variance, used or RAIM-excluded or of an unsolved epoch (the filter's NIS gate
+    decides on them)."""
     keep = (spp.epoch_index >= 0) & np.isin(spp.row_status, (0, RAIM_EXCLUDED, EPOCH_UNSOLVED)) \
         & np.isfinite(spp.sigma_m)
     keep &= spp.el_rad >= 0.0  # below-mask rows already carry their own status
-    idx = np.flatnonzero(keep)
+    return np.flatnonzero(keep)
+
+
+ERROR_MODELS = ("filter", "snapshot")
+"""R of the pseudoranges: "filter" (`signals.filter_pseudorange_variance`, the default) or
+"snapshot" (the single-point solution's RTKLIB model with URA and code bias, for comparison)."""
+
+
+def filter_sigma_m(spp: SppResult, idx: np.ndarray, error_model: str = "filter") -> np.ndarray:
+    """1-sigma (m) of the pseudorange rows `idx` in a filter (`ERROR_MODELS`), at the
+    single-point elevation and ionosphere delay."""
+    if error_model == "snapshot":
+        return spp.sigma_m[idx].copy()
+    if error_model != "filter":
+        raise ValueError(f"error_model {error_model!r}: expected one of {ERROR_MODELS}")
+    rows = spp.rows
+    return np.sqrt(filter_pseudorange_variance(spp.el_rad[idx], spp.iono_m[idx], rows.iono_on, rows.tropo_on))
+
+
+def build_records(spp: SppResult, *, use_range_rate: bool = True,
+                  error_model: str = "filter") -> tuple[np.ndarray, np.ndarray]:
+    """(records, epoch index per record) of the GNSS-only run; times in s since the first epoch."""
+    rows = spp.rows
+    t0 = spp.t_gps_s[0]
+    idx = filter_rows(spp)
     kind_pr = L.MEAS_GNSS_PSEUDORANGE
     parts, epochs = [], []
     t_ep = spp.t_gps_s - t0
     cv = records.cv_records(t_ep[1:], np.diff(t_ep))
     parts.append(cv)
     epochs.append(np.arange(1, t_ep.size))
-    pr = records.measurement_records(rows.t_gps_s[idx] - t0, kind_pr, rows.pseudorange_m[idx], spp.sigma_m[idx] ** 2,
-                                     rows.aux[idx], sat_id=_sat_ids(rows, idx))
+    jumps = clock_jumps_m(spp)
+    pr = records.measurement_records(rows.t_gps_s[idx] - t0, kind_pr,
+                                     rows.pseudorange_m[idx] - jumps[spp.epoch_index[idx]],
+                                     filter_sigma_m(spp, idx, error_model) ** 2,
+                                     rows.aux[idx], sat_id=sat_ids(rows, idx))
     parts.append(pr)
     epochs.append(spp.epoch_index[idx])
     if use_range_rate:
@@ -89,7 +150,7 @@ def build_records(spp: SppResult, *, use_range_rate: bool = True) -> tuple[np.nd
         if rr.size:
             parts.append(records.measurement_records(rows.t_gps_s[rr] - t0, L.MEAS_GNSS_RANGE_RATE,
                                                      rows.range_rate_mps[rr], K.RANGE_RATE_SIGMA_MPS**2,
-                                                     rows.aux[rr], sat_id=_sat_ids(rows, rr)))
+                                                     rows.aux[rr], sat_id=sat_ids(rows, rr)))
             epochs.append(spp.epoch_index[rr])
     recs = np.concatenate(parts)
     ep = np.concatenate(epochs)
@@ -98,14 +159,14 @@ def build_records(spp: SppResult, *, use_range_rate: bool = True) -> tuple[np.nd
     return recs[order], ep[order]
 
 
-def _sat_ids(rows, idx) -> np.ndarray:
+def sat_ids(rows, idx) -> np.ndarray:
     """sat_id of a record: ord(system letter) * 1000 + PRN (e.g. G07 -> 71007)."""
     return np.array([ord(s) * 1000 + int(p) for s, p in zip(rows.system[idx], rows.prn[idx])], dtype=np.int32)
 
 
 def run(spp: SppResult, *, q_acc_m2ps3: float = DEFAULT_Q_ACC_M2PS3, q_cdt_m2ps: float = DEFAULT_Q_CDT_M2PS,
         q_cddt_m2ps3: float = DEFAULT_Q_CDDT_M2PS3, gate: float = K.CHI2_1DOF_999,
-        nav: NavFunctions | None = None) -> EkfSolution:
+        nav: NavFunctions | None = None, error_model: str = "filter") -> EkfSolution:
     """GNSS-only EKF over the epochs of a single-point result (see the module doc)."""
     ok = np.flatnonzero(spp.solved)
     if ok.size == 0:
@@ -119,10 +180,11 @@ def run(spp: SppResult, *, q_acc_m2ps3: float = DEFAULT_Q_ACC_M2PS3, q_cdt_m2ps:
     p = params_array(lat0, lon0, h0, imu=imu, clock=clock)
     x0 = np.zeros(L.NX)
     x0[L.X_Q_NB] = 1.0
-    x0[L.X_C_DT] = spp.clock_m[e0]
+    clock = spp.clock_m - clock_jumps_m(spp)
+    x0[L.X_C_DT] = clock[e0]
     if ok.size > 1:
         e1 = int(ok[1])
-        x0[L.X_C_DDT] = (spp.clock_m[e1] - spp.clock_m[e0]) / (spp.t_gps_s[e1] - spp.t_gps_s[e0])
+        x0[L.X_C_DDT] = (clock[e1] - clock[e0]) / (spp.t_gps_s[e1] - spp.t_gps_s[e0])
     isb = spp.isb_m[e0]
     x0[L.X_ISB_SLICE] = np.nan_to_num(isb)
     sd = np.zeros(L.NDX)
@@ -131,7 +193,7 @@ def run(spp: SppResult, *, q_acc_m2ps3: float = DEFAULT_Q_ACC_M2PS3, q_cdt_m2ps:
     sd[L.DX_DC_DT], sd[L.DX_DC_DDT] = P0_CLOCK_M, P0_DRIFT_MPS
     sd[L.DX_DISB_SLICE] = P0_ISB_M  # an inter-system bias first seen later needs room too
     P0 = np.diag(sd**2)
-    recs, ep = build_records(spp)
+    recs, ep = build_records(spp, error_model=error_model)
     # records before the first solved epoch are dropped (nothing to start from there)
     first_t = spp.t_gps_s[e0] - spp.t_gps_s[0]
     recs, ep = recs[recs["t"] >= first_t], ep[recs["t"] >= first_t]

@@ -176,7 +176,8 @@ def rawx_to_table(epochs, source: str = "") -> ObservationTable:
     returns them) -> ObservationTable, one row per measurement.
 
     Time: week * 604800 + rcvTow (the receiver's GPS time tag of the epoch). Pseudorange
-    NaN unless prValid and finite and non-zero; carrier phase NaN unless cpValid; sigma_pr
+    NaN unless prValid and finite and non-zero; carrier phase NaN unless cpValid; Doppler NaN
+    when not finite or exactly 0 (no validity flag; counted `doppler_zero`); sigma_pr
     from prStdev (0.01 * 2^n m). GLONASS satellites with an unknown slot (svId 255) and
     unknown gnssId/sigId pairs are dropped and counted.
     """
@@ -217,6 +218,9 @@ def rawx_to_table(epochs, source: str = "") -> ObservationTable:
             dop = float(m.doppler_hz)
             if not np.isfinite(dop):
                 counts["doppler_nan"] += 1
+                dop = np.nan
+            elif dop == 0.0:   # RAWX has no Doppler validity flag: an exact 0 is "none" (as a zero in RINEX)
+                counts["doppler_zero"] += 1
                 dop = np.nan
             if np.isnan(pr) and np.isnan(cp) and np.isnan(dop):
                 counts["rows_without_values"] += 1

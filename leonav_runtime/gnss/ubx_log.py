@@ -52,6 +52,15 @@ def parse_ubx_bytes(data: bytes, source: str = "<bytes>", *, reference_week: int
             sfrbx_payloads.append((item.payload, f"{source}: SFRBX #{len(sfrbx_payloads) + 1}"))
     for reason, n in splitter.rejected.items():
         counts[f"framing_{reason}"] += n
+    log = ubx_records_to_log(epochs, sfrbx_payloads, source, reference_week=reference_week)
+    log.counts.update(counts)
+    return log
+
+
+def ubx_records_to_log(epochs, sfrbx_payloads: list[tuple[bytes, str]], source: str = "", *,
+                       reference_week: int | None = None) -> UbxLog:
+    """Decoded RXM-RAWX epochs and RXM-SFRBX payloads (with where they were read) -> UbxLog."""
+    counts: Counter = Counter()
     table = rawx_to_table(epochs, source)
     if reference_week is None:
         if epochs:

@@ -5,6 +5,7 @@ its data into the tables of `tables.py` and calls `assemble`, which returns one
 `FilterInputs` for the generated C loop (`leonav_runtime.filter.EKF.run`):
 
     ImuTable, FixTable, PseudorangeTable, DopplerRateTable, ...   (tables.py: units, frames)
+      GnssObservationTable (receiver code / Doppler)              (gnss_obs.py)
       + params (filter_params) + Prior | FirstFixPrior           (prior.py)
       -> assemble(...)                                            (assemble.py)
       -> FilterInputs(records per stream, x0, P0, params, notes, counts, init)
@@ -16,6 +17,8 @@ table and its record function here; nothing else in the runtime changes.
 from __future__ import annotations
 
 from leonav_runtime.inputs.assemble import STREAMS, FilterInputs, assemble
+from leonav_runtime.inputs.gnss_obs import (COUPLED_MODE_STREAMS, GNSS_Q_CDDT_M2PS3, GNSS_Q_CDT_M2PS, GNSS_STREAMS,
+                                            GnssObservationTable, apply_clock_start, gnss_records)
 from leonav_runtime.inputs.imu import F_B_AVERAGE_S, averaged_specific_force, imu_records, latest_sample
 from leonav_runtime.inputs.measurements import (aux_blocks, doppler_rate_variance, fix_records, satellite_aux,
                                                 satellite_records, states_from_aux)
@@ -28,6 +31,7 @@ from leonav_runtime.inputs.tables import (SAT_A_MPS2, SAT_R_M, SAT_V_MPS, SATELL
 
 __all__ = [
     "STREAMS", "FilterInputs", "assemble",
+    "COUPLED_MODE_STREAMS", "GNSS_Q_CDDT_M2PS3", "GNSS_Q_CDT_M2PS", "GNSS_STREAMS", "GnssObservationTable", "apply_clock_start", "gnss_records",
     "F_B_AVERAGE_S", "averaged_specific_force", "imu_records", "latest_sample",
     "aux_blocks", "doppler_rate_variance", "fix_records", "satellite_aux", "satellite_records", "states_from_aux",
     "CLOCK_BIAS_SIGMA_M", "CLOCK_DRIFT_SIGMA_MPS", "LO_OFFSET_SIGMA_HZ", "LO_RANDOM_WALK_HZ2_S",

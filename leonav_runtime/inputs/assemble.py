@@ -8,7 +8,9 @@ Rules (the same for every source):
 - records per stream (`STREAMS`): IMU increments, fixes as POS_E/N/U, each satellite
   observable with its aux (satellite states, averaged specific force) and R
   (`measurements.py`); `FilterInputs.merged(streams)` merges the IMU records with the
-  chosen streams in the fixed `STREAMS` order (at equal t: IMU first, then that order).
+  chosen streams in the fixed `STREAMS` order (at equal t: IMU first, then that order);
+- a GNSS observation table (`gnss_obs.py`) gives the GNSS_PSEUDORANGE and GNSS_RANGE_RATE
+  streams and starts the receiver clock from its single-point clocks (`apply_clock_start`).
 """
 from __future__ import annotations
 
@@ -20,12 +22,14 @@ import numpy as np
 
 from leonav_runtime import navfuncs, records
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.inputs.gnss_obs import GnssObservationTable, apply_clock_start, gnss_records
 from leonav_runtime.inputs.imu import averaged_specific_force, imu_records
 from leonav_runtime.inputs.measurements import fix_records, satellite_records
 from leonav_runtime.inputs.prior import FirstFixPrior, Prior, first_fix_prior
 from leonav_runtime.inputs.tables import FixTable, ImuTable, SatelliteTable
 
-STREAMS = ("imu", "fix", "pseudorange", "doppler_rate", "doppler", "ofdm_range_diff")
+STREAMS = ("imu", "fix", "pseudorange", "doppler_rate", "doppler", "ofdm_range_diff", "gnss_pseudorange",
+           "gnss_range_rate")
 """Record streams, in merge order: IMU, GNSS fixes, then the satellite observables."""
 
 
@@ -46,6 +50,7 @@ class FilterInputs:
     imu: ImuTable
     fixes: FixTable
     satellites: dict[str, SatelliteTable]
+    gnss: GnssObservationTable = dataclasses.field(default_factory=GnssObservationTable.empty)
     notes: list[str] = dataclasses.field(default_factory=list)
     counts: dict = dataclasses.field(default_factory=dict)
     init: dict = dataclasses.field(default_factory=dict)
@@ -76,10 +81,11 @@ def _inside(t: np.ndarray, t_start: float, t_end: float) -> np.ndarray:
 def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *, fixes: FixTable | None = None,
              satellites: Sequence[SatelliteTable] = (), nav: navfuncs.NavFunctions | None = None,
              notes: list[str] | None = None, epoch_utc: _dt.datetime | None = None,
-             origin: tuple[float, float, float] | None = None) -> FilterInputs:
+             origin: tuple[float, float, float] | None = None,
+             gnss: GnssObservationTable | None = None) -> FilterInputs:
     """Records, x0, P0 and p from sensor tables (module doc). params: (NP,) (`filter_params`);
     prior: x0/P0 given (`Prior`) or made from the data (`FirstFixPrior`); satellites: at
-    most one table per observable kind."""
+    most one table per observable kind; gnss: code / Doppler observations of a GNSS receiver."""
     nav = nav or navfuncs.NavFunctions(params=params)
     notes = list(notes or [])
     imu.check()
@@ -90,6 +96,8 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
         raise UserInputError(f"satellite tables: {kinds}: expected at most one table per observable kind")
     for tab in satellites:
         tab.check()
+    if gnss is not None:
+        gnss.check()
     params = np.asarray(params, dtype=np.float64)
     check_params = nav.layout.NP
     if params.shape != (check_params,) or not np.all(np.isfinite(params)):
@@ -125,9 +133,19 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
         out[tab.KIND] = (satellite_records(used, imu, f_b_avg, f_b_span_s, params, nav) if used.t.size
                          else np.zeros(0, records.RECORD_DTYPE))
 
+    used_gnss = GnssObservationTable.empty()
+    x0, P0, init = prior.x0, prior.P0, {"start_s": t_start} | prior.init
+    if gnss is not None:
+        inside = _inside(gnss.t, t_start, t_end)
+        counts["gnss_outside_imu_span"] = int((~inside).sum())
+        used_gnss = gnss if inside.all() else gnss.select(inside)
+        out["gnss_pseudorange"], out["gnss_range_rate"] = gnss_records(used_gnss, nav)
+        if len(used_gnss):
+            x0, P0, params, clock_init = apply_clock_start(x0, P0, params, gnss, t_start, nav.layout)
+            init |= clock_init
+
     counts |= {"imu_records": int(out["imu"].size), "fix_epochs": int(used_fixes.t.size)}
-    for kind in used_sats:
+    for kind in list(used_sats) + (["gnss_pseudorange", "gnss_range_rate"] if gnss is not None else []):
         counts[f"{kind}_records"] = int(out[kind].size)
-    init = {"start_s": t_start} | prior.init
-    return FilterInputs(out, prior.x0, prior.P0, params, imu, used_fixes, used_sats, notes, counts, init,
+    return FilterInputs(out, x0, P0, params, imu, used_fixes, used_sats, used_gnss, notes, counts, init,
                         epoch_utc, origin)

@@ -9,29 +9,15 @@ Public API::
 Units SI (m, m/s, m/s^2, s); frames in names (TEME from SGP4, ECEF = ITRF); times are
 seconds since a UTC scenario epoch. Element sets use SGP4's WGS-72 constants, opsmode 'i'.
 """
-from leonav_runtime.orbits.constellations import default_elements, gps_walker_tle, starlink_walker_tle
-from leonav_runtime.orbits.elements import (
-    ElementSet,
-    RejectedElementsWarning,
-    RejectedEntry,
-    group_by_constellation,
-    load_element_files,
-    load_elements,
-    parse_elements_text,
-)
-from leonav_runtime.orbits.fetch import FetchError, fetch_group
-from leonav_runtime.orbits.propagate import (
-    SatStates,
-    StaleElementsWarning,
-    acceleration_ecef_mps2,
-    gravity_ecef_mps2,
-    propagate_ecef,
-    propagate_teme,
-)
+from leonav_runtime.lazy_exports import lazy_exports
 
-__all__ = [
-    "ElementSet", "RejectedEntry", "RejectedElementsWarning", "load_elements", "load_element_files", "group_by_constellation", "parse_elements_text",
-    "SatStates", "StaleElementsWarning", "propagate_ecef", "propagate_teme", "gravity_ecef_mps2",
-    "acceleration_ecef_mps2", "default_elements", "gps_walker_tle", "starlink_walker_tle",
-    "FetchError", "fetch_group",
-]
+# names per module, imported on first use (lazy_exports.py): broadcast-ephemeris users
+# (`leonav spp`) do not import SGP4, the element readers or the HTTP client
+__all__, __getattr__, __dir__ = lazy_exports(__name__, {
+    "constellations": ("default_elements", "gps_walker_tle", "starlink_walker_tle"),
+    "elements": ("ElementSet", "RejectedElementsWarning", "RejectedEntry", "group_by_constellation",
+                 "load_element_files", "load_elements", "parse_elements_text"),
+    "fetch": ("FetchError", "fetch_group"),
+    "propagate": ("SatStates", "StaleElementsWarning", "acceleration_ecef_mps2", "gravity_ecef_mps2",
+                  "propagate_ecef", "propagate_teme"),
+})

@@ -1,4 +1,5 @@
-"""Replay a recorded session through the generated filter: fix+imu, leo-alpha+imu, fix+leo-alpha+imu.
+"""Replay a recorded session through the generated filter: fix+imu, leo-alpha+imu, fix+leo-alpha+imu,
+and the tightly coupled pseudorange+imu, pseudorange+leo-alpha+imu (`gnss_raw.py`, on request).
 
 Pipeline (`replay_session`), one module per step:
 1. `hardware.session.decode_session` re-decodes gnss.raw / imu.raw with their chunk stamps.
@@ -22,25 +23,18 @@ Pipeline (`replay_session`), one module per step:
 """
 from __future__ import annotations
 
-from leonav_runtime.replay.beacon_table import (BeaconMeasurements, beacon_measurements, capture_carrier,
-                                                doppler_rate_table)
-from leonav_runtime.replay.direct import compare_replay_direct, direct_inputs
-from leonav_runtime.replay.gnss_table import DEFAULT_UERE_M, fix_height_m, fix_table, usable_fix
-from leonav_runtime.replay.options import (MODE_ALIASES, MODE_STREAMS, MODES, ReplayOptions, canonical_modes,
-                                           check_options)
-from leonav_runtime.replay.report import write_outputs
-from leonav_runtime.replay.run import (SessionInputs, decode_inputs, replay_session, run_modes, session_inputs,
-                                       skip_reasons)
-from leonav_runtime.replay.scoring import Reference, evaluate, fix_reference, mode_metrics, truth_reference
-from leonav_runtime.replay.timebase import filter_profile, imu_table, mono_to_utc_function, regular_sample_times
+from leonav_runtime.lazy_exports import lazy_exports
 
-__all__ = [
-    "BeaconMeasurements", "beacon_measurements", "capture_carrier", "doppler_rate_table",
-    "compare_replay_direct", "direct_inputs",
-    "DEFAULT_UERE_M", "fix_height_m", "fix_table", "usable_fix",
-    "MODE_ALIASES", "MODE_STREAMS", "MODES", "ReplayOptions", "canonical_modes", "check_options",
-    "write_outputs",
-    "SessionInputs", "decode_inputs", "replay_session", "run_modes", "session_inputs", "skip_reasons",
-    "Reference", "evaluate", "fix_reference", "mode_metrics", "truth_reference",
-    "filter_profile", "imu_table", "mono_to_utc_function", "regular_sample_times",
-]
+# names per module, imported on first use (lazy_exports.py): the parser of `leonav replay` and
+# commands that need only the mode names do not import the beacon pipeline, simulator or SciPy
+__all__, __getattr__, __dir__ = lazy_exports(__name__, {
+    "beacon_table": ("BeaconMeasurements", "beacon_measurements", "capture_carrier", "doppler_rate_table"),
+    "direct": ("compare_replay_direct", "direct_inputs"),
+    "gnss_table": ("DEFAULT_UERE_M", "fix_height_m", "fix_table", "usable_fix"),
+    "options": ("ALL_MODES", "MODE_ALIASES", "MODE_STREAMS", "MODES", "PSEUDORANGE_MODES", "ReplayOptions",
+                "canonical_modes", "check_options"),
+    "report": ("write_outputs",),
+    "run": ("SessionInputs", "decode_inputs", "replay_session", "run_modes", "session_inputs", "skip_reasons"),
+    "scoring": ("Reference", "evaluate", "fix_reference", "mode_metrics", "truth_reference"),
+    "timebase": ("filter_profile", "imu_table", "mono_to_utc_function", "regular_sample_times"),
+})

@@ -1,7 +1,10 @@
 """Replay modes and options.
 
 Modes name what the filter fuses with the IMU: `fix+imu` (GNSS position fixes),
-`leo-alpha+imu` (Starlink Doppler-rate, the paper's name), `fix+leo-alpha+imu` (both).
+`leo-alpha+imu` (Starlink Doppler-rate, the paper's name), `fix+leo-alpha+imu` (both), and
+the tightly coupled `pseudorange+imu` (the receiver's RXM-RAWX code pseudoranges and Doppler
+range rates) and `pseudorange+leo-alpha+imu` (those and the Doppler-rate). The default runs
+the first three; the pseudorange modes are asked for with `--modes`.
 `gps+imu` means GPS *pseudoranges* everywhere else (scenarios, sweeps), so the replay's
 position-fix modes say `fix`; the old names `gps+imu` and `gps+leo-alpha+imu` are
 accepted as aliases with a note.
@@ -13,9 +16,15 @@ import math
 
 from leonav_runtime import filter as lfilter
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.gen.constants import GNSS_MASK_DEG
+from leonav_runtime.inputs import COUPLED_MODE_STREAMS
 
 MODES = ("fix+imu", "leo-alpha+imu", "fix+leo-alpha+imu")
-MODE_STREAMS = {"fix+imu": ("fix",), "leo-alpha+imu": ("doppler_rate",), "fix+leo-alpha+imu": ("fix", "doppler_rate")}
+"""The modes a replay runs by default."""
+PSEUDORANGE_MODES = tuple(COUPLED_MODE_STREAMS)
+ALL_MODES = MODES + PSEUDORANGE_MODES
+MODE_STREAMS = {"fix+imu": ("fix",), "leo-alpha+imu": ("doppler_rate",), "fix+leo-alpha+imu": ("fix", "doppler_rate"),
+                **COUPLED_MODE_STREAMS}
 """Record streams (`inputs.STREAMS`) each mode merges with the IMU records."""
 MODE_ALIASES = {"gps+imu": "fix+imu", "gps+leo-alpha+imu": "fix+leo-alpha+imu"}
 """Old replay mode names (they meant position fixes) -> the current ones."""
@@ -31,6 +40,8 @@ class ReplayOptions:
     gate_nis: float = lfilter.CHI2_1DOF_999
     use_truth: bool = True
     gnss_latency_s: float = 0.0     # receiver output latency (epoch -> first byte), if measured (PPS)
+    nav_paths: tuple[str, ...] = ()  # RINEX navigation files for the pseudorange modes (besides RXM-SFRBX)
+    elevation_mask_deg: float = GNSS_MASK_DEG   # pseudorange modes: satellites below are not used
 
 
 def canonical_modes(modes) -> tuple[tuple[str, ...], list[str]]:
@@ -49,9 +60,11 @@ def canonical_modes(modes) -> tuple[tuple[str, ...], list[str]]:
 def check_options(options: ReplayOptions) -> ReplayOptions:
     """The options with canonical mode names, or a UserInputError naming the bad one."""
     modes, _ = canonical_modes(options.modes)
-    bad = [m for m in modes if m not in MODES]
+    bad = [m for m in modes if m not in ALL_MODES]
     if bad:
-        raise UserInputError(f"--modes: {bad[0]!r}: expected some of {', '.join(MODES)}")
+        raise UserInputError(f"--modes: {bad[0]!r}: expected some of {', '.join(ALL_MODES)}")
+    if not 0.0 <= options.elevation_mask_deg <= 90.0:
+        raise UserInputError(f"--elevation-mask: {options.elevation_mask_deg!r}: expected degrees in 0..90")
     if options.origin_deg is not None and not all(math.isfinite(v) for v in options.origin_deg):
         raise UserInputError(f"--origin: {options.origin_deg}: expected finite LAT LON H")
     return dataclasses.replace(options, modes=modes)

@@ -19,8 +19,10 @@ from leonav_runtime.errors import UserInputError
 from leonav_runtime.inputs import DopplerRateTable, FilterInputs, FirstFixPrior, FixTable, assemble, filter_params
 from leonav_runtime.replay.beacon_table import (BeaconMeasurements, beacon_measurements, default_carrier,
                                                 doppler_rate_table)
+from leonav_runtime.replay.gnss_raw import RawGnss, raw_gnss
 from leonav_runtime.replay.gnss_table import fix_height_m, fix_table, usable_fix
-from leonav_runtime.replay.options import MODE_STREAMS, ReplayOptions, canonical_modes, check_options
+from leonav_runtime.replay.options import (MODE_STREAMS, PSEUDORANGE_MODES, ReplayOptions, canonical_modes,
+                                           check_options)
 from leonav_runtime.replay.timebase import device_baud, filter_profile, imu_table, mono_to_utc_function, utc_of
 
 WITMOTION_ATTITUDE = "WitMotion angle output"
@@ -33,6 +35,7 @@ class SessionInputs(FilterInputs):
     measurements (before satellite states), and the modes that cannot run, with reasons."""
 
     beacons: dict = dataclasses.field(default_factory=dict)
+    raw_gnss: dict = dataclasses.field(default_factory=dict)      # the RXM-RAWX single-point pass (counts)
     beacon_measurements: BeaconMeasurements = dataclasses.field(default_factory=BeaconMeasurements.empty)
     skipped: dict[str, str] = dataclasses.field(default_factory=dict)   # mode -> reason
 
@@ -54,12 +57,19 @@ def replay_prior(options: ReplayOptions, profile) -> FirstFixPrior:
 
 
 def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurements, elements, options,
-                   profile, nav: navfuncs.NavFunctions, notes: list[str], f_c_hz: float) -> SessionInputs:
-    """The road into the filter for one session's tables (also used by the direct simulation)."""
+                   profile, nav: navfuncs.NavFunctions, notes: list[str], f_c_hz: float,
+                   spp=None) -> SessionInputs:
+    """The road into the filter for one session's tables (also used by the direct simulation);
+    spp: the single-point pass of the session's RXM-RAWX (pseudorange modes), or None."""
     doppler_rate = doppler_rate_table(meas, elements, epoch_utc, options.doppler_rate_sigma_floor_hz_s)
+    gnss = None
+    if spp is not None:
+        from leonav_runtime.gnss.coupled import observation_table
+
+        gnss = observation_table(spp, epoch_utc)
     inputs = assemble(imu, filter_params(origin, profile, f_c_hz), replay_prior(options, profile),
                       fixes=fixes, satellites=[doppler_rate], nav=nav, notes=notes, epoch_utc=epoch_utc,
-                      origin=origin)
+                      origin=origin, gnss=gnss)
     out = SessionInputs.of(inputs, beacon_measurements=meas)
     out.counts["doppler_rate_satellites"] = int(np.unique(out.doppler_rate.sat_id).size)
     return out
@@ -85,6 +95,9 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
         raise UserInputError(f"{folder / 'imu.chunks.csv'}: the {len(dec.imu_samples)} WitMotion cycles all arrived "
                              f"at t_mono_s {dec.imu_samples[0].t_mono_s!r}: the stamps do not advance, so the "
                              "samples cannot be placed in time")
+    raw = RawGnss(None, {}, "")
+    if set(options.modes) & set(PSEUDORANGE_MODES):
+        raw = raw_gnss(dec.gnss_records, options, nav, str(folder / "gnss.raw"))
     to_utc, time_src = mono_to_utc_function(dec, options.gnss_latency_s)
     if not dec.time_map.valid:
         notes.append(f"time: {time_src}")
@@ -101,11 +114,23 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
     elif first_fix is not None:
         origin = (first_fix.lat_rad, first_fix.lon_rad, fix_height_m(first_fix))
         origin_src = "first GNSS fix with a finite latitude, longitude and height"
+    elif raw.spp is not None:
+        from leonav_runtime.gnss.coupled import first_solution_origin
+
+        origin = first_solution_origin(raw.spp)
+        origin_src = "first single-point solution of the RXM-RAWX pseudoranges"
     else:
         origin = None
         origin_src = "none"
     fixes, fcounts = fix_table(dec.gnss_records, to_utc, epoch, origin, notes) if origin else (FixTable.empty(),
                                                                                                {"gnss_fixes": 0})
+    if fixes.t.size == 0 and raw.spp is not None:
+        from leonav_runtime.gnss.coupled import spp_fixes
+
+        fixes = spp_fixes(raw.spp, epoch_utc, origin)
+        fcounts["fix_source"] = "single-point solutions of RXM-RAWX"
+        notes.append("GNSS: no position fix in gnss.raw: the single-point solutions of the RXM-RAWX pseudoranges "
+                     f"are the fixes ({fixes.t.size}; they start the filter and are the fix modes' measurements)")
     meas, bsum, elements = (beacon_measurements(folder, out_dir, to_utc, dec.time_map.valid, epoch, origin, elements,
                                                 notes, progress) if origin else
                             (BeaconMeasurements.empty(), {"reason_empty": "no position to predict satellites from "
@@ -118,15 +143,17 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
         # nothing can run: keep a valid (empty) result with the reasons
         origin = (0.0, 0.0, 0.0)
     inputs = session_inputs(epoch_utc, origin, imu, fixes, meas, elements, options, profile, nav, notes,
-                            bsum["f_c_hz"])
+                            bsum["f_c_hz"], raw.spp)
     inputs.counts |= counts | fcounts | {"gnss_decoder": dec.gnss_summary, "imu_decoder": dec.imu_summary}
-    inputs.beacons = bsum
+    inputs.beacons, inputs.raw_gnss = bsum, raw.summary
     inputs.init |= {"origin": origin_src, "origin_deg": [math.degrees(origin[0]), math.degrees(origin[1]), origin[2]],
                     "time_axis": time_src, "epoch_utc": epoch_utc}
     if origin_src == "--origin":
         inputs.init["origin_given"] = True
     for mode in options.modes:
-        if "fix" in MODE_STREAMS[mode] and fixes.t.size == 0:
+        if mode in PSEUDORANGE_MODES and raw.reason:
+            inputs.skipped[mode] = raw.reason
+        elif "fix" in MODE_STREAMS[mode] and fixes.t.size == 0:
             inputs.skipped[mode] = ("no GNSS fix in gnss.raw" if not any_fix else
                                     "no GNSS fix with a finite latitude, longitude and height in gnss.raw"
                                     if first_fix is None else "no GNSS fix inside the IMU time span")
@@ -174,6 +201,8 @@ def skip_reasons(inputs: SessionInputs, modes) -> dict[str, str]:
     for mode in modes:
         if "fix" in MODE_STREAMS[mode] and inputs.records["fix"].size == 0:
             out[mode] = "no GNSS fix inside the IMU time span"
+        elif "gnss_pseudorange" in MODE_STREAMS[mode] and np.size(inputs.records.get("gnss_pseudorange", ())) == 0:
+            out[mode] = "no RXM-RAWX pseudorange inside the IMU time span"
         elif "doppler_rate" in MODE_STREAMS[mode] and inputs.records["doppler_rate"].size == 0:
             out[mode] = "no associated Doppler-rate measurement: " + str(
                 inputs.beacons.get("reason_empty") or "no ridge was associated with a satellite")
@@ -228,7 +257,7 @@ def replay_session(folder: str | Path, out_dir: str | Path, options: ReplayOptio
         "session": str(folder), "reference": ref.kind if ref else None,
         "modes": scoring.mode_metrics(runs, scored, nav),
         "skipped_modes": inputs.skipped, "counts": inputs.counts, "initialization": inputs.init,
-        "beacons": inputs.beacons, "notes": inputs.notes,
+        "beacons": inputs.beacons, "raw_gnss": inputs.raw_gnss, "notes": inputs.notes,
         "f_c_hz": inputs.f_c_hz, "f_c_source": inputs.beacons.get("f_c_source"),
         "doppler_rate_sigma_floor_hz_s": options.doppler_rate_sigma_floor_hz_s, "gate_nis": options.gate_nis,
     }
