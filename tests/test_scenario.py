@@ -65,7 +65,7 @@ def test_missing_required_and_bad_epoch(tmp_path):
     with pytest.raises(UserInputError, match=r"\[time\] duration_s is missing"):
         load_scenario(path)
     path.write_text("[time]\nepoch = '2026-02-23 12:00'\nduration_s = 1.0\n")
-    with pytest.raises(UserInputError, match="expected an explicit UTC offset"):
+    with pytest.raises(UserInputError, match="has no time zone: expected an explicit one"):
         load_scenario(path)
     path.write_text("[time\n")
     with pytest.raises(UserInputError, match="not valid TOML"):
