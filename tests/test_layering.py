@@ -100,3 +100,14 @@ def test_beacons_and_replay_run_with_casadi_unimportable(tmp_path):
     r = _run_blocked(["replay", str(tmp_path / "s"), "--out", str(tmp_path / "o")], tmp_path)
     assert r.returncode == 0, r.stderr[-3000:]
     assert (tmp_path / "o" / "metrics.json").exists()
+
+
+def test_building_the_command_line_loads_no_heavy_library():
+    """Every command registers itself without importing scipy, matplotlib or casadi (they
+    cost 0.2-0.5 s of start-up each; `leonav spp` is timed against rnx2rtkp as a command)."""
+    code = ("import sys\nfrom leonav_runtime.cli import build_parser\nbuild_parser()\n"
+            "print(sorted({m.split('.')[0] for m in sys.modules} & {'scipy', 'matplotlib', 'casadi', 'pandas'}))")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120,
+                          env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]", proc.stdout

@@ -23,23 +23,10 @@ import numpy as np
 
 from leonav_runtime.beacons import pipeline, synth
 from leonav_runtime.beacons.comb import COMB_SPACING_HZ
-from leonav_runtime.beacons.impairments import ALL_ON, ALL_ON_SYNTH, Impairments
+from leonav_runtime.beacons.impairments import SETS
 
 MATCH_HZ = 300.0
 
-# name -> (Impairments, SynthConfig overrides): each impairment of ALL_ON alone, then all
-SETS: dict[str, tuple[Impairments | None, dict]] = {
-    "none": (None, {}),
-    "iq-imbalance": (Impairments(iq_gain_db=ALL_ON.iq_gain_db, iq_phase_deg=ALL_ON.iq_phase_deg), {}),
-    "dc-spike": (None, {"dc_offset_codes": ALL_ON_SYNTH["dc_offset_codes"]}),
-    "8-bit-clipping": (None, {"noise_rms_codes": 45.0}),
-    "lo-phase-noise": (Impairments(phase_noise_linewidth_hz=ALL_ON.phase_noise_linewidth_hz), {}),
-    "lo-temperature": (Impairments(lo_temp_step_hz=ALL_ON.lo_temp_step_hz, lo_temp_tau_s=ALL_ON.lo_temp_tau_s), {}),
-    "sdr-ppm-drift": (Impairments(sdr_ppm=ALL_ON.sdr_ppm, sdr_ppm_rate_per_s=ALL_ON.sdr_ppm_rate_per_s), {}),
-    "cw-interferer": (Impairments(cw_offset_hz=ALL_ON.cw_offset_hz, cw_cn0_dbhz=ALL_ON.cw_cn0_dbhz), {}),
-    "overlapping-combs": (None, {"tones_per_satellite": 9, "full_comb_in_band": False}),
-    "all": (ALL_ON, dict(ALL_ON_SYNTH)),
-}
 
 
 @dataclasses.dataclass

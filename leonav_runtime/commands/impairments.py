@@ -8,7 +8,7 @@ from leonav_runtime.errors import UserInputError
 
 
 def register(subparsers) -> None:
-    from leonav_runtime.beacons.impairment_study import SETS
+    from leonav_runtime.beacons.impairments import SETS
 
     p = subparsers.add_parser(
         "impairments",
