@@ -1,5 +1,5 @@
 """The Python API behind `import leonav`: load a scenario, run a sweep or a replay in
-memory and get plain dicts and NumPy arrays whose key names carry their units
+memory, run a study (a grid over scenario fields) and get plain dicts and NumPy arrays whose key names carry their units
 (`position_rmse_m`, `attitude_rmse_deg`, `t_s`). Nothing is written unless `out_dir` is
 given; then the same results folder as the command line (with report.html) is written.
 
@@ -21,7 +21,7 @@ import numpy as np
 from leonav_runtime.scenario import MODES, Scenario
 from leonav_runtime.scenario import load_scenario as _load_scenario
 
-__all__ = ["MODES", "Scenario", "load_scenario", "run_sweep", "run_replay"]
+__all__ = ["MODES", "Scenario", "load_scenario", "run_sweep", "run_replay", "run_study"]
 
 # block -> (key prefix, unit suffix, scale from the SI value in the summaries)
 _BLOCKS = {"position": ("position", "m", 1.0), "velocity": ("velocity", "mps", 1.0),
@@ -127,3 +127,46 @@ def run_replay(session: str | Path, *, out_dir: str | Path | None = None, tle: S
         return {"metrics": metrics, "errors": _read_columns(folder / "rmse_vs_time.csv"),
                 "trajectory": _read_columns(folder / "trajectory.csv"),
                 "out_dir": None if out_dir is None else folder}
+
+
+# study summary key -> API key (the study's rows are already in m, m/s and deg)
+_STUDY_KINDS = {"rmse": "rmse", "pcrb": "sqrt_pcrb", "final_rmse": "final_rmse", "final_pcrb": "final_sqrt_pcrb"}
+
+
+def run_study(study: str | Path, *, sets: Sequence[str] = (), trials: int | None = None, workers: int | None = 1,
+              out_dir: str | Path | None = None, figures: bool = True) -> dict[str, Any]:
+    """Run a study (`leonav study`): a shipped name such as `where-is-6-9m` or a TOML path.
+
+    `sets`: `key=value` overrides as `--set` takes them; `trials`: trials per cell and mode
+    instead of the file's. Returns {"axes": [{"key", "values"}], "modes", "cells": one dict
+    per (cell, mode) with the varied values and `position_rmse_m`, `position_sqrt_pcrb_m`,
+    `position_final_rmse_m`, ..., `velocity_*_mps`, `attitude_*_deg`, `nees_mean`}, and per
+    mode grid arrays shaped like the axes, e.g. `grid["leo-alpha+imu"]["position_rmse_m"]`.
+    Without `out_dir` the files (study.csv/json/png) go to a temporary folder that is removed.
+    """
+    import dataclasses
+
+    from leonav_runtime.study.run import run_study as _run
+    from leonav_runtime.study.spec import load_study
+
+    spec = load_study(study, list(sets))
+    if trials is not None:
+        spec = dataclasses.replace(spec, trials=int(trials))
+    shape = tuple(len(a.values) for a in spec.axes)
+    with tempfile.TemporaryDirectory(prefix="leonav-study-") as tmp:
+        folder = Path(out_dir) if out_dir is not None else Path(tmp)
+        res = _run(spec, folder, workers=workers, progress=False, figures=figures)
+    cells, grid = [], {}
+    for cell in spec.cells:
+        for mode in spec.modes:
+            row = res.rows[(cell.index, mode)]
+            entry = {"values": dict(cell.values), "mode": mode, "count": cell.count, "nees_mean": row["nees_mean"]}
+            for block, (name, unit, _) in _BLOCKS.items():
+                for kind, api_kind in _STUDY_KINDS.items():
+                    key = f"{name}_{api_kind}_{unit}"
+                    entry[key] = row[f"{block}_{kind}"]
+                    grid.setdefault(mode, {}).setdefault(key, np.full(shape, np.nan))[cell.index] = entry[key]
+            cells.append(entry)
+    return {"name": spec.name, "axes": [{"key": a.key, "values": list(a.values)} for a in spec.axes],
+            "modes": list(spec.modes), "trials": spec.trials, "cells": cells, "grid": grid,
+            "timing": res.timing, "out_dir": None if out_dir is None else folder}

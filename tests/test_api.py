@@ -25,6 +25,27 @@ def test_docs_example_runs(capsys):
     assert (scope["folder"] / "report.html").is_file() and (scope["folder"] / "metrics.json").is_file()
     assert "leo-alpha+imu" in capsys.readouterr().out
     assert res["position_rmse_m"].shape == (2, 2)
+    study = scope["study"]      # sigma_alpha 0.1 vs 1.2 Hz/s: the quieter Doppler-rate ends closer
+    assert study["grid"]["leo-alpha+imu"]["position_final_sqrt_pcrb_m"][0] < \
+        study["grid"]["leo-alpha+imu"]["position_final_sqrt_pcrb_m"][1]
+
+
+def test_study_arrays_are_the_study_files(tmp_path):
+    """run_study's cells and grids hold the numbers of study.csv, in its units (m, m/s, deg)."""
+    spec = tmp_path / "s.toml"
+    spec.write_text('name = "s"\nscenario = "paper"\nmodes = ["gps+imu", "leo-alpha+imu"]\ncount = 5\n'
+                    'trials = 2\n[set]\n"time.duration_s" = 2.0\n[[vary]]\nkey = "starlink.rate_hz"\n'
+                    'values = [1, 2]\n')
+    res = leonav.run_study(spec, out_dir=tmp_path / "out", figures=False)
+    with open(tmp_path / "out" / "study.csv") as fh:
+        rows = {(r["mode"], float(r["starlink.rate_hz"])): r for r in csv.DictReader(fh)}
+    assert len(res["cells"]) == len(rows) == 4
+    for cell in res["cells"]:
+        row = rows[(cell["mode"], float(cell["values"]["starlink.rate_hz"]))]
+        assert cell["position_rmse_m"] == pytest.approx(float(row["position_rmse"]))
+        assert cell["attitude_final_sqrt_pcrb_deg"] == pytest.approx(float(row["attitude_final_pcrb"]))
+        k = res["axes"][0]["values"].index(cell["values"]["starlink.rate_hz"])
+        assert res["grid"][cell["mode"]]["velocity_sqrt_pcrb_mps"][k] == cell["velocity_sqrt_pcrb_mps"]
 
 
 def test_arrays_match_the_summaries_and_the_csv(tmp_path):
