@@ -146,3 +146,17 @@ def test_verbosity_flags_set_the_log_level():
     assert argv == ["sweep", "--trials", "2"] and level == 2 and level_for(level) == 10
     assert _split_verbosity(["-q", "sky", "--", "-v"]) == (["sky", "--", "-v"], -1)
     assert level_for(-1) == 40 and level_for(0) == 30 and level_for(1) == 20
+
+
+def test_spp_and_study_results_carry_provenance(tmp_path):
+    """Every results JSON names the version, commit and command line that made it."""
+    obs, nav = shared_file("gnss_rinex/30400920.05o"), shared_file("gnss_rinex/30400920.05n")
+    assert main(["spp", str(obs), "--nav", str(nav), "--out", str(tmp_path / "spp")]) == 0
+    p = json.loads((tmp_path / "spp" / "spp.json").read_text())["provenance"]
+    assert p["command_line"].startswith("leonav spp ") and p["git_commit"] == _git_head()
+    study = tmp_path / "s.toml"
+    study.write_text('name = "s"\nscenario = "paper"\nmodes = ["gps+imu"]\ncount = 5\ntrials = 1\n'
+                     '[set]\n"time.duration_s" = 1.0\n[[vary]]\nkey = "starlink.rate_hz"\nvalues = [1, 2]\n')
+    assert main(["study", str(study), "--workers", "1", "--no-progress", "--out", str(tmp_path / "st")]) == 0
+    p = json.loads((tmp_path / "st" / "study.json").read_text())["provenance"]
+    assert p["command_line"].startswith("leonav study ") and len(p["scenario_sha256"]) == 64

@@ -132,7 +132,9 @@ def write_results(out_dir: Path, rows: list[dict], meta: dict) -> None:
     out_dir = Path(out_dir)
     keys = list(rows[0])
     output.write_csv(out_dir / "impairments.csv", keys, [[r[k] for k in keys] for r in rows])
-    output.write_json(out_dir / "impairments.json", {**meta, "sets": {n: {"impairments": dataclasses.asdict(i)
+    from leonav_runtime.provenance import provenance
+
+    output.write_json(out_dir / "impairments.json", {"provenance": provenance(), **meta, "sets": {n: {"impairments": dataclasses.asdict(i)
                                                                           if i else None, "synth": e}
                                                                       for n, (i, e) in SETS.items()}, "rows": rows})
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(13, 4.5))

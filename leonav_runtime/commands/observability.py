@@ -140,7 +140,10 @@ def run(args: argparse.Namespace) -> int:
         obs.plot_index(mode, comps, by_motion, out_dir / name, None if run is None else run["index"][-1],
                        scenario_info.get("name", "scenario"))
         figures.append(name)
+    from leonav_runtime.provenance import provenance
+
     output.write_json(out_dir / "observability.json", {
+        "provenance": provenance(),
         "settings": res["settings"], "seconds": res["seconds"], "symbolic_build_s": res["build_s"],
         "modes": modes, "structural": summaries, "scenario": scenario_info,
         "runs": [{k: v for k, v in r.items()} for r in runs],

@@ -226,7 +226,10 @@ def _run(args: argparse.Namespace) -> int:
     refs = args.compare or [None] * len(args.obs)
     nav_cache: dict = {}
     summaries = [process(Path(p), args.nav, args, nav_funcs, out, ref, nav_cache) for p, ref in zip(args.obs, refs)]
-    write_json(out / "spp.json", {"options": {k: v for k, v in vars(args).items() if k != "func"},
+    from leonav_runtime.provenance import provenance
+
+    write_json(out / "spp.json", {"provenance": provenance(),
+                                  "options": {k: v for k, v in vars(args).items() if k != "func"},
                                   "files": summaries, "total_s": time.perf_counter() - t0})
     for s in summaries:
         reasons = ", ".join(f"{k} {v}" for k, v in s["rows_by_reason"].items()

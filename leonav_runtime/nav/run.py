@@ -203,7 +203,9 @@ def run_nav(opts: NavOptions, on_started: Callable[[], None] | None = None,
               "session_status": session_info.get("status"), "exit_codes": EXIT_CODES,
               "f_c_hz": cfg.road.f_c_hz, "f_c_source": f_c_source,
               "beacons": beacons.summary() if beacons is not None else None} | summary
-    write_json(out / "nav.json", result)
+    from leonav_runtime.provenance import provenance
+
+    write_json(out / "nav.json", {"provenance": provenance(), **result})
     return result
 
 

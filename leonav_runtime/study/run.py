@@ -115,7 +115,9 @@ def write_results(study: Study, out_dir: Path, res: StudyResult, figures: bool =
             csv_rows.append([cell.values[k] for k in keys] + [mode, cell.count] + [row[k] for k in metric_keys])
             cells.append({"values": cell.values, "mode": mode, "count": cell.count, **row})
     output.write_csv(out_dir / "study.csv", keys + ["mode", "count"] + metric_keys, csv_rows)
-    meta = {"name": study.name, "description": study.description, "source": study.source,
+    from leonav_runtime.provenance import provenance
+
+    meta = {"provenance": provenance(study.base.raw), "name": study.name, "description": study.description, "source": study.source,
             "base_scenario": study.base.source, "modes": study.modes, "trials_per_cell": study.trials,
             "set": study.sets, "axes": [{"key": a.key, "label": a.label, "values": list(a.values)} for a in study.axes],
             "units": {"position": "m", "velocity": "m/s", "attitude": "deg",
