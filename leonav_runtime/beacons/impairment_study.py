@@ -28,7 +28,6 @@ from leonav_runtime.beacons.impairments import SETS
 MATCH_HZ = 300.0
 
 
-
 @dataclasses.dataclass
 class Score:
     ridges: int = 0
