@@ -19,7 +19,7 @@ that is constant over the run as if it were white. Compensation `consider`: R + 
 with J the generated Jacobian of h over the aux satellite state and P_sat the linearised
 orbit-error model (inputs/consider.py), added on the input road at the filter's prior state
 (not the truth); `consider_correlation_s` > 0 scales it by the records of the satellite
-within that time (the error is constant per satellite).
+within that time (the error is shared by a satellite's records: see docs/scenarios.md).
 
 IMU errors the filter does not model: per-axis scale factors, misalignment (cross-axis
 terms), gyro g-sensitivity (rad/s per m/s^2 of specific force) and bias drift with a

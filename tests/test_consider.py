@@ -163,6 +163,18 @@ def test_consider_brings_nees_closer_to_its_band_than_no_compensation():
     assert on <= 0.25 * off
 
 
+def test_consider_with_correlation_time_puts_nees_in_its_band_where_white_does_not():
+    """45 satellites, 10 s, 6 h old elements: white consider leaves NEES above the band (the
+    error is shared by a satellite's records); scaling by the records per satellite brings it in."""
+    def nees(corr):
+        scn = _scn(duration_s=10.0, count=45, enabled=True, compensate="consider", consider_correlation_s=corr)
+        res = [mc.run_trial(scn, "leo-alpha+imu", 45, i) for i in range(10)]
+        return mc.summarize(res, {name: np.ones(res[0].err.shape[0]) for name in mc.BLOCKS})["nees"]
+    white, corr = nees(0.0), nees(600.0)
+    assert white["mean"] > white["band95"][1]
+    assert corr["band95"][0] <= corr["mean"] <= corr["band95"][1]
+
+
 @pytest.mark.parametrize("value, fragment", [("schmidt", "compensate"), (-1.0, "consider_correlation_s")])
 def test_bad_consider_values_name_the_field(value, fragment):
     key = "compensate" if fragment == "compensate" else "consider_correlation_s"
