@@ -20,10 +20,11 @@ reference satellite's error, independent of the satellite's.
 
 The errors are treated as white between records: no cross-covariance between the
 navigation state and an orbit error is carried, so the term is a geometry-aware,
-model-derived R inflation. With `correlated_records` m > 1 the per-record term is
-multiplied by m (the records of one satellite sharing its constant error): for m records
-of the same sensitivity that gives exactly the information of their mean,
-1 / (sigma_orbit^2 + R / m), instead of m times too much (see docs/scenarios.md).
+model-derived R inflation. With a correlation time (`OrbitConsider.correlation_s`) the
+per-record term is multiplied by m, the records of its satellite within that time (they
+share its error, constant over a pass): for m records of the same sensitivity that gives
+exactly the information of their mean, 1 / (sigma_orbit^2 + R / m), where the white term
+claims m / (sigma_orbit^2 + R), up to m times too much (see docs/scenarios.md).
 The Jacobian is evaluated at one receiver state (the prior's): it depends on the receiver
 only through the line of sight over ranges of 500+ km, so a receiver km away changes it
 by well under 1 %.
