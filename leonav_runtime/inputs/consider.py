@@ -25,9 +25,10 @@ per-record term is multiplied by m, the records of its satellite within that tim
 share its error, constant over a pass): for m records of the same sensitivity that gives
 exactly the information of their mean, 1 / (sigma_orbit^2 + R / m), where the white term
 claims m / (sigma_orbit^2 + R), up to m times too much (see docs/scenarios.md).
-The Jacobian is evaluated at one receiver state (the prior's): it depends on the receiver
-only through the line of sight over ranges of 500+ km, so a receiver km away changes it
-by well under 1 %.
+The Jacobian is evaluated at one receiver state (the prior's; the filter's estimate is not
+known when records are built): it depends on the receiver mainly through the line of sight
+over ranges of 500+ km. On maritime-outage (the ship moves 2.5 km in 360 s) the consider
+sigma at the prior differs from the one at the true position by 0.4 % (median), 5 % at most.
 """
 from __future__ import annotations
 
