@@ -11,6 +11,7 @@ from models import ekf, frames, input_noise, kinematics
 from models.measurements import gnss_code
 from models.measurements import models as measurement_models
 from models.measurements.geometry import receiver_ecef, transmit_state
+from models.measurements.orbit_jacobian import orbit_jacobian, orbit_observables
 from models.state import NAUX, NDX, NP, NU, NX
 from models.state import P as P_BLOCK
 
@@ -141,4 +142,11 @@ def build_functions() -> list[ca.Function]:
                    {"el_az_iono_tropo": ca.vertcat(el, az, iono, tropo)},
                    "GNSS signal at the receiver: elevation, azimuth (rad), ionosphere and troposphere "
                    "delays (m) as the GNSS pseudorange model adds them"))
+    # consider treatment of ephemeris error: dh/d(satellite r, v in aux), after every other
+    # function so the existing ones keep their place in the generated C
+    for suffix in orbit_observables():
+        out.append(_fn(f"leonav_orbit_jac_{suffix}", {"x": x, "aux": aux, "p": p},
+                       {"J_orbit": orbit_jacobian(measurement_models()[suffix](x, aux, p), aux)},
+                       f"{suffix}: 1 x 12 Jacobian dh/d[r_S, v_S, r_ref, v_ref] (ECEF, m and m/s) of the aux "
+                       "satellite states (consider term R + J P_sat J^T)"))
     return out

@@ -10,6 +10,7 @@ import casadi as ca
 from codegen import emit_data
 from codegen.driver_codes import RECORD_STATUSES, RETURN_CODES
 from models import state as S
+from models.measurements.orbit_jacobian import NORBIT
 
 GEN_NAME = "leonav_gen"
 COMMAND = "python -m codegen  (or: leonav codegen)"
@@ -61,6 +62,11 @@ def _c_header_layout() -> str:
               "#define LEONAV_MEAS_TABLE(X) \\"]
     rows = [f'    X(LEONAV_MEAS_{m.name}, {m.suffix}, {m.dim}, "{m.name}", "{m.unit}")' for m in S.MEASUREMENTS]
     lines += [row + " \\" for row in rows[:-1]] + rows[-1:]
+    orbit = _orbit_kinds()
+    lines += ["", f"#define LEONAV_NORBIT {NORBIT}  /* columns of leonav_orbit_jac_<k>: dh/d[r_S, v_S, r_ref, v_ref] */",
+              "/* Observables with a generated leonav_orbit_jac_<suffix> (h reads a satellite state from aux):",
+              " * X(kind id, function suffix). The consider term of ephemeris error (leonav_orbit_jacobian_many). */",
+              "#define LEONAV_ORBIT_JAC_TABLE(X) " + " ".join(f"X(LEONAV_MEAS_{m.name}, {m.suffix})" for m in orbit)]
     lines += ["", "/* Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome,",
               " * < 0 an error (codegen/driver_codes.py). */"]
     for c in RETURN_CODES:
@@ -108,6 +114,10 @@ def _py_layout() -> str:
     lines += [")",
               f"P_NAMES = {[b.name for b in S.P_BLOCKS]!r}",
               "",
+              f"NORBIT = {NORBIT}  # columns of leonav_orbit_jac_<k>: dh/d[r_S, v_S, r_ref, v_ref] (ECEF)",
+              "# kind ids of the observables with a generated leonav_orbit_jac_<suffix> (twin of LEONAV_ORBIT_JAC_TABLE)",
+              "ORBIT_JAC_KINDS = (" + "".join(f"MEAS_{m.name}, " for m in _orbit_kinds()) + ")",
+              "",
               "# Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome, < 0 an error."]
     lines += [f"{c.name} = {c.value}  # {c.doc}" for c in RETURN_CODES]
     lines += ["RETURN_NAMES = {" + ", ".join(f"{c.value}: 'LEONAV_{c.name}'" for c in RETURN_CODES) + "}",
@@ -116,6 +126,14 @@ def _py_layout() -> str:
     lines += [f"{c.name} = {c.value}  # {c.doc}" for c in RECORD_STATUSES]
     lines.append("")
     return "\n".join(lines)
+
+
+def _orbit_kinds() -> list:
+    """The observables (models.state order) that get a leonav_orbit_jac_<suffix>."""
+    from models.measurements.orbit_jacobian import orbit_observables
+
+    suffixes = orbit_observables()
+    return [m for m in S.MEASUREMENTS if m.suffix in suffixes]
 
 
 def _manifest(functions) -> str:

@@ -288,7 +288,7 @@ def _declare(lib: ctypes.CDLL) -> None:
         "leonav_predict_step": (i, [dp, dp, dp, d, dp, dp, dp, vp]),
         "leonav_predict_cv_step": (i, [dp, dp, d, dp, dp, dp, vp]),
         "leonav_h_many": (i, [i, lng, dp, dp, dp, dp, dp, ctypes.POINTER(ctypes.c_int32), vp]),
-        "leonav_gnss_terms_many": (i, [lng, dp, dp, dp, dp, vp]),
+        "leonav_gnss_terms_many": (i, [lng, dp, dp, dp, dp, vp]), "leonav_orbit_jacobian_many": (i, [i, lng] + [dp] * 4 + [vp]),
         "leonav_boxplus_many": (i, [lng, dp, dp, dp, vp]),
         "leonav_update_step": (i, [dp, dp, i, d, d, dp, dp, d, dp, vp]),
         "leonav_h_step": (i, [i, dp, dp, dp, dp, dp, vp]),

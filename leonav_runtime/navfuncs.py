@@ -168,6 +168,22 @@ class NavFunctions:
             raise RuntimeError(f"leonav_h_many returned {compiled.code_name(rc, L)}")
         return h, H
 
+    def orbit_jacobian_many(self, kind: int | str, x_rows: np.ndarray, aux_rows: np.ndarray,
+                            params: np.ndarray | None = None) -> np.ndarray:
+        """(n, NORBIT) dh/d[r_S, v_S, r_ref, v_ref] (unit of z per m and per m/s, ECEF) of
+        observable `kind` at n rows (generated leonav_orbit_jac_<kind>, one driver call);
+        x_rows (n, NX) or one (NX,) state, aux (n, NAUX). NaN rows where not finite."""
+        L = self.layout
+        n, x, aux, p = self._rows("orbit_jacobian_many", x_rows, aux_rows, params)
+        J = np.empty((n, L.NORBIT))
+        with self._work_lock:
+            rc = self.library.lib.leonav_orbit_jacobian_many(self.kind_id(kind), n, x.ctypes.data_as(_dp),
+                                                             aux.ctypes.data_as(_dp), p.ctypes.data_as(_dp),
+                                                             J.ctypes.data_as(_dp), self._workspace().ctypes.data)
+        if rc != L.OK:
+            raise RuntimeError(f"leonav_orbit_jacobian_many returned {compiled.code_name(rc, L)}")
+        return J
+
     def gnss_terms(self, x_rows: np.ndarray, aux_rows: np.ndarray, params: np.ndarray | None = None) -> np.ndarray:
         """(n, 4) [elevation (rad), azimuth (rad), ionosphere (m), troposphere (m)] of n GNSS
         signals (generated leonav_gnss_terms: the terms of the GNSS pseudorange model), one call;

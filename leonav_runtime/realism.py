@@ -15,8 +15,11 @@ element age as (age / reference_age)^k. The measurement is evaluated with the ge
 model at the true orbit; the filter keeps the element orbit. Compensation `inflate-r`:
 each measurement's sigma grows by the spread the orbit error causes in it (the model
 evaluated with the satellite moved by one sigma along each axis), which treats an error
-that is constant over the run as if it were white (a Schmidt consider filter would carry
-the correlation; not done).
+that is constant over the run as if it were white. Compensation `consider`: R + J P_sat J^T
+with J the generated Jacobian of h over the aux satellite state and P_sat the linearised
+orbit-error model (inputs/consider.py), added on the input road at the filter's prior state
+(not the truth); `consider_correlation_s` > 0 scales it by the records of the satellite
+within that time (the error is shared by a satellite's records: see docs/scenarios.md).
 
 IMU errors the filter does not model: per-axis scale factors, misalignment (cross-axis
 terms), gyro g-sensitivity (rad/s per m/s^2 of specific force) and bias drift with a
@@ -27,6 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from leonav_runtime.inputs.consider import OrbitConsider, rac_axes
 from leonav_runtime.inputs.measurements import aux_blocks
 
 KIND_CONSTELLATION = {"pseudorange": "gps", "doppler_rate": "starlink", "doppler": "starlink",
@@ -41,15 +45,6 @@ def starlink_sigma_rac(eph: dict) -> np.ndarray:
 
 def sigma_rac(eph: dict, constellation: str) -> np.ndarray:
     return starlink_sigma_rac(eph) if constellation == "starlink" else np.asarray(eph["gps_sigma_rac_m"])
-
-
-def rac_axes(state9: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) unit radial, along-track, cross-track axes (rows) of states (n, 9) [r v a]."""
-    r, v = state9[:, 0:3], state9[:, 3:6]
-    R = r / np.linalg.norm(r, axis=1, keepdims=True)
-    C = np.cross(r, v)
-    C /= np.linalg.norm(C, axis=1, keepdims=True)
-    return np.stack([R, np.cross(C, R), C], axis=1)
 
 
 def perturb_states(state9: np.ndarray, d_rac: np.ndarray) -> np.ndarray:
@@ -129,6 +124,16 @@ def ephemeris_sigma(setup, nav, kind_name: str, rows: np.ndarray) -> np.ndarray:
                              None if kind_name == "pseudorange" else (d if moved == "ref" else zero), nav.layout)
             var += (_model(setup, nav, kind_name, rows, aux) - base) ** 2
     return np.sqrt(var)
+
+
+def orbit_consider(scn) -> OrbitConsider | None:
+    """The road's consider term for `compensate = "consider"`: the sigmas of the perturbed
+    constellations per observable kind (None for any other compensation)."""
+    eph = scn.realism.get("ephemeris", {})
+    if eph.get("compensate") != "consider":
+        return None
+    return OrbitConsider({k: sigma_rac(eph, c) for k, c in KIND_CONSTELLATION.items() if c in eph["apply_to"]},
+                         eph.get("consider_correlation_s", 0.0))
 
 
 def imu_error_increments(rng: np.random.Generator, cfg: dict, u_true: np.ndarray, t_start: np.ndarray,

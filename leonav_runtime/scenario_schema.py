@@ -126,8 +126,12 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "reference_age_days": Field(float, "d", 1e-3, 30, default=0.25, doc="age the Starlink sigmas hold at"),
         "growth_exponent": Field(float, "-", 0, 3, default=1.09,
                                  doc="sigma ~ age^k (1 km at 6 h to 38 km at 7 d: k = 1.09)"),
-        "compensate": Field(str, "-", default="none", choices=("none", "inflate-r"),
-                            doc="filter: R plus the orbit error's effect on each measurement"),
+        "compensate": Field(str, "-", default="none", choices=("none", "inflate-r", "consider"),
+                            doc="filter: R plus the orbit error's effect on each measurement (inflate-r: "
+                                "one-sigma moves at the truth; consider: J P_sat J^T at the prior)"),
+        "consider_correlation_s": Field(float, "s", 0, 1e5, default=0.0,
+                                        doc="consider: the term times the satellite's records within this "
+                                            "time (its error is shared); 0 = white"),
     },
     "imu_errors": {
         "enabled": Field(bool, "-", default=False, doc="IMU errors the filter does not model"),

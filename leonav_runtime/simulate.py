@@ -331,7 +331,8 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
         imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
     tables = [_table(kind_name, setup.series[kind_name], rows, z, sigma) for kind_name, rows, z, sigma in parts]
     # the road every source takes: tables -> records (aux f_b averaged from these IMU increments)
-    inputs = assemble(imu, params, Prior(x0, setup.P0), satellites=tables, nav=nav)
+    inputs = assemble(imu, params, Prior(x0, setup.P0), satellites=tables, nav=nav,
+                      orbit_consider=None if noise_free else realism.orbit_consider(scn))
     return Trial(inputs.merged(), x0, x_true, params)
 
 

@@ -50,6 +50,11 @@ static const meas_fns MEAS[LEONAV_NMEAS] = {LEONAV_MEAS_TABLE(MEAS_ENTRY)};
 #define MEAS_SCALAR(id, k, dim, name, unit) &&(dim) == 1
 typedef char meas_dims_are_scalar[(1 LEONAV_MEAS_TABLE(MEAS_SCALAR)) ? 1 : -1];
 
+/* Kind id -> leonav_orbit_jac_<k> (dh/d satellite r, v in aux) for the observables in the
+ * generated LEONAV_ORBIT_JAC_TABLE; other kinds have a zero entry (eval NULL). */
+#define ORBIT_ENTRY(id, k) [id] = GEN_FN(leonav_orbit_jac_##k),
+static const gen_fn ORBIT_JAC[LEONAV_NMEAS] = {LEONAV_ORBIT_JAC_TABLE(ORBIT_ENTRY)};
+
 static const gen_fn MECH = GEN_FN(leonav_mech);
 static const gen_fn PREDICT = GEN_FN(leonav_predict);
 static const gen_fn PREDICT_CV = GEN_FN(leonav_predict_cv);    /* constant-velocity predict (no IMU) */
@@ -100,6 +105,7 @@ static work_sizes all_sizes(void)
     for (int k = 0; k < LEONAV_NMEAS; ++k) {
         max_sizes(&MEAS[k].h, &m);
         max_sizes(&MEAS[k].update, &m);
+        if (ORBIT_JAC[k].eval) max_sizes(&ORBIT_JAC[k], &m);
     }
     return m;
 }
@@ -359,6 +365,23 @@ int leonav_gnss_terms_many(long n, const double *x, const double *aux, const dou
         double *out[1] = {terms + 4 * i};
         if (call_gen(ws, &GNSS_TERMS, in, 3, out, 1) != 0 || !all_finite(terms + 4 * i, 4))
             for (int j = 0; j < 4; ++j) terms[4 * i + j] = NAN;
+    }
+    return LEONAV_OK;
+}
+
+int leonav_orbit_jacobian_many(int kind, long n, const double *x, const double *aux, const double *p, double *J,
+                               void *work)
+{
+    workspace *ws = get_ws(work);
+    if (!ws) return LEONAV_ERR_WORK;
+    if (kind < 0 || kind >= LEONAV_NMEAS || !ORBIT_JAC[kind].eval) return LEONAV_ERR_KIND;
+    if (n < 0 || (n > 0 && (!x || !aux || !p || !J))) return LEONAV_ERR_ARG;
+    for (long i = 0; i < n; ++i) {
+        const double *in[3] = {x + i * NX, aux + i * LEONAV_NAUX, p};
+        double *Ji = J + i * LEONAV_NORBIT;
+        double *out[1] = {Ji};
+        if (call_gen(ws, &ORBIT_JAC[kind], in, 3, out, 1) != 0 || !all_finite(Ji, LEONAV_NORBIT))
+            for (int j = 0; j < LEONAV_NORBIT; ++j) Ji[j] = NAN;
     }
     return LEONAV_OK;
 }

@@ -133,6 +133,13 @@ int leonav_h_many(int kind, long n, const double *x, const double *aux, const do
  * LEONAV_OK, LEONAV_ERR_WORK or _ARG. */
 int leonav_gnss_terms_many(long n, const double *x, const double *aux, const double *p, double *terms, void *work);
 
+/* J (n * LEONAV_NORBIT, row i at J + i * NORBIT) = dh/d[r_S, v_S, r_ref, v_ref] (aux satellite
+ * states, ECEF) of observable `kind` (one of LEONAV_ORBIT_JAC_TABLE) for n rows (x n * NX, aux
+ * n * NAUX): the consider term of ephemeris error. NaN for a row whose result is not finite.
+ * Returns LEONAV_OK, LEONAV_ERR_WORK, _KIND (no such Jacobian) or _ARG. */
+int leonav_orbit_jacobian_many(int kind, long n, const double *x, const double *aux, const double *p, double *J,
+                               void *work);
+
 /* x_out[i] = x[i] [+] dx[i] for n rows (NX, NDX; x_out may be x). LEONAV_OK, _WORK, _ARG, _NUMERIC. */
 int leonav_boxplus_many(long n, const double *x, const double *dx, double *x_out, void *work);
 

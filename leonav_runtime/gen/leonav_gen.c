@@ -117,7 +117,13 @@ extern "C" {
 #define casadi_f82 CASADI_PREFIX(f82)
 #define casadi_f83 CASADI_PREFIX(f83)
 #define casadi_f84 CASADI_PREFIX(f84)
+#define casadi_f85 CASADI_PREFIX(f85)
+#define casadi_f86 CASADI_PREFIX(f86)
+#define casadi_f87 CASADI_PREFIX(f87)
+#define casadi_f88 CASADI_PREFIX(f88)
+#define casadi_f89 CASADI_PREFIX(f89)
 #define casadi_f9 CASADI_PREFIX(f9)
+#define casadi_f90 CASADI_PREFIX(f90)
 #define casadi_fabs CASADI_PREFIX(fabs)
 #define casadi_fmax CASADI_PREFIX(fmax)
 #define casadi_fmin CASADI_PREFIX(fmin)
@@ -125,6 +131,7 @@ extern "C" {
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_s10 CASADI_PREFIX(s10)
+#define casadi_s11 CASADI_PREFIX(s11)
 #define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_s3 CASADI_PREFIX(s3)
 #define casadi_s4 CASADI_PREFIX(s4)
@@ -240,6 +247,7 @@ static const casadi_int casadi_s7[3] = {20, 1, 1};
 static const casadi_int casadi_s8[3] = {3, 1, 1};
 static const casadi_int casadi_s9[3] = {4, 1, 1};
 static const casadi_int casadi_s10[3] = {2, 1, 1};
+static const casadi_int casadi_s11[3] = {1, 12, 1};
 
 static const casadi_real casadi_zeros[400] = 
   {0.};
@@ -34476,6 +34484,1711 @@ CASADI_SYMBOL_EXPORT int leonav_gnss_terms_work(casadi_int *sz_arg, casadi_int* 
 }
 
 CASADI_SYMBOL_EXPORT int leonav_gnss_terms_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_orbit_jac_pseudorange:(x[21],aux[36],p[14])->(J_orbit[1x12]) */
+static int casadi_f85(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13;
+  a00=2.4323877420558726e-13;
+  a01=6378137.;
+  a02=1.;
+  a03=6.6943799901413165e-03;
+  a04=arg[2]? arg[2][0] : 0;
+  a05=sin(a04);
+  a06=casadi_sq(a05);
+  a03=(a03*a06);
+  a02=(a02-a03);
+  a02=sqrt(a02);
+  a01=(a01/a02);
+  a02=arg[2]? arg[2][2] : 0;
+  a03=(a01+a02);
+  a04=cos(a04);
+  a03=(a03*a04);
+  a06=arg[2]? arg[2][1] : 0;
+  a07=sin(a06);
+  a08=(a03*a07);
+  a06=cos(a06);
+  a09=arg[0]? arg[0][0] : 0;
+  a10=(a06*a09);
+  a11=(a05*a07);
+  a12=arg[0]? arg[0][1] : 0;
+  a11=(a11*a12);
+  a10=(a10-a11);
+  a11=(a04*a07);
+  a13=arg[0]? arg[0][2] : 0;
+  a11=(a11*a13);
+  a10=(a10+a11);
+  a08=(a08+a10);
+  a00=(a00*a08);
+  a10=arg[1]? arg[1][0] : 0;
+  a03=(a03*a06);
+  a11=(a04*a06);
+  a11=(a11*a13);
+  a07=(a07*a09);
+  a06=(a05*a06);
+  a06=(a06*a12);
+  a07=(a07+a06);
+  a11=(a11-a07);
+  a03=(a03+a11);
+  a10=(a10-a03);
+  a11=casadi_sq(a10);
+  a07=arg[1]? arg[1][1] : 0;
+  a07=(a07-a08);
+  a08=casadi_sq(a07);
+  a11=(a11+a08);
+  a08=arg[1]? arg[1][2] : 0;
+  a06=9.9330562000985867e-01;
+  a06=(a06*a01);
+  a06=(a06+a02);
+  a06=(a06*a05);
+  a04=(a04*a12);
+  a05=(a05*a13);
+  a04=(a04+a05);
+  a06=(a06+a04);
+  a08=(a08-a06);
+  a06=casadi_sq(a08);
+  a11=(a11+a06);
+  a11=sqrt(a11);
+  a10=(a10/a11);
+  a00=(a00+a10);
+  if (res[0]!=0) res[0][0]=a00;
+  a00=-2.4323877420558726e-13;
+  a00=(a00*a03);
+  a07=(a07/a11);
+  a00=(a00+a07);
+  if (res[0]!=0) res[0][1]=a00;
+  a08=(a08/a11);
+  if (res[0]!=0) res[0][2]=a08;
+  a08=0.;
+  if (res[0]!=0) res[0][3]=a08;
+  if (res[0]!=0) res[0][4]=a08;
+  if (res[0]!=0) res[0][5]=a08;
+  if (res[0]!=0) res[0][6]=a08;
+  if (res[0]!=0) res[0][7]=a08;
+  if (res[0]!=0) res[0][8]=a08;
+  if (res[0]!=0) res[0][9]=a08;
+  if (res[0]!=0) res[0][10]=a08;
+  if (res[0]!=0) res[0][11]=a08;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f85(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_pseudorange_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_pseudorange_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_pseudorange_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_pseudorange_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_orbit_jac_pseudorange_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_orbit_jac_pseudorange_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_orbit_jac_pseudorange_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_orbit_jac_pseudorange_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "aux";
+    case 2: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_orbit_jac_pseudorange_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "J_orbit";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_orbit_jac_pseudorange_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s5;
+    case 2: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_orbit_jac_pseudorange_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s11;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_pseudorange_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_orbit_jac_doppler_rate:(x[21],aux[36],p[14])->(J_orbit[1x12]) */
+static int casadi_f86(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
+  casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
+  casadi_real a36, a37, a38, a39, a40, a41, a42, a43, a44, a45, a46, a47;
+  casadi_real a48, a49, a50, a51, a52, a53, a54, a55, a56;
+  a00=arg[1]? arg[1][3] : 0;
+  a01=arg[2]? arg[2][0] : 0;
+  a02=cos(a01);
+  a03=arg[2]? arg[2][1] : 0;
+  a04=cos(a03);
+  a05=(a02*a04);
+  a06=arg[0]? arg[0][5] : 0;
+  a07=(a05*a06);
+  a03=sin(a03);
+  a08=arg[0]? arg[0][3] : 0;
+  a09=(a03*a08);
+  a01=sin(a01);
+  a10=(a01*a04);
+  a11=arg[0]? arg[0][4] : 0;
+  a12=(a10*a11);
+  a09=(a09+a12);
+  a07=(a07-a09);
+  a00=(a00-a07);
+  a07=arg[1]? arg[1][0] : 0;
+  a09=6378137.;
+  a12=1.;
+  a13=6.6943799901413165e-03;
+  a14=casadi_sq(a01);
+  a14=(a13*a14);
+  a14=(a12-a14);
+  a14=sqrt(a14);
+  a14=(a09/a14);
+  a15=arg[2]? arg[2][2] : 0;
+  a16=(a14+a15);
+  a16=(a16*a02);
+  a17=(a16*a04);
+  a18=arg[0]? arg[0][2] : 0;
+  a19=(a05*a18);
+  a20=arg[0]? arg[0][0] : 0;
+  a21=(a03*a20);
+  a22=arg[0]? arg[0][1] : 0;
+  a23=(a10*a22);
+  a21=(a21+a23);
+  a19=(a19-a21);
+  a17=(a17+a19);
+  a07=(a07-a17);
+  a19=casadi_sq(a07);
+  a21=arg[1]? arg[1][1] : 0;
+  a16=(a16*a03);
+  a20=(a04*a20);
+  a23=(a01*a03);
+  a24=(a23*a22);
+  a20=(a20-a24);
+  a24=(a02*a03);
+  a25=(a24*a18);
+  a20=(a20+a25);
+  a16=(a16+a20);
+  a21=(a21-a16);
+  a20=casadi_sq(a21);
+  a19=(a19+a20);
+  a20=arg[1]? arg[1][2] : 0;
+  a25=9.9330562000985867e-01;
+  a25=(a25*a14);
+  a25=(a25+a15);
+  a25=(a25*a01);
+  a22=(a02*a22);
+  a18=(a01*a18);
+  a22=(a22+a18);
+  a25=(a25+a22);
+  a20=(a20-a25);
+  a22=casadi_sq(a20);
+  a19=(a19+a22);
+  a19=sqrt(a19);
+  a22=(a07/a19);
+  a18=(a22*a00);
+  a15=(a21/a19);
+  a14=arg[1]? arg[1][4] : 0;
+  a26=(a04*a08);
+  a27=(a23*a11);
+  a26=(a26-a27);
+  a27=(a24*a06);
+  a26=(a26+a27);
+  a14=(a14-a26);
+  a26=(a15*a14);
+  a18=(a18+a26);
+  a26=(a20/a19);
+  a27=arg[1]? arg[1][5] : 0;
+  a28=(a02*a11);
+  a29=(a01*a06);
+  a28=(a28+a29);
+  a27=(a27-a28);
+  a28=(a26*a27);
+  a18=(a18+a28);
+  a28=(2.*a18);
+  a29=arg[2]? arg[2][10] : 0;
+  a30=299792458.;
+  a29=(a29/a30);
+  a30=(a29/a19);
+  a28=(a28*a30);
+  a31=(a00*a28);
+  a32=arg[1]? arg[1][6] : 0;
+  a33=arg[0]? arg[0][7] : 0;
+  a34=arg[0]? arg[0][9] : 0;
+  a35=(a33*a34);
+  a36=arg[0]? arg[0][6] : 0;
+  a37=arg[0]? arg[0][8] : 0;
+  a38=(a36*a37);
+  a39=(a35-a38);
+  a39=(2.*a39);
+  a40=arg[1]? arg[1][18] : 0;
+  a41=arg[0]? arg[0][10] : 0;
+  a40=(a40-a41);
+  a39=(a39*a40);
+  a41=(a37*a34);
+  a42=(a36*a33);
+  a43=(a41+a42);
+  a43=(2.*a43);
+  a44=arg[1]? arg[1][19] : 0;
+  a45=arg[0]? arg[0][11] : 0;
+  a44=(a44-a45);
+  a43=(a43*a44);
+  a39=(a39+a43);
+  a43=casadi_sq(a33);
+  a45=casadi_sq(a37);
+  a46=(a43+a45);
+  a46=(2.*a46);
+  a46=(a12-a46);
+  a47=arg[1]? arg[1][20] : 0;
+  a48=arg[0]? arg[0][12] : 0;
+  a47=(a47-a48);
+  a46=(a46*a47);
+  a39=(a39+a46);
+  a46=9.7803253359000006e+00;
+  a48=1.9318526463960595e-03;
+  a49=4.2841311513313573e+04;
+  a50=(a09*a25);
+  a51=casadi_sq(a50);
+  a50=(a50*a51);
+  a49=(a49*a50);
+  a50=4.0408299984661445e+13;
+  a52=casadi_sq(a17);
+  a53=casadi_sq(a16);
+  a52=(a52+a53);
+  a50=(a50*a52);
+  a51=(a51+a50);
+  a50=(1./a51);
+  a50=sqrt(a50);
+  a50=(a50/a51);
+  a49=(a49*a50);
+  a49=(a25+a49);
+  a51=casadi_sq(a49);
+  a53=sqrt(a52);
+  a54=1.0967561373321804e+25;
+  a54=(a54*a52);
+  a54=(a54*a50);
+  a54=(a12-a54);
+  a50=(a53*a54);
+  a52=casadi_sq(a50);
+  a51=(a51+a52);
+  a51=(1./a51);
+  a51=sqrt(a51);
+  a49=(a49*a51);
+  a52=casadi_sq(a49);
+  a48=(a48*a52);
+  a48=(a12+a48);
+  a46=(a46*a48);
+  a48=(a13*a52);
+  a48=(a12-a48);
+  a48=(1./a48);
+  a48=sqrt(a48);
+  a46=(a46*a48);
+  a48=3.1357118857747958e-07;
+  a55=1.0068025971715884e+00;
+  a56=6.7056213294949610e-03;
+  a56=(a56*a52);
+  a55=(a55-a56);
+  a48=(a48*a55);
+  a50=(a50*a51);
+  a53=(a53*a50);
+  a25=(a25*a49);
+  a53=(a53+a25);
+  a13=(a13*a49);
+  a13=(a13*a49);
+  a13=(a12-a13);
+  a13=sqrt(a13);
+  a09=(a09*a13);
+  a53=(a53-a09);
+  a48=(a48*a53);
+  a48=(a12-a48);
+  a09=7.3745167729419953e-14;
+  a09=(a09*a53);
+  a09=(a09*a53);
+  a48=(a48+a09);
+  a46=(a46*a48);
+  a54=(a54*a51);
+  a17=(a17*a54);
+  a51=(a05*a17);
+  a16=(a16*a54);
+  a54=(a24*a16);
+  a51=(a51+a54);
+  a54=(a01*a49);
+  a51=(a51+a54);
+  a51=(a46*a51);
+  a39=(a39-a51);
+  a51=7.2921149999999999e-05;
+  a54=(a51*a02);
+  a48=(a54*a08);
+  a48=(-a48);
+  a48=(2.*a48);
+  a39=(a39-a48);
+  a05=(a05*a39);
+  a48=casadi_sq(a34);
+  a45=(a45+a48);
+  a45=(2.*a45);
+  a45=(a12-a45);
+  a45=(a45*a40);
+  a33=(a33*a37);
+  a36=(a36*a34);
+  a34=(a33-a36);
+  a34=(2.*a34);
+  a34=(a34*a44);
+  a45=(a45+a34);
+  a35=(a35+a38);
+  a35=(2.*a35);
+  a35=(a35*a47);
+  a45=(a45+a35);
+  a35=(a04*a16);
+  a38=(a03*a17);
+  a35=(a35-a38);
+  a35=(a46*a35);
+  a45=(a45-a35);
+  a54=(a54*a06);
+  a51=(a51*a01);
+  a11=(a51*a11);
+  a54=(a54-a11);
+  a54=(2.*a54);
+  a45=(a45-a54);
+  a03=(a03*a45);
+  a33=(a33+a36);
+  a33=(2.*a33);
+  a33=(a33*a40);
+  a43=(a43+a48);
+  a43=(2.*a43);
+  a12=(a12-a43);
+  a12=(a12*a44);
+  a33=(a33+a12);
+  a41=(a41-a42);
+  a41=(2.*a41);
+  a41=(a41*a47);
+  a33=(a33+a41);
+  a49=(a02*a49);
+  a17=(a10*a17);
+  a16=(a23*a16);
+  a17=(a17+a16);
+  a49=(a49-a17);
+  a46=(a46*a49);
+  a33=(a33-a46);
+  a51=(a51*a08);
+  a51=(2.*a51);
+  a33=(a33-a51);
+  a10=(a10*a33);
+  a03=(a03+a10);
+  a05=(a05-a03);
+  a32=(a32-a05);
+  a32=(a32*a29);
+  a31=(a31-a32);
+  a32=(a31/a19);
+  a07=(2.*a07);
+  a05=casadi_sq(a00);
+  a03=casadi_sq(a14);
+  a05=(a05+a03);
+  a03=casadi_sq(a27);
+  a05=(a05+a03);
+  a18=casadi_sq(a18);
+  a05=(a05-a18);
+  a05=(a05/a19);
+  a05=(a05/a19);
+  a05=(a05*a29);
+  a18=(a26/a19);
+  a03=(a27*a28);
+  a10=arg[1]? arg[1][8] : 0;
+  a02=(a02*a33);
+  a01=(a01*a39);
+  a02=(a02+a01);
+  a10=(a10-a02);
+  a10=(a10*a29);
+  a03=(a03-a10);
+  a18=(a18*a03);
+  a05=(a05-a18);
+  a18=(a15/a19);
+  a10=(a14*a28);
+  a02=arg[1]? arg[1][7] : 0;
+  a04=(a04*a45);
+  a23=(a23*a33);
+  a04=(a04-a23);
+  a24=(a24*a39);
+  a04=(a04+a24);
+  a02=(a02-a04);
+  a02=(a02*a29);
+  a10=(a10-a02);
+  a18=(a18*a10);
+  a05=(a05-a18);
+  a18=(a22/a19);
+  a18=(a18*a31);
+  a05=(a05-a18);
+  a18=(2.*a19);
+  a05=(a05/a18);
+  a07=(a07*a05);
+  a32=(a32+a07);
+  if (res[0]!=0) res[0][0]=a32;
+  a10=(a10/a19);
+  a21=(2.*a21);
+  a21=(a21*a05);
+  a10=(a10+a21);
+  if (res[0]!=0) res[0][1]=a10;
+  a03=(a03/a19);
+  a20=(2.*a20);
+  a20=(a20*a05);
+  a03=(a03+a20);
+  if (res[0]!=0) res[0][2]=a03;
+  a22=(a22*a28);
+  a00=(2.*a00);
+  a00=(a00*a30);
+  a22=(a22-a00);
+  if (res[0]!=0) res[0][3]=a22;
+  a15=(a15*a28);
+  a14=(2.*a14);
+  a14=(a14*a30);
+  a15=(a15-a14);
+  if (res[0]!=0) res[0][4]=a15;
+  a26=(a26*a28);
+  a27=(2.*a27);
+  a27=(a27*a30);
+  a26=(a26-a27);
+  if (res[0]!=0) res[0][5]=a26;
+  a26=0.;
+  if (res[0]!=0) res[0][6]=a26;
+  if (res[0]!=0) res[0][7]=a26;
+  if (res[0]!=0) res[0][8]=a26;
+  if (res[0]!=0) res[0][9]=a26;
+  if (res[0]!=0) res[0][10]=a26;
+  if (res[0]!=0) res[0][11]=a26;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_doppler_rate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f86(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_doppler_rate_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_doppler_rate_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_doppler_rate_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_doppler_rate_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_orbit_jac_doppler_rate_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_orbit_jac_doppler_rate_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_orbit_jac_doppler_rate_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_orbit_jac_doppler_rate_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "aux";
+    case 2: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_orbit_jac_doppler_rate_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "J_orbit";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_orbit_jac_doppler_rate_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s5;
+    case 2: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_orbit_jac_doppler_rate_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s11;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_doppler_rate_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_doppler_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_orbit_jac_doppler:(x[21],aux[36],p[14])->(J_orbit[1x12]) */
+static int casadi_f87(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20;
+  a00=arg[1]? arg[1][0] : 0;
+  a01=6378137.;
+  a02=1.;
+  a03=6.6943799901413165e-03;
+  a04=arg[2]? arg[2][0] : 0;
+  a05=sin(a04);
+  a06=casadi_sq(a05);
+  a03=(a03*a06);
+  a02=(a02-a03);
+  a02=sqrt(a02);
+  a01=(a01/a02);
+  a02=arg[2]? arg[2][2] : 0;
+  a03=(a01+a02);
+  a04=cos(a04);
+  a03=(a03*a04);
+  a06=arg[2]? arg[2][1] : 0;
+  a07=cos(a06);
+  a08=(a03*a07);
+  a09=(a04*a07);
+  a10=arg[0]? arg[0][2] : 0;
+  a11=(a09*a10);
+  a06=sin(a06);
+  a12=arg[0]? arg[0][0] : 0;
+  a13=(a06*a12);
+  a14=(a05*a07);
+  a15=arg[0]? arg[0][1] : 0;
+  a16=(a14*a15);
+  a13=(a13+a16);
+  a11=(a11-a13);
+  a08=(a08+a11);
+  a00=(a00-a08);
+  a08=(2.*a00);
+  a11=arg[1]? arg[1][2] : 0;
+  a13=9.9330562000985867e-01;
+  a13=(a13*a01);
+  a13=(a13+a02);
+  a13=(a13*a05);
+  a02=(a04*a15);
+  a01=(a05*a10);
+  a02=(a02+a01);
+  a13=(a13+a02);
+  a11=(a11-a13);
+  a13=casadi_sq(a00);
+  a02=arg[1]? arg[1][1] : 0;
+  a03=(a03*a06);
+  a12=(a07*a12);
+  a01=(a05*a06);
+  a15=(a01*a15);
+  a12=(a12-a15);
+  a15=(a04*a06);
+  a10=(a15*a10);
+  a12=(a12+a10);
+  a03=(a03+a12);
+  a02=(a02-a03);
+  a03=casadi_sq(a02);
+  a13=(a13+a03);
+  a03=casadi_sq(a11);
+  a13=(a13+a03);
+  a13=sqrt(a13);
+  a03=(a11/a13);
+  a12=(a03/a13);
+  a10=arg[1]? arg[1][5] : 0;
+  a16=arg[0]? arg[0][4] : 0;
+  a04=(a04*a16);
+  a17=arg[0]? arg[0][5] : 0;
+  a05=(a05*a17);
+  a04=(a04+a05);
+  a10=(a10-a04);
+  a04=arg[2]? arg[2][10] : 0;
+  a05=299792458.;
+  a04=(a04/a05);
+  a10=(a10*a04);
+  a12=(a12*a10);
+  a05=(a02/a13);
+  a18=(a05/a13);
+  a19=arg[1]? arg[1][4] : 0;
+  a20=arg[0]? arg[0][3] : 0;
+  a07=(a07*a20);
+  a01=(a01*a16);
+  a07=(a07-a01);
+  a15=(a15*a17);
+  a07=(a07+a15);
+  a19=(a19-a07);
+  a19=(a19*a04);
+  a18=(a18*a19);
+  a12=(a12+a18);
+  a00=(a00/a13);
+  a18=(a00/a13);
+  a07=arg[1]? arg[1][3] : 0;
+  a09=(a09*a17);
+  a06=(a06*a20);
+  a14=(a14*a16);
+  a06=(a06+a14);
+  a09=(a09-a06);
+  a07=(a07-a09);
+  a07=(a07*a04);
+  a18=(a18*a07);
+  a12=(a12+a18);
+  a18=(2.*a13);
+  a12=(a12/a18);
+  a08=(a08*a12);
+  a07=(a07/a13);
+  a08=(a08-a07);
+  if (res[0]!=0) res[0][0]=a08;
+  a02=(2.*a02);
+  a02=(a02*a12);
+  a19=(a19/a13);
+  a02=(a02-a19);
+  if (res[0]!=0) res[0][1]=a02;
+  a11=(2.*a11);
+  a11=(a11*a12);
+  a10=(a10/a13);
+  a11=(a11-a10);
+  if (res[0]!=0) res[0][2]=a11;
+  a00=(a00*a04);
+  a00=(-a00);
+  if (res[0]!=0) res[0][3]=a00;
+  a05=(a05*a04);
+  a05=(-a05);
+  if (res[0]!=0) res[0][4]=a05;
+  a03=(a03*a04);
+  a03=(-a03);
+  if (res[0]!=0) res[0][5]=a03;
+  a03=0.;
+  if (res[0]!=0) res[0][6]=a03;
+  if (res[0]!=0) res[0][7]=a03;
+  if (res[0]!=0) res[0][8]=a03;
+  if (res[0]!=0) res[0][9]=a03;
+  if (res[0]!=0) res[0][10]=a03;
+  if (res[0]!=0) res[0][11]=a03;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_doppler(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f87(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_doppler_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_doppler_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_doppler_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_doppler_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_orbit_jac_doppler_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_orbit_jac_doppler_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_orbit_jac_doppler_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_orbit_jac_doppler_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "aux";
+    case 2: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_orbit_jac_doppler_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "J_orbit";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_orbit_jac_doppler_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s5;
+    case 2: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_orbit_jac_doppler_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s11;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_doppler_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_doppler_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_orbit_jac_ofdm_range_diff:(x[21],aux[36],p[14])->(J_orbit[1x12]) */
+static int casadi_f88(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14;
+  a00=arg[1]? arg[1][0] : 0;
+  a01=6378137.;
+  a02=1.;
+  a03=6.6943799901413165e-03;
+  a04=arg[2]? arg[2][0] : 0;
+  a05=sin(a04);
+  a06=casadi_sq(a05);
+  a03=(a03*a06);
+  a02=(a02-a03);
+  a02=sqrt(a02);
+  a01=(a01/a02);
+  a02=arg[2]? arg[2][2] : 0;
+  a03=(a01+a02);
+  a04=cos(a04);
+  a03=(a03*a04);
+  a06=arg[2]? arg[2][1] : 0;
+  a07=cos(a06);
+  a08=(a03*a07);
+  a09=(a04*a07);
+  a10=arg[0]? arg[0][2] : 0;
+  a09=(a09*a10);
+  a06=sin(a06);
+  a11=arg[0]? arg[0][0] : 0;
+  a12=(a06*a11);
+  a13=(a05*a07);
+  a14=arg[0]? arg[0][1] : 0;
+  a13=(a13*a14);
+  a12=(a12+a13);
+  a09=(a09-a12);
+  a08=(a08+a09);
+  a00=(a00-a08);
+  a09=casadi_sq(a00);
+  a12=arg[1]? arg[1][1] : 0;
+  a03=(a03*a06);
+  a07=(a07*a11);
+  a11=(a05*a06);
+  a11=(a11*a14);
+  a07=(a07-a11);
+  a06=(a04*a06);
+  a06=(a06*a10);
+  a07=(a07+a06);
+  a03=(a03+a07);
+  a12=(a12-a03);
+  a07=casadi_sq(a12);
+  a09=(a09+a07);
+  a07=arg[1]? arg[1][2] : 0;
+  a06=9.9330562000985867e-01;
+  a06=(a06*a01);
+  a06=(a06+a02);
+  a06=(a06*a05);
+  a04=(a04*a14);
+  a05=(a05*a10);
+  a04=(a04+a05);
+  a06=(a06+a04);
+  a07=(a07-a06);
+  a04=casadi_sq(a07);
+  a09=(a09+a04);
+  a09=sqrt(a09);
+  a00=(a00/a09);
+  if (res[0]!=0) res[0][0]=a00;
+  a12=(a12/a09);
+  if (res[0]!=0) res[0][1]=a12;
+  a07=(a07/a09);
+  if (res[0]!=0) res[0][2]=a07;
+  a07=0.;
+  if (res[0]!=0) res[0][3]=a07;
+  if (res[0]!=0) res[0][4]=a07;
+  if (res[0]!=0) res[0][5]=a07;
+  a09=arg[1]? arg[1][9] : 0;
+  a09=(a09-a08);
+  a08=casadi_sq(a09);
+  a12=arg[1]? arg[1][10] : 0;
+  a12=(a12-a03);
+  a03=casadi_sq(a12);
+  a08=(a08+a03);
+  a03=arg[1]? arg[1][11] : 0;
+  a03=(a03-a06);
+  a06=casadi_sq(a03);
+  a08=(a08+a06);
+  a08=sqrt(a08);
+  a09=(a09/a08);
+  a09=(-a09);
+  if (res[0]!=0) res[0][6]=a09;
+  a12=(a12/a08);
+  a12=(-a12);
+  if (res[0]!=0) res[0][7]=a12;
+  a03=(a03/a08);
+  a03=(-a03);
+  if (res[0]!=0) res[0][8]=a03;
+  if (res[0]!=0) res[0][9]=a07;
+  if (res[0]!=0) res[0][10]=a07;
+  if (res[0]!=0) res[0][11]=a07;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_ofdm_range_diff(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f88(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_ofdm_range_diff_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_ofdm_range_diff_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_ofdm_range_diff_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_ofdm_range_diff_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_orbit_jac_ofdm_range_diff_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_orbit_jac_ofdm_range_diff_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_orbit_jac_ofdm_range_diff_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_orbit_jac_ofdm_range_diff_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "aux";
+    case 2: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_orbit_jac_ofdm_range_diff_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "J_orbit";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_orbit_jac_ofdm_range_diff_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s5;
+    case 2: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_orbit_jac_ofdm_range_diff_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s11;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_ofdm_range_diff_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_ofdm_range_diff_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_orbit_jac_gnss_pseudorange:(x[21],aux[36],p[14])->(J_orbit[1x12]) */
+static int casadi_f89(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
+  casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
+  casadi_real a36, a37, a38, a39, a40, a41, a42, a43, a44, a45, a46, a47;
+  casadi_real a48, a49, a50, a51, a52, a53, a54, a55, a56, a57, a58, a59;
+  casadi_real a60, a61, a62, a63, a64, a65, a66, a67, a68, a69, a70, a71;
+  casadi_real a72;
+  a00=6.2831853071795862e+00;
+  a01=43200.;
+  a02=3.1830988618378997e-01;
+  a03=6378137.;
+  a04=1.;
+  a05=6.6943799901413165e-03;
+  a06=arg[2]? arg[2][0] : 0;
+  a07=sin(a06);
+  a08=casadi_sq(a07);
+  a08=(a05*a08);
+  a08=(a04-a08);
+  a08=sqrt(a08);
+  a08=(a03/a08);
+  a09=arg[2]? arg[2][2] : 0;
+  a10=(a08+a09);
+  a06=cos(a06);
+  a10=(a10*a06);
+  a11=arg[2]? arg[2][1] : 0;
+  a12=sin(a11);
+  a13=(a10*a12);
+  a11=cos(a11);
+  a14=arg[0]? arg[0][0] : 0;
+  a15=(a11*a14);
+  a16=(a07*a12);
+  a17=arg[0]? arg[0][1] : 0;
+  a16=(a16*a17);
+  a15=(a15-a16);
+  a16=(a06*a12);
+  a18=arg[0]? arg[0][2] : 0;
+  a16=(a16*a18);
+  a15=(a15+a16);
+  a13=(a13+a15);
+  a10=(a10*a11);
+  a15=(a06*a11);
+  a15=(a15*a18);
+  a12=(a12*a14);
+  a11=(a07*a11);
+  a11=(a11*a17);
+  a12=(a12+a11);
+  a15=(a15-a12);
+  a10=(a10+a15);
+  a15=atan2(a13,a10);
+  a12=(a02*a15);
+  a11=1.3700000000000000e-02;
+  a14=9.9330562000985867e-01;
+  a14=(a14*a08);
+  a14=(a14+a09);
+  a14=(a14*a07);
+  a06=(a06*a17);
+  a07=(a07*a18);
+  a06=(a06+a07);
+  a14=(a14+a06);
+  a06=4.2841311513313573e+04;
+  a07=(a03*a14);
+  a18=casadi_sq(a07);
+  a07=(a07*a18);
+  a06=(a06*a07);
+  a07=4.0408299984661445e+13;
+  a17=casadi_sq(a10);
+  a09=casadi_sq(a13);
+  a17=(a17+a09);
+  a07=(a07*a17);
+  a18=(a18+a07);
+  a07=(1./a18);
+  a07=sqrt(a07);
+  a07=(a07/a18);
+  a06=(a06*a07);
+  a06=(a14+a06);
+  a18=sqrt(a17);
+  a09=1.0967561373321804e+25;
+  a09=(a09*a17);
+  a09=(a09*a07);
+  a09=(a04-a09);
+  a09=(a18*a09);
+  a07=atan2(a06,a09);
+  a17=cos(a07);
+  a08=cos(a15);
+  a16=(a17*a08);
+  a19=arg[1]? arg[1][0] : 0;
+  a19=(a19-a10);
+  a20=casadi_sq(a19);
+  a21=arg[1]? arg[1][1] : 0;
+  a21=(a21-a13);
+  a22=casadi_sq(a21);
+  a20=(a20+a22);
+  a22=arg[1]? arg[1][2] : 0;
+  a22=(a22-a14);
+  a23=casadi_sq(a22);
+  a20=(a20+a23);
+  a20=sqrt(a20);
+  a23=(a19/a20);
+  a24=(a16*a23);
+  a15=sin(a15);
+  a25=(a17*a15);
+  a26=(a21/a20);
+  a27=(a25*a26);
+  a24=(a24+a27);
+  a27=sin(a07);
+  a28=(a22/a20);
+  a29=(a27*a28);
+  a24=(a24+a29);
+  a29=asin(a24);
+  a30=(a02*a29);
+  a31=1.1000000000000000e-01;
+  a31=(a30+a31);
+  a11=(a11/a31);
+  a32=2.1999999999999999e-02;
+  a32=(a11-a32);
+  a33=(a08*a26);
+  a34=(a15*a23);
+  a33=(a33-a34);
+  a34=(a17*a28);
+  a35=(a27*a08);
+  a36=(a35*a23);
+  a37=(a27*a15);
+  a38=(a37*a26);
+  a36=(a36+a38);
+  a34=(a34-a36);
+  a36=atan2(a33,a34);
+  a38=sin(a36);
+  a39=(a32*a38);
+  a40=3.1415926535898002e+00;
+  a41=(a02*a07);
+  a36=cos(a36);
+  a42=(a32*a36);
+  a41=(a41+a42);
+  a42=-4.1599999999999998e-01;
+  a43=casadi_fmax(a41,a42);
+  a44=4.1599999999999998e-01;
+  a45=casadi_fmin(a43,a44);
+  a46=(a40*a45);
+  a47=cos(a46);
+  a39=(a39/a47);
+  a12=(a12+a39);
+  a01=(a01*a12);
+  a48=arg[1]? arg[1][23] : 0;
+  a01=(a01+a48);
+  a48=86400.;
+  a49=(a01/a48);
+  a49=floor(a49);
+  a48=(a48*a49);
+  a01=(a01-a48);
+  a48=50400.;
+  a01=(a01-a48);
+  a00=(a00*a01);
+  a01=arg[1]? arg[1][32] : 0;
+  a48=6.4000000000000001e-02;
+  a49=1.6170000000000000e+00;
+  a12=(a12-a49);
+  a12=(a40*a12);
+  a49=cos(a12);
+  a49=(a48*a49);
+  a45=(a45+a49);
+  a49=arg[1]? arg[1][33] : 0;
+  a50=arg[1]? arg[1][34] : 0;
+  a51=arg[1]? arg[1][35] : 0;
+  a52=(a45*a51);
+  a50=(a50+a52);
+  a52=(a45*a50);
+  a49=(a49+a52);
+  a52=(a45*a49);
+  a01=(a01+a52);
+  a52=72000.;
+  a53=casadi_fmax(a01,a52);
+  a00=(a00/a53);
+  a54=casadi_fabs(a00);
+  a55=1.5700000000000001e+00;
+  a54=(a54<a55);
+  a55=casadi_sq(a33);
+  a56=casadi_sq(a34);
+  a55=(a55+a56);
+  a33=(a33/a55);
+  a56=2.7143360527015815e+05;
+  a57=(2.*a00);
+  a58=4.1666666666666664e-02;
+  a59=casadi_sq(a00);
+  a60=arg[1]? arg[1][28] : 0;
+  a61=arg[1]? arg[1][29] : 0;
+  a62=arg[1]? arg[1][30] : 0;
+  a63=arg[1]? arg[1][31] : 0;
+  a64=(a45*a63);
+  a62=(a62+a64);
+  a64=(a45*a62);
+  a61=(a61+a64);
+  a64=(a45*a61);
+  a60=(a60+a64);
+  a64=0.;
+  a65=casadi_fmax(a60,a64);
+  a66=16.;
+  a67=5.3000000000000003e-01;
+  a67=(a67-a30);
+  a30=casadi_sq(a67);
+  a68=(a67*a30);
+  a68=(a66*a68);
+  a68=(a04+a68);
+  a69=299792458.;
+  a70=arg[1]? arg[1][24] : 0;
+  a69=(a69*a70);
+  a68=(a68*a69);
+  a70=(a65*a68);
+  a71=(a59*a70);
+  a58=(a58*a71);
+  a58=(a57*a58);
+  a71=-5.0000000000000000e-01;
+  a72=24.;
+  a72=(a59/a72);
+  a71=(a71+a72);
+  a70=(a71*a70);
+  a57=(a57*a70);
+  a58=(a58+a57);
+  a57=(a58/a53);
+  a56=(a56*a57);
+  a12=sin(a12);
+  a57=(a64<=a60);
+  a60=(a60<=a64);
+  a60=(a57+a60);
+  a57=(a57/a60);
+  a59=(a59*a71);
+  a59=(a04+a59);
+  a68=(a59*a68);
+  a57=(a57*a68);
+  a61=(a61*a57);
+  a57=(a45*a57);
+  a62=(a62*a57);
+  a61=(a61+a62);
+  a57=(a45*a57);
+  a63=(a63*a57);
+  a61=(a61+a63);
+  a63=(a52<=a01);
+  a01=(a01<=a52);
+  a01=(a63+a01);
+  a63=(a63/a01);
+  a00=(a00/a53);
+  a00=(a00*a58);
+  a63=(a63*a00);
+  a49=(a49*a63);
+  a61=(a61-a49);
+  a63=(a45*a63);
+  a50=(a50*a63);
+  a61=(a61-a50);
+  a45=(a45*a63);
+  a51=(a51*a45);
+  a61=(a61-a51);
+  a48=(a48*a61);
+  a12=(a12*a48);
+  a12=(a40*a12);
+  a56=(a56-a12);
+  a12=(a56/a47);
+  a48=(a32*a12);
+  a48=(a36*a48);
+  a51=(a42<=a41);
+  a41=(a41<=a42);
+  a41=(a51+a41);
+  a51=(a51/a41);
+  a41=(a43<=a44);
+  a44=(a44<=a43);
+  a44=(a41+a44);
+  a41=(a41/a44);
+  a46=sin(a46);
+  a39=(a39/a47);
+  a39=(a39*a56);
+  a46=(a46*a39);
+  a40=(a40*a46);
+  a61=(a61+a40);
+  a41=(a41*a61);
+  a51=(a51*a41);
+  a32=(a32*a51);
+  a32=(a38*a32);
+  a48=(a48-a32);
+  a33=(a33*a48);
+  a35=(a35*a33);
+  a34=(a34/a55);
+  a34=(a34*a48);
+  a15=(a15*a34);
+  a35=(a35-a15);
+  a35=(a54?a35:0);
+  a15=(a64<a29);
+  a48=-100.;
+  a55=casadi_sq(a06);
+  a32=casadi_sq(a09);
+  a55=(a55+a32);
+  a55=(1./a55);
+  a55=sqrt(a55);
+  a09=(a09*a55);
+  a18=(a18*a09);
+  a06=(a06*a55);
+  a14=(a14*a06);
+  a18=(a18+a14);
+  a05=(a05*a06);
+  a05=(a05*a06);
+  a05=(a04-a05);
+  a05=sqrt(a05);
+  a03=(a03*a05);
+  a18=(a18-a03);
+  a48=(a48<=a18);
+  a15=(a15&&a48);
+  a48=10000.;
+  a03=(a18<=a48);
+  a15=(a15&&a03);
+  a03=1.0000000000000000e-03;
+  a05=(a03<=a29);
+  a06=(a29<=a03);
+  a06=(a05+a06);
+  a05=(a05/a06);
+  a29=casadi_fmax(a29,a03);
+  a03=cos(a29);
+  a06=2.3069675999999997e+00;
+  a14=2.2557000000000001e-05;
+  a18=casadi_fmax(a18,a64);
+  a18=casadi_fmin(a18,a48);
+  a14=(a14*a18);
+  a14=(a04-a14);
+  a48=5.2568000000000001e+00;
+  a14=pow(a14,a48);
+  a06=(a06*a14);
+  a14=2.6600000000000000e-03;
+  a07=(2.*a07);
+  a07=cos(a07);
+  a14=(a14*a07);
+  a14=(a04-a14);
+  a07=2.7999999999999998e-04;
+  a07=(a07*a18);
+  a48=1000.;
+  a07=(a07/a48);
+  a14=(a14-a07);
+  a06=(a06/a14);
+  a14=2.2769999999999999e-03;
+  a07=1255.;
+  a48=2.8814999999999998e+02;
+  a55=6.4999999999999997e-03;
+  a55=(a55*a18);
+  a48=(a48-a55);
+  a07=(a07/a48);
+  a55=5.0000000000000003e-02;
+  a07=(a07+a55);
+  a14=(a14*a07);
+  a07=4.2755999999999998e+00;
+  a55=1.7149999999999999e+01;
+  a55=(a55*a48);
+  a18=4684.;
+  a55=(a55-a18);
+  a18=3.8450000000000003e+01;
+  a48=(a48-a18);
+  a55=(a55/a48);
+  a55=exp(a55);
+  a07=(a07*a55);
+  a14=(a14*a07);
+  a06=(a06+a14);
+  a29=sin(a29);
+  a06=(a06/a29);
+  a06=(a06/a29);
+  a29=arg[1]? arg[1][25] : 0;
+  a06=(a06*a29);
+  a03=(a03*a06);
+  a05=(a05*a03);
+  a05=(-a05);
+  a15=(a15?a05:0);
+  a11=(a11/a31);
+  a36=(a36*a51);
+  a38=(a38*a12);
+  a36=(a36+a38);
+  a11=(a11*a36);
+  a11=(-a11);
+  a11=(a54?a11:0);
+  a36=5.0000000000000001e-09;
+  a65=(a65*a59);
+  a65=(a54?a65:0);
+  a36=(a36+a65);
+  a36=(a36*a69);
+  a66=(a66*a36);
+  a30=(a30*a66);
+  a36=(2.*a67);
+  a67=(a67*a66);
+  a36=(a36*a67);
+  a30=(a30+a36);
+  a11=(a11-a30);
+  a02=(a02*a11);
+  a15=(a15+a02);
+  a24=casadi_sq(a24);
+  a04=(a04-a24);
+  a04=sqrt(a04);
+  a15=(a15/a04);
+  a16=(a16*a15);
+  a35=(a35+a16);
+  a16=(a35/a20);
+  a19=(2.*a19);
+  a04=(a28/a20);
+  a17=(a17*a33);
+  a17=(-a17);
+  a17=(a54?a17:0);
+  a27=(a27*a15);
+  a17=(a17+a27);
+  a04=(a04*a17);
+  a27=(a26/a20);
+  a37=(a37*a33);
+  a08=(a08*a34);
+  a37=(a37+a08);
+  a54=(a54?a37:0);
+  a25=(a25*a15);
+  a54=(a54+a25);
+  a27=(a27*a54);
+  a04=(a04+a27);
+  a27=(a23/a20);
+  a27=(a27*a35);
+  a04=(a04+a27);
+  a27=(2.*a20);
+  a04=(a04/a27);
+  a19=(a19*a04);
+  a16=(a16-a19);
+  a19=2.4323877420558726e-13;
+  a19=(a19*a13);
+  a16=(a16+a19);
+  a16=(a16+a23);
+  if (res[0]!=0) res[0][0]=a16;
+  a54=(a54/a20);
+  a21=(2.*a21);
+  a21=(a21*a04);
+  a54=(a54-a21);
+  a21=-2.4323877420558726e-13;
+  a21=(a21*a10);
+  a54=(a54+a21);
+  a54=(a54+a26);
+  if (res[0]!=0) res[0][1]=a54;
+  a17=(a17/a20);
+  a22=(2.*a22);
+  a22=(a22*a04);
+  a17=(a17-a22);
+  a17=(a17+a28);
+  if (res[0]!=0) res[0][2]=a17;
+  if (res[0]!=0) res[0][3]=a64;
+  if (res[0]!=0) res[0][4]=a64;
+  if (res[0]!=0) res[0][5]=a64;
+  if (res[0]!=0) res[0][6]=a64;
+  if (res[0]!=0) res[0][7]=a64;
+  if (res[0]!=0) res[0][8]=a64;
+  if (res[0]!=0) res[0][9]=a64;
+  if (res[0]!=0) res[0][10]=a64;
+  if (res[0]!=0) res[0][11]=a64;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_gnss_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f89(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_gnss_pseudorange_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_gnss_pseudorange_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_gnss_pseudorange_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_gnss_pseudorange_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_orbit_jac_gnss_pseudorange_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_orbit_jac_gnss_pseudorange_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_orbit_jac_gnss_pseudorange_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_orbit_jac_gnss_pseudorange_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "aux";
+    case 2: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_orbit_jac_gnss_pseudorange_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "J_orbit";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_orbit_jac_gnss_pseudorange_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s5;
+    case 2: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_orbit_jac_gnss_pseudorange_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s11;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_gnss_pseudorange_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_gnss_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* leonav_orbit_jac_gnss_range_rate:(x[21],aux[36],p[14])->(J_orbit[1x12]) */
+static int casadi_f90(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
+  a00=2.4323877420558726e-13;
+  a01=arg[2]? arg[2][1] : 0;
+  a02=cos(a01);
+  a03=arg[0]? arg[0][3] : 0;
+  a04=(a02*a03);
+  a05=arg[2]? arg[2][0] : 0;
+  a06=sin(a05);
+  a01=sin(a01);
+  a07=(a06*a01);
+  a08=arg[0]? arg[0][4] : 0;
+  a09=(a07*a08);
+  a04=(a04-a09);
+  a05=cos(a05);
+  a09=(a05*a01);
+  a10=arg[0]? arg[0][5] : 0;
+  a11=(a09*a10);
+  a04=(a04+a11);
+  a11=(a00*a04);
+  a12=arg[1]? arg[1][3] : 0;
+  a13=(a05*a02);
+  a14=(a13*a10);
+  a03=(a01*a03);
+  a15=(a06*a02);
+  a16=(a15*a08);
+  a03=(a03+a16);
+  a14=(a14-a03);
+  a12=(a12-a14);
+  a03=arg[1]? arg[1][0] : 0;
+  a16=6378137.;
+  a17=1.;
+  a18=6.6943799901413165e-03;
+  a19=casadi_sq(a06);
+  a18=(a18*a19);
+  a17=(a17-a18);
+  a17=sqrt(a17);
+  a16=(a16/a17);
+  a17=arg[2]? arg[2][2] : 0;
+  a18=(a16+a17);
+  a18=(a18*a05);
+  a19=(a18*a02);
+  a20=arg[0]? arg[0][2] : 0;
+  a13=(a13*a20);
+  a21=arg[0]? arg[0][0] : 0;
+  a22=(a01*a21);
+  a23=arg[0]? arg[0][1] : 0;
+  a15=(a15*a23);
+  a22=(a22+a15);
+  a13=(a13-a22);
+  a19=(a19+a13);
+  a03=(a03-a19);
+  a13=casadi_sq(a03);
+  a22=arg[1]? arg[1][1] : 0;
+  a18=(a18*a01);
+  a02=(a02*a21);
+  a07=(a07*a23);
+  a02=(a02-a07);
+  a09=(a09*a20);
+  a02=(a02+a09);
+  a18=(a18+a02);
+  a22=(a22-a18);
+  a02=casadi_sq(a22);
+  a13=(a13+a02);
+  a02=arg[1]? arg[1][2] : 0;
+  a09=9.9330562000985867e-01;
+  a09=(a09*a16);
+  a09=(a09+a17);
+  a09=(a09*a06);
+  a23=(a05*a23);
+  a20=(a06*a20);
+  a23=(a23+a20);
+  a09=(a09+a23);
+  a02=(a02-a09);
+  a09=casadi_sq(a02);
+  a13=(a13+a09);
+  a13=sqrt(a13);
+  a09=(a12/a13);
+  a23=(2.*a03);
+  a20=(a02/a13);
+  a17=(a20/a13);
+  a16=arg[1]? arg[1][5] : 0;
+  a05=(a05*a08);
+  a06=(a06*a10);
+  a05=(a05+a06);
+  a16=(a16-a05);
+  a17=(a17*a16);
+  a05=(a22/a13);
+  a06=(a05/a13);
+  a10=arg[1]? arg[1][4] : 0;
+  a10=(a10-a04);
+  a06=(a06*a10);
+  a17=(a17+a06);
+  a03=(a03/a13);
+  a06=(a03/a13);
+  a06=(a06*a12);
+  a17=(a17+a06);
+  a06=(2.*a13);
+  a17=(a17/a06);
+  a23=(a23*a17);
+  a09=(a09-a23);
+  a11=(a11+a09);
+  if (res[0]!=0) res[0][0]=a11;
+  a11=-2.4323877420558726e-13;
+  a14=(a11*a14);
+  a10=(a10/a13);
+  a22=(2.*a22);
+  a22=(a22*a17);
+  a10=(a10-a22);
+  a14=(a14+a10);
+  if (res[0]!=0) res[0][1]=a14;
+  a16=(a16/a13);
+  a02=(2.*a02);
+  a02=(a02*a17);
+  a16=(a16-a02);
+  if (res[0]!=0) res[0][2]=a16;
+  a00=(a00*a18);
+  a00=(a00+a03);
+  if (res[0]!=0) res[0][3]=a00;
+  a11=(a11*a19);
+  a11=(a11+a05);
+  if (res[0]!=0) res[0][4]=a11;
+  if (res[0]!=0) res[0][5]=a20;
+  a20=0.;
+  if (res[0]!=0) res[0][6]=a20;
+  if (res[0]!=0) res[0][7]=a20;
+  if (res[0]!=0) res[0][8]=a20;
+  if (res[0]!=0) res[0][9]=a20;
+  if (res[0]!=0) res[0][10]=a20;
+  if (res[0]!=0) res[0][11]=a20;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_gnss_range_rate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f90(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_gnss_range_rate_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_gnss_range_rate_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_gnss_range_rate_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void leonav_orbit_jac_gnss_range_rate_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_orbit_jac_gnss_range_rate_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int leonav_orbit_jac_gnss_range_rate_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real leonav_orbit_jac_gnss_range_rate_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_orbit_jac_gnss_range_rate_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x";
+    case 1: return "aux";
+    case 2: return "p";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* leonav_orbit_jac_gnss_range_rate_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "J_orbit";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_orbit_jac_gnss_range_rate_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s5;
+    case 2: return casadi_s3;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* leonav_orbit_jac_gnss_range_rate_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s11;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_gnss_range_rate_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int leonav_orbit_jac_gnss_range_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
   if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);

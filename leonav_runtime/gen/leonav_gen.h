@@ -1225,6 +1225,114 @@ int leonav_gnss_terms_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_
 #define leonav_gnss_terms_SZ_RES 1
 #define leonav_gnss_terms_SZ_IW 0
 #define leonav_gnss_terms_SZ_W 0
+int leonav_orbit_jac_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_orbit_jac_pseudorange_checkout(void);
+void leonav_orbit_jac_pseudorange_release(int mem);
+void leonav_orbit_jac_pseudorange_incref(void);
+void leonav_orbit_jac_pseudorange_decref(void);
+casadi_int leonav_orbit_jac_pseudorange_n_in(void);
+casadi_int leonav_orbit_jac_pseudorange_n_out(void);
+casadi_real leonav_orbit_jac_pseudorange_default_in(casadi_int i);
+const char* leonav_orbit_jac_pseudorange_name_in(casadi_int i);
+const char* leonav_orbit_jac_pseudorange_name_out(casadi_int i);
+const casadi_int* leonav_orbit_jac_pseudorange_sparsity_in(casadi_int i);
+const casadi_int* leonav_orbit_jac_pseudorange_sparsity_out(casadi_int i);
+int leonav_orbit_jac_pseudorange_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_orbit_jac_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_orbit_jac_pseudorange_SZ_ARG 3
+#define leonav_orbit_jac_pseudorange_SZ_RES 1
+#define leonav_orbit_jac_pseudorange_SZ_IW 0
+#define leonav_orbit_jac_pseudorange_SZ_W 0
+int leonav_orbit_jac_doppler_rate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_orbit_jac_doppler_rate_checkout(void);
+void leonav_orbit_jac_doppler_rate_release(int mem);
+void leonav_orbit_jac_doppler_rate_incref(void);
+void leonav_orbit_jac_doppler_rate_decref(void);
+casadi_int leonav_orbit_jac_doppler_rate_n_in(void);
+casadi_int leonav_orbit_jac_doppler_rate_n_out(void);
+casadi_real leonav_orbit_jac_doppler_rate_default_in(casadi_int i);
+const char* leonav_orbit_jac_doppler_rate_name_in(casadi_int i);
+const char* leonav_orbit_jac_doppler_rate_name_out(casadi_int i);
+const casadi_int* leonav_orbit_jac_doppler_rate_sparsity_in(casadi_int i);
+const casadi_int* leonav_orbit_jac_doppler_rate_sparsity_out(casadi_int i);
+int leonav_orbit_jac_doppler_rate_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_orbit_jac_doppler_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_orbit_jac_doppler_rate_SZ_ARG 3
+#define leonav_orbit_jac_doppler_rate_SZ_RES 1
+#define leonav_orbit_jac_doppler_rate_SZ_IW 0
+#define leonav_orbit_jac_doppler_rate_SZ_W 0
+int leonav_orbit_jac_doppler(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_orbit_jac_doppler_checkout(void);
+void leonav_orbit_jac_doppler_release(int mem);
+void leonav_orbit_jac_doppler_incref(void);
+void leonav_orbit_jac_doppler_decref(void);
+casadi_int leonav_orbit_jac_doppler_n_in(void);
+casadi_int leonav_orbit_jac_doppler_n_out(void);
+casadi_real leonav_orbit_jac_doppler_default_in(casadi_int i);
+const char* leonav_orbit_jac_doppler_name_in(casadi_int i);
+const char* leonav_orbit_jac_doppler_name_out(casadi_int i);
+const casadi_int* leonav_orbit_jac_doppler_sparsity_in(casadi_int i);
+const casadi_int* leonav_orbit_jac_doppler_sparsity_out(casadi_int i);
+int leonav_orbit_jac_doppler_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_orbit_jac_doppler_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_orbit_jac_doppler_SZ_ARG 3
+#define leonav_orbit_jac_doppler_SZ_RES 1
+#define leonav_orbit_jac_doppler_SZ_IW 0
+#define leonav_orbit_jac_doppler_SZ_W 0
+int leonav_orbit_jac_ofdm_range_diff(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_orbit_jac_ofdm_range_diff_checkout(void);
+void leonav_orbit_jac_ofdm_range_diff_release(int mem);
+void leonav_orbit_jac_ofdm_range_diff_incref(void);
+void leonav_orbit_jac_ofdm_range_diff_decref(void);
+casadi_int leonav_orbit_jac_ofdm_range_diff_n_in(void);
+casadi_int leonav_orbit_jac_ofdm_range_diff_n_out(void);
+casadi_real leonav_orbit_jac_ofdm_range_diff_default_in(casadi_int i);
+const char* leonav_orbit_jac_ofdm_range_diff_name_in(casadi_int i);
+const char* leonav_orbit_jac_ofdm_range_diff_name_out(casadi_int i);
+const casadi_int* leonav_orbit_jac_ofdm_range_diff_sparsity_in(casadi_int i);
+const casadi_int* leonav_orbit_jac_ofdm_range_diff_sparsity_out(casadi_int i);
+int leonav_orbit_jac_ofdm_range_diff_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_orbit_jac_ofdm_range_diff_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_orbit_jac_ofdm_range_diff_SZ_ARG 3
+#define leonav_orbit_jac_ofdm_range_diff_SZ_RES 1
+#define leonav_orbit_jac_ofdm_range_diff_SZ_IW 0
+#define leonav_orbit_jac_ofdm_range_diff_SZ_W 0
+int leonav_orbit_jac_gnss_pseudorange(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_orbit_jac_gnss_pseudorange_checkout(void);
+void leonav_orbit_jac_gnss_pseudorange_release(int mem);
+void leonav_orbit_jac_gnss_pseudorange_incref(void);
+void leonav_orbit_jac_gnss_pseudorange_decref(void);
+casadi_int leonav_orbit_jac_gnss_pseudorange_n_in(void);
+casadi_int leonav_orbit_jac_gnss_pseudorange_n_out(void);
+casadi_real leonav_orbit_jac_gnss_pseudorange_default_in(casadi_int i);
+const char* leonav_orbit_jac_gnss_pseudorange_name_in(casadi_int i);
+const char* leonav_orbit_jac_gnss_pseudorange_name_out(casadi_int i);
+const casadi_int* leonav_orbit_jac_gnss_pseudorange_sparsity_in(casadi_int i);
+const casadi_int* leonav_orbit_jac_gnss_pseudorange_sparsity_out(casadi_int i);
+int leonav_orbit_jac_gnss_pseudorange_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_orbit_jac_gnss_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_orbit_jac_gnss_pseudorange_SZ_ARG 3
+#define leonav_orbit_jac_gnss_pseudorange_SZ_RES 1
+#define leonav_orbit_jac_gnss_pseudorange_SZ_IW 0
+#define leonav_orbit_jac_gnss_pseudorange_SZ_W 0
+int leonav_orbit_jac_gnss_range_rate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
+int leonav_orbit_jac_gnss_range_rate_checkout(void);
+void leonav_orbit_jac_gnss_range_rate_release(int mem);
+void leonav_orbit_jac_gnss_range_rate_incref(void);
+void leonav_orbit_jac_gnss_range_rate_decref(void);
+casadi_int leonav_orbit_jac_gnss_range_rate_n_in(void);
+casadi_int leonav_orbit_jac_gnss_range_rate_n_out(void);
+casadi_real leonav_orbit_jac_gnss_range_rate_default_in(casadi_int i);
+const char* leonav_orbit_jac_gnss_range_rate_name_in(casadi_int i);
+const char* leonav_orbit_jac_gnss_range_rate_name_out(casadi_int i);
+const casadi_int* leonav_orbit_jac_gnss_range_rate_sparsity_in(casadi_int i);
+const casadi_int* leonav_orbit_jac_gnss_range_rate_sparsity_out(casadi_int i);
+int leonav_orbit_jac_gnss_range_rate_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+int leonav_orbit_jac_gnss_range_rate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w);
+#define leonav_orbit_jac_gnss_range_rate_SZ_ARG 3
+#define leonav_orbit_jac_gnss_range_rate_SZ_RES 1
+#define leonav_orbit_jac_gnss_range_rate_SZ_IW 0
+#define leonav_orbit_jac_gnss_range_rate_SZ_W 0
 void leonav_gen_casadi_version(int* major, int* minor, int* patch);
 int leonav_gen_casadi_int_size(void);
 int leonav_gen_casadi_real_size(void);

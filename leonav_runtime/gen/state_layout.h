@@ -138,6 +138,11 @@
     X(LEONAV_MEAS_ZUPT_N, zupt_n, 1, "ZUPT_N", "m/s") \
     X(LEONAV_MEAS_ZUPT_U, zupt_u, 1, "ZUPT_U", "m/s")
 
+#define LEONAV_NORBIT 12  /* columns of leonav_orbit_jac_<k>: dh/d[r_S, v_S, r_ref, v_ref] */
+/* Observables with a generated leonav_orbit_jac_<suffix> (h reads a satellite state from aux):
+ * X(kind id, function suffix). The consider term of ephemeris error (leonav_orbit_jacobian_many). */
+#define LEONAV_ORBIT_JAC_TABLE(X) X(LEONAV_MEAS_PSEUDORANGE, pseudorange) X(LEONAV_MEAS_DOPPLER_RATE, doppler_rate) X(LEONAV_MEAS_DOPPLER, doppler) X(LEONAV_MEAS_OFDM_RANGE_DIFF, ofdm_range_diff) X(LEONAV_MEAS_GNSS_PSEUDORANGE, gnss_pseudorange) X(LEONAV_MEAS_GNSS_RANGE_RATE, gnss_range_rate)
+
 /* Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome,
  * < 0 an error (codegen/driver_codes.py). */
 #define LEONAV_OK 0  /* success: the step was applied / the value computed */

@@ -174,6 +174,10 @@ MEAS_TABLE = (
 )
 P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz', 'lever_x_m', 'lever_y_m', 'lever_z_m']
 
+NORBIT = 12  # columns of leonav_orbit_jac_<k>: dh/d[r_S, v_S, r_ref, v_ref] (ECEF)
+# kind ids of the observables with a generated leonav_orbit_jac_<suffix> (twin of LEONAV_ORBIT_JAC_TABLE)
+ORBIT_JAC_KINDS = (MEAS_PSEUDORANGE, MEAS_DOPPLER_RATE, MEAS_DOPPLER, MEAS_OFDM_RANGE_DIFF, MEAS_GNSS_PSEUDORANGE, MEAS_GNSS_RANGE_RATE, )
+
 # Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome, < 0 an error.
 OK = 0  # success: the step was applied / the value computed
 GATED = 1  # update rejected: nis above the gate; x and P unchanged

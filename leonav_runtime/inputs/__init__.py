@@ -17,6 +17,7 @@ table and its record function here; nothing else in the runtime changes.
 from __future__ import annotations
 
 from leonav_runtime.inputs.assemble import STREAMS, FilterInputs, assemble
+from leonav_runtime.inputs.consider import OrbitConsider
 from leonav_runtime.inputs.gnss_obs import (COUPLED_MODE_STREAMS, GNSS_Q_CDDT_M2PS3, GNSS_Q_CDT_M2PS, GNSS_STREAMS,
                                             GnssObservationTable, apply_clock_start, gnss_records)
 from leonav_runtime.inputs.imu import F_B_AVERAGE_S, averaged_specific_force, imu_records, latest_sample
@@ -30,7 +31,7 @@ from leonav_runtime.inputs.tables import (SAT_A_MPS2, SAT_R_M, SAT_V_MPS, SATELL
                                           SatelliteTable, check_column)
 
 __all__ = [
-    "STREAMS", "FilterInputs", "assemble",
+    "STREAMS", "FilterInputs", "assemble", "OrbitConsider",
     "COUPLED_MODE_STREAMS", "GNSS_Q_CDDT_M2PS3", "GNSS_Q_CDT_M2PS", "GNSS_STREAMS", "GnssObservationTable", "apply_clock_start", "gnss_records",
     "F_B_AVERAGE_S", "averaged_specific_force", "imu_records", "latest_sample",
     "aux_blocks", "doppler_rate_variance", "fix_records", "satellite_aux", "satellite_records", "states_from_aux",

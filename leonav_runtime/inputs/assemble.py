@@ -22,6 +22,7 @@ import numpy as np
 
 from leonav_runtime import navfuncs, records
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.inputs.consider import OrbitConsider
 from leonav_runtime.inputs.gnss_obs import GnssObservationTable, apply_clock_start, gnss_records
 from leonav_runtime.inputs.imu import averaged_specific_force, imu_records
 from leonav_runtime.inputs.measurements import fix_records, satellite_records
@@ -82,10 +83,12 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
              satellites: Sequence[SatelliteTable] = (), nav: navfuncs.NavFunctions | None = None,
              notes: list[str] | None = None, epoch_utc: _dt.datetime | None = None,
              origin: tuple[float, float, float] | None = None,
-             gnss: GnssObservationTable | None = None) -> FilterInputs:
+             gnss: GnssObservationTable | None = None, orbit_consider: OrbitConsider | None = None) -> FilterInputs:
     """Records, x0, P0 and p from sensor tables (module doc). params: (NP,) (`filter_params`);
     prior: x0/P0 given (`Prior`) or made from the data (`FirstFixPrior`); satellites: at
-    most one table per observable kind; gnss: code / Doppler observations of a GNSS receiver."""
+    most one table per observable kind; gnss: code / Doppler observations of a GNSS receiver;
+    orbit_consider: satellite orbit errors added to the satellite records' R (consider term,
+    Jacobian at the prior's state)."""
     nav = nav or navfuncs.NavFunctions(params=params)
     notes = list(notes or [])
     imu.check()
@@ -130,8 +133,8 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
             # receiver acceleration input: the specific force averaged up to the latest IMU sample
             f_b_avg, f_b_span_s = averaged_specific_force(imu.dvel_b, imu.dt)
             counts["f_b_average_s"] = f_b_span_s
-        out[tab.KIND] = (satellite_records(used, imu, f_b_avg, f_b_span_s, params, nav) if used.t.size
-                         else np.zeros(0, records.RECORD_DTYPE))
+        out[tab.KIND] = (satellite_records(used, imu, f_b_avg, f_b_span_s, params, nav, orbit_consider, prior.x0)
+                         if used.t.size else np.zeros(0, records.RECORD_DTYPE))
 
     used_gnss = GnssObservationTable.empty()
     x0, P0, init = prior.x0, prior.P0, {"start_s": t_start} | prior.init

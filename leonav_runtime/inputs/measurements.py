@@ -7,13 +7,15 @@
   (m/s^2, body) averaged over `imu.F_B_AVERAGE_S` up to the latest IMU sample at or
   before the measurement (`imu.averaged_specific_force`); R = sigma^2, except the
   Doppler-rate, whose model uses that measured f_b: R = sigma^2 plus the average's
-  accelerometer noise at the carrier (generated `leonav_doppler_rate_variance`).
+  accelerometer noise at the carrier (generated `leonav_doppler_rate_variance`); with an
+  `OrbitConsider`, R also gets the satellite orbit error's J P_sat J^T (`consider.py`).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from leonav_runtime import navfuncs, records
+from leonav_runtime.inputs.consider import OrbitConsider
 from leonav_runtime.inputs.imu import latest_sample
 from leonav_runtime.inputs.tables import SAT_A_MPS2, SAT_R_M, SAT_V_MPS, FixTable, ImuTable, SatelliteTable
 
@@ -88,8 +90,10 @@ def satellite_aux(table: SatelliteTable, f_b: np.ndarray, layout) -> np.ndarray:
 
 
 def satellite_records(table: SatelliteTable, imu: ImuTable, f_b_avg: np.ndarray, f_b_span_s: float,
-                      params: np.ndarray, nav: navfuncs.NavFunctions) -> np.ndarray:
-    """Records of a satellite table; f_b_avg, f_b_span_s: `averaged_specific_force` of `imu`."""
+                      params: np.ndarray, nav: navfuncs.NavFunctions, consider: OrbitConsider | None = None,
+                      x_rx: np.ndarray | None = None) -> np.ndarray:
+    """Records of a satellite table; f_b_avg, f_b_span_s: `averaged_specific_force` of `imu`;
+    consider: the orbit error's consider term added to R (Jacobian at receiver state x_rx)."""
     if not table.t.size:
         return np.zeros(0, records.RECORD_DTYPE)
     aux = satellite_aux(table, f_b_avg[latest_sample(imu, table.t)], nav.layout)
@@ -97,4 +101,7 @@ def satellite_records(table: SatelliteTable, imu: ImuTable, f_b_avg: np.ndarray,
         R = doppler_rate_variance(table.sigma, f_b_span_s, params, nav)
     else:
         R = np.asarray(table.sigma) ** 2 if np.ndim(table.sigma) else table.sigma ** 2
+    extra = None if consider is None else consider.variance(table, aux, x_rx, params, nav)
+    if extra is not None:
+        R = R + extra
     return records.measurement_records(table.t, nav.kind_id(table.KIND), table.z, R, aux, table.sat_id)
