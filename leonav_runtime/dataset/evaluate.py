@@ -58,12 +58,12 @@ def run_dataset(spec: DatasetSpec, out_dir: Path, reference: dict | None = None,
     series, modes, tracks = {}, {}, {}
     for mode in spec["filter"]["modes"]:
         say(f"run {mode}")
-        recs, res, seconds = runner.run_mode(prep, mode)
+        recs, res, seconds, run_report = runner.run_mode(prep, mode)
         scores, series[mode] = scoring.run_scores(res, L, ref, sc["yaw_skip_s"])
         nis = {k: runner.fix_nis(prep, res, (k,)) for k in runner.FIX_KINDS}
         scores["fix_nis_mean"] = scoring.fix_nis_stats(nis)
         scores["records"] = {"total": int(recs.size), "imu": res.n_imu, "applied": res.n_applied,
-                             "gated": res.n_gated, "failed": res.n_failed}
+                             "gated": res.n_gated, "failed": res.n_failed} | run_report
         scores["filter_seconds"] = seconds
         scores["us_per_imu_step"] = seconds / max(res.n_imu, 1) * 1e6
         if files:

@@ -11,7 +11,10 @@
 - Records: IMU and fixes through `inputs.assemble` (the one road into the filter), plus the
   motion constraints (`constraints.py`); each mode merges the streams it names.
 - Time-correlated fix errors: `[gnss] rate_hz` thins the fixes; `sigma_scale = "auto"`
-  runs the last mode once and scales every fix sigma by sqrt(mean fix NIS) (reported).
+  runs the last mode once and rescales each fix axis's sigma once by sqrt(mean fix NIS of
+  that axis), clamped, and not at all when that first run diverged (`auto_scale`; reported).
+  This does not put the NIS mean of the second run in a band: it moves towards 1 but the
+  rescale changes the gains, so it ends where it ends (reported per mode).
 """
 from __future__ import annotations
 
@@ -23,7 +26,7 @@ import numpy as np
 
 from leonav_runtime import filter as lfilter
 from leonav_runtime import navfuncs, records
-from leonav_runtime.dataset import align, constraints
+from leonav_runtime.dataset import align, constraints, resets
 from leonav_runtime.dataset.load import Dataset, ImuSamples
 from leonav_runtime.dataset.spec import MODE_STREAMS
 from leonav_runtime.errors import UserInputError
@@ -46,6 +49,8 @@ class Prepared:
     nav: navfuncs.NavFunctions
     gate: float
     report: dict = field(default_factory=dict)
+    max_gap_s: float = 0.1          # [imu] max_gap_s
+    lockout_fixes: int = 5          # [filter] lockout_fixes
 
 
 def imu_table(imu: ImuSamples) -> ImuTable:
@@ -183,29 +188,52 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
     inputs = assemble(table, params, prior, fixes=fixes, nav=nav, notes=list(ds.notes), origin=ds.origin)
     streams = constraints.records_for(imu, still, prior.t_start_s, float(imu.t[-1]), con, nav)
     report["standstill"] = {"seconds": float(np.sum(np.diff(imu.t)[still[1:]])), "initial_s": rest.seconds}
+    dt = np.diff(imu.t[imu.t >= prior.t_start_s])
+    short = (dt > 2.5 * np.median(dt)) & (dt <= spec["imu"]["max_gap_s"]) if dt.size else dt.astype(bool)
+    long = dt > spec["imu"]["max_gap_s"]
+    report["imu_gaps"] = {"bridged_by_one_imu_step": int(short.sum()), "long": int(long.sum()),
+                          "long_seconds": float(dt[long].sum()), "max_gap_s": spec["imu"]["max_gap_s"],
+                          "long_handling": "constant-velocity predict, covariance inflated (dataset/resets.py)"}
     prep = Prepared(inputs, {"fix": inputs.records["fix"]} | streams, imu, ds.fixes, nav,
-                    spec["filter"]["gate_nis"], report)
+                    spec["filter"]["gate_nis"], report, spec["imu"]["max_gap_s"], spec["filter"]["lockout_fixes"])
     if isinstance(scale, str):
         auto_scale(prep, spec["filter"]["modes"][-1])
     report["fix_sigma_scale"] = prep.report.get("fix_sigma_scale", {"value": scale, "source": "given"})
     return prep
 
 
+SCALE_BOUNDS = (0.2, 5.0)
+"""Clamp of the automatic per-axis fix sigma factor."""
+DIVERGED_GATED_FRACTION = 0.05
+"""A first pass gating more than this fraction of its fixes (or resetting a gate lockout) diverged."""
+
+
 def auto_scale(prep: Prepared, mode: str) -> None:
-    """Scale each fix axis's R (E, N, U) by the mean NIS of that axis in one run of `mode`, so
-    a fix is weighted by how well it agrees with the rest of the run (module doc)."""
-    recs, res, _ = run_mode(prep, mode)
+    """One rescale of each fix axis's sigma (E, N, U) by sqrt(mean NIS of that axis) in a first run
+    of `mode`, clamped to SCALE_BOUNDS; none when that first run diverged (gate lockout resets,
+    or more than DIVERGED_GATED_FRACTION of its fixes gated): the factors of a diverged run
+    measure the divergence, not the fixes. Reported in `fix_sigma_scale`."""
+    recs, res, _, rep = run_mode(prep, mode)
+    ids = [prep.nav.kind_id(k) for k in FIX_KINDS]
+    fixes = np.isin(res.kind, ids)
+    gated = float(np.mean(res.status[fixes] == lfilter.STATUS_GATED)) if fixes.any() else 0.0
+    diverged = rep["resets"]["gate_lockout"] > 0 or gated > DIVERGED_GATED_FRACTION
     fix = prep.streams["fix"].copy()
-    factors = {}
+    factors, raw = {}, {}
     for kind in FIX_KINDS:
         k = prep.nav.kind_id(kind)
         nis = fix_nis(prep, res, (kind,))
-        s2 = float(np.mean(nis)) if nis.size else 1.0
-        fix["R"][fix["kind"] == k] *= s2
-        factors[kind] = math.sqrt(s2)
+        raw[kind] = math.sqrt(float(np.mean(nis))) if nis.size else 1.0
+        factors[kind] = 1.0 if diverged else float(np.clip(raw[kind], *SCALE_BOUNDS))
+        fix["R"][fix["kind"] == k] *= factors[kind] ** 2
     prep.streams["fix"] = fix
-    prep.report["fix_sigma_scale"] = {"value": factors, "source": f"sqrt of each axis's fix NIS mean in a first "
-                                      f"{mode} run"}
+    src = (f"one rescale by sqrt of each axis's fix NIS mean in a first {mode} run, clamped to "
+           f"{list(SCALE_BOUNDS)}")
+    prep.report["fix_sigma_scale"] = {
+        "value": factors, "first_pass_factors": raw, "first_pass_gated_fraction": gated,
+        "first_pass_lockout_resets": rep["resets"]["gate_lockout"],
+        "source": src + ("; NOT applied: the first run diverged (gate lockout or > "
+                         f"{DIVERGED_GATED_FRACTION:.0%} of fixes gated), sigma as given" if diverged else "")}
 
 
 def fix_nis(prep: Prepared, res: lfilter.RunResult, kinds=FIX_KINDS) -> np.ndarray:
@@ -216,16 +244,21 @@ def fix_nis(prep: Prepared, res: lfilter.RunResult, kinds=FIX_KINDS) -> np.ndarr
 
 
 def run_mode(prep: Prepared, mode: str, outage: tuple[float, float] | None = None):
-    """(records, RunResult, filter seconds) of one mode; fixes inside `outage` [start, end) s removed."""
+    """(records, RunResult, filter seconds, report) of one mode; fixes inside `outage` [start, end) s
+    removed. Covariance resets at long IMU gaps and gate lockouts (`resets`), counted in the report
+    with the measurements dropped inside IMU gaps."""
     parts = [prep.inputs.records["imu"]]
     for s in MODE_STREAMS[mode]:
         r = prep.streams[s]
         if s == "fix" and outage is not None:
             r = r[(r["t"] < outage[0]) | (r["t"] >= outage[1])]
         parts.append(r)
-    recs = records.merge_records(*parts)
-    ekf = lfilter.EKF(prep.inputs.x0, prep.inputs.P0, prep.inputs.params, gate=prep.gate or None,
-                      library=prep.nav.library)
+    max_gap = prep.max_gap_s
+    recs, dropped = resets.bridge_gaps(records.merge_records(*parts), max_gap)
     t0 = time.perf_counter()
-    res = ekf.run(recs)
-    return recs, res, time.perf_counter() - t0
+    res, counts = resets.run(recs, prep.inputs.x0, prep.inputs.P0, prep.inputs.params, prep.nav.layout,
+                             gate=prep.gate or None, library=prep.nav.library,
+                             fix_ids=[prep.nav.kind_id(k) for k in FIX_KINDS], max_gap_s=max_gap,
+                             lockout_fixes=prep.lockout_fixes)
+    seconds = time.perf_counter() - t0
+    return recs, res, seconds, {"resets": counts, "measurements_dropped_in_imu_gaps": dropped}

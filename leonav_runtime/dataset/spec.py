@@ -60,6 +60,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "accel_range_mps2": Field(float, "m/s^2", 0, 1e4, default=0.0, doc="full scale; samples at it are "
                                   "clipped and skipped (0: unknown)"),
         "gyro_range_radps": Field(float, "rad/s", 0, 1e3, default=0.0, doc="full scale (0: unknown)"),
+        "max_gap_s": Field(float, "s", 0.001, 3600, default=0.1, doc="longer IMU gaps reset the position, "
+                           "velocity and heading covariance (fixes inside them dropped); shorter ones are bridged"),
     },
     "gnss": {
         "file": Field(str, "-", default=REQ, doc="fixes: CSV, NMEA or UBX log"),
@@ -73,8 +75,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "sigma_columns": Field(list, "-", default=[], doc="per-fix 1-sigma E N U columns (m), if the receiver "
                                "gives them"),
         "sigma_m": Field(list, "m", default=[1.5, 1.5, 3.0], doc="1-sigma E N U without sigma columns"),
-        "sigma_scale": Field((float, str), "-", default=1.0, doc="multiplies every fix sigma; 'auto' scales it "
-                             "so the fix NIS mean of a first pass is 1 (time-correlated errors)"),
+        "sigma_scale": Field((float, str), "-", default=1.0, doc="multiplies every fix sigma; 'auto': one "
+                             "rescale per axis by sqrt(mean fix NIS) of a first pass, clamped, none if it diverged"),
         "rate_hz": Field(float, "Hz", 0, 100, default=0.0, doc="use at most this many fixes per second (0: all)"),
         "lever_arm_m": Field(list, "m", default=[0.0, 0.0, 0.0], doc="IMU -> antenna, in `lever_arm_frame`"),
         "lever_arm_frame": Field(str, "-", default="FRD", choices=BODY_FRAMES),
@@ -97,6 +99,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "bias_profile": Field(str, "-", default="wt901", choices=("tactical", "wt901"),
                               doc="bias sigmas and random walks"),
         "gate_nis": Field(float, "-", 0, 1e6, default=10.83, doc="chi2(1) 99.9 %; 0 disables"),
+        "lockout_fixes": Field(int, "-", 0, 1000, default=5, doc="after this many consecutive fix epochs with a "
+                               "gated fix, reset the position and velocity covariance (0: never)"),
         "velocity_sigma_mps": Field(float, "m/s", 1e-3, 100, default=0.3),
         "roll_pitch_sigma_deg": Field(float, "deg", 1e-3, 90, default=2.0),
         "output_rate_hz": Field(float, "Hz", 0.1, 1000, default=10.0, doc="trajectory file rate"),
