@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 from leonav_runtime import output
 from leonav_runtime.errors import UserInputError
@@ -37,6 +38,8 @@ def register(subparsers) -> None:
 def _reference(args) -> dict | None:
     if args.reference is None:
         return None
+    if not Path(args.reference).is_file():
+        raise UserInputError(f"--reference {args.reference}: file not found; expected an RTKLIB .pos or a CSV")
     try:
         cols = [int(c) for c in args.reference_columns.split(",")]
     except ValueError:

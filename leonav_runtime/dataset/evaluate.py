@@ -13,7 +13,7 @@ from typing import Callable
 import numpy as np
 
 from leonav_runtime import output
-from leonav_runtime.dataset import export, load, plots, runner, scoring
+from leonav_runtime.dataset import checks, export, load, plots, runner, scoring
 from leonav_runtime.dataset.spec import DatasetSpec
 from leonav_runtime.errors import UserInputError
 
@@ -40,7 +40,10 @@ def run_dataset(spec: DatasetSpec, out_dir: Path, reference: dict | None = None,
     ref = ds.reference
     if ref is None:
         raise UserInputError(f"{spec.source}: no reference trajectory: set [reference] file or give --reference FILE")
+    checks.reference(ref, ds.fixes, "--reference-crs / --reference-columns of --reference " + str(reference["path"])
+                     if reference is not None else spec.where("reference", "crs") + " / position_columns / time_column")
     if t_end_s is not None:
+        checks.until(t_end_s, float(ref.t[0]), "the reference starts")
         keep = ref.t <= t_end_s
         ref = ds.reference = load.Reference(ref.t[keep], ref.p_enu_m[keep],
                                             None if ref.yaw_rad is None else ref.yaw_rad[keep], ref.source)

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from leonav_runtime import geometry
-from leonav_runtime.dataset import readers
+from leonav_runtime.dataset import checks, readers
 from leonav_runtime.dataset.spec import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS, DatasetSpec
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.inputs import FixTable
@@ -96,6 +96,7 @@ def read_imu(spec: DatasetSpec, counts: dict) -> tuple[np.ndarray, np.ndarray, n
     if keep.sum() < 2:
         raise UserInputError(f"{path}: fewer than 2 usable IMU rows: expected samples with increasing time")
     t, w, f = t[keep], w[keep], f[keep]
+    checks.imu_units(spec, t, w, f, path)
     dt = np.diff(t)
     med = float(np.median(dt))
     gaps = dt > 2.5 * med

@@ -26,7 +26,7 @@ import numpy as np
 
 from leonav_runtime import filter as lfilter
 from leonav_runtime import navfuncs, records
-from leonav_runtime.dataset import align, constraints, resets
+from leonav_runtime.dataset import align, checks, constraints, resets
 from leonav_runtime.dataset.load import Dataset, ImuSamples
 from leonav_runtime.dataset.spec import MODE_STREAMS
 from leonav_runtime.errors import UserInputError
@@ -97,6 +97,9 @@ def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuPr
         raise UserInputError(f"{spec.where('alignment', 'yaw_deg')} = 'gnss': the GNSS speed never stays above "
                              f"{al['speed_mps']} m/s for 1 s: give yaw_deg")
     t_start = max(float(t_v[k]) if k is not None else float(imu.t[0]), float(imu.t[0]), float(ds.fixes.t[0]))
+    if imu.t[-1] < t_start + 1.0:
+        raise UserInputError(f"the IMU ends at {imu.t[-1]:.6g} s, before the filter start at {t_start:.6g} s (the "
+                             "vehicle first moves) + 1 s: expected a longer record, or --until beyond that")
     if rest.n:
         f_level, level_src = rest.f_mean, f"specific force over the initial standstill ({rest.seconds:.2f} s)"
     else:
@@ -167,8 +170,12 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
     """Parameters, alignment, records of every stream (module doc); t_end_s cuts the run (s)."""
     spec = ds.spec
     report: dict = {}
+    given = spec["imu"]["time_offset_s"]
+    off0 = 0.0 if isinstance(given, str) else float(given)
+    checks.time_overlap(spec, ds.imu_on_axis(off0).t, ds.fixes.t, off0)
     imu = ds.imu_on_axis(time_offset(ds, report))
     if t_end_s is not None:
+        checks.until(t_end_s, float(imu.t[0]) + 1.0, "the IMU starts (+ 1 s)")
         keep = imu.t <= t_end_s
         imu = ImuSamples(imu.t[keep], imu.w_b_radps[keep], imu.f_b_mps2[keep])
     con = spec["constraints"]
