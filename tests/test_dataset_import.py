@@ -259,3 +259,28 @@ def test_llh_reference_declared_ecef_and_until_before_the_reference(cpet, tmp_pa
     status = cli.main(["run", "cpet_run3", "--reference", str(tmp_path / "missing.pos"), "--out", str(tmp_path)])
     err = capsys.readouterr().err.strip()
     assert status == 2 and "--reference" in err and "missing.pos" in err and "\n" not in err
+
+
+def test_calibrate_uses_the_gnss_course_unless_the_reference_is_asked_for(cpet):
+    from leonav_runtime.dataset import runner
+
+    s = cpet.spec
+    old = s["imu"]["time_offset_s"]
+    try:
+        s["imu"]["time_offset_s"] = "calibrate"
+        rep: dict = {}
+        off = runner.time_offset(cpet, rep)
+        assert off == rep["time_offset_calibration"]["gnss_course"]["offset_s"]
+        assert rep["time_offset_s"]["uses_reference"] is False and "GNSS course" in rep["time_offset_s"]["source"]
+        s["imu"]["time_offset_s"] = "calibrate_reference"
+        rep = {}
+        off = runner.time_offset(cpet, rep)
+        assert off == rep["time_offset_calibration"]["reference_yaw"]["offset_s"] and 0.28 <= off <= 0.42
+        assert rep["time_offset_s"]["uses_reference"] is True
+        no_yaw = load.Dataset(s, cpet.t0_unix, cpet.origin, cpet.imu_raw_t, cpet.imu, cpet.fixes,
+                              load.Reference(cpet.reference.t, cpet.reference.p_enu_m, None), cpet.counts)
+        with pytest.raises(UserInputError, match=r"\[imu\] time_offset_s = 'calibrate_reference': the reference has "
+                                                 "no attitude"):
+            runner.time_offset(no_yaw, {})
+    finally:
+        s["imu"]["time_offset_s"] = old

@@ -142,8 +142,10 @@ def _dcm(q: np.ndarray) -> np.ndarray:
 
 
 def time_offset(ds: Dataset, report: dict) -> float:
-    """The IMU time offset to use (s): given, or calibrated (`align.calibrate_time_offset`)
-    against the reference's yaw when it has one, else the GNSS course; both estimates reported."""
+    """The IMU time offset to use (s): given; "calibrate": `align.calibrate_time_offset` against
+    the GNSS course; "calibrate_reference": against the reference's yaw (an explicit opt-in: the
+    reference is what the run is scored on, so the result says so). Both estimates are reported
+    whenever they can be made."""
     spec = ds.spec
     given = spec["imu"]["time_offset_s"]
     imu0 = ds.imu_on_axis(0.0)
@@ -154,15 +156,20 @@ def time_offset(ds: Dataset, report: dict) -> float:
         cal["reference_yaw"] = align.calibrate_time_offset(imu0.t, imu0.w_b_radps[:, 2], ds.reference.t,
                                                            ds.reference.yaw_rad)
     report["time_offset_calibration"] = cal
+    where = spec.where("imu", "time_offset_s")
+    if given == "calibrate_reference" and "reference_yaw" not in cal:
+        raise UserInputError(f"{where} = 'calibrate_reference': the reference has no attitude "
+                             "([reference] quaternion_columns): use 'calibrate' (GNSS course) or a number")
     if isinstance(given, str):
-        best = cal.get("reference_yaw", cal["gnss_course"])
+        key = "reference_yaw" if given == "calibrate_reference" else "gnss_course"
+        best = cal[key]
         if best.get("offset_s") is None:
-            raise UserInputError(f"{spec.where('imu', 'time_offset_s')} = 'calibrate': {best.get('reason')}: give "
-                                 "the offset in s")
-        report["time_offset_s"] = {"value": best["offset_s"], "source": "calibrated on " +
-                                   ("the reference yaw" if "reference_yaw" in cal else "the GNSS course")}
+            raise UserInputError(f"{where} = {given!r}: {best.get('reason')}: give the offset in s")
+        src = ("calibrated on the REFERENCE yaw (opt-in; the scores use the same reference)" if key == "reference_yaw"
+               else "calibrated on the GNSS course")
+        report["time_offset_s"] = {"value": best["offset_s"], "source": src, "uses_reference": key == "reference_yaw"}
         return float(best["offset_s"])
-    report["time_offset_s"] = {"value": given, "source": "given ([imu] time_offset_s)"}
+    report["time_offset_s"] = {"value": given, "source": "given ([imu] time_offset_s)", "uses_reference": False}
     return float(given)
 
 

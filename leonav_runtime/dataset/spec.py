@@ -56,7 +56,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "time_base": Field(str, "-", default="unix", choices=("unix", "first_fix"),
                            doc="IMU time is unix time, or seconds from the first GNSS fix"),
         "time_offset_s": Field((float, str), "s", default=0.0,
-                               doc="added to the IMU time; 'calibrate' estimates it (gyro vs GNSS course rate)"),
+                               doc="added to the IMU time; 'calibrate': estimated from the gyro vs the GNSS course "
+                               "rate; 'calibrate_reference': vs the reference yaw (opt-in, marked in the results)"),
         "accel_range_mps2": Field(float, "m/s^2", 0, 1e4, default=0.0, doc="full scale; samples at it are "
                                   "clipped and skipped (0: unknown)"),
         "gyro_range_radps": Field(float, "rad/s", 0, 1e3, default=0.0, doc="full scale (0: unknown)"),
@@ -224,9 +225,12 @@ def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
                                  "indices (x y z; mat: also one (n, 3) field)")
     imu["axis_map"] = parse_axes(imu["axes"], _where(source, "imu", "axes"))
     for sec, key in (("imu", "time_offset_s"), ("gnss", "sigma_scale"), ("alignment", "yaw_deg")):
-        val, word = v[sec][key], {"time_offset_s": "calibrate", "sigma_scale": "auto", "yaw_deg": "gnss"}[key]
-        if isinstance(val, str) and val != word:
-            raise UserInputError(f"{_where(source, sec, key)} = {_show(val)}: expected a number or {word!r}")
+        val = v[sec][key]
+        words = {"time_offset_s": ("calibrate", "calibrate_reference"), "sigma_scale": ("auto",),
+                 "yaw_deg": ("gnss",)}[key]
+        if isinstance(val, str) and val not in words:
+            raise UserInputError(f"{_where(source, sec, key)} = {_show(val)}: expected a number or "
+                                 f"{' or '.join(repr(w) for w in words)}")
     if not isinstance(imu["time_offset_s"], str) and abs(imu["time_offset_s"]) > 3600:
         raise UserInputError(f"{_where(source, 'imu', 'time_offset_s')}: expected seconds within +-3600")
     if isinstance(gnss["sigma_scale"], float) and not 0.01 <= gnss["sigma_scale"] <= 100:
