@@ -284,3 +284,21 @@ def test_calibrate_uses_the_gnss_course_unless_the_reference_is_asked_for(cpet):
             runner.time_offset(no_yaw, {})
     finally:
         s["imu"]["time_offset_s"] = old
+
+
+def test_msl_heights_become_ellipsoidal_with_the_geoid_separation(cpet):
+    raw = np.loadtxt(shared_file(f"{CPET}/gps-latlong.txt"), delimiter=",", max_rows=1)
+    s = cpet.spec
+    assert s["gnss"]["height_datum"] == "msl" and s["reference"]["height_datum"] == "msl"
+    assert cpet.origin[2] == pytest.approx(raw[3] + s["gnss"]["geoid_separation_m"], abs=1e-9)
+    s2 = spec.load_spec("cpet_run3")
+    s2["gnss"]["height_datum"] = s2["reference"]["height_datum"] = "ellipsoid"
+    ell = load.load(s2)
+    assert ell.origin[2] == pytest.approx(raw[3], abs=1e-9)
+    # both moved together: the local scores do not change (mm over a few hundred metres)
+    np.testing.assert_allclose(ell.reference.p_enu_m, cpet.reference.p_enu_m, atol=5e-3)
+    text = spec.load_spec("cpet_run3").source
+    with open(text) as fh:
+        body = fh.read().replace("geoid_separation_m = -32.0", "")
+    with pytest.raises(UserInputError, match=r"\[gnss\] geoid_separation_m: heights declared msl"):
+        spec.spec_from_dict(__import__("tomllib").loads(body), source="cpet.toml")

@@ -84,12 +84,14 @@ def test_reference_file_in_other_forms_scores_the_same(result, tmp_path):
     lon, lat = Transformer.from_crs("EPSG:32618", "EPSG:4326", always_xy=True).transform(gt[:, 1], gt[:, 2])
     np.savetxt(tmp_path / "llh.csv", np.column_stack([gt[:, 0], lat, lon, gt[:, 3]]), delimiter=",", fmt="%.10f")
     counts: dict = {}
+    n_geoid = s["gnss"]["geoid_separation_m"]          # the shipped files' heights are MSL
     ref = load.reference_from_file(tmp_path / "llh.csv", {"format": "csv", "crs": "llh", "delimiter": ",",
                                    "time_column": 0, "time_unit": "s", "position_columns": [1, 2, 3],
-                                   "quaternion_columns": []}, ds.t0_unix, ds.origin, counts)
+                                   "quaternion_columns": [], "height_datum": "msl"}, ds.t0_unix, ds.origin, counts,
+                                   n_geoid)
     np.testing.assert_allclose(ref.p_enu_m, ds.reference.p_enu_m, atol=1e-3)
     from leonav_runtime import geometry
-    r = np.atleast_2d(geometry.geodetic_to_ecef(np.radians(lat), np.radians(lon), gt[:, 3]))
+    r = np.atleast_2d(geometry.geodetic_to_ecef(np.radians(lat), np.radians(lon), gt[:, 3] + n_geoid))
     np.savetxt(tmp_path / "ecef.csv", np.column_stack([gt[:, 0], r]), delimiter=",", fmt="%.6f")
     ref_ecef = load.reference_from_file(tmp_path / "ecef.csv", {"format": "csv", "crs": "ecef", "delimiter": ",",
                                         "time_column": 0, "time_unit": "s", "position_columns": [1, 2, 3],
@@ -98,7 +100,7 @@ def test_reference_file_in_other_forms_scores_the_same(result, tmp_path):
     m2 = run_dataset(s, tmp_path / "out", t_end_s=T_END_S, outages=False, files=False,
                      reference={"path": str(tmp_path / "llh.csv"), "format": "csv", "crs": "llh", "delimiter": ",",
                                 "time_column": 0, "time_unit": "s", "position_columns": [1, 2, 3],
-                                "quaternion_columns": []})
+                                "quaternion_columns": [], "height_datum": "msl"})
     for mode in m2["modes"]:
         assert m2["modes"][mode]["rmse_horizontal_m"] == pytest.approx(m["modes"][mode]["rmse_horizontal_m"],
                                                                        abs=1e-3)

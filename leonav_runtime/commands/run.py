@@ -28,6 +28,9 @@ def register(subparsers) -> None:
                    help="CRS of a --reference CSV: llh (deg, deg, m), ecef (m) or EPSG:<code> (default %(default)s)")
     p.add_argument("--reference-columns", default="0,1,2,3", metavar="T,A,B,C",
                    help="0-based columns of unix time and the 3 coordinates in a --reference CSV (default %(default)s)")
+    p.add_argument("--reference-height-datum", default="ellipsoid", choices=("ellipsoid", "msl"),
+                   help="heights of a --reference CSV: WGS84 ellipsoidal, or above mean sea level (plus the "
+                   "description's [gnss] geoid_separation_m) (default %(default)s)")
     p.add_argument("--until", type=float, default=None, metavar="S",
                    help="only the first S seconds after the first GNSS fix (quick look)")
     p.add_argument("--no-outages", action="store_true", help="skip the outage runs")
@@ -51,7 +54,8 @@ def _reference(args) -> dict | None:
         raise UserInputError(f"--reference-crs: {crs!r}: expected llh, ecef or EPSG:<code>")
     fmt = "pos" if args.reference.endswith(".pos") else "csv"
     return {"path": args.reference, "format": fmt, "crs": crs, "delimiter": ",", "time_column": cols[0],
-            "time_unit": "s", "position_columns": cols[1:], "quaternion_columns": []}
+            "time_unit": "s", "position_columns": cols[1:], "quaternion_columns": [],
+            "height_datum": args.reference_height_datum}
 
 
 def run(args: argparse.Namespace) -> int:

@@ -36,7 +36,8 @@ def run_dataset(spec: DatasetSpec, out_dir: Path, reference: dict | None = None,
     say("reading files")
     ds = load.load(spec)
     if reference is not None:
-        ds.reference = load.reference_from_file(Path(reference["path"]), reference, ds.t0_unix, ds.origin, ds.counts)
+        ds.reference = load.reference_from_file(Path(reference["path"]), reference, ds.t0_unix, ds.origin, ds.counts,
+                                                spec["gnss"]["geoid_separation_m"])
     ref = ds.reference
     if ref is None:
         raise UserInputError(f"{spec.source}: no reference trajectory: set [reference] file or give --reference FILE")

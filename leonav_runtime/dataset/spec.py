@@ -78,6 +78,11 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "sigma_m": Field(list, "m", default=[1.5, 1.5, 3.0], doc="1-sigma E N U without sigma columns"),
         "sigma_scale": Field((float, str), "-", default=1.0, doc="multiplies every fix sigma; 'auto': one "
                              "rescale per axis by sqrt(mean fix NIS) of a first pass, clamped, none if it diverged"),
+        "height_datum": Field(str, "-", default="ellipsoid", choices=("ellipsoid", "msl"),
+                              doc="heights of the fix file: WGS84 ellipsoidal, or above mean sea level (msl: "
+                              "ellipsoidal = msl + geoid_separation_m); NMEA/UBX logs give ellipsoidal"),
+        "geoid_separation_m": Field(float, "m", -120, 90, default=0.0, doc="geoid height N above the ellipsoid at "
+                                    "the site, for msl heights (fixes and reference)"),
         "rate_hz": Field(float, "Hz", 0, 100, default=0.0, doc="use at most this many fixes per second (0: all)"),
         "lever_arm_m": Field(list, "m", default=[0.0, 0.0, 0.0], doc="IMU -> antenna, in `lever_arm_frame`"),
         "lever_arm_frame": Field(str, "-", default="FRD", choices=BODY_FRAMES),
@@ -89,6 +94,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "crs": Field(str, "-", default="llh", doc="llh (deg, deg, m), ecef (m), or EPSG:code (x, y, h)"),
         "time_column": Field(Column, "-", default=0, doc="unix time"),
         "time_unit": Field(str, "-", default="s", choices=tuple(TIME_UNITS)),
+        "height_datum": Field(str, "-", default="ellipsoid", choices=("ellipsoid", "msl"),
+                              doc="heights of an llh or EPSG reference (msl: plus [gnss] geoid_separation_m)"),
         "position_columns": Field(list, "-", default=[1, 2, 3]),
         "quaternion_columns": Field(list, "-", default=[],
                                     doc="x y z w of body -> local level ENU (CRS grid); its yaw (body x) is scored"),
@@ -249,6 +256,15 @@ def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
         raise UserInputError(f"{_where(source, 'reference', 'quaternion_columns')}: expected 4 columns (x y z w) "
                              "or none")
     crs = ref["crs"]
+    if (gnss["height_datum"] == "msl" or ref["height_datum"] == "msl") and gnss["geoid_separation_m"] == 0.0:
+        raise UserInputError(f"{_where(source, 'gnss', 'geoid_separation_m')}: heights declared msl "
+                             "(height_datum): expected the site's geoid height N in m (ellipsoidal = msl + N)")
+    if ref["height_datum"] == "msl" and crs == "ecef":
+        raise UserInputError(f"{_where(source, 'reference', 'height_datum')} = 'msl' with crs = 'ecef': ECEF has no "
+                             "height datum; expected 'ellipsoid'")
+    if gnss["height_datum"] == "msl" and gnss["format"] != "csv":
+        raise UserInputError(f"{_where(source, 'gnss', 'height_datum')} = 'msl' with format = {gnss['format']!r}: "
+                             "NMEA/UBX fixes are decoded to ellipsoidal heights; expected 'ellipsoid'")
     if crs not in ("llh", "ecef") and not re.fullmatch(r"EPSG:\d{4,6}", crs):
         raise UserInputError(f"{_where(source, 'reference', 'crs')} = {crs!r}: expected llh, ecef or EPSG:<code>")
     modes = v["filter"]["modes"]
