@@ -287,7 +287,7 @@ def test_calibrate_uses_the_gnss_course_unless_the_reference_is_asked_for(cpet):
 
 
 def test_msl_heights_become_ellipsoidal_with_the_geoid_separation(cpet):
-    raw = np.loadtxt(shared_file(f"{CPET}/gps-latlong.txt"), delimiter=",", max_rows=1)
+    raw = np.loadtxt(shared_file(f"{CPET}/gps-latlong.txt"), delimiter=",")[0]
     s = cpet.spec
     assert s["gnss"]["height_datum"] == "msl" and s["reference"]["height_datum"] == "msl"
     assert cpet.origin[2] == pytest.approx(raw[3] + s["gnss"]["geoid_separation_m"], abs=1e-9)

@@ -104,3 +104,29 @@ def test_reference_file_in_other_forms_scores_the_same(result, tmp_path):
     for mode in m2["modes"]:
         assert m2["modes"][mode]["rmse_horizontal_m"] == pytest.approx(m["modes"][mode]["rmse_horizontal_m"],
                                                                        abs=1e-3)
+
+
+def test_lever_arm_vertical_and_outage_hold_values(result):
+    """The TOML's FRD lever arm (0.54 fwd, 0.22 right, -1.16 down) is FLU [0.54, -0.22, 1.16] in
+    the filter's parameters; the prior puts the generated antenna model on the fix at the start;
+    the vertical error stays small (the lever arm's 1.16 m up is what closes it); the outage's
+    hold-last-fix figure is issue 11's 7.3 m at 60 s (same fixes, same ground truth)."""
+    from leonav_runtime.dataset import runner
+    from leonav_runtime.gen import state_layout as L
+
+    s, _, m = result
+    assert s["gnss"]["lever_arm_flu_m"] == pytest.approx([0.54, -0.22, 1.16])
+    ds = load.load(s)
+    prep = runner.prepare(ds, t_end_s=T_END_S)
+    p = prep.inputs.params
+    assert [p[L.P_LEVER_X_M], p[L.P_LEVER_Y_M], p[L.P_LEVER_Z_M]] == pytest.approx([0.54, -0.22, 1.16])
+    t0 = prep.inputs.init["start_s"]
+    fix0 = [np.interp(t0, ds.fixes.t, ds.fixes.p_enu_m[:, j]) for j in range(3)]
+    aux = np.zeros(L.NAUX)
+    antenna = [prep.nav.h(k, prep.inputs.x0, aux)[0] for k in ("POS_E", "POS_N", "POS_U")]
+    np.testing.assert_allclose(antenna, fix0, atol=1e-6)
+    assert np.linalg.norm(prep.inputs.x0[L.X_P_ENU_SLICE] - fix0) == pytest.approx(np.linalg.norm([0.54, 0.22, 1.16]),
+                                                                                     abs=1e-6)
+    assert m["modes"]["fix+imu+nhc+zupt"]["rmse_vertical_m"] < 0.5
+    o = m["modes"]["fix+imu+nhc+zupt"]["outages"]["outages"][0]
+    assert o["hold_last_fix_horizontal_m"] == pytest.approx(7.3, abs=0.06)
