@@ -130,3 +130,25 @@ def test_lever_arm_vertical_and_outage_hold_values(result):
     assert m["modes"]["fix+imu+nhc+zupt"]["rmse_vertical_m"] < 0.5
     o = m["modes"]["fix+imu+nhc+zupt"]["outages"]["outages"][0]
     assert o["hold_last_fix_horizontal_m"] == pytest.approx(7.3, abs=0.06)
+
+
+def test_alignment_gyro_bias_excludes_the_earth_rate(result):
+    from leonav_runtime.dataset import align, runner
+    from leonav_runtime.gen import state_layout as L
+
+    s, _, _ = result
+    ds = load.load(s)
+    prep = runner.prepare(ds, t_end_s=T_END_S)
+    con = s["constraints"]
+    imu = ds.imu_on_axis(prep.report["time_offset_s"]["value"])
+    still = align.standstill(imu, con["standstill_window_s"], con["standstill_accel_std_mps2"],
+                             con["standstill_gyro_std_radps"])
+    mean = align.initial_rest(imu, still, s["alignment"]["static_max_s"]).gyro_mean
+    w, x, y, z = prep.inputs.x0[L.X_Q_NB_SLICE]
+    C_b_n = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    lat = ds.origin[0]
+    w_ie = 7.292115e-5 * np.array([0.0, np.cos(lat), np.sin(lat)])   # WGS84 Earth rate, ENU
+    np.testing.assert_allclose(prep.inputs.x0[L.X_B_G_SLICE], mean - C_b_n.T @ w_ie, atol=1e-12)
+    assert np.linalg.norm(mean - prep.inputs.x0[L.X_B_G_SLICE]) == pytest.approx(7.292115e-5, rel=1e-9)

@@ -5,7 +5,7 @@
   `bias_profile`; the antenna lever arm (`[gnss] lever_arm_m`, to body FLU).
 - Coarse alignment (`initial_state`): roll and pitch by the generated `leonav_level` from
   the specific force at the initial standstill (else the second before the start), gyro
-  bias = the mean rate at that standstill; heading = the course of the GNSS velocity at
+  bias = the mean rate at that standstill minus the Earth rate in body axes; heading = the course of the GNSS velocity at
   the first time the vehicle moves (`[alignment] speed_mps` held for 1 s), where the filter
   starts, or a given yaw. Position = the antenna fix there minus the rotated lever arm.
 - Records: IMU and fixes through `inputs.assemble` (the one road into the filter), plus the
@@ -30,6 +30,7 @@ from leonav_runtime.dataset import align, checks, constraints, resets
 from leonav_runtime.dataset.load import Dataset, ImuSamples
 from leonav_runtime.dataset.spec import MODE_STREAMS
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.gen.constants import OMEGA_IE_RADPS
 from leonav_runtime.gen.profiles import IMU_PROFILES
 from leonav_runtime.inputs import FilterInputs, FixTable, ImuTable, Prior, assemble, prior_sigmas
 from leonav_runtime.params import ImuProfile, build_params
@@ -121,7 +122,10 @@ def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuPr
     jv = int(np.clip(np.searchsorted(t_v, t_start), 0, max(t_v.size - 1, 0)))
     if t_v.size:
         x0[L.X_V_ENU_SLICE][:2] = v[jv, :2]
-    x0[L.X_B_G_SLICE] = rest.gyro_mean if rest.n else 0.0
+    # at rest the gyro measures its bias plus the Earth's rotation (7.3e-5 rad/s, body axes of the
+    # aligned attitude: level from gravity, heading from the later GNSS course)
+    w_ie_enu = OMEGA_IE_RADPS * np.array([0.0, math.cos(ds.origin[0]), math.sin(ds.origin[0])])
+    x0[L.X_B_G_SLICE] = rest.gyro_mean - C_b_n.T @ w_ie_enu if rest.n else 0.0
     f = spec["filter"]
     i_fix = int(np.clip(np.searchsorted(ds.fixes.t, t_start), 0, ds.fixes.t.size - 1))
     sig = prior_sigmas(L, profile, ds.fixes.sigma_enu_m[i_fix], f["velocity_sigma_mps"],
