@@ -152,3 +152,16 @@ def test_alignment_gyro_bias_excludes_the_earth_rate(result):
     w_ie = 7.292115e-5 * np.array([0.0, np.cos(lat), np.sin(lat)])   # WGS84 Earth rate, ENU
     np.testing.assert_allclose(prep.inputs.x0[L.X_B_G_SLICE], mean - C_b_n.T @ w_ie, atol=1e-12)
     assert np.linalg.norm(mean - prep.inputs.x0[L.X_B_G_SLICE]) == pytest.approx(7.292115e-5, rel=1e-9)
+
+
+def test_summary_says_not_scored_for_outages_without_a_score(result):
+    from leonav_runtime.dataset.evaluate import summary
+
+    _, _, m = result
+    m2 = {"gps_alone": m["gps_alone"], "modes": {k: dict(v) for k, v in m["modes"].items()}}
+    last = list(m2["modes"])[-1]
+    m2["modes"][last]["outages"] = {"median_ratio": None, "worse_than_hold": 0, "outages": []}
+    assert summary(m2)["outages"]["met"] is None and summary(m2)["outages"]["worse_than_hold"] is None
+    assert summary(m)["outages"]["met"] in (True, False)
+    nees = m["modes"][last]["position_nees_enu"]
+    assert len(nees) == 3 and all(np.isfinite(nees)) and min(nees) > 0

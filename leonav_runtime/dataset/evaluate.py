@@ -116,9 +116,10 @@ def summary(metrics: dict) -> dict:
     out["yaw_rmse_deg_after_skip"] = {"value": y, "met": None if y is None else y <= GOALS["yaw_rmse_deg"]}
     o = m.get("outages")
     if o:
-        out["outages"] = {"median_ratio": o["median_ratio"], "worse_than_hold": o["worse_than_hold"],
-                          "met": o["median_ratio"] is not None and o["median_ratio"] <= GOALS["outage_median_ratio"]
-                          and o["worse_than_hold"] == 0}
+        scored = o["median_ratio"] is not None
+        out["outages"] = {"median_ratio": o["median_ratio"], "worse_than_hold": o["worse_than_hold"] if scored else None,
+                          "met": (o["median_ratio"] <= GOALS["outage_median_ratio"] and o["worse_than_hold"] == 0)
+                          if scored else None}
     us = m["us_per_imu_step"]
     out["us_per_imu_step"] = {"value": us, "met": us < GOALS["kf_gins_us_per_imu_step"]}
     nis = m["fix_nis_mean"]["all"]

@@ -88,6 +88,10 @@ def run_scores(res: lfilter.RunResult, layout, ref: Reference, yaw_skip_s: float
         out["rmse_yaw_deg"] = math.degrees(_rms(yaw_err)) if np.isfinite(yaw_err).any() else None
         out["yaw_skip_s"] = yaw_skip_s
     series = {"t": ref.t, "err_enu": err, "sigma_enu": np.sqrt(pd[:, layout.DX_DP_SLICE]), "yaw_err_rad": yaw_err}
+    # consistency of the exported per-epoch sigma: mean of (error / sigma)^2 per axis (1 if honest)
+    z2 = (err / series["sigma_enu"]) ** 2
+    ok = np.all(np.isfinite(z2), axis=1)
+    out["position_nees_enu"] = z2[ok].mean(axis=0).tolist() if ok.any() else None
     return out, series
 
 
