@@ -165,3 +165,11 @@ def test_summary_says_not_scored_for_outages_without_a_score(result):
     assert summary(m)["outages"]["met"] in (True, False)
     nees = m["modes"][last]["position_nees_enu"]
     assert len(nees) == 3 and all(np.isfinite(nees)) and min(nees) > 0
+
+
+def test_mode_styles_are_fixed_and_distinct():
+    from leonav_runtime.dataset import plots
+
+    looks = [(plots.style(m)["color"], plots.style(m)["ls"]) for m in spec.MODES]
+    assert len(set(looks)) == len(looks) and len({ls for _, ls in looks}) == len(looks)
+    assert plots.style("fix+imu+nhc") == plots.style("fix+imu+nhc")          # same in every figure
