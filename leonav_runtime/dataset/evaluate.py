@@ -157,3 +157,34 @@ def _write_files(out_dir: Path, metrics: dict, series: dict, outage_series: dict
                     f"{ref.t.size} reference epochs")
     plots.trajectory_on_reference(out_dir / "trajectory.png", ref.p_enu_m, prep.all_fixes.p_enu_m, tracks,
                                   f"{spec.name}: trajectories on the reference (ENU at the first fix)")
+
+
+def score_reference_file(reference: dict, results: dict, fixes, epoch_unix: float | None, origin, layout,
+                         out_dir: Path) -> dict:
+    """Score runs made elsewhere (`leonav replay`) against a --reference file, as `leonav run` does:
+    results {mode: RunResult} on the axis of seconds since `epoch_unix`, ENU at `origin`; fixes
+    (FixTable, same axis) for GPS alone and the distance check. Writes errors_reference.csv and
+    error_cdf_reference.png into out_dir; returns the scores."""
+    path = Path(reference["path"])
+    if epoch_unix is None or origin is None:
+        raise UserInputError(f"--reference {path}: the session has no UTC epoch or ENU origin (no GNSS fix with a "
+                             "date): the reference cannot be placed on its time axis")
+    counts: dict = {}
+    ref = load.reference_from_file(path, reference, epoch_unix, origin, counts)
+    if fixes.t.size:
+        checks.reference(ref, fixes, f"--reference-crs / --reference-columns of --reference {path}")
+    modes, series = {}, {}
+    for mode, res in results.items():
+        modes[mode], series[mode] = scoring.run_scores(res, layout, ref, 0.0)
+    out = {"path": str(path), "epochs": int(ref.t.size), "counts": counts, "modes": modes}
+    header = ["t_s"] + [f"{m}_{c}" for m in series for c in ("e_m", "n_m", "u_m", "horizontal_m")]
+    rows = [[f"{t:.3f}"] + [f"{v:.4f}" for s in series.values() for v in (*s["err_enu"][i],
+                                                                         np.hypot(*s["err_enu"][i, :2]))]
+            for i, t in enumerate(ref.t)]
+    output.write_csv(out_dir / "errors_reference.csv", header, rows)
+    if fixes.t.size:
+        gps_err = scoring.hold_last_fix(fixes, ref.t) - ref.p_enu_m
+        out["gps_alone"] = scoring.error_stats(gps_err)
+        plots.error_cdf(out_dir / "error_cdf_reference.png", series, {"err_enu": gps_err},
+                        f"horizontal error CDF against {path.name} ({ref.t.size} epochs)")
+    return out
