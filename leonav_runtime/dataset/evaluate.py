@@ -117,7 +117,8 @@ def summary(metrics: dict) -> dict:
     o = m.get("outages")
     if o:
         scored = o["median_ratio"] is not None
-        out["outages"] = {"median_ratio": o["median_ratio"], "worse_than_hold": o["worse_than_hold"] if scored else None,
+        out["outages"] = {"median_ratio": o["median_ratio"],
+                          "worse_than_hold": o["worse_than_hold"] if scored else None,
                           "met": (o["median_ratio"] <= GOALS["outage_median_ratio"] and o["worse_than_hold"] == 0)
                           if scored else None}
     us = m["us_per_imu_step"]

@@ -5,9 +5,9 @@
   `bias_profile`; the antenna lever arm (`[gnss] lever_arm_m`, to body FLU).
 - Coarse alignment (`initial_state`): roll and pitch by the generated `leonav_level` from
   the specific force at the initial standstill (else the second before the start), gyro
-  bias = the mean rate at that standstill minus the Earth rate in body axes; heading = the course of the GNSS velocity at
-  the first time the vehicle moves (`[alignment] speed_mps` held for 1 s), where the filter
-  starts, or a given yaw. Position = the antenna fix there minus the rotated lever arm.
+  bias = the mean rate at that standstill minus the Earth rate in body axes; heading = the
+  course of the GNSS velocity at the first time the vehicle moves (`[alignment] speed_mps`
+  held for 1 s), where the filter starts, or a given yaw. Position = the antenna fix there minus the rotated lever arm.
 - Records: IMU and fixes through `inputs.assemble` (the one road into the filter), plus the
   motion constraints (`constraints.py`); each mode merges the streams it names.
 - Time-correlated fix errors: `[gnss] rate_hz` thins the fixes; `sigma_scale = "auto"`

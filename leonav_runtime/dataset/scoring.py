@@ -38,6 +38,7 @@ def yaw_of(q: np.ndarray) -> np.ndarray:
 
 
 def wrap(a: np.ndarray) -> np.ndarray:
+    """Angles (rad) reduced to [-pi, pi): the one wrap of the dataset code."""
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
