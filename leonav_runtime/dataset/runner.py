@@ -30,7 +30,6 @@ from leonav_runtime.dataset import align, checks, constraints, resets
 from leonav_runtime.dataset.load import Dataset, ImuSamples
 from leonav_runtime.dataset.spec import MODE_STREAMS
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.gen.constants import OMEGA_IE_RADPS
 from leonav_runtime.gen.profiles import IMU_PROFILES
 from leonav_runtime.inputs import FilterInputs, FixTable, ImuTable, Prior, assemble, prior_sigmas
 from leonav_runtime.params import ImuProfile, build_params
@@ -115,17 +114,23 @@ def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuPr
     x0 = np.zeros(L.NX)
     q = nav.quat_from_euler(np.array([roll, pitch, yaw]))[0]
     x0[L.X_Q_NB_SLICE] = q
-    lever = np.asarray(spec["gnss"]["lever_arm_flu_m"])
-    C_b_n = _dcm(q)
+    # the generated fix model at p = 0 gives the rotated lever arm C_b_n l_b (nav.params hold l_b)
+    aux = np.zeros(L.NAUX)
+    lever_enu = np.array([nav.h(k, x0, aux)[0] for k in FIX_KINDS])
     antenna = np.array([np.interp(t_start, ds.fixes.t, ds.fixes.p_enu_m[:, j]) for j in range(3)])
-    x0[L.X_P_ENU_SLICE] = antenna - C_b_n @ lever
+    x0[L.X_P_ENU_SLICE] = antenna - lever_enu
     jv = int(np.clip(np.searchsorted(t_v, t_start), 0, max(t_v.size - 1, 0)))
     if t_v.size:
         x0[L.X_V_ENU_SLICE][:2] = v[jv, :2]
-    # at rest the gyro measures its bias plus the Earth's rotation (7.3e-5 rad/s, body axes of the
-    # aligned attitude: level from gravity, heading from the later GNSS course)
-    w_ie_enu = OMEGA_IE_RADPS * np.array([0.0, math.cos(ds.origin[0]), math.sin(ds.origin[0])])
-    x0[L.X_B_G_SLICE] = rest.gyro_mean - C_b_n.T @ w_ie_enu if rest.n else 0.0
+    # at rest the gyro measures its bias plus the Earth's rotation (7.3e-5 rad/s) in body axes of the
+    # aligned attitude (level from gravity, heading from the later GNSS course): the rate the generated
+    # mechanization needs to keep that attitude at rest
+    if rest.n:
+        at_rest = x0.copy()
+        at_rest[L.X_V_ENU_SLICE] = 0.0
+        dt = 0.01
+        w_ie_b = lfilter.stationary_imu(at_rest, dt, nav.params, nav.library)[L.U_DTHETA_B_SLICE] / dt
+        x0[L.X_B_G_SLICE] = rest.gyro_mean - w_ie_b
     f = spec["filter"]
     i_fix = int(np.clip(np.searchsorted(ds.fixes.t, t_start), 0, ds.fixes.t.size - 1))
     sig = prior_sigmas(L, profile, ds.fixes.sigma_enu_m[i_fix], f["velocity_sigma_mps"],
@@ -135,14 +140,6 @@ def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuPr
                            "gyro_bias_radps": x0[L.X_B_G_SLICE].tolist(),
                            "velocity_enu_mps": x0[L.X_V_ENU_SLICE].tolist()}
     return Prior(x0, np.diag(sig**2), dict(report["alignment"]), t_start)
-
-
-def _dcm(q: np.ndarray) -> np.ndarray:
-    """C_b_n of q_nb [w x y z] (numpy; the generated convention, models/frames.rot_from_quat)."""
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
 def time_offset(ds: Dataset, report: dict) -> float:

@@ -31,10 +31,22 @@ def states_at(res: lfilter.RunResult, t: np.ndarray) -> tuple[np.ndarray, np.nda
     return rows, x, pd
 
 
+_NAV: list = []
+
+
 def yaw_of(q: np.ndarray) -> np.ndarray:
-    """Yaw (rad, from East towards North) of q_nb rows [w x y z] (C_b_n = Rz Ry Rx)."""
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    """Yaw (rad, from East towards North) of q_nb rows [w x y z], by the generated
+    euler_from_quat (NaN rows stay NaN)."""
+    from leonav_runtime.navfuncs import NavFunctions
+
+    if not _NAV:
+        _NAV.append(NavFunctions())
+    q = np.atleast_2d(q)
+    out = np.full(q.shape[0], np.nan)
+    ok = np.all(np.isfinite(q), axis=1)
+    if ok.any():
+        out[ok] = _NAV[0].euler_from_quat(q[ok])[:, 2]
+    return out
 
 
 def wrap(a: np.ndarray) -> np.ndarray:
