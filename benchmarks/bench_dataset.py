@@ -46,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     for mode in ds.spec["filter"]["modes"]:
         times = []
         for _ in range(args.repeats):
-            recs, res, seconds = runner.run_mode(prep, mode)
+            recs, res, seconds, _ = runner.run_mode(prep, mode)
             times.append(seconds / res.n_imu * 1e6)
         out["modes"][mode] = {"records": int(recs.size), "imu_steps": int(res.n_imu),
                               "us_per_imu_step_min": float(np.min(times)),

@@ -73,11 +73,13 @@ class Scenario:
     realism: dict[str, dict[str, Any]] = field(default_factory=dict)  # "ephemeris", "imu": SI, see realism.py
 
 
-def _where(source: str, section: str, key: str) -> str:
+def where_key(source: str, section: str, key: str) -> str:
+    """'file: [section] key', the prefix of every description error."""
     return f"{source}: [{section}] {key}" if section else f"{source}: {key}"
 
 
-def _show(value: Any) -> str:
+def show_value(value: Any) -> str:
+    """A value as an error message quotes it (repr, at most 80 characters)."""
     text = repr(value)
     return text if len(text) <= 80 else text[:77] + "..."
 
@@ -89,35 +91,39 @@ def _finite(value: Any) -> bool:
         return False
 
 
-def _check_value(source: str, section: str, key: str, spec: Field, value: Any) -> Any:
-    where, given = _where(source, section, key), value
+def check_value(source: str, section: str, key: str, spec: Field, value: Any) -> Any:
+    """`value` checked against its Field (type, range, choices), ints widened to float where
+    allowed, else a UserInputError naming the key; scenarios and dataset descriptions share it."""
+    where, given = where_key(source, section, key), value
     kinds = spec.kind if isinstance(spec.kind, tuple) else (spec.kind,)
     if float in kinds and isinstance(value, int) and not isinstance(value, bool):
         value = float(value) if _finite(value) else math.inf
     if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
         names = " or ".join(k.__name__ for k in kinds)
-        raise UserInputError(f"{where} = {_show(value)}: expected a {names} in {spec.unit}")
+        raise UserInputError(f"{where} = {show_value(value)}: expected a {names} in {spec.unit}")
     if isinstance(value, (int, float)):
         if isinstance(given, float) and not _finite(given):   # NaN passes every comparison
-            raise UserInputError(f"{where} = {_show(value)}: expected a finite number in {spec.unit}")
+            raise UserInputError(f"{where} = {show_value(value)}: expected a finite number in {spec.unit}")
         if (spec.lo is not None and value < spec.lo) or (spec.hi is not None and value > spec.hi):
-            raise UserInputError(f"{where} = {_show(given if isinstance(given, int) else value)}: expected "
+            raise UserInputError(f"{where} = {show_value(given if isinstance(given, int) else value)}: expected "
                                  f"{spec.unit} in [{spec.lo}, {spec.hi}]")
     if spec.choices is not None and value not in spec.choices:
-        raise UserInputError(f"{where} = {_show(value)}: expected one of {', '.join(spec.choices)}")
+        raise UserInputError(f"{where} = {show_value(value)}: expected one of {', '.join(spec.choices)}")
     return value
 
 
-def _numbers(source: str, section: str, key: str, value: Any, length: int | None,
-             unit: str, limit: float = math.inf) -> list[float]:
-    where = _where(source, section, key)
+def check_numbers(source: str, section: str, key: str, value: Any, length: int | None,
+                  unit: str, limit: float = math.inf) -> list[float]:
+    """`value` as a list of `length` finite numbers (any length if None) within +-limit, else a
+    UserInputError naming the key and the unit."""
+    where = where_key(source, section, key)
     ok = isinstance(value, list) and all(
         isinstance(v, (int, float)) and not isinstance(v, bool) and _finite(v) and abs(v) <= limit for v in value
     )
     if not ok or (length is not None and len(value) != length):
         n = f"{length} " if length is not None else ""
         within = f" within +-{limit:g}" if limit < math.inf else ""
-        raise UserInputError(f"{where} = {_show(value)}: expected a list of {n}numbers in {unit}{within}")
+        raise UserInputError(f"{where} = {show_value(value)}: expected a list of {n}numbers in {unit}{within}")
     return [float(v) for v in value]
 
 
@@ -134,28 +140,29 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
     for section, fields in SCHEMA.items():
         given = data if section == "" else data.get(section, {})
         if section and not isinstance(given, dict):
-            raise UserInputError(f"{source}: [{section}] must be a table, got {_show(given)}")
+            raise UserInputError(f"{source}: [{section}] must be a table, got {show_value(given)}")
         if section:
             unknown = set(given) - set(fields)
             if unknown:
-                raise UserInputError(f"{source}: [{section}] unknown key {_show(sorted(unknown)[0])}; expected one "
+                raise UserInputError(f"{source}: [{section}] unknown key {show_value(sorted(unknown)[0])}; "
+                                     f"expected one "
                                      f"of {', '.join(fields)}")
         out: dict[str, Any] = {}
         for key, spec in fields.items():
             if key in given:
-                out[key] = _check_value(source, section, key, spec, given[key])
+                out[key] = check_value(source, section, key, spec, given[key])
             elif spec.default is _REQUIRED:
-                raise UserInputError(f"{_where(source, section, key)} is missing: required ({spec.unit})")
+                raise UserInputError(f"{where_key(source, section, key)} is missing: required ({spec.unit})")
             else:
                 out[key] = spec.default
         values[section] = out
 
     traj = dict(values["trajectory"])
-    att = _numbers(source, "trajectory", "attitude_deg", traj["attitude_deg"], 3, "deg", limit=360.0)
+    att = check_numbers(source, "trajectory", "attitude_deg", traj["attitude_deg"], 3, "deg", limit=360.0)
     traj["attitude_rad"] = [math.radians(a) for a in att]
     maneuvers, t_end, speed = [], 0.0, traj["speed_mps"]
     for i, m in enumerate(traj["maneuvers"]):
-        row = _numbers(source, "trajectory", f"maneuvers[{i}]", m, 3,
+        row = check_numbers(source, "trajectory", f"maneuvers[{i}]", m, 3,
                        "[duration_s, acceleration_mps2, turn_rate_deg_s]")
         where = f"{source}: [trajectory] maneuvers[{i}]"
         for what, value, lo, hi, unit in (("duration", row[0], 1e-3, 86400, "s"),
@@ -177,9 +184,9 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
     gps = dict(values["gps"])
     outages = []
     for i, w in enumerate(gps.pop("outages_s")):
-        a, b = _numbers(source, "gps", f"outages_s[{i}]", w, 2, "[start_s, end_s]")
+        a, b = check_numbers(source, "gps", f"outages_s[{i}]", w, 2, "[start_s, end_s]")
         if not 0 <= a < b <= duration:
-            raise UserInputError(f"{source}: [gps] outages_s[{i}] = {_show(w)}: expected 0 <= start < end <= "
+            raise UserInputError(f"{source}: [gps] outages_s[{i}] = {show_value(w)}: expected 0 <= start < end <= "
                                  f"duration ({duration} s)")
         outages.append((a, b))
     gps["outages"] = outages
@@ -188,14 +195,14 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
     star = dict(values["starlink"])
     counts = star["counts"]
     if not counts or not all(isinstance(c, int) and not isinstance(c, bool) and 1 <= c <= MAX_COUNT for c in counts):
-        raise UserInputError(f"{source}: [starlink] counts = {_show(counts)}: expected a non-empty list of "
+        raise UserInputError(f"{source}: [starlink] counts = {show_value(counts)}: expected a non-empty list of "
                              f"integers >= 1 (at most {MAX_COUNT})")
     star["counts"] = sorted(set(counts))  # ascending: min/max and curves read it in order
     star["elevation_mask_rad"] = math.radians(star.pop("elevation_mask_deg"))
 
     files = values["elements"]["files"]
     if not all(isinstance(f, str) and f and "\0" not in f for f in files):
-        raise UserInputError(f"{source}: [elements] files = {_show(files)}: expected a list of paths")
+        raise UserInputError(f"{source}: [elements] files = {show_value(files)}: expected a list of paths")
     base = base_dir or Path.cwd()
     element_files = [(base / f) if not Path(f).is_absolute() else Path(f) for f in files]
     if values["elements"]["source"] == "files" and not element_files:
@@ -204,13 +211,15 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
     modes = values["monte_carlo"]["modes"]
     bad = [m for m in modes if m not in MODES] if isinstance(modes, list) else [modes]
     if bad or not modes:
-        raise UserInputError(f"{source}: [monte_carlo] modes contains {_show(bad[0] if bad else modes)}: expected a "
+        raise UserInputError(f"{source}: [monte_carlo] modes contains "
+                             f"{show_value(bad[0] if bad else modes)}: expected a "
                              f"non-empty list of {', '.join(MODES)}")
     modes = list(dict.fromkeys(modes))  # keep the given order, drop repeats
     filt = dict(values["filter"])
     filt["initial_attitude_sigma_rad"] = math.radians(filt.pop("initial_attitude_sigma_deg"))
     if not NAME.fullmatch(values[""]["name"]):   # it names output folders: never a path
-        raise UserInputError(f"{source}: name = {_show(values['']['name'])}: expected 1-64 letters, digits, '.', '_', "
+        raise UserInputError(f"{source}: name = {show_value(values['']['name'])}: "
+                             "expected 1-64 letters, digits, '.', '_', "
                              "'+' or '-' (it names the results folder), starting with a letter or digit")
     used = {k for m in modes for k in MODE_OBSERVABLES[m]}
     imu_hz = values["imu"]["rate_hz"]
@@ -252,12 +261,13 @@ def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any]) -> dict[str,
     """The realism sections in SI: sigmas (m), rad, m/s^2 and rad/s per degC, rates."""
     eph = dict(eph)
     for key in ("starlink_sigma_rac_m", "gps_sigma_rac_m"):
-        eph[key] = _numbers(source, "ephemeris_error", key, eph[key], 3, "m", limit=1e7)
+        eph[key] = check_numbers(source, "ephemeris_error", key, eph[key], 3, "m", limit=1e7)
         if min(eph[key]) < 0:
-            raise UserInputError(f"{source}: [ephemeris_error] {key} = {_show(eph[key])}: expected sigmas >= 0 m")
+            raise UserInputError(f"{source}: [ephemeris_error] {key} = {show_value(eph[key])}: expected sigmas >= 0 m")
     bad = [c for c in eph["apply_to"] if c not in ("starlink", "gps")] if isinstance(eph["apply_to"], list) else [1]
     if bad:
-        raise UserInputError(f"{source}: [ephemeris_error] apply_to = {_show(eph['apply_to'])}: expected a list of "
+        raise UserInputError(f"{source}: [ephemeris_error] apply_to = "
+                             f"{show_value(eph['apply_to'])}: expected a list of "
                              "starlink, gps")
     g0 = 9.80665
     imu_si = {"enabled": imu["enabled"], "process_noise_inflation": imu["process_noise_inflation"],

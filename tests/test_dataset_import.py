@@ -146,9 +146,9 @@ def test_cli_reports_bad_input_in_one_line(tmp_path, capsys):
     path = _write_dataset(tmp_path, _imu_rows(), 'accel_unit = "furlong"')
     status = cli.main(["run", str(path), "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err.strip()
-    assert status != 0 and err.count("\n") == 0 and "[imu] accel_unit" in err and "Traceback" not in err
+    assert status == 2 and err.count("\n") == 0 and "[imu] accel_unit" in err and "Traceback" not in err
     status = cli.main(["run", str(tmp_path / "nothing.toml")])
-    assert status != 0 and "dataset file not found" in capsys.readouterr().err
+    assert status == 2 and "dataset file not found" in capsys.readouterr().err
 
 
 def test_every_key_is_documented():
@@ -216,3 +216,89 @@ def test_reference_yaw_is_true_not_grid(cpet):
     conv = np.radians(Proj("EPSG:32618").get_factors(lon, lat).meridian_convergence)
     diff = scoring.wrap(cpet.reference.yaw_rad - (grid_yaw - conv))
     assert np.abs(diff).max() < 1e-4 and conv > 0.019
+
+
+@pytest.mark.parametrize("section, key, value, needle", [
+    ("imu", "accel_unit", "g", "[imu] accel_unit = 'g': the median specific force"),
+    ("imu", "time_unit", "ms", "[imu] time_unit = 'ms': "),
+    ("imu", "gyro_unit", "deg/s", None),                  # rad/s read as deg/s: small, not caught, runs
+    ("imu", "time_base", "unix", "[imu] time_base = 'unix', time_offset_s = 0.36: the IMU spans"),
+    ("reference", "position_columns", [2, 1, 3], "[reference] crs / position_columns / time_column: the reference is"),
+    ("reference", "time_unit", "ms", "no overlap"),
+])
+def test_wrong_unit_time_base_or_crs_is_named(tmp_path, section, key, value, needle):
+    """A plausible-looking but wrong key on the real CPET files: one line naming the key, from
+    physics (|f| ~ g, IMU rate, IMU/GNSS overlap, reference within metres of the fixes)."""
+    from leonav_runtime.dataset.evaluate import run_dataset
+
+    shared_file(f"{CPET}/imu_planetary_200hz.csv")
+    s = spec.load_spec("cpet_run3")
+    s[section][key] = value
+    if needle is None:
+        load.load(s)
+        return
+    with pytest.raises(UserInputError) as err:
+        run_dataset(s, tmp_path, t_end_s=20.0, outages=False, files=False)
+    msg = str(err.value)
+    assert needle in msg and "\n" not in msg and s.source in msg
+
+
+def test_llh_reference_declared_ecef_and_until_before_the_reference(cpet, tmp_path, capsys):
+    from pyproj import Transformer
+
+    gt = np.loadtxt(shared_file(f"{CPET}/global-pose-utm.txt"), delimiter=",")
+    lon, lat = Transformer.from_crs("EPSG:32618", "EPSG:4326", always_xy=True).transform(gt[:, 1], gt[:, 2])
+    np.savetxt(tmp_path / "llh.csv", np.column_stack([gt[:, 0], lat, lon, gt[:, 3]]), delimiter=",", fmt="%.10f")
+    status = cli.main(["run", "cpet_run3", "--reference", str(tmp_path / "llh.csv"), "--reference-crs", "ecef",
+                       "--until", "20", "--no-outages", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert status == 2 and "--reference-crs" in err and "from the GNSS fixes" in err and "\n" not in err
+    status = cli.main(["run", "cpet_run3", "--until", "3", "--no-outages", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert status == 2 and "--until 3: the reference starts at 5.16" in err and "\n" not in err
+    status = cli.main(["run", "cpet_run3", "--reference", str(tmp_path / "missing.pos"), "--out", str(tmp_path)])
+    err = capsys.readouterr().err.strip()
+    assert status == 2 and "--reference" in err and "missing.pos" in err and "\n" not in err
+
+
+def test_calibrate_uses_the_gnss_course_unless_the_reference_is_asked_for(cpet):
+    from leonav_runtime.dataset import runner
+
+    s = cpet.spec
+    old = s["imu"]["time_offset_s"]
+    try:
+        s["imu"]["time_offset_s"] = "calibrate"
+        rep: dict = {}
+        off = runner.time_offset(cpet, rep)
+        assert off == rep["time_offset_calibration"]["gnss_course"]["offset_s"]
+        assert rep["time_offset_s"]["uses_reference"] is False and "GNSS course" in rep["time_offset_s"]["source"]
+        s["imu"]["time_offset_s"] = "calibrate_reference"
+        rep = {}
+        off = runner.time_offset(cpet, rep)
+        assert off == rep["time_offset_calibration"]["reference_yaw"]["offset_s"] and 0.28 <= off <= 0.42
+        assert rep["time_offset_s"]["uses_reference"] is True
+        no_yaw = load.Dataset(s, cpet.t0_unix, cpet.origin, cpet.imu_raw_t, cpet.imu, cpet.fixes,
+                              load.Reference(cpet.reference.t, cpet.reference.p_enu_m, None), cpet.counts)
+        with pytest.raises(UserInputError, match=r"\[imu\] time_offset_s = 'calibrate_reference': the reference has "
+                                                 "no attitude"):
+            runner.time_offset(no_yaw, {})
+    finally:
+        s["imu"]["time_offset_s"] = old
+
+
+def test_msl_heights_become_ellipsoidal_with_the_geoid_separation(cpet):
+    raw = np.loadtxt(shared_file(f"{CPET}/gps-latlong.txt"), delimiter=",")[0]
+    s = cpet.spec
+    assert s["gnss"]["height_datum"] == "msl" and s["reference"]["height_datum"] == "msl"
+    assert cpet.origin[2] == pytest.approx(raw[3] + s["gnss"]["geoid_separation_m"], abs=1e-9)
+    s2 = spec.load_spec("cpet_run3")
+    s2["gnss"]["height_datum"] = s2["reference"]["height_datum"] = "ellipsoid"
+    ell = load.load(s2)
+    assert ell.origin[2] == pytest.approx(raw[3], abs=1e-9)
+    # both moved together: the local scores do not change (mm over a few hundred metres)
+    np.testing.assert_allclose(ell.reference.p_enu_m, cpet.reference.p_enu_m, atol=5e-3)
+    text = spec.load_spec("cpet_run3").source
+    with open(text) as fh:
+        body = fh.read().replace("geoid_separation_m = -32.0", "")
+    with pytest.raises(UserInputError, match=r"\[gnss\] geoid_separation_m: heights declared msl"):
+        spec.spec_from_dict(__import__("tomllib").loads(body), source="cpet.toml")

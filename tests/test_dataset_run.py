@@ -84,12 +84,14 @@ def test_reference_file_in_other_forms_scores_the_same(result, tmp_path):
     lon, lat = Transformer.from_crs("EPSG:32618", "EPSG:4326", always_xy=True).transform(gt[:, 1], gt[:, 2])
     np.savetxt(tmp_path / "llh.csv", np.column_stack([gt[:, 0], lat, lon, gt[:, 3]]), delimiter=",", fmt="%.10f")
     counts: dict = {}
+    n_geoid = s["gnss"]["geoid_separation_m"]          # the shipped files' heights are MSL
     ref = load.reference_from_file(tmp_path / "llh.csv", {"format": "csv", "crs": "llh", "delimiter": ",",
                                    "time_column": 0, "time_unit": "s", "position_columns": [1, 2, 3],
-                                   "quaternion_columns": []}, ds.t0_unix, ds.origin, counts)
+                                   "quaternion_columns": [], "height_datum": "msl"}, ds.t0_unix, ds.origin, counts,
+                                   n_geoid)
     np.testing.assert_allclose(ref.p_enu_m, ds.reference.p_enu_m, atol=1e-3)
     from leonav_runtime import geometry
-    r = np.atleast_2d(geometry.geodetic_to_ecef(np.radians(lat), np.radians(lon), gt[:, 3]))
+    r = np.atleast_2d(geometry.geodetic_to_ecef(np.radians(lat), np.radians(lon), gt[:, 3] + n_geoid))
     np.savetxt(tmp_path / "ecef.csv", np.column_stack([gt[:, 0], r]), delimiter=",", fmt="%.6f")
     ref_ecef = load.reference_from_file(tmp_path / "ecef.csv", {"format": "csv", "crs": "ecef", "delimiter": ",",
                                         "time_column": 0, "time_unit": "s", "position_columns": [1, 2, 3],
@@ -98,7 +100,76 @@ def test_reference_file_in_other_forms_scores_the_same(result, tmp_path):
     m2 = run_dataset(s, tmp_path / "out", t_end_s=T_END_S, outages=False, files=False,
                      reference={"path": str(tmp_path / "llh.csv"), "format": "csv", "crs": "llh", "delimiter": ",",
                                 "time_column": 0, "time_unit": "s", "position_columns": [1, 2, 3],
-                                "quaternion_columns": []})
+                                "quaternion_columns": [], "height_datum": "msl"})
     for mode in m2["modes"]:
         assert m2["modes"][mode]["rmse_horizontal_m"] == pytest.approx(m["modes"][mode]["rmse_horizontal_m"],
                                                                        abs=1e-3)
+
+
+def test_lever_arm_vertical_and_outage_hold_values(result):
+    """The TOML's FRD lever arm (0.54 fwd, 0.22 right, -1.16 down) is FLU [0.54, -0.22, 1.16] in
+    the filter's parameters; the prior puts the generated antenna model on the fix at the start;
+    the vertical error stays small (the lever arm's 1.16 m up is what closes it); the outage's
+    hold-last-fix figure is issue 11's 7.3 m at 60 s (same fixes, same ground truth)."""
+    from leonav_runtime.dataset import runner
+    from leonav_runtime.gen import state_layout as L
+
+    s, _, m = result
+    assert s["gnss"]["lever_arm_flu_m"] == pytest.approx([0.54, -0.22, 1.16])
+    ds = load.load(s)
+    prep = runner.prepare(ds, t_end_s=T_END_S)
+    p = prep.inputs.params
+    assert [p[L.P_LEVER_X_M], p[L.P_LEVER_Y_M], p[L.P_LEVER_Z_M]] == pytest.approx([0.54, -0.22, 1.16])
+    t0 = prep.inputs.init["start_s"]
+    fix0 = [np.interp(t0, ds.fixes.t, ds.fixes.p_enu_m[:, j]) for j in range(3)]
+    aux = np.zeros(L.NAUX)
+    antenna = [prep.nav.h(k, prep.inputs.x0, aux)[0] for k in ("POS_E", "POS_N", "POS_U")]
+    np.testing.assert_allclose(antenna, fix0, atol=1e-6)
+    assert np.linalg.norm(prep.inputs.x0[L.X_P_ENU_SLICE] - fix0) == pytest.approx(np.linalg.norm([0.54, 0.22, 1.16]),
+                                                                                     abs=1e-6)
+    assert m["modes"]["fix+imu+nhc+zupt"]["rmse_vertical_m"] < 0.5
+    o = m["modes"]["fix+imu+nhc+zupt"]["outages"]["outages"][0]
+    assert o["hold_last_fix_horizontal_m"] == pytest.approx(7.3, abs=0.06)
+
+
+def test_alignment_gyro_bias_excludes_the_earth_rate(result):
+    from leonav_runtime.dataset import align, runner
+    from leonav_runtime.gen import state_layout as L
+
+    s, _, _ = result
+    ds = load.load(s)
+    prep = runner.prepare(ds, t_end_s=T_END_S)
+    con = s["constraints"]
+    imu = ds.imu_on_axis(prep.report["time_offset_s"]["value"])
+    still = align.standstill(imu, con["standstill_window_s"], con["standstill_accel_std_mps2"],
+                             con["standstill_gyro_std_radps"])
+    mean = align.initial_rest(imu, still, s["alignment"]["static_max_s"]).gyro_mean
+    w, x, y, z = prep.inputs.x0[L.X_Q_NB_SLICE]
+    C_b_n = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    lat = ds.origin[0]
+    w_ie = 7.292115e-5 * np.array([0.0, np.cos(lat), np.sin(lat)])   # WGS84 Earth rate, ENU
+    np.testing.assert_allclose(prep.inputs.x0[L.X_B_G_SLICE], mean - C_b_n.T @ w_ie, atol=1e-12)
+    assert np.linalg.norm(mean - prep.inputs.x0[L.X_B_G_SLICE]) == pytest.approx(7.292115e-5, rel=1e-9)
+
+
+def test_summary_says_not_scored_for_outages_without_a_score(result):
+    from leonav_runtime.dataset.evaluate import summary
+
+    _, _, m = result
+    m2 = {"gps_alone": m["gps_alone"], "modes": {k: dict(v) for k, v in m["modes"].items()}}
+    last = list(m2["modes"])[-1]
+    m2["modes"][last]["outages"] = {"median_ratio": None, "worse_than_hold": 0, "outages": []}
+    assert summary(m2)["outages"]["met"] is None and summary(m2)["outages"]["worse_than_hold"] is None
+    assert summary(m)["outages"]["met"] in (True, False)
+    nees = m["modes"][last]["position_nees_enu"]
+    assert len(nees) == 3 and all(np.isfinite(nees)) and min(nees) > 0
+
+
+def test_mode_styles_are_fixed_and_distinct():
+    from leonav_runtime.dataset import plots
+
+    looks = [(plots.style(m)["color"], plots.style(m)["ls"]) for m in spec.MODES]
+    assert len(set(looks)) == len(looks) and len({ls for _, ls in looks}) == len(looks)
+    assert plots.style("fix+imu+nhc") == plots.style("fix+imu+nhc")          # same in every figure

@@ -409,3 +409,24 @@ def test_synthetic_imu_noise_is_the_simulators_draw(synth):
     b_a, b_g = simulate.bias_walks(np.random.default_rng(synth.cfg.seed), WT901, n, dt_s)
     np.testing.assert_array_equal(synth.x_true[:, L.X_B_A_SLICE], b_a)
     np.testing.assert_array_equal(synth.x_true[:, L.X_B_G_SLICE], b_g)
+
+
+def test_replay_reference_file_scores_like_the_truth(synth, tmp_path, capsys):
+    """`leonav replay --reference FILE` (dataset/evaluate.score_reference_file): the session's own
+    truth.csv given as a lat/lon/h CSV scores the run as the replay's truth scoring does."""
+    import json
+
+    from leonav_runtime import cli
+
+    truth = synth.folder / "truth.csv"
+    header = truth.read_text().splitlines()[0].split(",")
+    cols = ",".join(str(header.index(k)) for k in ("utc_unix_s", "lat_deg", "lon_deg", "h_m"))
+    out = tmp_path / "out"
+    status = cli.main(["replay", str(synth.folder), "--modes", "fix+imu", "--reference", str(truth),
+                       "--reference-columns", cols, "--out", str(out)])
+    assert status == 0 and "against" in capsys.readouterr().out
+    m = json.loads((out / "metrics.json").read_text())
+    own, ref = m["modes"]["fix+imu"], m["reference_file"]["modes"]["fix+imu"]
+    assert m["reference_file"]["epochs"] > 100
+    assert ref["rmse_3d_m"] == pytest.approx(own["rmse_position_m"], rel=0.25)
+    assert (out / "errors_reference.csv").is_file() and (out / "error_cdf_reference.png").stat().st_size > 1000

@@ -44,6 +44,9 @@ def register(subparsers) -> None:
                    help="receiver output latency to remove from the time map, s (measure it with a PPS; default 0)")
     p.add_argument("--doppler-rate-sigma-floor", "--alpha-sigma-floor", dest="doppler_rate_sigma_floor", type=float,
                    default=0.5, metavar="HZ/S", help="lower bound of the Doppler-rate 1-sigma (default %(default)g)")
+    from leonav_runtime.commands.run import add_reference_arguments
+
+    add_reference_arguments(p, heights=False)
     p.add_argument("--no-truth", action="store_true", help="ignore truth.csv; score against the GNSS fixes")
     output.add_out_argument(p)
     p.set_defaults(func=run)
@@ -63,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from leonav_runtime import replay
+    from leonav_runtime.commands.run import reference_options
 
     modes = tuple(m.strip() for m in args.modes.split(",") if m.strip())   # old names: a note in the metrics
     if not (math.isfinite(args.gnss_latency) and 0 <= args.gnss_latency < 1):
@@ -75,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
     options = replay.ReplayOptions(modes=modes, origin_deg=tuple(args.origin) if args.origin else None,
                                    yaw_deg=args.yaw_deg, doppler_rate_sigma_floor_hz_s=args.doppler_rate_sigma_floor,
                                    use_truth=not args.no_truth, gnss_latency_s=args.gnss_latency,
-                                   nav_paths=tuple(args.nav), elevation_mask_deg=args.elevation_mask)
+                                   nav_paths=tuple(args.nav), elevation_mask_deg=args.elevation_mask,
+                                   reference_file=reference_options(args))
     if args.origin:
         lat, lon, h = args.origin
         if not (abs(lat) <= 90 and abs(lon) <= 360 and -11_000 <= h <= 1e5):
@@ -101,6 +106,11 @@ def run(args: argparse.Namespace) -> int:
         r = m["records"]
         print(f"  {mode:<20} {_fmt(m['rmse_position_m']):>10} {_fmt(m['rmse_velocity_mps']):>8} "
               f"{_fmt(m['rmse_attitude_deg']):>8} {r['applied']:>8} {r['gated']:>6} {r['failed']:>6}")
+    rf = metrics.get("reference_file")
+    if rf:
+        print(f"  against {rf['path']} ({rf['epochs']} epochs): horizontal / vertical RMSE m: " + ", ".join(
+            f"{mode} {_fmt(s['rmse_horizontal_m'], digits=3)} / {_fmt(s['rmse_vertical_m'], digits=3)}"
+            for mode, s in rf["modes"].items()))
     for mode, reason in metrics["skipped_modes"].items():
         print(f"  {mode:<20} skipped: {reason}")
     for note in metrics["notes"]:

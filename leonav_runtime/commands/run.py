@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 from leonav_runtime import output
 from leonav_runtime.errors import UserInputError
@@ -21,12 +22,7 @@ def register(subparsers) -> None:
             "(cpet_run3) picks a description shipped in leonav_runtime/datasets/."),
     )
     p.add_argument("dataset", metavar="DATASET.toml", help="dataset description file, or a shipped name")
-    p.add_argument("--reference", metavar="FILE", default=None,
-                   help="score against this file instead: RTKLIB .pos, or CSV with --reference-crs")
-    p.add_argument("--reference-crs", default="llh", metavar="CRS",
-                   help="CRS of a --reference CSV: llh (deg, deg, m), ecef (m) or EPSG:<code> (default %(default)s)")
-    p.add_argument("--reference-columns", default="0,1,2,3", metavar="T,A,B,C",
-                   help="0-based columns of unix time and the 3 coordinates in a --reference CSV (default %(default)s)")
+    add_reference_arguments(p, heights=True)
     p.add_argument("--until", type=float, default=None, metavar="S",
                    help="only the first S seconds after the first GNSS fix (quick look)")
     p.add_argument("--no-outages", action="store_true", help="skip the outage runs")
@@ -34,9 +30,26 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _reference(args) -> dict | None:
+def add_reference_arguments(p, heights: bool) -> None:
+    """--reference FILE and how to read it (also `leonav replay`)."""
+    p.add_argument("--reference", metavar="FILE", default=None,
+                   help="score against this file: RTKLIB .pos, or CSV with --reference-crs")
+    p.add_argument("--reference-crs", default="llh", metavar="CRS",
+                   help="CRS of a --reference CSV: llh (deg, deg, m), ecef (m) or EPSG:<code> (default %(default)s)")
+    p.add_argument("--reference-columns", default="0,1,2,3", metavar="T,A,B,C",
+                   help="0-based columns of unix time and the 3 coordinates in a --reference CSV (default %(default)s)")
+    if heights:
+        p.add_argument("--reference-height-datum", default="ellipsoid", choices=("ellipsoid", "msl"),
+                       help="heights of a --reference CSV: WGS84 ellipsoidal, or above mean sea level (plus the "
+                       "description's [gnss] geoid_separation_m) (default %(default)s)")
+
+
+def reference_options(args) -> dict | None:
+    """The `[reference]`-like mapping of the --reference options, or None without --reference."""
     if args.reference is None:
         return None
+    if not Path(args.reference).is_file():
+        raise UserInputError(f"--reference {args.reference}: file not found; expected an RTKLIB .pos or a CSV")
     try:
         cols = [int(c) for c in args.reference_columns.split(",")]
     except ValueError:
@@ -48,7 +61,8 @@ def _reference(args) -> dict | None:
         raise UserInputError(f"--reference-crs: {crs!r}: expected llh, ecef or EPSG:<code>")
     fmt = "pos" if args.reference.endswith(".pos") else "csv"
     return {"path": args.reference, "format": fmt, "crs": crs, "delimiter": ",", "time_column": cols[0],
-            "time_unit": "s", "position_columns": cols[1:], "quaternion_columns": []}
+            "time_unit": "s", "position_columns": cols[1:], "quaternion_columns": [],
+            "height_datum": getattr(args, "reference_height_datum", "ellipsoid")}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -61,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     if args.until is not None and not (math.isfinite(args.until) and args.until > 0):
         raise UserInputError(f"--until: {args.until!r}: expected seconds > 0")
     spec = load_spec(args.dataset)
-    ref = _reference(args)
+    ref = reference_options(args)
     out = output.results_dir(args.out, f"run-{spec.name}")
     with tqdm(total=None, desc="leonav run", leave=False, disable=None, bar_format="{desc}: {elapsed}") as bar:
         def say(msg: str) -> None:

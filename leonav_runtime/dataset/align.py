@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from leonav_runtime.dataset.load import ImuSamples
+from leonav_runtime.dataset.scoring import wrap
 from leonav_runtime.inputs import FixTable
 
 
@@ -100,10 +101,6 @@ def heading_source_gnss(fixes: FixTable, window_s: float, speed_mps: float) -> t
     return t_v[ok], np.arctan2(v[ok, 1], v[ok, 0])
 
 
-def _wrap(a):
-    return (a + np.pi) % (2 * np.pi) - np.pi
-
-
 def calibrate_time_offset(imu_t_s: np.ndarray, gyro_up_radps: np.ndarray, t_heading_s: np.ndarray,
                           heading_rad: np.ndarray, pair_s: float = 2.0, span_s: float = 2.0,
                           step_s: float = 0.01) -> dict:
@@ -120,11 +117,11 @@ def calibrate_time_offset(imu_t_s: np.ndarray, gyro_up_radps: np.ndarray, t_head
     a, b = np.flatnonzero(ok), b[ok]
     if a.size < 20:
         return {"offset_s": None, "pairs": int(a.size), "reason": "too few heading pairs"}
-    d_ref = _wrap(h_a[b] - h_a[a])
+    d_ref = wrap(h_a[b] - h_a[a])
     cost = {}
     for d in np.round(np.arange(-span_s, span_s + step_s / 2, step_s), 6):
         g = np.interp(t_a, imu_t_s + d, psi)
-        cost[float(d)] = float(np.mean(np.minimum(np.abs(_wrap(d_ref - (g[b] - g[a]))), 0.5)))
+        cost[float(d)] = float(np.mean(np.minimum(np.abs(wrap(d_ref - (g[b] - g[a]))), 0.5)))
     best = min(cost, key=cost.get)
     return {"offset_s": best, "cost_rad": cost[best], "cost_at_zero_rad": cost.get(0.0), "pairs": int(a.size),
             "pair_s": pair_s, "search_s": [-span_s, span_s], "step_s": step_s}

@@ -13,7 +13,7 @@ from typing import Callable
 import numpy as np
 
 from leonav_runtime import output
-from leonav_runtime.dataset import export, load, plots, runner, scoring
+from leonav_runtime.dataset import checks, export, load, plots, runner, scoring
 from leonav_runtime.dataset.spec import DatasetSpec
 from leonav_runtime.errors import UserInputError
 
@@ -36,11 +36,15 @@ def run_dataset(spec: DatasetSpec, out_dir: Path, reference: dict | None = None,
     say("reading files")
     ds = load.load(spec)
     if reference is not None:
-        ds.reference = load.reference_from_file(Path(reference["path"]), reference, ds.t0_unix, ds.origin, ds.counts)
+        ds.reference = load.reference_from_file(Path(reference["path"]), reference, ds.t0_unix, ds.origin, ds.counts,
+                                                spec["gnss"]["geoid_separation_m"])
     ref = ds.reference
     if ref is None:
         raise UserInputError(f"{spec.source}: no reference trajectory: set [reference] file or give --reference FILE")
+    checks.reference(ref, ds.fixes, "--reference-crs / --reference-columns of --reference " + str(reference["path"])
+                     if reference is not None else spec.where("reference", "crs") + " / position_columns / time_column")
     if t_end_s is not None:
+        checks.until(t_end_s, float(ref.t[0]), "the reference starts")
         keep = ref.t <= t_end_s
         ref = ds.reference = load.Reference(ref.t[keep], ref.p_enu_m[keep],
                                             None if ref.yaw_rad is None else ref.yaw_rad[keep], ref.source)
@@ -58,12 +62,12 @@ def run_dataset(spec: DatasetSpec, out_dir: Path, reference: dict | None = None,
     series, modes, tracks = {}, {}, {}
     for mode in spec["filter"]["modes"]:
         say(f"run {mode}")
-        recs, res, seconds = runner.run_mode(prep, mode)
+        recs, res, seconds, run_report = runner.run_mode(prep, mode)
         scores, series[mode] = scoring.run_scores(res, L, ref, sc["yaw_skip_s"])
         nis = {k: runner.fix_nis(prep, res, (k,)) for k in runner.FIX_KINDS}
         scores["fix_nis_mean"] = scoring.fix_nis_stats(nis)
         scores["records"] = {"total": int(recs.size), "imu": res.n_imu, "applied": res.n_applied,
-                             "gated": res.n_gated, "failed": res.n_failed}
+                             "gated": res.n_gated, "failed": res.n_failed} | run_report
         scores["filter_seconds"] = seconds
         scores["us_per_imu_step"] = seconds / max(res.n_imu, 1) * 1e6
         if files:
@@ -112,9 +116,11 @@ def summary(metrics: dict) -> dict:
     out["yaw_rmse_deg_after_skip"] = {"value": y, "met": None if y is None else y <= GOALS["yaw_rmse_deg"]}
     o = m.get("outages")
     if o:
-        out["outages"] = {"median_ratio": o["median_ratio"], "worse_than_hold": o["worse_than_hold"],
-                          "met": o["median_ratio"] is not None and o["median_ratio"] <= GOALS["outage_median_ratio"]
-                          and o["worse_than_hold"] == 0}
+        scored = o["median_ratio"] is not None
+        out["outages"] = {"median_ratio": o["median_ratio"],
+                          "worse_than_hold": o["worse_than_hold"] if scored else None,
+                          "met": (o["median_ratio"] <= GOALS["outage_median_ratio"] and o["worse_than_hold"] == 0)
+                          if scored else None}
     us = m["us_per_imu_step"]
     out["us_per_imu_step"] = {"value": us, "met": us < GOALS["kf_gins_us_per_imu_step"]}
     nis = m["fix_nis_mean"]["all"]
@@ -148,5 +154,38 @@ def _write_files(out_dir: Path, metrics: dict, series: dict, outage_series: dict
     title = (f"{spec.name}: {best} horizontal RMSE {plots.fmt(s['horizontal_rmse_m']['value'])} m "
              f"(GPS alone {plots.fmt(s['horizontal_rmse_m']['gps_alone'])} m)")
     plots.error_vs_time(out_dir / "error_vs_time.png", series, gps, {best: outage_series.get(best, {})}, length, title)
-    plots.error_cdf(out_dir / "error_cdf.png", series, gps)
-    plots.trajectory_on_reference(out_dir / "trajectory.png", ref.p_enu_m, prep.all_fixes.p_enu_m, tracks)
+    plots.error_cdf(out_dir / "error_cdf.png", series, gps, f"{spec.name}: horizontal error CDF at the "
+                    f"{ref.t.size} reference epochs")
+    plots.trajectory_on_reference(out_dir / "trajectory.png", ref.p_enu_m, prep.all_fixes.p_enu_m, tracks,
+                                  f"{spec.name}: trajectories on the reference (ENU at the first fix)")
+
+
+def score_reference_file(reference: dict, results: dict, fixes, epoch_unix: float | None, origin, layout,
+                         out_dir: Path) -> dict:
+    """Score runs made elsewhere (`leonav replay`) against a --reference file, as `leonav run` does:
+    results {mode: RunResult} on the axis of seconds since `epoch_unix`, ENU at `origin`; fixes
+    (FixTable, same axis) for GPS alone and the distance check. Writes errors_reference.csv and
+    error_cdf_reference.png into out_dir; returns the scores."""
+    path = Path(reference["path"])
+    if epoch_unix is None or origin is None:
+        raise UserInputError(f"--reference {path}: the session has no UTC epoch or ENU origin (no GNSS fix with a "
+                             "date): the reference cannot be placed on its time axis")
+    counts: dict = {}
+    ref = load.reference_from_file(path, reference, epoch_unix, origin, counts)
+    if fixes.t.size:
+        checks.reference(ref, fixes, f"--reference-crs / --reference-columns of --reference {path}")
+    modes, series = {}, {}
+    for mode, res in results.items():
+        modes[mode], series[mode] = scoring.run_scores(res, layout, ref, 0.0)
+    out = {"path": str(path), "epochs": int(ref.t.size), "counts": counts, "modes": modes}
+    header = ["t_s"] + [f"{m}_{c}" for m in series for c in ("e_m", "n_m", "u_m", "horizontal_m")]
+    rows = [[f"{t:.3f}"] + [f"{v:.4f}" for s in series.values() for v in (*s["err_enu"][i],
+                                                                         np.hypot(*s["err_enu"][i, :2]))]
+            for i, t in enumerate(ref.t)]
+    output.write_csv(out_dir / "errors_reference.csv", header, rows)
+    if fixes.t.size:
+        gps_err = scoring.hold_last_fix(fixes, ref.t) - ref.p_enu_m
+        out["gps_alone"] = scoring.error_stats(gps_err)
+        plots.error_cdf(out_dir / "error_cdf_reference.png", series, {"err_enu": gps_err},
+                        f"horizontal error CDF against {path.name} ({ref.t.size} epochs)")
+    return out

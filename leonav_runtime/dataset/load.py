@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from leonav_runtime import geometry
-from leonav_runtime.dataset import readers
+from leonav_runtime.dataset import checks, readers
 from leonav_runtime.dataset.spec import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS, DatasetSpec
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.inputs import FixTable
@@ -96,6 +96,7 @@ def read_imu(spec: DatasetSpec, counts: dict) -> tuple[np.ndarray, np.ndarray, n
     if keep.sum() < 2:
         raise UserInputError(f"{path}: fewer than 2 usable IMU rows: expected samples with increasing time")
     t, w, f = t[keep], w[keep], f[keep]
+    checks.imu_units(spec, t, w, f, path)
     dt = np.diff(t)
     med = float(np.median(dt))
     gaps = dt > 2.5 * med
@@ -133,7 +134,8 @@ def read_fixes(spec: DatasetSpec, counts: dict, notes: list[str]):
         counts["gnss"] |= {"gaps": int(gaps.sum()), "gap_seconds": float(dt[gaps].sum())}
     v = v[keep]
     sigma = v[:, 4:7] if g["sigma_columns"] else None
-    return t[keep], np.radians(v[:, 1]), np.radians(v[:, 2]), v[:, 3], sigma
+    h = v[:, 3] + (g["geoid_separation_m"] if g["height_datum"] == "msl" else 0.0)   # WGS84 ellipsoidal
+    return t[keep], np.radians(v[:, 1]), np.radians(v[:, 2]), h, sigma
 
 
 def _decoded_fixes(path, counts: dict, notes: list[str]):
@@ -167,11 +169,12 @@ def read_reference(spec: DatasetSpec, t0_unix: float, origin, counts: dict) -> R
     if not r["file"]:
         return None
     path = readers.resolve(spec.data_dir / r["file"], "reference", spec.where("reference", "file"), spec.shared)
-    return reference_from_file(path, r, t0_unix, origin, counts)
+    return reference_from_file(path, r, t0_unix, origin, counts, spec["gnss"]["geoid_separation_m"])
 
 
-def reference_from_file(path, r: dict, t0_unix: float, origin, counts: dict) -> Reference:
-    """Reference from a CSV (columns and CRS of the `[reference]` options `r`) or an RTKLIB .pos."""
+def reference_from_file(path, r: dict, t0_unix: float, origin, counts: dict, geoid_m: float = 0.0) -> Reference:
+    """Reference from a CSV (columns and CRS of the `[reference]` options `r`) or an RTKLIB .pos (ellipsoidal
+    heights); `r["height_datum"]` "msl" adds the geoid height geoid_m (m) to CSV heights."""
     yaw = None
     if r["format"] == "pos" or str(path).endswith(".pos"):
         from leonav_runtime.gnss import solution_io
@@ -192,6 +195,8 @@ def reference_from_file(path, r: dict, t0_unix: float, origin, counts: dict) -> 
         v = data.values
         t = v[:, 0] * TIME_UNITS[r["time_unit"]]
         lat, lon, h, conv = _to_geodetic(v[:, 1:4], r["crs"], path)
+        if r.get("height_datum") == "msl":
+            h = h + geoid_m
         if r["quaternion_columns"]:
             qx, qy, qz, qw = v[:, 4].copy(), v[:, 5], v[:, 6], v[:, 7]
             yaw = np.arctan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy**2 + qz**2)) + conv

@@ -5,13 +5,16 @@
   `bias_profile`; the antenna lever arm (`[gnss] lever_arm_m`, to body FLU).
 - Coarse alignment (`initial_state`): roll and pitch by the generated `leonav_level` from
   the specific force at the initial standstill (else the second before the start), gyro
-  bias = the mean rate at that standstill; heading = the course of the GNSS velocity at
-  the first time the vehicle moves (`[alignment] speed_mps` held for 1 s), where the filter
-  starts, or a given yaw. Position = the antenna fix there minus the rotated lever arm.
+  bias = the mean rate at that standstill minus the Earth rate in body axes; heading = the
+  course of the GNSS velocity at the first time the vehicle moves (`[alignment] speed_mps`
+  held for 1 s), where the filter starts, or a given yaw. Position = the antenna fix there minus the rotated lever arm.
 - Records: IMU and fixes through `inputs.assemble` (the one road into the filter), plus the
   motion constraints (`constraints.py`); each mode merges the streams it names.
 - Time-correlated fix errors: `[gnss] rate_hz` thins the fixes; `sigma_scale = "auto"`
-  runs the last mode once and scales every fix sigma by sqrt(mean fix NIS) (reported).
+  runs the last mode once and rescales each fix axis's sigma once by sqrt(mean fix NIS of
+  that axis), clamped, and not at all when that first run diverged (`auto_scale`; reported).
+  This does not put the NIS mean of the second run in a band: it moves towards 1 but the
+  rescale changes the gains, so it ends where it ends (reported per mode).
 """
 from __future__ import annotations
 
@@ -23,7 +26,7 @@ import numpy as np
 
 from leonav_runtime import filter as lfilter
 from leonav_runtime import navfuncs, records
-from leonav_runtime.dataset import align, constraints
+from leonav_runtime.dataset import align, checks, constraints, resets
 from leonav_runtime.dataset.load import Dataset, ImuSamples
 from leonav_runtime.dataset.spec import MODE_STREAMS
 from leonav_runtime.errors import UserInputError
@@ -46,6 +49,8 @@ class Prepared:
     nav: navfuncs.NavFunctions
     gate: float
     report: dict = field(default_factory=dict)
+    max_gap_s: float = 0.1          # [imu] max_gap_s
+    lockout_fixes: int = 5          # [filter] lockout_fixes
 
 
 def imu_table(imu: ImuSamples) -> ImuTable:
@@ -92,6 +97,9 @@ def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuPr
         raise UserInputError(f"{spec.where('alignment', 'yaw_deg')} = 'gnss': the GNSS speed never stays above "
                              f"{al['speed_mps']} m/s for 1 s: give yaw_deg")
     t_start = max(float(t_v[k]) if k is not None else float(imu.t[0]), float(imu.t[0]), float(ds.fixes.t[0]))
+    if imu.t[-1] < t_start + 1.0:
+        raise UserInputError(f"the IMU ends at {imu.t[-1]:.6g} s, before the filter start at {t_start:.6g} s (the "
+                             "vehicle first moves) + 1 s: expected a longer record, or --until beyond that")
     if rest.n:
         f_level, level_src = rest.f_mean, f"specific force over the initial standstill ({rest.seconds:.2f} s)"
     else:
@@ -106,14 +114,23 @@ def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuPr
     x0 = np.zeros(L.NX)
     q = nav.quat_from_euler(np.array([roll, pitch, yaw]))[0]
     x0[L.X_Q_NB_SLICE] = q
-    lever = np.asarray(spec["gnss"]["lever_arm_flu_m"])
-    C_b_n = _dcm(q)
+    # the generated fix model at p = 0 gives the rotated lever arm C_b_n l_b (nav.params hold l_b)
+    aux = np.zeros(L.NAUX)
+    lever_enu = np.array([nav.h(k, x0, aux)[0] for k in FIX_KINDS])
     antenna = np.array([np.interp(t_start, ds.fixes.t, ds.fixes.p_enu_m[:, j]) for j in range(3)])
-    x0[L.X_P_ENU_SLICE] = antenna - C_b_n @ lever
+    x0[L.X_P_ENU_SLICE] = antenna - lever_enu
     jv = int(np.clip(np.searchsorted(t_v, t_start), 0, max(t_v.size - 1, 0)))
     if t_v.size:
         x0[L.X_V_ENU_SLICE][:2] = v[jv, :2]
-    x0[L.X_B_G_SLICE] = rest.gyro_mean if rest.n else 0.0
+    # at rest the gyro measures its bias plus the Earth's rotation (7.3e-5 rad/s) in body axes of the
+    # aligned attitude (level from gravity, heading from the later GNSS course): the rate the generated
+    # mechanization needs to keep that attitude at rest
+    if rest.n:
+        at_rest = x0.copy()
+        at_rest[L.X_V_ENU_SLICE] = 0.0
+        dt = 0.01
+        w_ie_b = lfilter.stationary_imu(at_rest, dt, nav.params, nav.library)[L.U_DTHETA_B_SLICE] / dt
+        x0[L.X_B_G_SLICE] = rest.gyro_mean - w_ie_b
     f = spec["filter"]
     i_fix = int(np.clip(np.searchsorted(ds.fixes.t, t_start), 0, ds.fixes.t.size - 1))
     sig = prior_sigmas(L, profile, ds.fixes.sigma_enu_m[i_fix], f["velocity_sigma_mps"],
@@ -125,17 +142,11 @@ def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuPr
     return Prior(x0, np.diag(sig**2), dict(report["alignment"]), t_start)
 
 
-def _dcm(q: np.ndarray) -> np.ndarray:
-    """C_b_n of q_nb [w x y z] (numpy; the generated convention, models/frames.rot_from_quat)."""
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 def time_offset(ds: Dataset, report: dict) -> float:
-    """The IMU time offset to use (s): given, or calibrated (`align.calibrate_time_offset`)
-    against the reference's yaw when it has one, else the GNSS course; both estimates reported."""
+    """The IMU time offset to use (s): given; "calibrate": `align.calibrate_time_offset` against
+    the GNSS course; "calibrate_reference": against the reference's yaw (an explicit opt-in: the
+    reference is what the run is scored on, so the result says so). Both estimates are reported
+    whenever they can be made."""
     spec = ds.spec
     given = spec["imu"]["time_offset_s"]
     imu0 = ds.imu_on_axis(0.0)
@@ -146,15 +157,20 @@ def time_offset(ds: Dataset, report: dict) -> float:
         cal["reference_yaw"] = align.calibrate_time_offset(imu0.t, imu0.w_b_radps[:, 2], ds.reference.t,
                                                            ds.reference.yaw_rad)
     report["time_offset_calibration"] = cal
+    where = spec.where("imu", "time_offset_s")
+    if given == "calibrate_reference" and "reference_yaw" not in cal:
+        raise UserInputError(f"{where} = 'calibrate_reference': the reference has no attitude "
+                             "([reference] quaternion_columns): use 'calibrate' (GNSS course) or a number")
     if isinstance(given, str):
-        best = cal.get("reference_yaw", cal["gnss_course"])
+        key = "reference_yaw" if given == "calibrate_reference" else "gnss_course"
+        best = cal[key]
         if best.get("offset_s") is None:
-            raise UserInputError(f"{spec.where('imu', 'time_offset_s')} = 'calibrate': {best.get('reason')}: give "
-                                 "the offset in s")
-        report["time_offset_s"] = {"value": best["offset_s"], "source": "calibrated on " +
-                                   ("the reference yaw" if "reference_yaw" in cal else "the GNSS course")}
+            raise UserInputError(f"{where} = {given!r}: {best.get('reason')}: give the offset in s")
+        src = ("calibrated on the REFERENCE yaw (opt-in; the scores use the same reference)" if key == "reference_yaw"
+               else "calibrated on the GNSS course")
+        report["time_offset_s"] = {"value": best["offset_s"], "source": src, "uses_reference": key == "reference_yaw"}
         return float(best["offset_s"])
-    report["time_offset_s"] = {"value": given, "source": "given ([imu] time_offset_s)"}
+    report["time_offset_s"] = {"value": given, "source": "given ([imu] time_offset_s)", "uses_reference": False}
     return float(given)
 
 
@@ -162,8 +178,12 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
     """Parameters, alignment, records of every stream (module doc); t_end_s cuts the run (s)."""
     spec = ds.spec
     report: dict = {}
+    given = spec["imu"]["time_offset_s"]
+    off0 = 0.0 if isinstance(given, str) else float(given)
+    checks.time_overlap(spec, ds.imu_on_axis(off0).t, ds.fixes.t, off0)
     imu = ds.imu_on_axis(time_offset(ds, report))
     if t_end_s is not None:
+        checks.until(t_end_s, float(imu.t[0]) + 1.0, "the IMU starts (+ 1 s)")
         keep = imu.t <= t_end_s
         imu = ImuSamples(imu.t[keep], imu.w_b_radps[keep], imu.f_b_mps2[keep])
     con = spec["constraints"]
@@ -183,29 +203,52 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
     inputs = assemble(table, params, prior, fixes=fixes, nav=nav, notes=list(ds.notes), origin=ds.origin)
     streams = constraints.records_for(imu, still, prior.t_start_s, float(imu.t[-1]), con, nav)
     report["standstill"] = {"seconds": float(np.sum(np.diff(imu.t)[still[1:]])), "initial_s": rest.seconds}
+    dt = np.diff(imu.t[imu.t >= prior.t_start_s])
+    short = (dt > 2.5 * np.median(dt)) & (dt <= spec["imu"]["max_gap_s"]) if dt.size else dt.astype(bool)
+    long = dt > spec["imu"]["max_gap_s"]
+    report["imu_gaps"] = {"bridged_by_one_imu_step": int(short.sum()), "long": int(long.sum()),
+                          "long_seconds": float(dt[long].sum()), "max_gap_s": spec["imu"]["max_gap_s"],
+                          "long_handling": "constant-velocity predict, covariance inflated (dataset/resets.py)"}
     prep = Prepared(inputs, {"fix": inputs.records["fix"]} | streams, imu, ds.fixes, nav,
-                    spec["filter"]["gate_nis"], report)
+                    spec["filter"]["gate_nis"], report, spec["imu"]["max_gap_s"], spec["filter"]["lockout_fixes"])
     if isinstance(scale, str):
         auto_scale(prep, spec["filter"]["modes"][-1])
     report["fix_sigma_scale"] = prep.report.get("fix_sigma_scale", {"value": scale, "source": "given"})
     return prep
 
 
+SCALE_BOUNDS = (0.2, 5.0)
+"""Clamp of the automatic per-axis fix sigma factor."""
+DIVERGED_GATED_FRACTION = 0.05
+"""A first pass gating more than this fraction of its fixes (or resetting a gate lockout) diverged."""
+
+
 def auto_scale(prep: Prepared, mode: str) -> None:
-    """Scale each fix axis's R (E, N, U) by the mean NIS of that axis in one run of `mode`, so
-    a fix is weighted by how well it agrees with the rest of the run (module doc)."""
-    recs, res, _ = run_mode(prep, mode)
+    """One rescale of each fix axis's sigma (E, N, U) by sqrt(mean NIS of that axis) in a first run
+    of `mode`, clamped to SCALE_BOUNDS; none when that first run diverged (gate lockout resets,
+    or more than DIVERGED_GATED_FRACTION of its fixes gated): the factors of a diverged run
+    measure the divergence, not the fixes. Reported in `fix_sigma_scale`."""
+    recs, res, _, rep = run_mode(prep, mode)
+    ids = [prep.nav.kind_id(k) for k in FIX_KINDS]
+    fixes = np.isin(res.kind, ids)
+    gated = float(np.mean(res.status[fixes] == lfilter.STATUS_GATED)) if fixes.any() else 0.0
+    diverged = rep["resets"]["gate_lockout"] > 0 or gated > DIVERGED_GATED_FRACTION
     fix = prep.streams["fix"].copy()
-    factors = {}
+    factors, raw = {}, {}
     for kind in FIX_KINDS:
         k = prep.nav.kind_id(kind)
         nis = fix_nis(prep, res, (kind,))
-        s2 = float(np.mean(nis)) if nis.size else 1.0
-        fix["R"][fix["kind"] == k] *= s2
-        factors[kind] = math.sqrt(s2)
+        raw[kind] = math.sqrt(float(np.mean(nis))) if nis.size else 1.0
+        factors[kind] = 1.0 if diverged else float(np.clip(raw[kind], *SCALE_BOUNDS))
+        fix["R"][fix["kind"] == k] *= factors[kind] ** 2
     prep.streams["fix"] = fix
-    prep.report["fix_sigma_scale"] = {"value": factors, "source": f"sqrt of each axis's fix NIS mean in a first "
-                                      f"{mode} run"}
+    src = (f"one rescale by sqrt of each axis's fix NIS mean in a first {mode} run, clamped to "
+           f"{list(SCALE_BOUNDS)}")
+    prep.report["fix_sigma_scale"] = {
+        "value": factors, "first_pass_factors": raw, "first_pass_gated_fraction": gated,
+        "first_pass_lockout_resets": rep["resets"]["gate_lockout"],
+        "source": src + ("; NOT applied: the first run diverged (gate lockout or > "
+                         f"{DIVERGED_GATED_FRACTION:.0%} of fixes gated), sigma as given" if diverged else "")}
 
 
 def fix_nis(prep: Prepared, res: lfilter.RunResult, kinds=FIX_KINDS) -> np.ndarray:
@@ -216,16 +259,21 @@ def fix_nis(prep: Prepared, res: lfilter.RunResult, kinds=FIX_KINDS) -> np.ndarr
 
 
 def run_mode(prep: Prepared, mode: str, outage: tuple[float, float] | None = None):
-    """(records, RunResult, filter seconds) of one mode; fixes inside `outage` [start, end) s removed."""
+    """(records, RunResult, filter seconds, report) of one mode; fixes inside `outage` [start, end) s
+    removed. Covariance resets at long IMU gaps and gate lockouts (`resets`), counted in the report
+    with the measurements dropped inside IMU gaps."""
     parts = [prep.inputs.records["imu"]]
     for s in MODE_STREAMS[mode]:
         r = prep.streams[s]
         if s == "fix" and outage is not None:
             r = r[(r["t"] < outage[0]) | (r["t"] >= outage[1])]
         parts.append(r)
-    recs = records.merge_records(*parts)
-    ekf = lfilter.EKF(prep.inputs.x0, prep.inputs.P0, prep.inputs.params, gate=prep.gate or None,
-                      library=prep.nav.library)
+    max_gap = prep.max_gap_s
+    recs, dropped = resets.bridge_gaps(records.merge_records(*parts), max_gap)
     t0 = time.perf_counter()
-    res = ekf.run(recs)
-    return recs, res, time.perf_counter() - t0
+    res, counts = resets.run(recs, prep.inputs.x0, prep.inputs.P0, prep.inputs.params, prep.nav.layout,
+                             gate=prep.gate or None, library=prep.nav.library,
+                             fix_ids=[prep.nav.kind_id(k) for k in FIX_KINDS], max_gap_s=max_gap,
+                             lockout_fixes=prep.lockout_fixes)
+    seconds = time.perf_counter() - t0
+    return recs, res, seconds, {"resets": counts, "measurements_dropped_in_imu_gaps": dropped}

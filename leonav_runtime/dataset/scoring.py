@@ -31,13 +31,26 @@ def states_at(res: lfilter.RunResult, t: np.ndarray) -> tuple[np.ndarray, np.nda
     return rows, x, pd
 
 
+_NAV: list = []
+
+
 def yaw_of(q: np.ndarray) -> np.ndarray:
-    """Yaw (rad, from East towards North) of q_nb rows [w x y z] (C_b_n = Rz Ry Rx)."""
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    """Yaw (rad, from East towards North) of q_nb rows [w x y z], by the generated
+    euler_from_quat (NaN rows stay NaN)."""
+    from leonav_runtime.navfuncs import NavFunctions
+
+    if not _NAV:
+        _NAV.append(NavFunctions())
+    q = np.atleast_2d(q)
+    out = np.full(q.shape[0], np.nan)
+    ok = np.all(np.isfinite(q), axis=1)
+    if ok.any():
+        out[ok] = _NAV[0].euler_from_quat(q[ok])[:, 2]
+    return out
 
 
 def wrap(a: np.ndarray) -> np.ndarray:
+    """Angles (rad) reduced to [-pi, pi): the one wrap of the dataset code."""
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
@@ -88,6 +101,10 @@ def run_scores(res: lfilter.RunResult, layout, ref: Reference, yaw_skip_s: float
         out["rmse_yaw_deg"] = math.degrees(_rms(yaw_err)) if np.isfinite(yaw_err).any() else None
         out["yaw_skip_s"] = yaw_skip_s
     series = {"t": ref.t, "err_enu": err, "sigma_enu": np.sqrt(pd[:, layout.DX_DP_SLICE]), "yaw_err_rad": yaw_err}
+    # consistency of the exported per-epoch sigma: mean of (error / sigma)^2 per axis (1 if honest)
+    z2 = (err / series["sigma_enu"]) ** 2
+    ok = np.all(np.isfinite(z2), axis=1)
+    out["position_nees_enu"] = z2[ok].mean(axis=0).tolist() if ok.any() else None
     return out, series
 
 

@@ -1,7 +1,7 @@
 """Dataset description files (TOML): which files and columns hold the IMU, the GNSS fixes and
 the reference trajectory, in which units, axes and time base; how to run and score them.
 
-Validated like scenarios (`scenario._check_value`): one `UserInputError` naming the file,
+Validated like scenarios (`scenario.check_value`): one `UserInputError` naming the file,
 the section and the key, with what was expected. Paths are relative to the `[data] dir`,
 itself relative to the TOML file; `{shared}` in it is `$LEONAV_SHARED_DATA`, else the
 `shared/data` folder beside the repository (the project's public fixtures). The schema with
@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import Field, _check_value, _numbers, _show, _where
+from leonav_runtime.scenario import Field, check_numbers, check_value, show_value, where_key
 
 try:
     import tomllib
@@ -56,10 +56,13 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "time_base": Field(str, "-", default="unix", choices=("unix", "first_fix"),
                            doc="IMU time is unix time, or seconds from the first GNSS fix"),
         "time_offset_s": Field((float, str), "s", default=0.0,
-                               doc="added to the IMU time; 'calibrate' estimates it (gyro vs GNSS course rate)"),
+                               doc="added to the IMU time; 'calibrate': estimated from the gyro vs the GNSS course "
+                               "rate; 'calibrate_reference': vs the reference yaw (opt-in, marked in the results)"),
         "accel_range_mps2": Field(float, "m/s^2", 0, 1e4, default=0.0, doc="full scale; samples at it are "
                                   "clipped and skipped (0: unknown)"),
         "gyro_range_radps": Field(float, "rad/s", 0, 1e3, default=0.0, doc="full scale (0: unknown)"),
+        "max_gap_s": Field(float, "s", 0.001, 3600, default=0.1, doc="longer IMU gaps reset the position, "
+                           "velocity and heading covariance (fixes inside them dropped); shorter ones are bridged"),
     },
     "gnss": {
         "file": Field(str, "-", default=REQ, doc="fixes: CSV, NMEA or UBX log"),
@@ -73,8 +76,13 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "sigma_columns": Field(list, "-", default=[], doc="per-fix 1-sigma E N U columns (m), if the receiver "
                                "gives them"),
         "sigma_m": Field(list, "m", default=[1.5, 1.5, 3.0], doc="1-sigma E N U without sigma columns"),
-        "sigma_scale": Field((float, str), "-", default=1.0, doc="multiplies every fix sigma; 'auto' scales it "
-                             "so the fix NIS mean of a first pass is 1 (time-correlated errors)"),
+        "sigma_scale": Field((float, str), "-", default=1.0, doc="multiplies every fix sigma; 'auto': one "
+                             "rescale per axis by sqrt(mean fix NIS) of a first pass, clamped, none if it diverged"),
+        "height_datum": Field(str, "-", default="ellipsoid", choices=("ellipsoid", "msl"),
+                              doc="heights of the fix file: WGS84 ellipsoidal, or above mean sea level (msl: "
+                              "ellipsoidal = msl + geoid_separation_m); NMEA/UBX logs give ellipsoidal"),
+        "geoid_separation_m": Field(float, "m", -120, 90, default=0.0, doc="geoid height N above the ellipsoid at "
+                                    "the site, for msl heights (fixes and reference)"),
         "rate_hz": Field(float, "Hz", 0, 100, default=0.0, doc="use at most this many fixes per second (0: all)"),
         "lever_arm_m": Field(list, "m", default=[0.0, 0.0, 0.0], doc="IMU -> antenna, in `lever_arm_frame`"),
         "lever_arm_frame": Field(str, "-", default="FRD", choices=BODY_FRAMES),
@@ -86,6 +94,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "crs": Field(str, "-", default="llh", doc="llh (deg, deg, m), ecef (m), or EPSG:code (x, y, h)"),
         "time_column": Field(Column, "-", default=0, doc="unix time"),
         "time_unit": Field(str, "-", default="s", choices=tuple(TIME_UNITS)),
+        "height_datum": Field(str, "-", default="ellipsoid", choices=("ellipsoid", "msl"),
+                              doc="heights of an llh or EPSG reference (msl: plus [gnss] geoid_separation_m)"),
         "position_columns": Field(list, "-", default=[1, 2, 3]),
         "quaternion_columns": Field(list, "-", default=[],
                                     doc="x y z w of body -> local level ENU (CRS grid); its yaw (body x) is scored"),
@@ -97,6 +107,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "bias_profile": Field(str, "-", default="wt901", choices=("tactical", "wt901"),
                               doc="bias sigmas and random walks"),
         "gate_nis": Field(float, "-", 0, 1e6, default=10.83, doc="chi2(1) 99.9 %; 0 disables"),
+        "lockout_fixes": Field(int, "-", 0, 1000, default=5, doc="after this many consecutive fix epochs with a "
+                               "gated fix, reset the position and velocity covariance (0: never)"),
         "velocity_sigma_mps": Field(float, "m/s", 1e-3, 100, default=0.3),
         "roll_pitch_sigma_deg": Field(float, "deg", 1e-3, 90, default=2.0),
         "output_rate_hz": Field(float, "Hz", 0.1, 1000, default=10.0, doc="trajectory file rate"),
@@ -144,7 +156,7 @@ class DatasetSpec:
         return self.sections[section]
 
     def where(self, section: str, key: str) -> str:
-        return _where(self.source, section, key)
+        return where_key(self.source, section, key)
 
 
 def shared_data_dir() -> Path:
@@ -157,7 +169,7 @@ def _columns(source: str, section: str, key: str, value: Any, n: int | None) -> 
     ok = isinstance(value, list) and all(isinstance(v, str) or (isinstance(v, int) and not isinstance(v, bool)
                                                                 and v >= 0) for v in value)
     if not ok or (n is not None and len(value) != n):
-        raise UserInputError(f"{_where(source, section, key)} = {_show(value)}: expected "
+        raise UserInputError(f"{where_key(source, section, key)} = {show_value(value)}: expected "
                              f"{n if n is not None else 'a list of'} column names or 0-based indices")
     return list(value)
 
@@ -187,18 +199,19 @@ def spec_from_dict(data: dict[str, Any], source: str = "<dict>", base_dir: Path 
     for section, fields in SCHEMA.items():
         given = data if section == "" else data.get(section, {})
         if section and not isinstance(given, dict):
-            raise UserInputError(f"{source}: [{section}] must be a table, got {_show(given)}")
+            raise UserInputError(f"{source}: [{section}] must be a table, got {show_value(given)}")
         if section:
             unknown = set(given) - set(fields)
             if unknown:
-                raise UserInputError(f"{source}: [{section}] unknown key {_show(sorted(unknown)[0])}; expected one "
+                raise UserInputError(f"{source}: [{section}] unknown key {show_value(sorted(unknown)[0])}; "
+                                     f"expected one "
                                      f"of {', '.join(fields)}")
         out: dict[str, Any] = {}
         for key, spec in fields.items():
             if key in given:
-                out[key] = _check_value(source, section, key, spec, given[key])
+                out[key] = check_value(source, section, key, spec, given[key])
             elif spec.default is REQ and (section != "reference" or data.get("reference")):
-                raise UserInputError(f"{_where(source, section, key)} is missing: required")
+                raise UserInputError(f"{where_key(source, section, key)} is missing: required")
             else:
                 out[key] = spec.default
         values[section] = out
@@ -216,51 +229,64 @@ def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
     for key in ("gyro_columns", "accel_columns"):
         imu[key] = _columns(source, "imu", key, imu[key], None)
         if len(imu[key]) != 3 and not (imu["format"] == "mat" and len(imu[key]) == 1):
-            raise UserInputError(f"{_where(source, 'imu', key)} = {_show(imu[key])}: expected 3 column names or "
+            raise UserInputError(f"{where_key(source, 'imu', key)} = {show_value(imu[key])}: "
+                                 "expected 3 column names or "
                                  "indices (x y z; mat: also one (n, 3) field)")
-    imu["axis_map"] = parse_axes(imu["axes"], _where(source, "imu", "axes"))
+    imu["axis_map"] = parse_axes(imu["axes"], where_key(source, "imu", "axes"))
     for sec, key in (("imu", "time_offset_s"), ("gnss", "sigma_scale"), ("alignment", "yaw_deg")):
-        val, word = v[sec][key], {"time_offset_s": "calibrate", "sigma_scale": "auto", "yaw_deg": "gnss"}[key]
-        if isinstance(val, str) and val != word:
-            raise UserInputError(f"{_where(source, sec, key)} = {_show(val)}: expected a number or {word!r}")
+        val = v[sec][key]
+        words = {"time_offset_s": ("calibrate", "calibrate_reference"), "sigma_scale": ("auto",),
+                 "yaw_deg": ("gnss",)}[key]
+        if isinstance(val, str) and val not in words:
+            raise UserInputError(f"{where_key(source, sec, key)} = {show_value(val)}: expected a number or "
+                                 f"{' or '.join(repr(w) for w in words)}")
     if not isinstance(imu["time_offset_s"], str) and abs(imu["time_offset_s"]) > 3600:
-        raise UserInputError(f"{_where(source, 'imu', 'time_offset_s')}: expected seconds within +-3600")
+        raise UserInputError(f"{where_key(source, 'imu', 'time_offset_s')}: expected seconds within +-3600")
     if isinstance(gnss["sigma_scale"], float) and not 0.01 <= gnss["sigma_scale"] <= 100:
-        raise UserInputError(f"{_where(source, 'gnss', 'sigma_scale')}: expected 0.01..100 or 'auto'")
+        raise UserInputError(f"{where_key(source, 'gnss', 'sigma_scale')}: expected 0.01..100 or 'auto'")
     gnss["sigma_columns"] = _columns(source, "gnss", "sigma_columns", gnss["sigma_columns"], None)
     if len(gnss["sigma_columns"]) not in (0, 3):
-        raise UserInputError(f"{_where(source, 'gnss', 'sigma_columns')}: expected 3 columns (E N U) or none")
-    gnss["sigma_m"] = _numbers(source, "gnss", "sigma_m", gnss["sigma_m"], 3, "m", limit=1e4)
+        raise UserInputError(f"{where_key(source, 'gnss', 'sigma_columns')}: expected 3 columns (E N U) or none")
+    gnss["sigma_m"] = check_numbers(source, "gnss", "sigma_m", gnss["sigma_m"], 3, "m", limit=1e4)
     if min(gnss["sigma_m"]) <= 0:
-        raise UserInputError(f"{_where(source, 'gnss', 'sigma_m')}: expected 3 numbers > 0 (m)")
-    arm = _numbers(source, "gnss", "lever_arm_m", gnss["lever_arm_m"], 3, "m", limit=100.0)
+        raise UserInputError(f"{where_key(source, 'gnss', 'sigma_m')}: expected 3 numbers > 0 (m)")
+    arm = check_numbers(source, "gnss", "lever_arm_m", gnss["lever_arm_m"], 3, "m", limit=100.0)
     gnss["lever_arm_flu_m"] = arm if gnss["lever_arm_frame"] == "FLU" else [arm[0], -arm[1], -arm[2]]
     ref["position_columns"] = _columns(source, "reference", "position_columns", ref["position_columns"], 3)
     ref["quaternion_columns"] = _columns(source, "reference", "quaternion_columns", ref["quaternion_columns"], None)
     if len(ref["quaternion_columns"]) not in (0, 4):
-        raise UserInputError(f"{_where(source, 'reference', 'quaternion_columns')}: expected 4 columns (x y z w) "
+        raise UserInputError(f"{where_key(source, 'reference', 'quaternion_columns')}: expected 4 columns (x y z w) "
                              "or none")
     crs = ref["crs"]
+    if (gnss["height_datum"] == "msl" or ref["height_datum"] == "msl") and gnss["geoid_separation_m"] == 0.0:
+        raise UserInputError(f"{where_key(source, 'gnss', 'geoid_separation_m')}: heights declared msl "
+                             "(height_datum): expected the site's geoid height N in m (ellipsoidal = msl + N)")
+    if ref["height_datum"] == "msl" and crs == "ecef":
+        raise UserInputError(f"{where_key(source, 'reference', 'height_datum')} = 'msl' with crs = 'ecef': ECEF has no "
+                             "height datum; expected 'ellipsoid'")
+    if gnss["height_datum"] == "msl" and gnss["format"] != "csv":
+        raise UserInputError(f"{where_key(source, 'gnss', 'height_datum')} = 'msl' with format = {gnss['format']!r}: "
+                             "NMEA/UBX fixes are decoded to ellipsoidal heights; expected 'ellipsoid'")
     if crs not in ("llh", "ecef") and not re.fullmatch(r"EPSG:\d{4,6}", crs):
-        raise UserInputError(f"{_where(source, 'reference', 'crs')} = {crs!r}: expected llh, ecef or EPSG:<code>")
+        raise UserInputError(f"{where_key(source, 'reference', 'crs')} = {crs!r}: expected llh, ecef or EPSG:<code>")
     modes = v["filter"]["modes"]
     bad = [m for m in modes if m not in MODES]
     if not modes or bad:
-        raise UserInputError(f"{_where(source, 'filter', 'modes')} contains {_show(bad[0] if bad else modes)}: "
+        raise UserInputError(f"{where_key(source, 'filter', 'modes')} contains {show_value(bad[0] if bad else modes)}: "
                              f"expected a non-empty list of {', '.join(MODES)}")
     v["filter"]["modes"] = list(dict.fromkeys(modes))
     v["filter"]["roll_pitch_sigma_rad"] = math.radians(v["filter"]["roll_pitch_sigma_deg"])
     al = v["alignment"]
     if not isinstance(al["yaw_deg"], str) and not -360 <= al["yaw_deg"] <= 360:
-        raise UserInputError(f"{_where(source, 'alignment', 'yaw_deg')}: expected deg in [-360, 360] or 'gnss'")
+        raise UserInputError(f"{where_key(source, 'alignment', 'yaw_deg')}: expected deg in [-360, 360] or 'gnss'")
     al["yaw_rad"] = None if isinstance(al["yaw_deg"], str) else math.radians(al["yaw_deg"])
     al["yaw_sigma_rad"] = math.radians(al["yaw_sigma_deg"])
     con = v["constraints"]
-    con["nhc_sigma_mps"] = _numbers(source, "constraints", "nhc_sigma_mps", con["nhc_sigma_mps"], 2, "m/s", 100.0)
+    con["nhc_sigma_mps"] = check_numbers(source, "constraints", "nhc_sigma_mps", con["nhc_sigma_mps"], 2, "m/s", 100.0)
     if min(con["nhc_sigma_mps"]) <= 0:
-        raise UserInputError(f"{_where(source, 'constraints', 'nhc_sigma_mps')}: expected 2 numbers > 0 (m/s)")
+        raise UserInputError(f"{where_key(source, 'constraints', 'nhc_sigma_mps')}: expected 2 numbers > 0 (m/s)")
     sc = v["scoring"]
-    sc["outage_starts_s"] = _numbers(source, "scoring", "outage_starts_s", sc["outage_starts_s"], None, "s", 1e6)
+    sc["outage_starts_s"] = check_numbers(source, "scoring", "outage_starts_s", sc["outage_starts_s"], None, "s", 1e6)
 
 
 def load_spec(path: str | Path) -> DatasetSpec:

@@ -42,6 +42,7 @@ class ReplayOptions:
     gnss_latency_s: float = 0.0     # receiver output latency (epoch -> first byte), if measured (PPS)
     nav_paths: tuple[str, ...] = ()  # RINEX navigation files for the pseudorange modes (besides RXM-SFRBX)
     elevation_mask_deg: float = GNSS_MASK_DEG   # pseudorange modes: satellites below are not used
+    reference_file: dict | None = None   # --reference: path and how to read it (commands/run.reference_options)
 
 
 def canonical_modes(modes) -> tuple[tuple[str, ...], list[str]]:

@@ -263,5 +263,11 @@ def replay_session(folder: str | Path, out_dir: str | Path, options: ReplayOptio
     }
     metrics["trajectory_files"] = report.write_geodetic_trajectories(out_dir, inputs, runs, nav.layout,
                                                                       source=str(folder))
+    if options.reference_file is not None:
+        from leonav_runtime.dataset.evaluate import score_reference_file
+
+        metrics["reference_file"] = score_reference_file(
+            options.reference_file, {m: r[1] for m, r in runs.items()}, inputs.fixes,
+            inputs.epoch_utc.timestamp() if inputs.epoch_utc else None, inputs.origin, nav.layout, out_dir)
     report.write_outputs(out_dir, inputs, scored, metrics, ref, nav)
     return metrics
