@@ -84,7 +84,11 @@ def test_sweep_options_change_the_run_and_are_recorded(tmp_path, monkeypatch):
 @pytest.mark.parametrize("argv,needle", [
     (["sweep", "--modes", "gps+imu,warp-drive"], "--modes: 'warp-drive'"),
     (["sweep", "--counts", "5:x"], "--counts: '5:x'"),
-    (["sweep", "--counts", "0"], "counts >= 1"),
+    (["sweep", "--counts", "0"], "counts 1..10000"),
+    (["sweep", "--counts", "1:2000000000"], "--counts: '1:2000000000'"),   # refused before 2e9 ints are built
+    (["sweep", "--counts", "5,20000"], "--counts: '20000'"),
+    (["sweep", "--counts", "5,,10"], "empty item"),
+    (["sweep", "--counts", "5,10,"], "empty item"),
 ])
 def test_bad_sweep_options_are_one_line_errors(tmp_path, capsys, argv, needle):
     assert main(argv + ["--out", str(tmp_path / "o")]) == 2
