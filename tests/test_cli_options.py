@@ -164,3 +164,27 @@ def test_spp_and_study_results_carry_provenance(tmp_path):
     assert main(["study", str(study), "--workers", "1", "--no-progress", "--out", str(tmp_path / "st")]) == 0
     p = json.loads((tmp_path / "st" / "study.json").read_text())["provenance"]
     assert p["command_line"].startswith("leonav study ") and len(p["scenario_sha256"]) == 64
+
+
+@pytest.mark.parametrize("argv,prog,needle", [
+    (["tle", "fetch", "starlink", "--format", "bogus"], "leonav tle fetch", "invalid choice: 'bogus'"),
+    (["sweep", "--seed", "abc"], "leonav sweep", "invalid int value: 'abc'"),
+    (["study"], "leonav study", "required: STUDY"),
+    (["sweep", "--bogus"], "leonav sweep", "unrecognized arguments: --bogus"),
+    (["nosuchcmd"], "leonav", "invalid choice: 'nosuchcmd'"),
+])
+def test_argparse_errors_are_one_line_with_exit_2(capsys, argv, prog, needle):
+    try:
+        status = main(argv)
+    except SystemExit as exc:   # argparse's own errors leave through sys.exit
+        status = exc.code
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and "usage:" not in err
+    assert err.startswith(f"{prog}: error: ") and needle in err
+
+
+def test_help_still_prints_the_usage(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", "--help"])
+    out = capsys.readouterr().out
+    assert exc.value.code == 0 and out.startswith("usage: leonav sweep") and "--counts" in out
