@@ -18,6 +18,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from leonav_runtime.errors import UserInputError
 from leonav_runtime.scenario import MODES, Scenario
 from leonav_runtime.scenario import load_scenario as _load_scenario
 
@@ -28,11 +29,24 @@ _BLOCKS = {"position": ("position", "m", 1.0), "velocity": ("velocity", "mps", 1
            "attitude": ("attitude", "deg", 180.0 / math.pi)}
 
 
+MAX_TRIALS = 100000   # as the scenario's [monte_carlo] trials and the command line's --trials
+
+
+def _check_run_options(trials: int | None, workers: int | None) -> None:
+    """The same limits as the command line's --trials and --workers (UserInputError)."""
+    if trials is not None and (not isinstance(trials, (int, np.integer)) or isinstance(trials, bool)
+                               or not 1 <= trials <= MAX_TRIALS):
+        raise UserInputError(f"trials = {trials!r}: expected an integer in 1..{MAX_TRIALS}")
+    if workers is not None and (not isinstance(workers, (int, np.integer)) or isinstance(workers, bool) or workers < 1):
+        raise UserInputError(f"workers = {workers!r}: expected an integer >= 1 (or None: all cores)")
+
+
 def load_scenario(name_or_path: str | Path = "paper", *, modes: Sequence[str] | None = None,
                   counts: Sequence[int] | None = None, seed: int | None = None,
                   trials: int | None = None) -> Scenario:
-    """A built-in scenario by name (`paper`, `maritime-outage`) or a TOML file, with optional
-    changes validated like the file's values (modes, Starlink counts, seed, trials)."""
+    """A built-in scenario by name (`paper`, `paper-hardware`, `maritime-outage`) or a TOML
+    file, with optional changes validated like the file's values (modes, Starlink counts,
+    seed, trials)."""
     from leonav_runtime.scenario_overrides import apply_overrides
 
     scn, _ = apply_overrides(_load_scenario(name_or_path), modes=modes, counts=counts, seed=seed, trials=trials)
@@ -84,6 +98,7 @@ def run_sweep(scenario: Scenario | str | Path = "paper", *, trials: int | None =
     """
     from leonav_runtime import sweep
 
+    _check_run_options(trials, workers)
     scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     res = sweep.run_sweep(scn, None, trials=trials, workers=workers, progress=progress, figures=figures)
     if out_dir is not None:
@@ -149,6 +164,7 @@ def run_study(study: str | Path, *, sets: Sequence[str] = (), trials: int | None
     from leonav_runtime.study.run import run_study as _run
     from leonav_runtime.study.spec import load_study
 
+    _check_run_options(trials, workers)
     spec = load_study(study, list(sets))
     if trials is not None:
         spec = dataclasses.replace(spec, trials=int(trials))
