@@ -144,10 +144,6 @@ def run_replay(session: str | Path, *, out_dir: str | Path | None = None, tle: S
                 "out_dir": None if out_dir is None else folder}
 
 
-# study summary key -> API key (the study's rows are already in m, m/s and deg)
-_STUDY_KINDS = {"rmse": "rmse", "pcrb": "sqrt_pcrb", "final_rmse": "final_rmse", "final_pcrb": "final_sqrt_pcrb"}
-
-
 def run_study(study: str | Path, *, sets: Sequence[str] = (), trials: int | None = None, workers: int | None = 1,
               out_dir: str | Path | None = None, figures: bool = True) -> dict[str, Any]:
     """Run a study (`leonav study`): a shipped name such as `where-is-6-9m` or a TOML path.
@@ -161,6 +157,7 @@ def run_study(study: str | Path, *, sets: Sequence[str] = (), trials: int | None
     """
     import dataclasses
 
+    from leonav_runtime.study.run import KINDS, metric_key
     from leonav_runtime.study.run import run_study as _run
     from leonav_runtime.study.spec import load_study
 
@@ -177,10 +174,10 @@ def run_study(study: str | Path, *, sets: Sequence[str] = (), trials: int | None
         for mode in spec.modes:
             row = res.rows[(cell.index, mode)]
             entry = {"values": dict(cell.values), "mode": mode, "count": cell.count, "nees_mean": row["nees_mean"]}
-            for block, (name, unit, _) in _BLOCKS.items():
-                for kind, api_kind in _STUDY_KINDS.items():
-                    key = f"{name}_{api_kind}_{unit}"
-                    entry[key] = row[f"{block}_{kind}"]
+            for block in _BLOCKS:
+                for kind in KINDS:   # the study's own keys: units and sqrt naming as here
+                    key = metric_key(block, kind)
+                    entry[key] = row[key]
                     grid.setdefault(mode, {}).setdefault(key, np.full(shape, np.nan))[cell.index] = entry[key]
             cells.append(entry)
     return {"name": spec.name, "axes": [{"key": a.key, "values": list(a.values)} for a in spec.axes],

@@ -42,8 +42,8 @@ def test_study_arrays_are_the_study_files(tmp_path):
     assert len(res["cells"]) == len(rows) == 4
     for cell in res["cells"]:
         row = rows[(cell["mode"], float(cell["values"]["starlink.rate_hz"]))]
-        assert cell["position_rmse_m"] == pytest.approx(float(row["position_rmse"]))
-        assert cell["attitude_final_sqrt_pcrb_deg"] == pytest.approx(float(row["attitude_final_pcrb"]))
+        assert cell["position_rmse_m"] == pytest.approx(float(row["position_rmse_m"]))
+        assert cell["attitude_final_sqrt_pcrb_deg"] == pytest.approx(float(row["attitude_final_sqrt_pcrb_deg"]))
         k = res["axes"][0]["values"].index(cell["values"]["starlink.rate_hz"])
         assert res["grid"][cell["mode"]]["velocity_sqrt_pcrb_mps"][k] == cell["velocity_sqrt_pcrb_mps"]
 
