@@ -188,3 +188,40 @@ def test_help_still_prints_the_usage(capsys):
         main(["sweep", "--help"])
     out = capsys.readouterr().out
     assert exc.value.code == 0 and out.startswith("usage: leonav sweep") and "--counts" in out
+
+
+def test_git_commit_only_for_leonavs_own_tree(tmp_path):
+    import shutil
+
+    if shutil.which("git") is None:
+        pytest.skip("git is not installed")
+
+    def repo(path: Path) -> str:
+        path.mkdir(parents=True, exist_ok=True)
+        env = {"GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t",
+               "GIT_COMMITTER_EMAIL": "t@t", "HOME": str(tmp_path), "PATH": "/usr/bin:/bin"}
+        for args in (["init", "-q"], ["add", "-A"], ["commit", "-q", "--allow-empty", "-m", "x"]):
+            subprocess.run(["git", *args], cwd=path, check=True, env=env, capture_output=True)
+        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=path, check=True, capture_output=True,
+                              text=True).stdout.strip()
+
+    # an installed copy inside some other project's repository (a venv in a project): no commit
+    site = tmp_path / "project" / ".venv" / "site-packages" / "leonav_runtime"
+    site.mkdir(parents=True)
+    repo(tmp_path / "project")
+    assert provenance.git_commit_of(site) is None
+    # a leonav tree nested below another repository's top: not leonav's own commit
+    nested = tmp_path / "outer" / "vendor" / "leonav"
+    (nested / "leonav_runtime").mkdir(parents=True)
+    (nested / "pyproject.toml").write_text('[project]\nname = "leonav"\n')
+    repo(tmp_path / "outer")
+    assert provenance.git_commit_of(nested / "leonav_runtime") is None
+    # leonav's own checkout: its HEAD
+    own = tmp_path / "own"
+    (own / "leonav_runtime").mkdir(parents=True)
+    (own / "pyproject.toml").write_text('[project]\nname = "leonav"\n')
+    head = repo(own)
+    assert provenance.git_commit_of(own / "leonav_runtime") == {"commit": head, "dirty": False}
+    # and this checkout
+    if _git_head():
+        assert provenance.git_commit_of(REPO / "leonav_runtime")["commit"] == _git_head()
