@@ -52,6 +52,9 @@ def test_cells_carry_the_varied_and_fixed_values_in_si(tmp_path):
     ([{"key": "filter.gate_nis", "values": []}], "filter.gate_nis: values"),
     ([], "one or two [[vary]]"),
     ([{"key": "time.duration_s", "values": [1.0]}], "also fixed by [set]"),
+    ([{"key": "starlink.rate_hz", "values": [1, 1.0]}], "1.0 repeats"),
+    ([{"key": "starlink.doppler_rate_sigma_hz_s", "values": [0.1, 0.3, 0.10]}], "0.1 repeats"),
+    ([{"key": "starlink.rate_hz", "values": [1, 2], "label": 5}], "label = 5: expected a string"),
 ])
 def test_bad_studies_name_the_key(tmp_path, vary, fragment):
     with pytest.raises(UserInputError) as exc:
@@ -147,3 +150,10 @@ def test_study_outputs_carry_units_and_a_report_and_the_paper_contours(tmp_path)
     nees_bar = [ax for ax in axes if ax.get_ylabel() == "NEES [-]"][0]
     labels = [t.get_text() for t in nees_bar.get_yticklabels() if t.get_text()]
     assert labels and all(re.fullmatch(r"[0-9.]+", t) for t in labels)
+
+
+def test_description_must_be_text_and_bools_are_not_numbers(tmp_path):
+    with pytest.raises(UserInputError, match="description = 3: expected a string"):
+        _study(tmp_path, [{"key": "starlink.rate_hz", "values": [1]}], description=3)
+    s = _study(tmp_path, [{"key": "imu_errors.enabled", "values": [False, True]}])
+    assert [c.values["imu_errors.enabled"] for c in s.cells] == [False, True]

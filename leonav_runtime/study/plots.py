@@ -11,6 +11,7 @@ below the panels.
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +26,11 @@ HEAT_KEYS = ("position_rmse_m", "position_sqrt_pcrb_m", "position_final_rmse_m",
 
 def _numeric(values: tuple[Any, ...]) -> bool:
     return all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+
+
+def _label(text: str) -> str:
+    """An axis label with its unit in brackets: "sigma_alpha (Hz/s)" -> "sigma_alpha [Hz/s]"."""
+    return re.sub(r"\(([^()]*)\)\s*$", r"[\1]", text.strip())
 
 
 def _ticks(values: tuple[Any, ...]) -> list[str]:
@@ -51,8 +57,8 @@ def _heat(ax, grid: np.ndarray, bound: np.ndarray | None, study, title: str, nor
             ax.text(j, i, text, ha="center", va="center", fontsize=5, color="white" if dark else "black")
     ax.set_xticks(range(len(a1.values)), _ticks(a1.values))
     ax.set_yticks(range(len(a0.values)), _ticks(a0.values))
-    ax.set_xlabel(a1.label)
-    ax.set_ylabel(a0.label)
+    ax.set_xlabel(_label(a1.label))
+    ax.set_ylabel(_label(a0.label))
     ax.set_title(title)
     ax.grid(False)
     return im
@@ -72,8 +78,8 @@ def _two_fields(plt, study, rows: dict):
 
     modes = study.modes
     shape = tuple(len(a.values) for a in study.axes)
-    fig, axes = plt.subplots(len(modes), 3, figsize=(2.4 * ps.COLUMN_WIDTH_IN, 2.6 * len(modes)), squeeze=False,
-                             gridspec_kw={"hspace": 0.6, "wspace": 0.35})
+    fig, axes = plt.subplots(len(modes), 3, figsize=(2.8 * ps.COLUMN_WIDTH_IN, 3.0 * len(modes)), squeeze=False,
+                             gridspec_kw={"hspace": 0.75, "wspace": 0.45})
     for r, mode in enumerate(modes):
         g = {k: np.full(shape, np.nan) for k in HEAT_KEYS}
         for cell in study.cells:
@@ -86,19 +92,19 @@ def _two_fields(plt, study, rows: dict):
         for c, (key, bound, what) in enumerate((("position_rmse_m", "position_sqrt_pcrb_m", "time-averaged"),
                                                 ("position_final_rmse_m", "position_final_sqrt_pcrb_m",
                                                  "final-epoch"))):
-            im = _heat(axes[r, c], g[key], g[bound], study, f"{mode}\n{what} position RMSE / sqrt(PCRB) [m]",
+            im = _heat(axes[r, c], g[key], g[bound], study, f"{mode}: {what}\nposition RMSE / sqrt(PCRB) [m]",
                        norm, "viridis_r")
             if band:
                 drawn |= _band_contours(axes[r, c], g[key], band)
         fig.colorbar(im, ax=axes[r, :2].tolist(), shrink=0.9, label="position RMSE [m]")
         if drawn:
             axes[r, 0].annotate(f"red: the paper's {band[0]:g} m (dashed) and {band[1]:g} m (solid) contours",
-                                (0, -0.32), xycoords="axes fraction", fontsize=6, va="top", color="red")
+                                (0, -0.3), xycoords="axes fraction", fontsize=6, va="top", color="red")
         dof = 9.0   # the 9D error: NEES averages 9 when the filter is consistent
         span = max(float(np.nanmax(g["nees_mean"])) / dof, dof / float(np.nanmin(g["nees_mean"])), 2.0)
         im = _heat(axes[r, 2], g["nees_mean"], None, study,
-                   f"{mode}\nNEES [-] (9 if consistent; 95 % band {np.nanmin(g['nees_lo']):.1f}-"
-                   f"{np.nanmax(g['nees_hi']):.1f})", matplotlib.colors.LogNorm(dof / span, dof * span), "RdBu_r")
+                   f"{mode}: NEES [-]\n9 if consistent, 95 % band {np.nanmin(g['nees_lo']):.1f}-"
+                   f"{np.nanmax(g['nees_hi']):.1f}", matplotlib.colors.LogNorm(dof / span, dof * span), "RdBu_r")
         cbar = fig.colorbar(im, ax=axes[r, 2], shrink=0.9, label="NEES [-]")
         ps.plain_log_ticks(cbar.ax.yaxis)
     return fig
@@ -139,7 +145,7 @@ def _one_field(plt, study, rows: dict):
             ps.plain_log_axis(a, "x")
         if not numeric:
             a.set_xticks(x, _ticks(axis.values))
-        a.set_xlabel(axis.label)
+        a.set_xlabel(_label(axis.label))
     ax.set_ylabel("position RMSE, sqrt(PCRB) [m]")
     ps.plain_log_axis(ax_n, "y")
     ax_n.set_ylabel("NEES [-] (shaded: 95 % band)")
@@ -153,5 +159,6 @@ def plot_study(study, rows: dict, path: Path) -> None:
     plt = ps.pyplot()
     count_note = f"N = {study.cells[0].count}" if len({c.count for c in study.cells}) == 1 else "N per cell"
     fig = _two_fields(plt, study, rows) if len(study.axes) == 2 else _one_field(plt, study, rows)
-    fig.suptitle(f"study {study.name} ({study.trials} trials per cell, {count_note} Starlink satellites)", y=1.0)
+    fig.suptitle(f"study {study.name} ({study.trials} trials per cell, {count_note} Starlink satellites)",
+                 y=1.0 + 0.06 / len(study.modes) if len(study.axes) == 2 else 1.04)
     ps.save(fig, path)
