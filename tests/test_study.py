@@ -136,7 +136,10 @@ def test_study_outputs_carry_units_and_a_report_and_the_paper_contours(tmp_path)
     meta = json.loads((out / "study.json").read_text())
     assert set(metric) <= set(meta["cells"][0])
     page = (out / "report.html").read_text()
-    assert "data:image/png;base64," in page and "pos sqrt(PCRB) [m]" in page and "http" not in page.split("<body>")[1]
+    from tests.test_report_html import external_references
+
+    assert external_references(page) == [] and page.count("data:image/png;base64,") == 1
+    assert "pos sqrt(PCRB) [m]" in page and "leonav version" in page
     assert f"{meta['cells'][0]['position_rmse_m']:.4g}" in page
     # the figure: 6-9 m contours only on LEO(alpha)+IMU's position maps, plain NEES colour-bar ticks
     assert plots.paper_band(study, "leo-alpha+imu") == (6.0, 9.0) and plots.paper_band(study, "gps+imu") is None
