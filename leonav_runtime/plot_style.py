@@ -47,9 +47,9 @@ def plain_log_axis(ax, axis: str = "y") -> None:
     plain_log_ticks(ax.yaxis if axis == "y" else ax.xaxis)
 
 
-def plain_log_ticks(target) -> None:
-    """Plain decimal labels at 1, 2, 5 per decade on an axis that is already logarithmic (e.g.
-    a LogNorm colour bar's `cbar.ax.yaxis`)."""
+def plain_log_ticks(target, subs: Sequence[float] = (1.0, 2.0, 5.0)) -> None:
+    """Plain decimal labels at `subs` per decade on an axis that is already logarithmic (e.g.
+    a LogNorm colour bar's `cbar.ax.yaxis`; subs=(1,) for a span of many decades)."""
     from matplotlib.ticker import FuncFormatter, LogLocator
 
     def fmt(value: float, _pos=None) -> str:
@@ -57,7 +57,7 @@ def plain_log_ticks(target) -> None:
             return ""
         return f"{value:.6g}" if value >= 1e-3 else f"{value:.0e}"
 
-    target.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
+    target.set_major_locator(LogLocator(base=10.0, subs=tuple(subs)))
     target.set_major_formatter(FuncFormatter(fmt))
     target.set_minor_formatter(FuncFormatter(lambda v, p=None: ""))
 

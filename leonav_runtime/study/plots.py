@@ -106,7 +106,7 @@ def _two_fields(plt, study, rows: dict):
                    f"{mode}: NEES [-]\n9 if consistent, 95 % band {np.nanmin(g['nees_lo']):.1f}-"
                    f"{np.nanmax(g['nees_hi']):.1f}", matplotlib.colors.LogNorm(dof / span, dof * span), "RdBu_r")
         cbar = fig.colorbar(im, ax=axes[r, 2], shrink=0.9, label="NEES [-]")
-        ps.plain_log_ticks(cbar.ax.yaxis)
+        ps.plain_log_ticks(cbar.ax.yaxis, subs=(1.0, 2.0, 5.0) if span < 10 else (1.0,))   # <= 2 decades: 1-2-5
     return fig
 
 
