@@ -18,6 +18,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from leonav_runtime.errors import UserInputError
 from leonav_runtime.scenario import MODES, Scenario
 from leonav_runtime.scenario import load_scenario as _load_scenario
 
@@ -28,11 +29,24 @@ _BLOCKS = {"position": ("position", "m", 1.0), "velocity": ("velocity", "mps", 1
            "attitude": ("attitude", "deg", 180.0 / math.pi)}
 
 
+MAX_TRIALS = 100000   # as the scenario's [monte_carlo] trials and the command line's --trials
+
+
+def _check_run_options(trials: int | None, workers: int | None) -> None:
+    """The same limits as the command line's --trials and --workers (UserInputError)."""
+    if trials is not None and (not isinstance(trials, (int, np.integer)) or isinstance(trials, bool)
+                               or not 1 <= trials <= MAX_TRIALS):
+        raise UserInputError(f"trials = {trials!r}: expected an integer in 1..{MAX_TRIALS}")
+    if workers is not None and (not isinstance(workers, (int, np.integer)) or isinstance(workers, bool) or workers < 1):
+        raise UserInputError(f"workers = {workers!r}: expected an integer >= 1 (or None: all cores)")
+
+
 def load_scenario(name_or_path: str | Path = "paper", *, modes: Sequence[str] | None = None,
                   counts: Sequence[int] | None = None, seed: int | None = None,
                   trials: int | None = None) -> Scenario:
-    """A built-in scenario by name (`paper`, `maritime-outage`) or a TOML file, with optional
-    changes validated like the file's values (modes, Starlink counts, seed, trials)."""
+    """A built-in scenario by name (`paper`, `paper-hardware`, `maritime-outage`) or a TOML
+    file, with optional changes validated like the file's values (modes, Starlink counts,
+    seed, trials)."""
     from leonav_runtime.scenario_overrides import apply_overrides
 
     scn, _ = apply_overrides(_load_scenario(name_or_path), modes=modes, counts=counts, seed=seed, trials=trials)
@@ -84,6 +98,7 @@ def run_sweep(scenario: Scenario | str | Path = "paper", *, trials: int | None =
     """
     from leonav_runtime import sweep
 
+    _check_run_options(trials, workers)
     scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     res = sweep.run_sweep(scn, None, trials=trials, workers=workers, progress=progress, figures=figures)
     if out_dir is not None:
@@ -129,10 +144,6 @@ def run_replay(session: str | Path, *, out_dir: str | Path | None = None, tle: S
                 "out_dir": None if out_dir is None else folder}
 
 
-# study summary key -> API key (the study's rows are already in m, m/s and deg)
-_STUDY_KINDS = {"rmse": "rmse", "pcrb": "sqrt_pcrb", "final_rmse": "final_rmse", "final_pcrb": "final_sqrt_pcrb"}
-
-
 def run_study(study: str | Path, *, sets: Sequence[str] = (), trials: int | None = None, workers: int | None = 1,
               out_dir: str | Path | None = None, figures: bool = True) -> dict[str, Any]:
     """Run a study (`leonav study`): a shipped name such as `where-is-6-9m` or a TOML path.
@@ -146,9 +157,11 @@ def run_study(study: str | Path, *, sets: Sequence[str] = (), trials: int | None
     """
     import dataclasses
 
+    from leonav_runtime.study.run import KINDS, metric_key
     from leonav_runtime.study.run import run_study as _run
     from leonav_runtime.study.spec import load_study
 
+    _check_run_options(trials, workers)
     spec = load_study(study, list(sets))
     if trials is not None:
         spec = dataclasses.replace(spec, trials=int(trials))
@@ -161,10 +174,10 @@ def run_study(study: str | Path, *, sets: Sequence[str] = (), trials: int | None
         for mode in spec.modes:
             row = res.rows[(cell.index, mode)]
             entry = {"values": dict(cell.values), "mode": mode, "count": cell.count, "nees_mean": row["nees_mean"]}
-            for block, (name, unit, _) in _BLOCKS.items():
-                for kind, api_kind in _STUDY_KINDS.items():
-                    key = f"{name}_{api_kind}_{unit}"
-                    entry[key] = row[f"{block}_{kind}"]
+            for block in _BLOCKS:
+                for kind in KINDS:   # the study's own keys: units and sqrt naming as here
+                    key = metric_key(block, kind)
+                    entry[key] = row[key]
                     grid.setdefault(mode, {}).setdefault(key, np.full(shape, np.nan))[cell.index] = entry[key]
             cells.append(entry)
     return {"name": spec.name, "axes": [{"key": a.key, "values": list(a.values)} for a in spec.axes],

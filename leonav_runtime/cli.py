@@ -22,6 +22,7 @@ import traceback
 
 from leonav_runtime import commands as _commands_pkg
 from leonav_runtime import provenance
+from leonav_runtime.arg_parser import OneLineErrorParser
 from leonav_runtime.errors import UserInputError
 
 EXIT_OK = 0
@@ -57,8 +58,8 @@ limits on untrusted input:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """Build the top-level parser with every discovered subcommand."""
-    parser = argparse.ArgumentParser(
+    """Build the top-level parser with every discovered subcommand (errors are one line)."""
+    parser = OneLineErrorParser(
         prog="leonav",
         description=(
             "LEO-aided 9D navigation (position, velocity, attitude): IMU + GPS + passive "
@@ -228,7 +229,11 @@ def main(argv: list[str] | None = None) -> int:
     argv, verbosity = _split_verbosity(argv)
     debug = debug or os.environ.get("LEONAV_DEBUG", "") not in ("", "0")
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:   # named after the command they were given to, as every other error
+        prog = f"leonav {_command_name(args)}" if getattr(args, "command", None) else "leonav"
+        print(f"{prog}: error: unrecognized arguments: {' '.join(extra)} (see `{prog} --help`)", file=sys.stderr)
+        return EXIT_BAD_INPUT
     verbosity += args.verbose - args.quiet
     if not getattr(args, "func", None):
         parser.print_help()

@@ -1,4 +1,4 @@
-"""report.html: one self-contained page per results folder (sweep or replay).
+"""report.html: one self-contained page per results folder (sweep, replay or study).
 
 Tables of the numbers and the folder's PNG figures embedded as base64 data URIs, styles
 inline, no script and no reference to anything outside the file, so it opens the same
@@ -131,4 +131,34 @@ def write_replay_report(out_dir: Path, metrics: dict) -> Path:
                 f"<h2>Notes</h2><ul>{notes}</ul>" if notes else "", _provenance(metrics.get("provenance"))]
     path = out_dir / "report.html"
     path.write_text(page(title, sections), encoding="utf-8")
+    return path
+
+
+def write_study_report(out_dir: Path, meta: dict) -> Path:
+    """report.html of a study folder from its study.json content and study.png."""
+    out_dir = Path(out_dir)
+    axes = meta["axes"]
+    keys = [a["key"] for a in axes]
+    set_text = ", ".join(f"{k} = {v}" for k, v in (meta.get("set") or {}).items()) or "none"
+    intro = (f"<p>{html.escape(str(meta.get('description') or ''))}</p><p>base scenario "
+             f"<code>{html.escape(str(meta['base_scenario']))}</code>, modes {html.escape(', '.join(meta['modes']))}, "
+             f"{meta['trials_per_cell']} trials per cell and mode; fixed: {html.escape(set_text)}; varied: "
+             + "; ".join(f"<code>{html.escape(a['key'])}</code> = {html.escape(', '.join(map(str, a['values'])))}"
+                         for a in axes) + ".</p>")
+    metrics = (("position_rmse_m", "pos RMSE [m]"), ("position_sqrt_pcrb_m", "pos sqrt(PCRB) [m]"),
+               ("position_final_rmse_m", "pos final RMSE [m]"), ("position_final_sqrt_pcrb_m", "pos final sqrt(PCRB) [m]"),
+               ("velocity_rmse_mps", "vel RMSE [m/s]"), ("attitude_rmse_deg", "att RMSE [deg]"),
+               ("nees_mean", "NEES mean [-]"), ("nees_lo", "NEES 95 % low"), ("nees_hi", "NEES 95 % high"))
+    rows = [[c["values"][k] for k in keys] + [c["mode"], c["count"]] + [c.get(m, float("nan")) for m, _ in metrics]
+            for c in meta["cells"]]
+    results = "<h2>Results</h2>" + table(keys + ["mode", "count"] + [h for _, h in metrics], rows)
+    figs = figure(out_dir / "study.png", "position RMSE / sqrt(PCRB) and NEES over the study's grid") \
+        if (out_dir / "study.png").is_file() else ""
+    t = meta.get("timing") or {}
+    timing = (f"<p>{t.get('trials_run', '?')} trials in {t.get('wall_s', float('nan')):.1f} s wall "
+              f"({html.escape(str(t.get('executor', '')))}).</p>") if t else ""
+    sections = [intro, results, ("<h2>Figure</h2>" + figs) if figs else "", timing,
+                _provenance(meta.get("provenance"))]
+    path = out_dir / "report.html"
+    path.write_text(page(f"leonav study: {meta['name']}", sections), encoding="utf-8")
     return path

@@ -43,6 +43,13 @@ def series_styles(names: Sequence[str]) -> dict[str, dict]:
 
 def plain_log_axis(ax, axis: str = "y") -> None:
     """Log scale with plain decimal tick labels ("6", "0.3"), never "6x10^0"."""
+    (ax.set_yscale if axis == "y" else ax.set_xscale)("log")
+    plain_log_ticks(ax.yaxis if axis == "y" else ax.xaxis)
+
+
+def plain_log_ticks(target, subs: Sequence[float] = (1.0, 2.0, 5.0)) -> None:
+    """Plain decimal labels at `subs` per decade on an axis that is already logarithmic (e.g.
+    a LogNorm colour bar's `cbar.ax.yaxis`; subs=(1,) for a span of many decades)."""
     from matplotlib.ticker import FuncFormatter, LogLocator
 
     def fmt(value: float, _pos=None) -> str:
@@ -50,9 +57,7 @@ def plain_log_axis(ax, axis: str = "y") -> None:
             return ""
         return f"{value:.6g}" if value >= 1e-3 else f"{value:.0e}"
 
-    target = ax.yaxis if axis == "y" else ax.xaxis
-    (ax.set_yscale if axis == "y" else ax.set_xscale)("log")
-    target.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
+    target.set_major_locator(LogLocator(base=10.0, subs=tuple(subs)))
     target.set_major_formatter(FuncFormatter(fmt))
     target.set_minor_formatter(FuncFormatter(lambda v, p=None: ""))
 

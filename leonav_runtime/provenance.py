@@ -43,16 +43,31 @@ def version() -> str:
 @functools.lru_cache(maxsize=1)
 def git_commit() -> dict[str, Any] | None:
     """{'commit': sha, 'dirty': bool} of the source checkout this code runs from, or None
-    (an installed wheel, or git missing)."""
-    here = Path(__file__).resolve().parent
+    (an installed wheel, git missing, or a surrounding repository that is not leonav's)."""
+    return git_commit_of(Path(__file__).resolve().parent)
+
+
+def git_commit_of(package_dir: Path) -> dict[str, Any] | None:
+    """The commit of leonav's own tree holding `package_dir`: only when the folder above the
+    package has leonav's pyproject.toml and is the top of its git work tree, so a wheel
+    installed inside some other repository (a venv in a project) reports no commit."""
+    root = Path(package_dir).resolve().parent
+    if not (root / "pyproject.toml").is_file():
+        return None
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, timeout=5,
+                              check=True).stdout.strip()
+
     try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True,
-                             timeout=5, check=True).stdout.strip()
-        status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
-                                capture_output=True, text=True, timeout=5, check=True).stdout
+        top = git("rev-parse", "--show-toplevel")
+        if not top or Path(top).resolve() != root:
+            return None
+        sha = git("rev-parse", "HEAD")
+        status = git("status", "--porcelain", "--untracked-files=no")
     except (OSError, subprocess.SubprocessError):
         return None
-    return {"commit": sha, "dirty": bool(status.strip())} if len(sha) == 40 else None
+    return {"commit": sha, "dirty": bool(status)} if len(sha) == 40 else None
 
 
 def version_text() -> str:

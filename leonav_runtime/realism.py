@@ -70,11 +70,14 @@ def draw_orbit_errors(rng: np.random.Generator, setup) -> dict[str, dict[int, np
     return out
 
 
-def _ref_ids(series, rows: np.ndarray) -> np.ndarray:
-    """NORAD id of each row's reference satellite: the rank-0 satellite of its epoch."""
-    top = series.rank == 0
-    by_t = dict(zip(series.t_s[top].tolist(), series.sat_id[top].tolist()))
-    return np.array([by_t[t] for t in series.t_s[rows].tolist()])
+def _ref_ids(setup, kind_name: str, rows: np.ndarray) -> np.ndarray:
+    """NORAD id of each row's reference satellite: the rank-0 satellite of its epoch, taken
+    from the doppler_rate series, which holds every ranked satellite of every Starlink epoch
+    (the differenced OFDM series has no rank-0 rows of its own)."""
+    ref = setup.series["doppler_rate"]
+    top = ref.rank == 0
+    by_t = dict(zip(ref.t_s[top].tolist(), ref.sat_id[top].tolist()))
+    return np.array([by_t[t] for t in setup.series[kind_name].t_s[rows].tolist()], dtype=np.int64)
 
 
 def _offsets(errors: dict[int, np.ndarray], ids: np.ndarray) -> np.ndarray:
@@ -103,7 +106,7 @@ def ephemeris_delta(setup, nav, kind_name: str, rows: np.ndarray, errors: dict) 
     reference) fly their true orbits instead of the element orbits."""
     s, constellation = setup.series[kind_name], KIND_CONSTELLATION[kind_name]
     d_sat = _offsets(errors[constellation], s.sat_id[rows])
-    d_ref = None if kind_name == "pseudorange" else _offsets(errors[constellation], _ref_ids(s, rows))
+    d_ref = None if kind_name == "pseudorange" else _offsets(errors[constellation], _ref_ids(setup, kind_name, rows))
     aux = _moved_aux(setup, kind_name, rows, d_sat, d_ref, nav.layout)
     return _model(setup, nav, kind_name, rows, aux) - s.z_true[rows]
 

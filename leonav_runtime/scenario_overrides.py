@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Iterable, Sequence
 
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import MODES, Scenario, scenario_from_dict
+from leonav_runtime.scenario import MAX_COUNT, MODES, Scenario, scenario_from_dict
 
 
 def split_list(values: Iterable[str] | None) -> list[str] | None:
@@ -18,27 +18,39 @@ def split_list(values: Iterable[str] | None) -> list[str] | None:
     return [v for item in values for v in str(item).replace(",", " ").split() if v]
 
 
+def _empty_item(values: Iterable[str]) -> bool:
+    """Whether a comma list has an empty item ('5,,10', ',5', '5,')."""
+    return any(not part.strip() for v in values for part in str(v).split(",")) if values else False
+
+
 def parse_counts(values: Iterable[str] | None) -> list[int] | None:
-    """Starlink counts from '5,10,45' / '5 10 45' / '5:45:5' (start:stop:step, stop included)."""
+    """Starlink counts from '5,10,45' / '5 10 45' / '5:45:5' (start:stop:step, stop included).
+    Each count must lie in 1..MAX_COUNT; a range is checked before it is expanded."""
     items = split_list(values)
     if items is None:
         return None
+    expected = (f"expected Starlink satellite counts 1..{MAX_COUNT} such as 5,10,45 or a range "
+                "start:stop:step such as 5:45:5")
+    if _empty_item(values):
+        raise UserInputError(f"--counts {','.join(values)!r}: an empty item; {expected}")
     out: list[int] = []
     for item in items:
         try:
             if ":" in item:
                 lo, hi, *step = (int(x) for x in item.split(":"))
                 step_v = step[0] if step else 1
-                if step_v < 1 or hi < lo:
+                if step_v < 1 or hi < lo or len(step) > 1:
                     raise ValueError
-                out.extend(range(lo, hi + 1, step_v))
             else:
-                out.append(int(item))
+                lo = hi = int(item)
+                step_v = 1
         except ValueError:
-            raise UserInputError(f"--counts: {item!r}: expected integers such as 5,10,45 or a range "
-                                 "start:stop:step such as 5:45:5") from None
-    if not out or min(out) < 1:
-        raise UserInputError(f"--counts: {items}: expected Starlink satellite counts >= 1")
+            raise UserInputError(f"--counts: {item!r}: {expected}") from None
+        if lo < 1 or hi > MAX_COUNT:
+            raise UserInputError(f"--counts: {item!r}: {expected}")
+        out.extend(range(lo, hi + 1, step_v))
+    if not out:
+        raise UserInputError(f"--counts: {items}: {expected}")
     return out
 
 

@@ -258,8 +258,10 @@ def selected_rows(setup: Setup, kind_name: str, count: int) -> np.ndarray:
     s = setup.series[kind_name]
     if kind_name == "pseudorange":
         keep = np.ones(s.t_s.size, bool)
+        end_s = setup.scn.duration_s
         for a, b in setup.scn.gps["outages"]:
-            keep &= ~((s.t_s >= a) & (s.t_s < b))
+            # [a, b): GPS is back at b; an outage reaching the run's end covers the last epoch too
+            keep &= ~((s.t_s >= a) & ((s.t_s < b) | (b >= end_s)))
         return np.flatnonzero(keep)
     return np.flatnonzero(s.rank < count)
 

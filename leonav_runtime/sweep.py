@@ -59,8 +59,9 @@ def _tasks(scn: Scenario, trials: int) -> list[tuple]:
 
 
 def outage_end_error(summary: dict, end_s: float, t_eval: np.ndarray) -> float:
-    """Position RMSE (m) on the output grid at the last time before GPS returns at `end_s`."""
-    i = int(np.searchsorted(t_eval, end_s - 1e-9)) - 1
+    """Position RMSE (m) on the output grid at the last time before GPS returns at `end_s`;
+    an outage reaching the run's end covers its last epoch (`simulate.selected_rows`)."""
+    i = t_eval.size - 1 if end_s >= t_eval[-1] - 1e-9 else int(np.searchsorted(t_eval, end_s - 1e-9)) - 1
     return float(summary["position"]["rmse_t"][max(i, 0)])
 
 

@@ -42,8 +42,8 @@ def test_study_arrays_are_the_study_files(tmp_path):
     assert len(res["cells"]) == len(rows) == 4
     for cell in res["cells"]:
         row = rows[(cell["mode"], float(cell["values"]["starlink.rate_hz"]))]
-        assert cell["position_rmse_m"] == pytest.approx(float(row["position_rmse"]))
-        assert cell["attitude_final_sqrt_pcrb_deg"] == pytest.approx(float(row["attitude_final_pcrb"]))
+        assert cell["position_rmse_m"] == pytest.approx(float(row["position_rmse_m"]))
+        assert cell["attitude_final_sqrt_pcrb_deg"] == pytest.approx(float(row["attitude_final_sqrt_pcrb_deg"]))
         k = res["axes"][0]["values"].index(cell["values"]["starlink.rate_hz"])
         assert res["grid"][cell["mode"]]["velocity_sqrt_pcrb_mps"][k] == cell["velocity_sqrt_pcrb_mps"]
 
@@ -92,3 +92,30 @@ def test_run_replay_in_memory_leaves_no_folder(tmp_path, monkeypatch):
     rms = float(np.sqrt(np.mean(err["position_error_m"] ** 2)))
     assert rms == pytest.approx(out["metrics"]["modes"]["fix+imu"]["rmse_position_m"], rel=1e-6)
     assert set(out["trajectory"]["fix+imu"]) >= {"t_s", "p_e_m", "yaw_deg"}
+
+
+@pytest.mark.parametrize("call", [lambda: leonav.run_study("where-is-6-9m", trials=0),
+                                  lambda: leonav.run_study("where-is-6-9m", trials=100001),
+                                  lambda: leonav.run_study("where-is-6-9m", trials=2.5),
+                                  lambda: leonav.run_sweep("paper", trials=0),
+                                  lambda: leonav.run_sweep("paper", trials=1, workers=0)])
+def test_bad_run_options_are_user_errors_before_any_work(call):
+    from leonav_runtime.errors import UserInputError
+
+    with pytest.raises(UserInputError, match=r"(trials|workers) = "):
+        call()
+
+
+def test_docs_table_lists_every_entry_point_and_built_in():
+    from leonav_runtime import scenario as scenario_module
+
+    text = DOC.read_text()
+    table = re.search(r"\| call \| returns \|\n((?:\|.*\|\n)+)", text).group(1)   # contiguous rows only
+    for name in ("load_scenario", "run_sweep", "run_replay", "run_study"):
+        assert f"`leonav.{name}(" in table, name
+    built_ins = sorted(p.stem for p in (Path(scenario_module.__file__).parent / "scenarios").glob("*.toml"))
+    assert built_ins and all(f"`{b}`" in table for b in built_ins)
+    assert all(f"`{b}`" in leonav.load_scenario.__doc__ for b in built_ins)
+    readme = (DOC.parents[1] / "README.md").read_text()
+    python_bullet = re.search(r"- \*\*Python\*\*:.*?(?=\n- |\n\n)", readme, flags=re.S).group(0)
+    assert "run_study" in python_bullet

@@ -84,7 +84,11 @@ def test_sweep_options_change_the_run_and_are_recorded(tmp_path, monkeypatch):
 @pytest.mark.parametrize("argv,needle", [
     (["sweep", "--modes", "gps+imu,warp-drive"], "--modes: 'warp-drive'"),
     (["sweep", "--counts", "5:x"], "--counts: '5:x'"),
-    (["sweep", "--counts", "0"], "counts >= 1"),
+    (["sweep", "--counts", "0"], "counts 1..10000"),
+    (["sweep", "--counts", "1:2000000000"], "--counts: '1:2000000000'"),   # refused before 2e9 ints are built
+    (["sweep", "--counts", "5,20000"], "--counts: '20000'"),
+    (["sweep", "--counts", "5,,10"], "empty item"),
+    (["sweep", "--counts", "5,10,"], "empty item"),
 ])
 def test_bad_sweep_options_are_one_line_errors(tmp_path, capsys, argv, needle):
     assert main(argv + ["--out", str(tmp_path / "o")]) == 2
@@ -160,3 +164,64 @@ def test_spp_and_study_results_carry_provenance(tmp_path):
     assert main(["study", str(study), "--workers", "1", "--no-progress", "--out", str(tmp_path / "st")]) == 0
     p = json.loads((tmp_path / "st" / "study.json").read_text())["provenance"]
     assert p["command_line"].startswith("leonav study ") and len(p["scenario_sha256"]) == 64
+
+
+@pytest.mark.parametrize("argv,prog,needle", [
+    (["tle", "fetch", "starlink", "--format", "bogus"], "leonav tle fetch", "invalid choice: 'bogus'"),
+    (["sweep", "--seed", "abc"], "leonav sweep", "invalid int value: 'abc'"),
+    (["study"], "leonav study", "required: STUDY"),
+    (["sweep", "--bogus"], "leonav sweep", "unrecognized arguments: --bogus"),
+    (["nosuchcmd"], "leonav", "invalid choice: 'nosuchcmd'"),
+])
+def test_argparse_errors_are_one_line_with_exit_2(capsys, argv, prog, needle):
+    try:
+        status = main(argv)
+    except SystemExit as exc:   # argparse's own errors leave through sys.exit
+        status = exc.code
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and "usage:" not in err
+    assert err.startswith(f"{prog}: error: ") and needle in err
+
+
+def test_help_still_prints_the_usage(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", "--help"])
+    out = capsys.readouterr().out
+    assert exc.value.code == 0 and out.startswith("usage: leonav sweep") and "--counts" in out
+
+
+def test_git_commit_only_for_leonavs_own_tree(tmp_path):
+    import shutil
+
+    if shutil.which("git") is None:
+        pytest.skip("git is not installed")
+
+    def repo(path: Path) -> str:
+        path.mkdir(parents=True, exist_ok=True)
+        env = {"GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t",
+               "GIT_COMMITTER_EMAIL": "t@t", "HOME": str(tmp_path), "PATH": "/usr/bin:/bin"}
+        for args in (["init", "-q"], ["add", "-A"], ["commit", "-q", "--allow-empty", "-m", "x"]):
+            subprocess.run(["git", *args], cwd=path, check=True, env=env, capture_output=True)
+        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=path, check=True, capture_output=True,
+                              text=True).stdout.strip()
+
+    # an installed copy inside some other project's repository (a venv in a project): no commit
+    site = tmp_path / "project" / ".venv" / "site-packages" / "leonav_runtime"
+    site.mkdir(parents=True)
+    repo(tmp_path / "project")
+    assert provenance.git_commit_of(site) is None
+    # a leonav tree nested below another repository's top: not leonav's own commit
+    nested = tmp_path / "outer" / "vendor" / "leonav"
+    (nested / "leonav_runtime").mkdir(parents=True)
+    (nested / "pyproject.toml").write_text('[project]\nname = "leonav"\n')
+    repo(tmp_path / "outer")
+    assert provenance.git_commit_of(nested / "leonav_runtime") is None
+    # leonav's own checkout: its HEAD
+    own = tmp_path / "own"
+    (own / "leonav_runtime").mkdir(parents=True)
+    (own / "pyproject.toml").write_text('[project]\nname = "leonav"\n')
+    head = repo(own)
+    assert provenance.git_commit_of(own / "leonav_runtime") == {"commit": head, "dirty": False}
+    # and this checkout
+    if _git_head():
+        assert provenance.git_commit_of(REPO / "leonav_runtime")["commit"] == _git_head()

@@ -317,6 +317,12 @@ def test_noisy_trial_records_specific_force_noise_and_outages(paper_setup):
     t = rec["t"][rec["kind"] == setup.series["pseudorange"].kind]
     assert not np.any((t >= 2.0 - 1e-9) & (t < 4.0 - 1e-9))
     assert np.unique(t).size == np.unique(setup.series["pseudorange"].t_s).size - 20
+    # an outage reaching the run's end keeps GPS lost at t = duration too (no fix at the last epoch)
+    end_scn = _scenario(time__duration_s=6.0, starlink__counts=[5, 45], gps__outages_s=[[4.0, 6.0]])
+    rec = simulate.trial_records(dataclasses.replace(setup, scn=end_scn), "gps+imu", 5,
+                                 np.random.default_rng(3), nav).records
+    t = rec["t"][rec["kind"] == setup.series["pseudorange"].kind]
+    assert t.max() < 4.0 - 1e-9 and np.unique(t).size == np.unique(setup.series["pseudorange"].t_s).size - 21
 
 
 def test_doppler_rate_of_a_moving_receiver_matches_the_second_difference_of_range():

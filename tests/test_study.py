@@ -52,6 +52,9 @@ def test_cells_carry_the_varied_and_fixed_values_in_si(tmp_path):
     ([{"key": "filter.gate_nis", "values": []}], "filter.gate_nis: values"),
     ([], "one or two [[vary]]"),
     ([{"key": "time.duration_s", "values": [1.0]}], "also fixed by [set]"),
+    ([{"key": "starlink.rate_hz", "values": [1, 1.0]}], "1.0 repeats"),
+    ([{"key": "starlink.doppler_rate_sigma_hz_s", "values": [0.1, 0.3, 0.10]}], "0.1 repeats"),
+    ([{"key": "starlink.rate_hz", "values": [1, 2], "label": 5}], "label = 5: expected a string"),
 ])
 def test_bad_studies_name_the_key(tmp_path, vary, fragment):
     with pytest.raises(UserInputError) as exc:
@@ -75,16 +78,16 @@ def test_tiny_study_matches_the_sweep_and_the_bound_orders_by_noise(tmp_path):
     res = run_study(study, tmp_path / "out", workers=1, progress=False, figures=False)
     lo, hi = (res.rows[(c.index, "leo-alpha+imu")] for c in study.cells)
     # the bound is deterministic: 12x less alpha noise carries more position information
-    assert lo["position_pcrb"] < hi["position_pcrb"] and lo["position_final_pcrb"] < hi["position_final_pcrb"]
+    assert lo["position_sqrt_pcrb_m"] < hi["position_sqrt_pcrb_m"] and lo["position_final_sqrt_pcrb_m"] < hi["position_final_sqrt_pcrb_m"]
     # a cell is the sweep of the same scenario: same seeds, same numbers
     sweep = run_sweep(study.cells[1].scenario, tmp_path / "sweep", trials=3, workers=1, progress=False,
                       figures=False)
     s = sweep.summaries[("leo-alpha+imu", 5)]["position"]
-    assert (hi["position_rmse"], hi["position_final_rmse"], hi["position_pcrb"]) == \
+    assert (hi["position_rmse_m"], hi["position_final_rmse_m"], hi["position_sqrt_pcrb_m"]) == \
         (s["rmse"], s["final_rmse"], s["pcrb"])
     rows = list(csv.DictReader(open(tmp_path / "out" / "study.csv")))
     assert [float(r["starlink.doppler_rate_sigma_hz_s"]) for r in rows] == [0.1, 1.2]
-    assert float(rows[1]["position_final_rmse"]) == pytest.approx(hi["position_final_rmse"])
+    assert float(rows[1]["position_final_rmse_m"]) == pytest.approx(hi["position_final_rmse_m"])
 
 
 def test_study_cli_writes_table_json_figure(tmp_path, capsys):
@@ -97,7 +100,7 @@ def test_study_cli_writes_table_json_figure(tmp_path, capsys):
                  "--set", "starlink.elevation_mask_deg=25"]) == 0
     meta = json.loads((out / "study.json").read_text())
     assert meta["set"]["starlink.elevation_mask_deg"] == 25 and len(meta["cells"]) == 2
-    assert meta["cells"][0]["position_pcrb"] < meta["cells"][1]["position_pcrb"]   # tighter prior, lower bound
+    assert meta["cells"][0]["position_sqrt_pcrb_m"] < meta["cells"][1]["position_sqrt_pcrb_m"]   # tighter prior, lower bound
     assert (out / "study.png").stat().st_size > 10_000 and (out / "study.toml").exists()
     assert "initial_position_sigma_m=3.0" in capsys.readouterr().out
     assert main(["study", str(path), "--out", str(out), "--set", "filter.bogus=1"]) == 2
@@ -108,3 +111,52 @@ def test_shipped_studies_load():
     for name in sorted(p.stem for p in (Path(__file__).parents[1] / "leonav_runtime/study/studies").glob("*.toml")):
         study = load_study(name)
         assert study.cells and study.trials >= 1
+
+
+def test_study_outputs_carry_units_and_a_report_and_the_paper_contours(tmp_path):
+    import re
+
+    from matplotlib.contour import ContourSet
+
+    from leonav_runtime import plot_style as ps
+    from leonav_runtime.study import plots
+
+    study = _study(tmp_path, [{"key": "filter.initial_position_sigma_m", "values": [3.0, 30.0]},
+                              {"key": "starlink.doppler_rate_sigma_hz_s", "values": [0.1, 1.2]}],
+                   modes=["gps+imu", "leo-alpha+imu"], trials=2)
+    out = tmp_path / "out"
+    res = run_study(study, out, workers=1, progress=False, figures=True)
+    header = next(csv.reader(open(out / "study.csv")))
+    for key in ("position_rmse_m", "position_sqrt_pcrb_m", "position_final_sqrt_pcrb_m", "velocity_rmse_mps",
+                "attitude_rmse_deg", "attitude_final_sqrt_pcrb_deg"):
+        assert key in header
+    metric = [h for h in header if re.match(r"(position|velocity|attitude)_", h)]
+    assert len(metric) == 12 and all(h.endswith(("_m", "_mps", "_deg")) and "pcrb" not in h.replace("sqrt_pcrb", "")
+                                      for h in metric)
+    meta = json.loads((out / "study.json").read_text())
+    assert set(metric) <= set(meta["cells"][0])
+    page = (out / "report.html").read_text()
+    from tests.test_report_html import external_references
+
+    assert external_references(page) == [] and page.count("data:image/png;base64,") == 1
+    assert "pos sqrt(PCRB) [m]" in page and "leonav version" in page
+    assert f"{meta['cells'][0]['position_rmse_m']:.4g}" in page
+    # the figure: 6-9 m contours only on LEO(alpha)+IMU's position maps, plain NEES colour-bar ticks
+    assert plots.paper_band(study, "leo-alpha+imu") == (6.0, 9.0) and plots.paper_band(study, "gps+imu") is None
+    fake = {k: {**row, "position_rmse_m": v, "position_final_rmse_m": v}   # a grid that crosses 6 and 9 m
+            for (k, row), v in zip(res.rows.items(), [4.0, 7.0, 8.0, 12.0] * 2)}
+    fig = plots._two_fields(ps.pyplot(), study, fake)
+    fig.canvas.draw()
+    axes = fig.axes
+    has_contour = [any(isinstance(c, ContourSet) for c in ax.collections) for ax in axes[:6]]
+    assert has_contour == [False, False, False, True, True, False]         # rows: gps+imu, leo-alpha+imu
+    nees_bar = [ax for ax in axes if ax.get_ylabel() == "NEES [-]"][0]
+    labels = [t.get_text() for t in nees_bar.get_yticklabels() if t.get_text()]
+    assert labels and all(re.fullmatch(r"[0-9.]+", t) for t in labels)
+
+
+def test_description_must_be_text_and_bools_are_not_numbers(tmp_path):
+    with pytest.raises(UserInputError, match="description = 3: expected a string"):
+        _study(tmp_path, [{"key": "starlink.rate_hz", "values": [1]}], description=3)
+    s = _study(tmp_path, [{"key": "imu_errors.enabled", "values": [False, True]}])
+    assert [c.values["imu_errors.enabled"] for c in s.cells] == [False, True]

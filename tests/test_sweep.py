@@ -127,3 +127,10 @@ def test_sweep_cli_reports_bad_scenarios_with_field_and_value(tmp_path, capsys):
     assert main(["sweep", str(path), "--no-progress", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "[time] duration_s = -5.0: expected s in" in err
+
+
+def test_outage_end_error_reads_the_last_epoch_when_the_outage_reaches_the_end():
+    t = np.arange(0.0, 20.05, 0.1)
+    summary = {"position": {"rmse_t": np.arange(t.size, dtype=float)}}
+    assert outage_end_error(summary, 10.0, t) == 99.0                 # GPS back at 10 s: the epoch before
+    assert outage_end_error(summary, 20.0, t) == float(t.size - 1)    # lost to the end: the final epoch

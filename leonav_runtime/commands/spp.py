@@ -288,7 +288,9 @@ def main(argv: list[str] | None = None) -> int:
 
     from leonav_runtime.errors import UserInputError as _UIE
 
-    parser = argparse.ArgumentParser(prog="leonav")
+    from leonav_runtime.arg_parser import OneLineErrorParser
+
+    parser = OneLineErrorParser(prog="leonav")
     register(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["spp", *(sys.argv[1:] if argv is None else argv)])
     try:

@@ -15,8 +15,9 @@ def register(subparsers) -> None:
             "Run a study file: a base scenario, fixed overrides ([set], --set) and one or two varied "
             "scenario fields ([[vary]] key = \"section.key\", values = [...], in the scenario file's "
             "units). Every cell runs the study's modes at its Starlink count with the same trial seeds. "
-            "Writes study.csv, study.json and study.png (heat map for two fields, lines for one) with "
-            "time-averaged and final-epoch position RMSE and sqrt(PCRB). A bare name runs a shipped "
+            "Writes study.csv, study.json, study.png (heat map for two fields, lines for one) and "
+            "report.html with time-averaged and final-epoch RMSE and sqrt(PCRB), keys with their units "
+            "(position_rmse_m, position_sqrt_pcrb_m, attitude_final_rmse_deg, ...). A bare name runs a shipped "
             "study (where-is-6-9m, where-is-6-9m-prior, paper-hardware-seeds, realism-ephemeris, realism-imu)."
         ),
     )
@@ -48,5 +49,5 @@ def run(args: argparse.Namespace) -> int:
     out_dir = output.results_dir(args.out, f"study-{study.name}")
     res = run_study(study, out_dir, workers=args.workers, dask_address=args.dask, progress=not args.no_progress)
     print(summary_table(study, res))
-    print(f"\nresults: {out_dir}/ (study.csv, study.json, study.png, study.toml)")
+    print(f"\nresults: {out_dir}/ (report.html, study.csv, study.json, study.png, study.toml)")
     return 0

@@ -12,7 +12,10 @@ Writes into the results folder:
 - `study.json`: the study as run, the same numbers per cell, timings;
 - `study.png`: a heat map per mode (2 varied fields) or lines (1 field), time-averaged and
   final-epoch RMSE with sqrt(PCRB);
-- `study.toml`: the study file as given.
+- `study.toml`: the study file as given;
+- `report.html`: the table and the figure in one self-contained page.
+Metric keys carry their unit and name the bound as a square root (`position_rmse_m`,
+`position_sqrt_pcrb_m`, `velocity_final_rmse_mps`, `attitude_final_sqrt_pcrb_deg`).
 """
 from __future__ import annotations
 
@@ -28,7 +31,16 @@ from leonav_runtime.scenario import check_run_size
 from leonav_runtime.study.spec import Study
 
 BLOCK_TRIALS = 50   # a whole cell per task at the usual 20 trials: one setup per task
-BLOCK_UNITS = {"position": ("m", 1.0), "velocity": ("m/s", 1.0), "attitude": ("deg", 180.0 / math.pi)}
+# block -> (unit suffix of its keys, scale from the summaries' SI value)
+BLOCK_UNITS = {"position": ("m", 1.0), "velocity": ("mps", 1.0), "attitude": ("deg", 180.0 / math.pi)}
+# summary field -> key infix: the bound is a square root (sqrt(PCRB) in the unit of the RMSE)
+KINDS = {"rmse": "rmse", "pcrb": "sqrt_pcrb", "final_rmse": "final_rmse", "final_pcrb": "final_sqrt_pcrb"}
+
+
+def metric_key(block: str, kind: str) -> str:
+    """Column/key name of a study metric with its unit, e.g. ("position", "pcrb") ->
+    "position_sqrt_pcrb_m", ("attitude", "final_rmse") -> "attitude_final_rmse_deg"."""
+    return f"{block}_{KINDS[kind]}_{BLOCK_UNITS[block][0]}"
 
 
 @dataclass
@@ -55,8 +67,8 @@ def _row(summary: dict) -> dict:
     row = {"trials": summary["trials"], "gated": summary["gated"], "failed": summary["failed"]}
     for block, (_, scale) in BLOCK_UNITS.items():
         b = summary[block]
-        for k in ("rmse", "pcrb", "final_rmse", "final_pcrb"):
-            row[f"{block}_{k}"] = scale * b[k]
+        for k in KINDS:
+            row[metric_key(block, k)] = scale * b[k]
     n = summary["nees"]
     row.update(nees_mean=n["mean"], nees_lo=n["band95"][0], nees_hi=n["band95"][1],
                nees_fraction_inside=n["fraction_inside"])
@@ -120,16 +132,21 @@ def write_results(study: Study, out_dir: Path, res: StudyResult, figures: bool =
     meta = {"provenance": provenance(study.base.raw), "name": study.name, "description": study.description, "source": study.source,
             "base_scenario": study.base.source, "modes": study.modes, "trials_per_cell": study.trials,
             "set": study.sets, "axes": [{"key": a.key, "label": a.label, "values": list(a.values)} for a in study.axes],
-            "units": {"position": "m", "velocity": "m/s", "attitude": "deg",
+            "units": {"_m": "m (position)", "_mps": "m/s (velocity)", "_deg": "deg (attitude)",
                       "rmse": "root mean square over trials and the output grid (10 Hz) of the run",
                       "final_rmse": "over trials at the last output epoch",
-                      "pcrb": "sqrt of the posterior CRB trace, time-averaged like rmse"},
+                      "sqrt_pcrb": "sqrt of the posterior CRB trace, time-averaged like rmse",
+                      "final_sqrt_pcrb": "sqrt of the posterior CRB trace at the last output epoch",
+                      "nees": "normalized estimation error squared of the 9D error, mean over trials and time"},
             "timing": res.timing, "cells": cells}
     output.write_json(out_dir / "study.json", meta)
     if figures:
         from leonav_runtime.study import plots
 
         plots.plot_study(study, res.rows, out_dir / "study.png")
+    from leonav_runtime.html_report import write_study_report
+
+    write_study_report(out_dir, meta)
 
 
 def summary_table(study: Study, res: StudyResult) -> str:
@@ -141,8 +158,9 @@ def summary_table(study: Study, res: StudyResult) -> str:
         for mode in study.modes:
             r = res.rows[(cell.index, mode)]
             vals = " ".join(f"{k.split('.')[-1]}={cell.values[k]}" for k in keys)
-            lines.append(f"  {vals:44s} {mode:22s} N={cell.count:<3d} {r['position_rmse']:7.2f} / "
-                         f"{r['position_pcrb']:<7.2f}| {r['position_final_rmse']:7.2f} / {r['position_final_pcrb']:<7.2f}"
+            lines.append(f"  {vals:44s} {mode:22s} N={cell.count:<3d} {r['position_rmse_m']:7.2f} / "
+                         f"{r['position_sqrt_pcrb_m']:<7.2f}| {r['position_final_rmse_m']:7.2f} / "
+                         f"{r['position_final_sqrt_pcrb_m']:<7.2f}"
                          f" NEES {r['nees_mean']:.2f} [{r['nees_lo']:.2f}, {r['nees_hi']:.2f}]")
     t = res.timing
     lines.append(f"{t['trials_run']} trials in {t['wall_s']:.1f} s wall ({t['trial_cpu_ms']:.1f} ms CPU per trial "

@@ -104,6 +104,16 @@ def parse_set(text: str) -> tuple[str, Any]:
     return key, parsed
 
 
+def _value_key(v: Any) -> tuple:
+    """What makes two grid values the same: numbers by value (1 == 1.0), bools apart from
+    numbers (true != 1), anything else by its repr."""
+    if isinstance(v, bool):
+        return ("bool", v)
+    if isinstance(v, (int, float)):
+        return ("number", float(v))
+    return ("other", repr(v))
+
+
 def _label(v: Any) -> str:
     return f"{v:g}" if isinstance(v, float) else str(v)
 
@@ -161,8 +171,13 @@ def study_from_dict(data: dict[str, Any], source: str, base_dir: Path,
         values = ax["values"]
         if not isinstance(values, list) or not 1 <= len(values) <= MAX_VALUES:
             raise UserInputError(f"{where} {ax['key']}: values = {values!r}: expected a list of 1..{MAX_VALUES}")
-        if len({repr(v) for v in values}) != len(values):
-            raise UserInputError(f"{where} {ax['key']}: values repeat")
+        same = [_value_key(v) for v in values]   # 1 and 1.0 are one value of a scenario field
+        if len(set(same)) != len(values):
+            dup = next(v for i, v in enumerate(values) if same[i] in same[:i])
+            raise UserInputError(f"{where} {ax['key']}: values = {values!r}: {dup!r} repeats; "
+                                 "expected distinct values")
+        if "label" in ax and not isinstance(ax["label"], str):
+            raise UserInputError(f"{where} {ax['key']}: label = {ax['label']!r}: expected a string (axis label)")
         if ax["key"] in sets:
             raise UserInputError(f"{where} {ax['key']}: also fixed by [set]/--set; vary it or set it, not both")
         axes.append(Axis(ax["key"], tuple(values), str(ax.get("label", ax["key"]))))
@@ -180,6 +195,8 @@ def study_from_dict(data: dict[str, Any], source: str, base_dir: Path,
     if len(grid) > MAX_CELLS:
         raise UserInputError(f"{source}: {len(grid)} cells; at most {MAX_CELLS}")
 
+    if not isinstance(data.get("description", ""), str):
+        raise UserInputError(f"{source}: description = {data['description']!r}: expected a string (one line)")
     study = Study(name, str(data.get("description", "")), source, base, axes, [], trials, sets, raw=data)
     base_raw = copy.deepcopy(base.raw)
     base_raw.setdefault("monte_carlo", {})["modes"] = modes
