@@ -5,7 +5,12 @@ copied). Tests that need it skip with a clear reason when it is absent.
 """
 from __future__ import annotations
 
+import fcntl
+import hashlib
 import os
+import shutil
+import subprocess
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -28,3 +33,36 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip(f"needs ../shared/data (real public fixtures); not found at {SHARED_DATA}")
     return SHARED_DATA
+
+
+def pytest_xdist_auto_num_workers(config) -> int:
+    """Workers for `pytest -n auto`: two per core (at most 8). About a third of the suite's
+    wall time is waiting (live navigation paced at the recorded rate, subprocesses, serial
+    ptys), so a second worker per core fills it; more only costs memory."""
+    return min(8, 2 * (os.cpu_count() or 1))
+
+
+PI_DIR = REPO_ROOT / "hardware" / "pi"
+
+
+def pi_program(cc: str = "cc") -> Path:
+    """hardware/pi's standalone program built by its Makefile with `cc`, once per source content:
+    the build (about 10 s for the generated C) is shared by the tests and xdist workers that
+    need it, under a lock, in a temporary folder named by the hash of every source it reads."""
+    if shutil.which("make") is None or shutil.which(cc) is None:
+        pytest.skip(f"needs make and the C compiler {cc}")
+    sources = sorted([*PI_DIR.glob("Makefile"), *PI_DIR.glob("*.c"), *(REPO_ROOT / "leonav_runtime" / "gen").glob("*.[ch]"),
+                      *(REPO_ROOT / "leonav_runtime" / "csrc").glob("*.[ch]")])
+    version = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=30).stdout
+    digest = hashlib.sha256(cc.encode() + version.encode())
+    for src in sources:
+        digest.update(src.name.encode() + src.read_bytes())
+    out = Path(tempfile.gettempdir()) / f"leonav-test-pi-{digest.hexdigest()[:16]}"
+    out.mkdir(exist_ok=True)
+    with open(out / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (out / "leonav_filter").is_file():
+            run = subprocess.run(["make", "-s", "-C", str(PI_DIR), f"CC={cc}", f"OUT={out}"],
+                                 capture_output=True, text=True, timeout=300)
+            assert run.returncode == 0, run.stderr
+    return out / "leonav_filter"

@@ -90,7 +90,7 @@ def test_beacons_and_replay_run_with_casadi_unimportable(tmp_path):
     tle = ROOT.parent / "shared" / "data" / "tle" / "starlink_2026-02-23.txt"
     if not tle.exists():
         pytest.skip(f"needs {tle} (../shared/data)")
-    r = _run_blocked(["beacons", str(tmp_path / "sim.cu8"), "--simulate", "--tle", str(tle), "--duration", "6",
+    r = _run_blocked(["beacons", str(tmp_path / "sim.cu8"), "--simulate", "--tle", str(tle), "--duration", "4.5",
                       "--sim-rate", "1e6", "--band", "1e6", "--n-sats", "2", "--tones", "3", "--cn0", "40",
                       "--start", "2026-02-23T06:00:00Z", "--out", str(tmp_path / "beacons")], tmp_path)
     assert r.returncode == 0, r.stderr[-3000:]

@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import pi_program
+
 ROOT = Path(__file__).resolve().parents[1]
 PI = ROOT / "hardware" / "pi"
 GEN, CSRC = ROOT / "leonav_runtime" / "gen", ROOT / "leonav_runtime" / "csrc"
@@ -43,11 +45,8 @@ def exported(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def x86_program(tmp_path_factory) -> Path:
-    _need("make", "cc")
-    out = tmp_path_factory.mktemp("x86")
-    _run(["make", "-s", "-C", str(PI), f"OUT={out}"])
-    return out / "leonav_filter"
+def x86_program() -> Path:
+    return pi_program()
 
 
 def _run(argv, env=None) -> subprocess.CompletedProcess:
@@ -87,10 +86,8 @@ def test_aarch64_program_and_library_equal_the_x86_run_bit_for_bit(exported, x86
     records, init = str(out / "records.bin"), str(out / "init.bin")
     _run([str(x86_program), records, init, str(tmp_path / "x86.csv")])
     # the program as the Makefile builds it for a 64-bit Pi
-    arm = tmp_path / "arm"
-    _run(["make", "-s", "-C", str(PI), f"CC={CROSS}", f"OUT={arm}"])
     env = os.environ | {"QEMU_LD_PREFIX": str(SYSROOT)}
-    _run(["qemu-aarch64", str(arm / "leonav_filter"), records, init, str(tmp_path / "arm.csv")], env)
+    _run(["qemu-aarch64", str(pi_program(CROSS)), records, init, str(tmp_path / "arm.csv")], env)
     # the library as the runtime builds it (leonav_runtime.compiled: same flags), the program linked to it
     flags = ["-O2", "-std=c99", "-fPIC", f"-I{GEN}", f"-I{CSRC}"]
     objs = []

@@ -2,25 +2,17 @@
 from __future__ import annotations
 
 import copy
-import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from leonav_runtime.gen.constants import CHI2_1DOF_999
-
-PI_DIR = Path(__file__).resolve().parents[1] / "hardware" / "pi"
-
+from tests.conftest import pi_program
 
 @pytest.fixture(scope="module")
-def program(tmp_path_factory):
-    if shutil.which("make") is None or shutil.which("cc") is None:
-        pytest.skip("needs make and a C compiler")
-    out = tmp_path_factory.mktemp("pi-build")
-    subprocess.run(["make", "-C", str(PI_DIR), f"OUT={out}"], check=True, capture_output=True)
-    return out / "leonav_filter"
+def program():
+    return pi_program()
 
 
 def test_standalone_program_matches_the_python_runtime(program, tmp_path):
