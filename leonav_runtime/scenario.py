@@ -24,18 +24,13 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import re
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised on Python 3.10 only
-    import tomli as tomllib
-
 from leonav_runtime import run_size
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.toml_file import read_toml_file
 from leonav_runtime.utc import parse_utc
 from leonav_runtime.scenario_schema import (IMU_PROFILES, MODE_OBSERVABLES, MODES, SCHEMA,  # noqa: F401
                                          SELECTION_RULES, TRAJECTORY_KINDS, Field, _REQUIRED)
@@ -289,21 +284,7 @@ def load_scenario(path: str | Path) -> Scenario:
     if not path.exists():
         builtins = ", ".join(sorted(p.stem for p in BUILTIN_DIR.glob("*.toml")))
         raise UserInputError(f"{path}: scenario file not found (built-in scenarios: {builtins})")
-    if path.is_dir():
-        raise UserInputError(f"{path}: is a directory, expected a scenario TOML file")
-    with open(path, "rb") as fh:   # a device or a huge file is read only up to the limit
-        raw = fh.read(MAX_FILE_BYTES + 1)
-    if len(raw) > MAX_FILE_BYTES:
-        size = max(path.stat().st_size, len(raw)) / 1e6
-        raise UserInputError(f"{path}: {size:.1f} MB is more than a scenario file can be ({MAX_FILE_BYTES / 1e6:g} MB)")
-    try:
-        data = tomllib.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise UserInputError(f"{path}: not UTF-8 text (byte {exc.start}); save it as UTF-8") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise UserInputError(f"{path}: not valid TOML: {exc}") from None
-    except RecursionError:
-        raise UserInputError(f"{path}: not a scenario: arrays or tables nested too deeply") from None
+    data = read_toml_file(path, "scenario", MAX_FILE_BYTES)
     scn = scenario_from_dict(data, source=str(path), base_dir=path.parent)
     check_run_size(scn, trials=0, workers=1)   # what every command needs: the simulator and one trial
     return scn

@@ -18,11 +18,7 @@ from typing import Any
 
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.scenario import Field, check_numbers, check_value, show_value, where_key
-
-try:
-    import tomllib
-except ModuleNotFoundError:   # pragma: no cover - Python < 3.11
-    import tomli as tomllib
+from leonav_runtime.toml_file import read_toml_file
 
 REQ = ...
 MAX_FILE_BYTES = 1_000_000
@@ -299,14 +295,5 @@ def load_spec(path: str | Path) -> DatasetSpec:
     if not path.is_file():
         names = ", ".join(sorted(p.stem for p in shipped.glob("*.toml")))
         raise UserInputError(f"{path}: dataset file not found (shipped: {names})")
-    with open(path, "rb") as fh:
-        raw = fh.read(MAX_FILE_BYTES + 1)
-    if len(raw) > MAX_FILE_BYTES:
-        raise UserInputError(f"{path}: more than {MAX_FILE_BYTES / 1e6:g} MB: not a dataset description")
-    try:
-        data = tomllib.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise UserInputError(f"{path}: not UTF-8 text (byte {exc.start})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise UserInputError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml_file(path, "dataset description", MAX_FILE_BYTES)
     return spec_from_dict(data, source=str(path), base_dir=path.parent)

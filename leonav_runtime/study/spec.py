@@ -25,6 +25,7 @@ else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
 from leonav_runtime.errors import UserInputError
+from leonav_runtime.toml_file import read_toml_file
 from leonav_runtime.scenario import NAME, SCHEMA, Scenario, load_scenario, scenario_from_dict
 
 MAX_AXES, MAX_VALUES, MAX_CELLS = 2, 50, 400
@@ -227,13 +228,5 @@ def load_study(path: str | Path, sets: list[str] = ()) -> Study:
     if not path.is_file():
         shipped = ", ".join(sorted(p.stem for p in BUILTIN_STUDY_DIR.glob("*.toml")))
         raise UserInputError(f"{path}: study file not found (shipped studies: {shipped})")
-    raw = path.read_bytes()
-    if len(raw) > 1_000_000:
-        raise UserInputError(f"{path}: more than 1 MB; not a study file")
-    try:
-        data = tomllib.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise UserInputError(f"{path}: not UTF-8 text (byte {exc.start})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise UserInputError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml_file(path, "study")
     return study_from_dict(data, str(path), path.parent, [parse_set(s) for s in sets])
