@@ -122,17 +122,18 @@ def check_numbers(source: str, section: str, key: str, value: Any, length: int |
     return [float(v) for v in value]
 
 
-def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
-                       base_dir: Path | None = None) -> Scenario:
-    """Validate a parsed TOML mapping and convert it to an SI `Scenario`."""
-    values: dict[str, dict[str, Any]] = {}
+def check_tables(source: str, data: dict[str, Any], schema: dict[str, dict[str, Field]], required: Any,
+                 optional_sections: tuple[str, ...] = ()) -> dict[str, dict[str, Any]]:
+    """Validate a parsed TOML mapping against `schema` ({section: {key: Field}}, "" the top
+    level): unknown sections and keys, tables where tables belong, every value
+    (`check_value`); defaults filled in. A key whose default is `required` must be given,
+    unless its section is one of `optional_sections` and absent altogether."""
     for key in data:
-        if key not in SCHEMA and not (key in SCHEMA[""]):
-            raise UserInputError(
-                f"{source}: unknown section or key {key!r}; expected one of "
-                f"{', '.join(sorted({k for k in SCHEMA if k} | set(SCHEMA[''])))}"
-            )
-    for section, fields in SCHEMA.items():
+        if key not in schema and key not in schema.get("", {}):
+            raise UserInputError(f"{source}: unknown section or key {key!r}; expected one of "
+                                 f"{', '.join(sorted({k for k in schema if k} | set(schema.get('', {}))))}")
+    values: dict[str, dict[str, Any]] = {}
+    for section, fields in schema.items():
         given = data if section == "" else data.get(section, {})
         if section and not isinstance(given, dict):
             raise UserInputError(f"{source}: [{section}] must be a table, got {show_value(given)}")
@@ -140,17 +141,24 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
             unknown = set(given) - set(fields)
             if unknown:
                 raise UserInputError(f"{source}: [{section}] unknown key {show_value(sorted(unknown)[0])}; "
-                                     f"expected one "
-                                     f"of {', '.join(fields)}")
+                                     f"expected one of {', '.join(fields)}")
+        skip_required = section in optional_sections and section not in data
         out: dict[str, Any] = {}
         for key, spec in fields.items():
             if key in given:
                 out[key] = check_value(source, section, key, spec, given[key])
-            elif spec.default is _REQUIRED:
+            elif spec.default is required and not skip_required:
                 raise UserInputError(f"{where_key(source, section, key)} is missing: required ({spec.unit})")
             else:
                 out[key] = spec.default
         values[section] = out
+    return values
+
+
+def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
+                       base_dir: Path | None = None) -> Scenario:
+    """Validate a parsed TOML mapping and convert it to an SI `Scenario`."""
+    values = check_tables(source, data, SCHEMA, _REQUIRED)
 
     traj = dict(values["trajectory"])
     att = check_numbers(source, "trajectory", "attitude_deg", traj["attitude_deg"], 3, "deg", limit=360.0)

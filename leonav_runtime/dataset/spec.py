@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import Field, check_numbers, check_value, show_value, where_key
+from leonav_runtime.scenario import Field, check_numbers, check_tables, show_value, where_key
 from leonav_runtime.toml_file import read_toml_file
 
 REQ = ...
@@ -186,31 +186,7 @@ def parse_axes(text: str, where: str) -> list[tuple[int, float]]:
 
 def spec_from_dict(data: dict[str, Any], source: str = "<dict>", base_dir: Path | None = None) -> DatasetSpec:
     """Validate a parsed dataset TOML mapping (module doc)."""
-    top = SCHEMA[""]
-    for key in data:
-        if key not in SCHEMA and key not in top:
-            raise UserInputError(f"{source}: unknown section or key {key!r}; expected one of "
-                                 f"{', '.join(sorted({k for k in SCHEMA if k} | set(top)))}")
-    values: dict[str, dict[str, Any]] = {}
-    for section, fields in SCHEMA.items():
-        given = data if section == "" else data.get(section, {})
-        if section and not isinstance(given, dict):
-            raise UserInputError(f"{source}: [{section}] must be a table, got {show_value(given)}")
-        if section:
-            unknown = set(given) - set(fields)
-            if unknown:
-                raise UserInputError(f"{source}: [{section}] unknown key {show_value(sorted(unknown)[0])}; "
-                                     f"expected one "
-                                     f"of {', '.join(fields)}")
-        out: dict[str, Any] = {}
-        for key, spec in fields.items():
-            if key in given:
-                out[key] = check_value(source, section, key, spec, given[key])
-            elif spec.default is REQ and (section != "reference" or data.get("reference")):
-                raise UserInputError(f"{where_key(source, section, key)} is missing: required")
-            else:
-                out[key] = spec.default
-        values[section] = out
+    values = check_tables(source, data, SCHEMA, REQ, optional_sections=("reference",))
     _finish(values, source)
     base = base_dir or Path.cwd()
     text = values["data"]["dir"].replace("{shared}", str(shared_data_dir()))
