@@ -21,12 +21,20 @@ def style(mode: str) -> dict:
 
 
 def _pyplot():
-    import matplotlib
+    from leonav_runtime import plot_style
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    return plot_style.pyplot()
 
-    return plt
+
+def _finish(fig, ax, path: Path) -> Path:
+    """Grid, legend, layout; saved at the shared DPI and closed."""
+    from leonav_runtime import plot_style
+
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    plot_style.save(fig, path)
+    return path
 
 
 def error_vs_time(path: Path, series: dict, gps: dict, outage_series: dict, length_s: float, title: str) -> Path:
@@ -38,7 +46,7 @@ def error_vs_time(path: Path, series: dict, gps: dict, outage_series: dict, leng
     axes[0].plot(gps["t"], h(gps["err_enu"]), **GPS_STYLE, label="GPS alone (hold last fix)")
     for mode, s in series.items():
         axes[0].plot(s["t"], h(s["err_enu"]), **style(mode), label=mode)
-    axes[0].set_ylabel("horizontal error (m)")
+    axes[0].set_ylabel("horizontal error [m]")
     axes[0].legend(fontsize=8, loc="upper right")
     for mode, runs in outage_series.items():
         for k, (start, s) in enumerate(runs.items()):
@@ -52,17 +60,18 @@ def error_vs_time(path: Path, series: dict, gps: dict, outage_series: dict, leng
         for start in next(iter(outage_series.values()), {}):
             ax.axvspan(start, start + length_s, color="C1", alpha=0.15, lw=0)
         ax.grid(True, alpha=0.3)
-    axes[1].set_ylabel("horizontal error in outages (m)")
+    axes[1].set_ylabel("horizontal error in outages [m]")
     axes[1].legend(fontsize=8, loc="upper left")
     for mode, s in series.items():
         axes[2].plot(s["t"], np.degrees(s["yaw_err_rad"]), **style(mode), label=mode)
-    axes[2].set_ylabel("yaw error (deg)")
+    axes[2].set_ylabel("yaw error [deg]")
     axes[2].set_ylim(-30, 30)
-    axes[2].set_xlabel(f"time since the first GNSS fix (s); shaded: {length_s:g} s GPS outages, one at a time")
+    axes[2].set_xlabel(f"time since the first GNSS fix [s]; shaded: {length_s:g} s GPS outages, one at a time")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    from leonav_runtime import plot_style
+
+    plot_style.save(fig, path)
     return path
 
 
@@ -75,15 +84,10 @@ def error_cdf(path: Path, series: dict, gps: dict, title: str = "") -> Path:
     for mode, s in series.items():
         v, c = cdf(np.hypot(s["err_enu"][:, 0], s["err_enu"][:, 1]))
         ax.plot(v, c, **style(mode), label=mode)
-    ax.set_xlabel("horizontal error (m)")
+    ax.set_xlabel("horizontal error [m]")
     ax.set_ylabel("fraction of reference epochs")
     ax.set_title(title or "horizontal error CDF at the reference epochs", fontsize=10)
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _finish(fig, ax, path)
 
 
 def trajectory_on_reference(path: Path, ref_enu: np.ndarray, fixes_enu: np.ndarray, tracks: dict,
@@ -96,15 +100,10 @@ def trajectory_on_reference(path: Path, ref_enu: np.ndarray, fixes_enu: np.ndarr
     for mode, p in tracks.items():
         ax.plot(p[:, 0], p[:, 1], **style(mode), label=mode)
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("East (m)")
-    ax.set_ylabel("North (m)")
+    ax.set_xlabel("East [m]")
+    ax.set_ylabel("North [m]")
     ax.set_title(title or "trajectories on the reference", fontsize=10)
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _finish(fig, ax, path)
 
 
 def fmt(v, digits: int = 3) -> str:
