@@ -302,3 +302,18 @@ def test_msl_heights_become_ellipsoidal_with_the_geoid_separation(cpet):
         body = fh.read().replace("geoid_separation_m = -32.0", "")
     with pytest.raises(UserInputError, match=r"\[gnss\] geoid_separation_m: heights declared msl"):
         spec.spec_from_dict(__import__("tomllib").loads(body), source="cpet.toml")
+
+
+def test_shared_data_is_found_beside_the_current_folder_after_a_plain_install(tmp_path, monkeypatch):
+    """`pip install .` copies the package into site-packages: `{shared}` is then found beside
+    the folder the command runs from (or a parent), as the README's tour runs it."""
+    from leonav_runtime.dataset import spec
+
+    (tmp_path / "shared" / "data").mkdir(parents=True)
+    (tmp_path / "leonav" / "sub").mkdir(parents=True)
+    monkeypatch.delenv("LEONAV_SHARED_DATA", raising=False)
+    monkeypatch.setattr(spec, "__file__", str(tmp_path / "venv" / "lib" / "site" / "leonav_runtime" / "dataset" / "spec.py"))
+    monkeypatch.chdir(tmp_path / "leonav" / "sub")
+    assert spec.shared_data_dir() == (tmp_path / "shared" / "data").resolve()
+    monkeypatch.setenv("LEONAV_SHARED_DATA", str(tmp_path / "elsewhere"))
+    assert spec.shared_data_dir() == tmp_path / "elsewhere"

@@ -34,8 +34,8 @@ def resolve(path: Path, what: str, where: str, shared: bool = False) -> Path:
     """The file, or a UserInputError naming it and the key that points at it (shared: the data
     folder is the project's shared public data, so say where it is looked for)."""
     if not path.is_file():
-        hint = (" (the shared public data is not here: set LEONAV_SHARED_DATA to its folder or put it at "
-                "../shared/data beside the repository; see its SOURCES.md)" if shared else "")
+        hint = (" (the shared public data is not here: set LEONAV_SHARED_DATA to its folder, or run from a "
+                "folder that has ../shared/data beside it; see its SOURCES.md)" if shared else "")
         raise UserInputError(f"{path}: {what} file not found ({where}){hint}")
     return path
 

@@ -4,7 +4,7 @@ the reference trajectory, in which units, axes and time base; how to run and sco
 Validated like scenarios (`scenario.check_value`): one `UserInputError` naming the file,
 the section and the key, with what was expected. Paths are relative to the `[data] dir`,
 itself relative to the TOML file; `{shared}` in it is `$LEONAV_SHARED_DATA`, else the
-`shared/data` folder beside the repository (the project's public fixtures). The schema with
+`shared/data` folder beside the source checkout or beside the folder the command runs from (the project's public fixtures). The schema with
 every key, unit and default is `SCHEMA` (and docs/datasets.md).
 """
 from __future__ import annotations
@@ -155,10 +155,23 @@ class DatasetSpec:
         return where_key(self.source, section, key)
 
 
+def shared_data_candidates() -> list[Path]:
+    """Where `{shared}` is looked for, in order: ../shared/data beside the source tree this code
+    runs from (a checkout or an editable install), then beside the current folder and its
+    parents (a `pip install .` copies the package away from the checkout it came from)."""
+    here = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+    cwd = Path.cwd().resolve()
+    return [here] + [folder.parent / "shared" / "data" for folder in (cwd, *cwd.parents) if folder.parent != folder]
+
+
 def shared_data_dir() -> Path:
-    """$LEONAV_SHARED_DATA, else ../shared/data beside the repository."""
+    """$LEONAV_SHARED_DATA, else the first of `shared_data_candidates()` that exists (else the
+    first candidate, so the message names where it was expected)."""
     env = os.environ.get("LEONAV_SHARED_DATA")
-    return Path(env) if env else Path(__file__).resolve().parents[2].parent / "shared" / "data"
+    if env:
+        return Path(env)
+    candidates = shared_data_candidates()
+    return next((c for c in candidates if c.is_dir()), candidates[0])
 
 
 def _columns(source: str, section: str, key: str, value: Any, n: int | None) -> list:
