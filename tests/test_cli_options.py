@@ -79,6 +79,7 @@ def test_sweep_options_change_the_run_and_are_recorded(tmp_path, monkeypatch):
         import tomli as tomllib
     config = tomllib.loads((tmp_path / "s1" / "config.toml").read_text())
     assert config["monte_carlo"]["seed"] == 1 and config["starlink"]["counts"] == [5, 10]
+    assert config["monte_carlo"]["trials"] == 2      # rerunning config.toml repeats the run
 
 
 @pytest.mark.parametrize("argv,needle", [

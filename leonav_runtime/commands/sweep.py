@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     from leonav_runtime.scenario_overrides import apply_overrides, parse_counts, split_list
 
     scn, _changes = apply_overrides(load_scenario(args.scenario), modes=split_list(args.modes),
-                                    counts=parse_counts(args.counts), seed=args.seed)  # --trials: run_sweep
+                                    counts=parse_counts(args.counts), seed=args.seed, trials=args.trials)
     check_run_size(scn, trials=args.trials, workers=1 if args.dask else args.workers)  # before any work
     out_dir = output.results_dir(args.out, f"sweep-{scn.name}")
     res = run_sweep(scn, out_dir, trials=args.trials, workers=args.workers, dask_address=args.dask,

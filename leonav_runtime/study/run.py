@@ -12,7 +12,8 @@ Writes into the results folder:
 - `study.json`: the study as run, the same numbers per cell, timings;
 - `study.png`: a heat map per mode (2 varied fields) or lines (1 field), time-averaged and
   final-epoch RMSE with sqrt(PCRB);
-- `study.toml`: the study file as given;
+- `study.toml`: the study file as given, or with `--set` / `--trials` applied when they changed it
+  (rerunning it repeats the run);
 - `report.html`: the table and the figure in one self-contained page.
 Metric keys carry their unit and name the bound as a square root (`position_rmse_m`,
 `position_sqrt_pcrb_m`, `velocity_final_rmse_mps`, `attitude_final_sqrt_pcrb_deg`).
@@ -111,13 +112,35 @@ def run_study(study: Study, out_dir: Path, *, workers: int | None = None, dask_a
     return result
 
 
+def write_effective_study(study: Study, path: Path) -> None:
+    """The study file as given (comments kept) or, when --set/--trials changed it, the
+    effective study as TOML."""
+    import copy
+
+    import tomli_w
+
+    src = Path(study.source)
+    changed = (study.trials != study.raw.get("trials", study.base.trials)
+               or dict(study.sets) != dict(study.raw.get("set", {})))
+    if src.is_file() and not changed:
+        path.write_text(src.read_text())
+        return
+    effective = copy.deepcopy(study.raw)
+    effective["trials"] = study.trials
+    scenario = effective.get("scenario")
+    if isinstance(scenario, str) and (src.parent / scenario).is_file():  # still found from the results folder
+        effective["scenario"] = str((src.parent / scenario).resolve())
+    if study.sets:
+        effective["set"] = dict(study.sets)
+    path.write_text(f"# effective study of this run (from {study.source}, changed by --set/--trials)\n"
+                    + tomli_w.dumps(effective))
+
+
 def write_results(study: Study, out_dir: Path, res: StudyResult, figures: bool = True) -> None:
     """study.csv, study.json, study.toml and study.png."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    src = Path(study.source)
-    if src.is_file():
-        (out_dir / "study.toml").write_text(src.read_text())
+    write_effective_study(study, out_dir / "study.toml")
     keys = [a.key for a in study.axes]
     metric_keys = [k for k in next(iter(res.rows.values())) if k != "nis_mean"]
     csv_rows, cells = [], []
