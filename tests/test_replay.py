@@ -217,7 +217,7 @@ def test_bad_sessions_give_clear_errors(synth, tmp_path):
         replay.replay_session(folder, tmp_path / "out")
 
 
-def test_empty_capture_and_missing_fixes_skip_modes_with_reasons(synth, tmp_path):
+def test_empty_capture_and_missing_fixes_skip_modes_with_reasons(synth, tmp_path, capsys):
     folder = _copy(synth, tmp_path)
     (folder / "sdr.cu8").write_bytes(b"")
     m = replay.replay_session(folder, tmp_path / "out1")
@@ -228,7 +228,9 @@ def test_empty_capture_and_missing_fixes_skip_modes_with_reasons(synth, tmp_path
     for name in ("gnss.raw", "gnss.chunks.csv", "sdr.cu8", "sdr.sigmf-meta"):
         (folder / name).unlink()
     rc = leonav_main(["replay", str(folder), "--out", str(tmp_path / "out2")])
-    assert rc == 1
+    assert rc == 2            # bad input: one line that says why no mode ran
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("leonav replay: error: ") and "no mode could run" in err[0], err
     m = json.loads((tmp_path / "out2" / "metrics.json").read_text())
     assert m["modes"] == {}
     assert m["skipped_modes"]["fix+imu"] == "no GNSS fix in gnss.raw"

@@ -115,4 +115,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {mode:<20} skipped: {reason}")
     for note in metrics["notes"]:
         print(f"  note: {note}")
-    return 0 if metrics["modes"] else 1
+    if not metrics["modes"]:
+        reasons = "; ".join(f"{mode}: {reason}" for mode, reason in metrics["skipped_modes"].items())
+        raise UserInputError(f"{args.session}: no mode could run ({reasons or 'none asked'})")
+    return 0
