@@ -100,3 +100,16 @@ def test_sky_bad_start_is_a_clear_error(tmp_path, capsys):
     assert "--start" in err and "ISO 8601" in err
     assert main(["sky", "--step", "0", "--out", str(tmp_path / "o")]) == 2
     assert "--step" in capsys.readouterr().err
+
+
+def test_stale_elements_warn_on_stderr_once_and_quiet_silences(tmp_path, capsys):
+    """Element sets two weeks from the window: one `leonav sky: warning:` line on stderr, none
+    on stdout; `-q` shows errors only."""
+    tle = shared_file("tle/gps-ops_2026-03-09.txt")
+    argv = ["sky", "--start", "2026-02-23T12:00:00Z", "--duration", "60", "--tle", str(tle)]
+    assert main(argv + ["--out", str(tmp_path / "a")]) == 0
+    cap = capsys.readouterr()
+    warned = [ln for ln in cap.err.splitlines() if ln.startswith("leonav sky: warning: gps: 32 of 32 element sets")]
+    assert len(warned) == 1 and "warning" not in cap.out, (cap.out, cap.err)
+    assert main(["-q"] + argv + ["--out", str(tmp_path / "b")]) == 0
+    assert "warning" not in capsys.readouterr().err

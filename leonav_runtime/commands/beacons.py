@@ -234,8 +234,11 @@ def run(args: argparse.Namespace) -> int:
         info = capture_io.open_capture(args.capture, args.format, sample_rate_hz=args.sample_rate,
                                        center_freq_hz=args.center_freq, lnb_lo_hz=args.lnb_lo, start_utc=start)
     if info.trailing_bytes:
-        print(f"warning: {info.path}: {info.trailing_bytes} trailing byte(s) after the last complete "
-              f"sample ignored (truncated file?)")
+        import logging
+
+        logging.getLogger("leonav.beacons").warning(
+            f"{info.path}: {info.trailing_bytes} trailing byte(s) after the last complete sample ignored "
+            "(truncated file?)")
     if info.start_utc is None:
         raise UserInputError(f"{info.path}: capture start time unknown; give --start ISO-UTC "
                              "(or core:datetime / start_utc in the metadata)")

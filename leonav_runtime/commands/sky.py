@@ -179,5 +179,7 @@ def _print_summary(s: dict) -> None:
                 f"{k.upper()} {d[k]['min']:.2f}/{d[k]['median']:.2f}/{d[k]['max']:.2f}" for k in ("pdop", "hdop", "vdop")))
         if d["reason"]:
             print(f"GPS DOP not available: {d['reason']}")
-    for warning in s["warnings"]:
-        print(f"warning: {warning}")
+    import logging
+
+    for warning in s["warnings"]:   # `leonav sky: warning: ...` on stderr, silenced by -q
+        logging.getLogger("leonav.sky").warning(warning)
