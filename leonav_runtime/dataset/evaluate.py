@@ -52,7 +52,9 @@ def run_dataset(spec: DatasetSpec, out_dir: Path, reference: dict | None = None,
     prep = runner.prepare(ds, t_end_s=t_end_s)
     L = prep.nav.layout
     sc = spec["scoring"]
-    metrics: dict = {"dataset": spec.name, "description": spec.description, "source": spec.source,
+    from leonav_runtime.provenance import provenance
+
+    metrics: dict = {"provenance": provenance(), "dataset": spec.name, "description": spec.description, "source": spec.source,
                      "reference": ref.source, "reference_epochs": int(ref.t.size), "t0_unix_s": ds.t0_unix,
                      "origin_deg_m": [float(np.degrees(ds.origin[0])), float(np.degrees(ds.origin[1])), ds.origin[2]],
                      "counts": ds.counts | {"records": {k: int(v.size) for k, v in prep.streams.items()}},
