@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Iterable, Sequence
 
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import MAX_COUNT, MODES, Scenario, scenario_from_dict
+from leonav_runtime.scenario import MAX_COUNT, MODES, SCHEMA, Scenario, scenario_from_dict
 
 
 def split_list(values: Iterable[str] | None) -> list[str] | None:
@@ -74,8 +74,9 @@ def apply_overrides(scn: Scenario, *, modes: Sequence[str] | None = None, counts
         raw.setdefault("monte_carlo", {})["seed"] = int(seed)
         changes["seed"] = int(seed)
     if trials is not None:
-        if trials < 1:
-            raise UserInputError(f"--trials {trials}: expected an integer >= 1")
+        bounds = SCHEMA["monte_carlo"]["trials"]
+        if not bounds.lo <= trials <= bounds.hi:
+            raise UserInputError(f"--trials {trials}: expected {bounds.lo:g}..{bounds.hi:g}")
         raw.setdefault("monte_carlo", {})["trials"] = int(trials)
         changes["trials"] = int(trials)
     if not changes:
