@@ -34,14 +34,16 @@ def make_executor(workers: int | None = None, dask_address: str | None = None,
 
     workers: local processes (default: all cores; 1 runs inline). dask_address: a Dask
     scheduler address such as ``tcp://127.0.0.1:8786``; the `distributed` package is then
-    required (``pip install 'dask[distributed]'``).
+    required (the project's extra, ``pip install '.[dask]'`` from a checkout, or
+    ``pip install 'dask[distributed]'``).
     """
     if dask_address:
         try:
             from distributed import Client
         except ImportError:
             raise UserInputError(
-                "--dask needs the 'distributed' package: pip install 'dask[distributed]'"
+                "--dask needs the 'distributed' package: pip install '.[dask]' (leonav's [dask] extra, "
+                "from a source checkout) or pip install 'dask[distributed]'"
             ) from None
         try:
             client = Client(dask_address, timeout=f"{connect_timeout_s}s")

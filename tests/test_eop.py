@@ -107,3 +107,16 @@ def test_eop_command_prints_the_values_in_use(capsys):
     report = json.loads(capsys.readouterr().out)
     assert report["values"][0]["ut1_utc_s"] == pytest.approx(row["ut1"])
     assert main(["eop", "--date", "yesterday"]) == 2
+
+
+@pytest.mark.parametrize("argv", [[], ["--date", "2026-02-23T12:00:00.25Z"]])
+def test_eop_command_prints_the_time_with_its_utc_offset(argv, capsys):
+    """Without --date (now) and with fractional seconds the printed time keeps its +00:00, like --date."""
+    assert main(["eop", *argv]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    row = lines[lines.index(next(l for l in lines if l.startswith("UTC "))) + 1]
+    stamp = row.split()[0]
+    assert stamp.endswith("+00:00"), row
+    assert dt.datetime.fromisoformat(stamp).utcoffset() == dt.timedelta(0)
+    if not argv:
+        assert abs((dt.datetime.now(UTC) - dt.datetime.fromisoformat(stamp)).total_seconds()) < 120

@@ -43,3 +43,13 @@ def test_unreachable_dask_scheduler_is_a_clear_error():
     with pytest.raises(UserInputError, match="cannot reach the scheduler"):
         with make_executor(dask_address="tcp://127.0.0.1:9", connect_timeout_s=1.0):
             pass
+
+
+def test_missing_dask_names_the_project_extra_and_the_plain_package(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
+    with pytest.raises(UserInputError) as info:
+        with make_executor(dask_address="tcp://127.0.0.1:9"):
+            pass
+    assert "pip install '.[dask]'" in str(info.value) and "pip install 'dask[distributed]'" in str(info.value)

@@ -269,3 +269,13 @@ def test_command_writes_table_figures_and_json(tmp_path, capsys):
     for name in ("structural_index.csv", "observability.json", "index_fix_imu.png"):
         assert (tmp_path / name).stat().st_size > 0
     assert main(["observability", "--modes", "no-such-mode", "--out", str(tmp_path)]) == 2
+
+
+def test_time_to_target_header_names_the_targets_with_units_and_what_the_others_use():
+    from leonav_runtime.commands.observability import _targets_text
+
+    comps = ob.components()
+    assert _targets_text({}, comps) == "target: each state's prior sigma"
+    text = _targets_text({"dtheta": 0.0175, "dp_e": 1.0}, comps)
+    assert text == "targets: dtheta 0.0175 rad, dp_e 1 m; other states: their prior sigma"
+    assert "elsewhere" not in text

@@ -51,7 +51,10 @@ def eop_report(date_utc: _dt.datetime, days: int = 1) -> dict:
 
 
 def _run(args: argparse.Namespace) -> int:
-    date = parse_utc(args.date, "--date", require_zone=True) if args.date else _dt.datetime.now(_dt.timezone.utc)
+    if args.date:
+        date = parse_utc(args.date, "--date", require_zone=True)
+    else:  # now, to the second, printed with its offset like a --date
+        date = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0)
     report = eop_report(date, args.days)
     if args.json:
         print(json.dumps(report, indent=1))
@@ -60,9 +63,10 @@ def _run(args: argparse.Namespace) -> int:
     print(f"EOP table {report['table']}{version}")
     print(f"  rows {report['table_span_utc'][0]} .. {report['table_span_utc'][1]}, "
           f"measured up to {report['last_measured_utc']}, predictions after")
-    print(f"{'UTC':<26} {'UT1-UTC s':>11} {'x_p arcsec':>11} {'y_p arcsec':>11}  kind")
+    width = max(26, *(len(r["utc"]) + 1 for r in report["values"]))  # the whole time, offset included
+    print(f"{'UTC':<{width}} {'UT1-UTC s':>11} {'x_p arcsec':>11} {'y_p arcsec':>11}  kind")
     for r in report["values"]:
-        print(f"{r['utc'][:26]:<26} {r['ut1_utc_s']:>11.7f} {r['xp_arcsec']:>11.6f} {r['yp_arcsec']:>11.6f}  {r['kind']}")
+        print(f"{r['utc']:<{width}} {r['ut1_utc_s']:>11.7f} {r['xp_arcsec']:>11.6f} {r['yp_arcsec']:>11.6f}  {r['kind']}")
     east_m = report["values"][0]["ut1_utc_s"] * 7.292115e-5 * 6378137.0 * math.cos(math.radians(43.08))
     print(f"ignoring UT1-UTC would move a receiver at 43 deg latitude {east_m:+.1f} m east as seen from orbit")
     for w in report["warnings"]:

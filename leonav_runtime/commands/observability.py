@@ -61,6 +61,19 @@ def _targets(items: list[str]) -> dict[str, float]:
     return out
 
 
+def _targets_text(targets: dict[str, float], comps) -> str:
+    """The time-to-target header's description of the targets, with units, e.g.
+    "targets: dtheta 0.0175 rad; other states: their prior sigma"."""
+    if not targets:
+        return "target: each state's prior sigma"
+    units = {}
+    for c in comps:
+        units.setdefault(c.name, c.unit)
+        units.setdefault(c.block, c.unit)
+    named = ", ".join(f"{k} {v:g} {units[k]}" if units.get(k) else f"{k} {v:g}" for k, v in targets.items())
+    return f"targets: {named}; other states: their prior sigma"
+
+
 def run(args: argparse.Namespace) -> int:
     from leonav_runtime import observability as obs
 
@@ -104,8 +117,8 @@ def run(args: argparse.Namespace) -> int:
     runs, scenario_info = _scenario_runs(args, modes, targets)
     if runs:
         print(f"\n{scenario_info['name']}: seconds until the measurements alone give sigma <= target "
-              f"({'prior sigma' if not targets else 'targets ' + ', '.join(f'{k}={v:g}' for k, v in targets.items())}"
-              f" elsewhere; '-': not within the run; {scenario_info['count']} Starlink satellites)")
+              f"({_targets_text(targets, symbolic.components())}; '-': not within the run; "
+              f"{scenario_info['count']} Starlink satellites)")
         print(obs.format_time_to_target(runs))
         print(f"\n{scenario_info['name']}: at the end of the run (information in units of the prior's)")
         for r in runs:
