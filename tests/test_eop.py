@@ -120,3 +120,11 @@ def test_eop_command_prints_the_time_with_its_utc_offset(argv, capsys):
     assert dt.datetime.fromisoformat(stamp).utcoffset() == dt.timedelta(0)
     if not argv:
         assert abs((dt.datetime.now(UTC) - dt.datetime.fromisoformat(stamp)).total_seconds()) < 120
+
+
+def test_eop_command_warns_on_stderr_for_a_date_past_the_table(capsys):
+    """A date beyond the IERS measurements: one `leonav eop: warning:` line on stderr, the table on stdout."""
+    assert main(["eop", "--date", "2030-06-01T00:00:00Z"]) == 0
+    cap = capsys.readouterr()
+    assert "warning" not in cap.out
+    assert [ln for ln in cap.err.splitlines() if ln.startswith("leonav eop: warning: ")], cap.err

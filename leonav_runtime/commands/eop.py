@@ -69,8 +69,10 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{r['utc']:<{width}} {r['ut1_utc_s']:>11.7f} {r['xp_arcsec']:>11.6f} {r['yp_arcsec']:>11.6f}  {r['kind']}")
     east_m = report["values"][0]["ut1_utc_s"] * 7.292115e-5 * 6378137.0 * math.cos(math.radians(43.08))
     print(f"ignoring UT1-UTC would move a receiver at 43 deg latitude {east_m:+.1f} m east as seen from orbit")
-    for w in report["warnings"]:
-        print(f"warning: {w}")
+    import logging
+
+    for w in report["warnings"]:   # `leonav eop: warning: ...` on stderr, silenced by -q
+        logging.getLogger("leonav.eop").warning(w)
     return 0
 
 
