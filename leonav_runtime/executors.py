@@ -15,6 +15,15 @@ from typing import Any, Callable, Iterator, Sequence
 from leonav_runtime.errors import UserInputError
 
 
+def add_executor_arguments(parser) -> None:
+    """--workers, --dask and --no-progress of the commands that run Monte Carlo work."""
+    parser.add_argument("--workers", type=int, default=None, metavar="N",
+                        help="local worker processes (default: all cores; 1 runs in this process)")
+    parser.add_argument("--dask", default=None, metavar="ADDRESS",
+                        help="run the trials on a Dask distributed scheduler, e.g. tcp://127.0.0.1:8786")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
 class _InlineExecutor(Executor):
     """Runs each task at submission, in this process (workers=1: no pickling, easy debugging)."""
 

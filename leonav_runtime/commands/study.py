@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from leonav_runtime import output
+from leonav_runtime.executors import add_executor_arguments
 from leonav_runtime.errors import UserInputError
 
 
@@ -26,11 +27,7 @@ def register(subparsers) -> None:
                    help="override a scenario field in every cell, e.g. --set filter.initial_position_sigma_m=5 "
                         "(repeatable; value in the scenario file's unit)")
     p.add_argument("--trials", type=int, default=None, metavar="N", help="trials per cell and mode")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="local worker processes (default: all cores; 1 runs in this process)")
-    p.add_argument("--dask", default=None, metavar="ADDRESS",
-                   help="run on a Dask distributed scheduler, e.g. tcp://127.0.0.1:8786")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_executor_arguments(p)
     output.add_out_argument(p)
     p.set_defaults(func=run)
 

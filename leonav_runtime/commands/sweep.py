@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from leonav_runtime import output
+from leonav_runtime.executors import add_executor_arguments
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.scenario import MODES, builtin_scenarios, check_run_size, load_scenario
 
@@ -33,11 +34,7 @@ def register(subparsers) -> None:
                    help="Starlink satellite counts, e.g. 5,10,45 or 5:45:5 (default: the scenario's [starlink] counts)")
     p.add_argument("--seed", type=int, default=None, metavar="N",
                    help="master random seed (default: the scenario's [monte_carlo] seed)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="local worker processes (default: all cores; 1 runs in this process)")
-    p.add_argument("--dask", default=None, metavar="ADDRESS",
-                   help="run the trials on a Dask distributed scheduler, e.g. tcp://127.0.0.1:8786")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_executor_arguments(p)
     output.add_out_argument(p)
     p.set_defaults(func=run)
 
