@@ -20,6 +20,7 @@ from typing import Any, Callable, Iterator
 
 from hardware.byte_source import SourceReader
 from hardware.gnss import nmea, ubx
+from hardware.gnss.leap import leap_seconds_at_gps
 from hardware.records import GnssFix, GnssTimeTag, NavPvt, NavTimeGps, RxmRawx, UbxFrame
 
 MAX_NMEA_BYTES = 200      # NMEA says 82; u-blox proprietary and NMEA 4.1 lines stay far below 200
@@ -232,11 +233,20 @@ class GnssDecoder:
                     lon_rad=rec.lon_rad, hmsl_m=rec.hmsl_m, height_m=rec.height_m,
                     quality=rec.fix_type, num_sv=rec.num_sv, hdop=None, h_acc_m=rec.h_acc_m,
                     v_acc_m=rec.v_acc_m, vel_ned_mps=rec.vel_ned_mps))
-        elif isinstance(rec, RxmRawx) and rec.leap_valid:
-            derived += self._gps_tag(rec.t_mono_s, rec.week, rec.rcv_tow_s, rec.leap_s, "RAWX")
+        elif isinstance(rec, RxmRawx):
+            # Without a valid leapS the receiver's GPS week/TOW still tag the epoch: GPS - UTC then
+            # comes from the leap-second table, the same one that places the RAWX pseudoranges
+            # on the run's axis (leonav_runtime.gnss.coupled), so IMU and pseudoranges share a clock.
+            leap = rec.leap_s if rec.leap_valid else self._table_leap_s(rec.week, rec.rcv_tow_s)
+            derived += self._gps_tag(rec.t_mono_s, rec.week, rec.rcv_tow_s, leap, "RAWX")
         elif isinstance(rec, NavTimeGps) and rec.tow_valid and rec.week_valid and rec.leap_valid:
             derived += self._gps_tag(rec.t_mono_s, rec.week, rec.itow_s + rec.ftow_s, rec.leap_s, "TIMEGPS")
         return derived
+
+    def _table_leap_s(self, week: int, tow_s: float) -> int:
+        """GPS - UTC (s) from the leap-second table at GPS week/TOW."""
+        self.counts["rawx_leap_from_table"] += 1   # an out-of-range week/TOW is counted by _gps_tag
+        return leap_seconds_at_gps(week * ubx.SECONDS_PER_WEEK + tow_s)
 
     def _gps_tag(self, t_mono_s: float, week: int, tow_s: float, leap_s: int, source: str) -> list:
         try:

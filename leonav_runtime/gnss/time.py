@@ -8,7 +8,8 @@ calendar epochs convert exactly through integer days and seconds.
 
 Galileo system time (GST) keeps GPS seconds (its week number in RINEX 3 navigation files
 is aligned with the GPS week). BeiDou time (BDT) = GPST - 14 s, BDT week 0 = GPS week
-1356. UTC = GPST - (GPS-UTC leap seconds), from the table below (IERS Bulletin C).
+1356. UTC = GPST - (GPS-UTC leap seconds), from the table in `hardware.gnss.leap` (IERS Bulletin C),
+shared with the device layer.
 """
 from __future__ import annotations
 
@@ -17,21 +18,12 @@ import math
 
 import numpy as np
 
+from hardware.gnss.leap import leap_seconds_at_gps, leap_seconds_at_utc  # noqa: F401 (the one table, re-exported)
 from leonav_runtime.gen.constants import BDT_MINUS_GPST_S, BDT_WEEK_OFFSET, GPS_WEEK_S
 
 GPS_EPOCH = _dt.datetime(1980, 1, 6, tzinfo=_dt.timezone.utc)
 _GPS_EPOCH_ORDINAL = _dt.date(1980, 1, 6).toordinal()
 DAY_S = 86400.0
-
-# GPS - UTC in seconds from the given UTC date on (IERS Bulletin C announcements).
-LEAP_SECONDS = (
-    (_dt.date(1981, 7, 1), 1), (_dt.date(1982, 7, 1), 2), (_dt.date(1983, 7, 1), 3),
-    (_dt.date(1985, 7, 1), 4), (_dt.date(1988, 1, 1), 5), (_dt.date(1990, 1, 1), 6),
-    (_dt.date(1991, 1, 1), 7), (_dt.date(1992, 7, 1), 8), (_dt.date(1993, 7, 1), 9),
-    (_dt.date(1994, 7, 1), 10), (_dt.date(1996, 1, 1), 11), (_dt.date(1997, 7, 1), 12),
-    (_dt.date(1999, 1, 1), 13), (_dt.date(2006, 1, 1), 14), (_dt.date(2009, 1, 1), 15),
-    (_dt.date(2012, 7, 1), 16), (_dt.date(2015, 7, 1), 17), (_dt.date(2017, 1, 1), 18),
-)
 
 
 def calendar_to_seconds(year: int, month: int, day: int, hour: int = 0, minute: int = 0,
@@ -65,26 +57,6 @@ def bdt_to_gps_seconds(t_bdt_s: float | np.ndarray) -> float | np.ndarray:
 
 def bdt_week_to_gps_week(bdt_week: int) -> int:
     return int(bdt_week + BDT_WEEK_OFFSET)
-
-
-def leap_seconds_at_utc(utc: _dt.datetime | _dt.date) -> int:
-    """GPS - UTC (s) in force at a UTC date (0 before 1981-07-01)."""
-    date = utc.date() if isinstance(utc, _dt.datetime) else utc
-    leap = 0
-    for start, value in LEAP_SECONDS:
-        if date >= start:
-            leap = value
-    return leap
-
-
-def leap_seconds_at_gps(t_gps_s: float) -> int:
-    """GPS - UTC (s) in force at a GPS time (the step is applied at UTC midnight)."""
-    leap = 0
-    for start, value in LEAP_SECONDS:
-        step_gps = (start.toordinal() - _GPS_EPOCH_ORDINAL) * DAY_S + value
-        if t_gps_s >= step_gps:
-            leap = value
-    return leap
 
 
 def utc_to_gps_seconds(utc: _dt.datetime) -> float:

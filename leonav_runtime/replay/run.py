@@ -153,6 +153,10 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
     for mode in options.modes:
         if mode in PSEUDORANGE_MODES and raw.reason:
             inputs.skipped[mode] = raw.reason
+        elif mode in PSEUDORANGE_MODES and not dec.time_map.valid:
+            # pseudoranges are on GPS time; an IMU axis on the host clock can be seconds off it
+            inputs.skipped[mode] = ("no GNSS time tag in gnss.raw: the IMU is on the host clock, which can be "
+                                    "seconds off the pseudoranges' GPS time")
         elif "fix" in MODE_STREAMS[mode] and fixes.t.size == 0:
             inputs.skipped[mode] = ("no GNSS fix in gnss.raw" if not any_fix else
                                     "no GNSS fix with a finite latitude, longitude and height in gnss.raw"
