@@ -41,3 +41,57 @@ def test_rawx_without_valid_leap_seconds_still_tags_time_on_the_gps_scale():
     tm = TimeMap.fit(unsure)
     assert tm.valid and tm.source == "RAWX"
     assert abs(tm.to_utc_unix(10.0) - valid[0].utc.timestamp()) < 1e-6
+
+
+def _mutated_0759(changes: dict[tuple[int, int], str]):
+    """0759 observations with C1 of (epoch, satellite line) replaced by F14.3 text."""
+    from leonav_runtime.gnss.rinex_obs import parse_rinex_obs
+    from tests.test_spp_bad_input import _first_epoch_lines, _texts
+
+    obs_text, nav_text = _texts()
+    lines, k = _first_epoch_lines(obs_text)
+    for (epoch, sat), text in changes.items():
+        i = k + epoch * 9 + 1 + sat     # 8 satellites per epoch in the first hour of 0759
+        lines[i] = lines[i][:16] + f"{text:>14}" + lines[i][30:]
+    from leonav_runtime.gnss.rinex_nav import parse_rinex_nav
+
+    return parse_rinex_obs("\n".join(lines) + "\n", "mutated.05o"), parse_rinex_nav(nav_text, "07590920.05n")
+
+
+def test_gross_pseudoranges_are_counted_implausible_and_their_epochs_solved():
+    """Before: -2e7 m in one row pulled its epoch away and every row of it counted as below the
+    elevation mask. Now the row alone is `implausible_pseudorange`, the epoch is solved from the
+    others and lands where the clean epoch without that satellite does (within metres)."""
+    from tests.test_spp_bad_input import _solve
+
+    clean_obs, nf = _mutated_0759({})
+    obs, _ = _mutated_0759({(0, 1): "-20000000.000", (1, 2): "60000000.000", (2, 3): "0.500"})
+    clean, res = _solve(clean_obs, nf), _solve(obs, nf)
+    assert res.counts["implausible_pseudorange"] == 3
+    assert res.counts["below_elevation_mask"] == clean.counts["below_elevation_mask"]
+    assert res.counts.get("epoch_without_solution", 0) == clean.counts.get("epoch_without_solution", 0)
+    assert res.solved[:3].all() and list(res.ns[:3]) == [n - 1 for n in clean.ns[:3]]
+    assert np.linalg.norm(res.r_ecef_m[:3] - clean.r_ecef_m[:3], axis=1).max() < 30.0
+    assert np.array_equal(res.r_ecef_m[3:], clean.r_ecef_m[3:])
+    # a sound pseudorange is never called implausible (the real hour: none flagged)
+    assert "implausible_pseudorange" not in clean.counts
+
+
+def test_a_row_the_filter_cannot_take_is_dropped_and_counted_not_fatal():
+    """Before: a RAIM-excluded or unsolved row with a pseudorange <= 0 reached
+    GnssObservationTable.check, whose error stopped every mode."""
+    import datetime as dt
+
+    from leonav_runtime.gnss import coupled
+    from leonav_runtime.gnss.gnss_ekf import filter_rows
+    from tests.test_spp_bad_input import _solve
+
+    obs, nf = _mutated_0759({})
+    spp = _solve(obs, nf)
+    idx = filter_rows(spp)
+    assert "unfit_for_filter" not in spp.counts
+    spp.rows.pseudorange_m[idx[5]] = -1.0         # as after a bad correction
+    spp.rows.aux[idx[9], 0] = np.nan
+    epoch_utc = gtime.gps_seconds_to_utc(float(spp.t_gps_s[0]) - 1.0).replace(tzinfo=dt.timezone.utc)
+    table = coupled.observation_table(spp, epoch_utc).check()
+    assert len(table) == idx.size - 2 and spp.counts["unfit_for_filter"] == 2

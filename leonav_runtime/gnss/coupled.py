@@ -61,6 +61,7 @@ def single_point(obs: ObservationTable, eph: Ephemerides, klobuchar: np.ndarray 
         by_status = {k: v for k, v in res.counts.items() if k.startswith("epochs_")}
         raise UserInputError(f"{obs.source or 'GNSS observations'}: no epoch has a single-point solution "
                              f"(epochs by status: {by_status})")
+    filter_rows(res)   # counts the rows a filter could not take (`unfit_for_filter`)
     return res
 
 

@@ -33,7 +33,7 @@ from leonav_runtime.gen import constants as K
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gen.profiles import ClockProfile, ImuProfile
 from leonav_runtime.gnss.signals import EPOCH_UNSOLVED, RAIM_EXCLUDED, filter_pseudorange_variance
-from leonav_runtime.gnss.spp import SppResult
+from leonav_runtime.gnss.spp import NOT_CONVERGED, SppResult
 from leonav_runtime.navfuncs import NavFunctions
 from leonav_runtime.params import params_array
 
@@ -102,11 +102,24 @@ def clock_jumps_m(spp: SppResult) -> np.ndarray:
 
 def filter_rows(spp: SppResult) -> np.ndarray:
     """Rows of a single-point result that a filter is given: above the masks at the single-point
-    state with a variance, used or RAIM-excluded or of an unsolved epoch (the filter's NIS gate
-    decides on them)."""
-    keep = (spp.epoch_index >= 0) & np.isin(spp.row_status, (0, RAIM_EXCLUDED, EPOCH_UNSOLVED)) \
-        & np.isfinite(spp.sigma_m)
-    keep &= spp.el_rad >= 0.0  # below-mask rows already carry their own status
+    state with a variance, used or RAIM-excluded or of an unsolved but converged epoch (the
+    filter's NIS gate decides on them).
+
+    Rows of those statuses that a filter cannot take (a pseudorange that is not a positive
+    number, a non-finite elevation, ionosphere delay or satellite state) are left out here,
+    so one bad row cannot stop a run (`inputs.GnssObservationTable.check` would refuse it),
+    and counted in `spp.counts["unfit_for_filter"]`."""
+    candidate = (spp.epoch_index >= 0) & np.isin(spp.row_status, (0, RAIM_EXCLUDED, EPOCH_UNSOLVED))
+    # a non-converged epoch's elevations (hence masks and variances) are of a meaningless state
+    candidate &= spp.status[np.maximum(spp.epoch_index, 0)] != NOT_CONVERGED
+    rows = spp.rows
+    with np.errstate(invalid="ignore"):
+        fit = (np.isfinite(spp.sigma_m) & np.isfinite(spp.el_rad) & np.isfinite(spp.iono_m)
+               & (rows.pseudorange_m > 0.0) & np.isfinite(rows.pseudorange_m) & np.all(np.isfinite(rows.aux), axis=1))
+    keep = candidate & fit & (spp.el_rad >= 0.0)   # below-mask rows already carry their own status
+    unfit = int((candidate & ~fit).sum())
+    if unfit:
+        spp.counts["unfit_for_filter"] = unfit
     return np.flatnonzero(keep)
 
 

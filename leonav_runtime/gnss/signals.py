@@ -44,11 +44,12 @@ ISB_INDEX = {"E": 0, "C": 1}  # which inter-system bias state a system's signals
 
 # row status (0 = usable); 1-4 from the ephemeris selection / satellite states
 CN0_MASK, URA_TOO_LARGE, OTHER_SIGNAL, SYSTEM_OFF = 5, 6, 7, 8
-BELOW_MASK, RAIM_EXCLUDED, EPOCH_UNSOLVED = 9, 10, 11
+BELOW_MASK, RAIM_EXCLUDED, EPOCH_UNSOLVED, IMPLAUSIBLE = 9, 10, 11, 12   # 9-12 from `spp.solve`
 REASONS = {NO_EPHEMERIS: "no_ephemeris", STALE: "stale_ephemeris", UNHEALTHY: "unhealthy",
            NO_PSEUDORANGE: "no_pseudorange", CN0_MASK: "below_cn0_mask", URA_TOO_LARGE: "ura_too_large",
            OTHER_SIGNAL: "other_signal", SYSTEM_OFF: "system_not_used", BELOW_MASK: "below_elevation_mask",
-           RAIM_EXCLUDED: "raim_excluded", EPOCH_UNSOLVED: "epoch_without_solution"}
+           RAIM_EXCLUDED: "raim_excluded", EPOCH_UNSOLVED: "epoch_without_solution",
+           IMPLAUSIBLE: "implausible_pseudorange"}
 MAX_URA_M = 300.0
 """Satellites whose URA exceeds this are not used (RTKLIB's MAX_VAR_EPH = 300^2 m^2)."""
 URA_UNKNOWN_M = 8192.0

@@ -25,9 +25,17 @@ fails the test with at least 2 degrees of freedom loses the satellite with the l
 standardised residual |v_i| / sqrt(var_i - a_i N^-1 a_i^T) and is solved again, until it
 passes or the redundancy is 1 (then the epoch has no solution). DOPs: from elevation and
 azimuth of the used satellites (E, N, U, one clock), as RTKLIB computes them.
+
+Gross errors first (`implausible_pseudoranges`): one pseudorange tens of thousands of km off
+would pull the whole epoch away (every row then looks below the mask), so before the
+least squares each row's pseudorange plus the satellite clock, less the epoch's common
+receiver clock, must be a possible geometric range to its satellite; rows that are not get
+the status `implausible_pseudorange`. Rows of an epoch that did not converge, or whose
+elevation is not a number, count as `epoch_without_solution` (their elevation says nothing).
 """
 from __future__ import annotations
 
+import dataclasses
 from collections import Counter
 from dataclasses import dataclass, field
 
@@ -37,8 +45,8 @@ from leonav_runtime import geometry
 from leonav_runtime.gen import constants as K
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gnss.chi2 import chi2_upper
-from leonav_runtime.gnss.signals import (BELOW_MASK, EPOCH_UNSOLVED, ISB_INDEX, RAIM_EXCLUDED, REASONS, GnssRows,
-                                         pseudorange_variance)
+from leonav_runtime.gnss.signals import (BELOW_MASK, EPOCH_UNSOLVED, IMPLAUSIBLE, ISB_INDEX, RAIM_EXCLUDED, REASONS,
+                                         GnssRows, pseudorange_variance)
 from leonav_runtime.navfuncs import NavFunctions
 from leonav_runtime.params import params_array
 
@@ -52,6 +60,11 @@ CONVERGED_M = 1e-4
 COARSE_M = 10.0
 COLS = np.r_[L.DX_DP_SLICE, L.DX_DC_DT, L.DX_DISB_SLICE]   # unknowns: dp (3), dc_dt, disb (2)
 NK = COLS.size
+RX_RADIUS_M = (6.35e6, 6.40e6)
+"""Geocentric radius (m) a receiver can have: the polar radius less the lowest land, to the
+equatorial radius plus 20 km of altitude (aircraft, balloons). With a satellite at radius r_s
+its geometric range lies in [r_s - 6.40e6, sqrt(r_s^2 - 6.35e6^2)] (zenith .. horizon), e.g.
+20.2e6 .. 25.8e6 m for GPS, 35.8e6 .. 41.7e6 m for a BeiDou GEO."""
 
 
 @dataclass
@@ -123,6 +136,36 @@ class SppResult:
                 lst.sort()
             self._used_cache = cached
         return cached
+
+
+def implausible_pseudoranges(rows: GnssRows) -> np.ndarray:
+    """Mask of the usable rows (status 0) whose pseudorange cannot be a range to their satellite.
+
+    Per row, pseudorange + satellite clock (m) = geometric range + receiver clock, the range
+    within [lo, hi] of `RX_RADIUS_M`. The epoch's common receiver clock is the median of
+    (pseudorange + satellite clock - (lo + hi) / 2) over its rows: with most rows sound it is
+    off the true clock by at most the largest half-width (hi - lo) / 2 of the epoch, so a row
+    is implausible when it is off the middle of its band by more than its own half-width plus
+    that one (about 5.6e6 m for GPS: catches a sign error, a wrapped or zero code, not metres)."""
+    bad = np.zeros(len(rows), bool)
+    k = np.flatnonzero(rows.status == 0)
+    if not k.size:
+        return bad
+    r_s = np.linalg.norm(rows.aux[k][:, L.AUX_R_S_ECEF_SLICE], axis=1)
+    lo = r_s - RX_RADIUS_M[1]
+    hi = np.sqrt(np.maximum(r_s**2 - RX_RADIUS_M[0] ** 2, 0.0))
+    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    off = rows.pseudorange_m[k] + rows.aux[k, L.AUX_SAT_CLOCK] - mid
+    epochs, inv = np.unique(rows.t_gps_s[k], return_inverse=True)
+    clock, widest = np.zeros(epochs.size), np.zeros(epochs.size)
+    finite = np.isfinite(off)
+    for e in range(epochs.size):
+        m = (inv == e) & finite
+        if m.any():
+            clock[e], widest[e] = np.median(off[m]), half[m].max()
+    with np.errstate(invalid="ignore"):
+        bad[k] = ~(np.abs(off - clock[inv]) <= half + widest[inv])
+    return bad
 
 
 def _start_position(rows: GnssRows, approx_ecef_m) -> np.ndarray:
@@ -213,6 +256,12 @@ def solve(rows: GnssRows, opts: SppOptions | None = None, *, approx_ecef_m=None,
     """Single-point solutions of every epoch of `rows` (see the module doc)."""
     opts = opts or SppOptions()
     nav = nav or NavFunctions()
+    gross = implausible_pseudoranges(rows)
+    if gross.any():   # the rows keep their place, with their reason
+        rows = dataclasses.replace(rows, status=np.where(gross, IMPLAUSIBLE, rows.status).astype(rows.status.dtype),
+                                   counts=Counter(rows.counts))
+        rows.counts[REASONS[IMPLAUSIBLE]] = int(gross.sum())
+        rows.counts["usable"] -= int(gross.sum())
     counts = Counter(rows.counts)
     start = _start_position(rows, approx_ecef_m) if len(rows) else np.array([K.WGS84_A_M, 0.0, 0.0])
     lat0, lon0, h0 = (float(v) for v in geometry.ecef_to_geodetic(start))
@@ -290,8 +339,10 @@ def solve(rows: GnssRows, opts: SppOptions | None = None, *, approx_ecef_m=None,
     epoch_index = np.full(n, -1)
     epoch_index[batch.cand] = batch.ep
     cand_status = np.zeros(batch.cand.size, np.int16)
-    cand_status[~(terms[:, 0] >= batch.mask_rad)] = BELOW_MASK
+    cand_status[terms[:, 0] < batch.mask_rad] = BELOW_MASK
     cand_status[batch.excluded] = RAIM_EXCLUDED
+    # no elevation to judge by: the state of a non-converged epoch, or none at all
+    cand_status[(status[batch.ep] == NOT_CONVERGED) | ~np.isfinite(terms[:, 0])] = EPOCH_UNSOLVED
     cand_status[(cand_status == 0) & ~solved[batch.ep]] = EPOCH_UNSOLVED
     row_status[batch.cand] = cand_status
     for code in (BELOW_MASK, RAIM_EXCLUDED, EPOCH_UNSOLVED):
