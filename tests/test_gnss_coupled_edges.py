@@ -95,3 +95,24 @@ def test_a_row_the_filter_cannot_take_is_dropped_and_counted_not_fatal():
     epoch_utc = gtime.gps_seconds_to_utc(float(spp.t_gps_s[0]) - 1.0).replace(tzinfo=dt.timezone.utc)
     table = coupled.observation_table(spp, epoch_utc).check()
     assert len(table) == idx.size - 2 and spp.counts["unfit_for_filter"] == 2
+
+
+def test_a_clock_jump_inside_a_gap_is_given_to_the_next_solved_epoch_only():
+    """Unsolved epochs in a gap keep the accumulated jump of the solved epoch before them (the
+    docstring's rule); before they took the next solved epoch's jump."""
+    import dataclasses
+
+    from leonav_runtime.gen import constants as K
+    from leonav_runtime.gnss import gnss_ekf
+    from leonav_runtime.gnss import spp as _spp
+
+    E = 12
+    t = 1e9 + np.arange(E, dtype=float)
+    ms = K.C_LIGHT_MPS * 1e-3
+    clock = 150.0 + 0.3 * (t - t[0]) + ms * (np.arange(E) >= 6)    # drift 0.3 m/s, +1 ms from epoch 6
+    status = np.full(E, _spp.SOLVED, np.int8)
+    status[3:7] = _spp.TOO_FEW                                     # the step happens inside this gap
+    fake = dataclasses.make_dataclass("S", ["t_gps_s", "clock_m", "status", "solved"])(
+        t, clock, status, (status == _spp.SOLVED))
+    jumps = gnss_ekf.clock_jumps_m(fake)
+    assert np.array_equal(jumps, ms * (np.arange(E) >= 7))

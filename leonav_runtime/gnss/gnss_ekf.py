@@ -92,7 +92,8 @@ def clock_jumps_m(spp: SppResult) -> np.ndarray:
         k = round(r / MS_M)
         if k and abs(r - k * MS_M) < CLOCK_JUMP_TOLERANCE_M:
             jump += k * MS_M
-        out[a + 1:b + 1] = jump
+        out[a + 1:b] = out[a]   # unsolved epochs of a gap: the step is placed at the next solved one
+        out[b] = jump
         if dt > 0:
             drift = (spp.clock_m[b] - jump - (spp.clock_m[a] - out[a])) / dt
     if ok.size:
