@@ -116,3 +116,21 @@ def test_a_clock_jump_inside_a_gap_is_given_to_the_next_solved_epoch_only():
         t, clock, status, (status == _spp.SOLVED))
     jumps = gnss_ekf.clock_jumps_m(fake)
     assert np.array_equal(jumps, ms * (np.arange(E) >= 7))
+
+
+def test_inter_system_bias_starts_from_the_nearest_epoch_where_it_is_finite():
+    """Galileo absent at the start epoch, seen from the third: its bias starts at the third
+    epoch's value, not 0; BeiDou never seen: 0."""
+    from leonav_runtime.gen import state_layout as L
+    from leonav_runtime.inputs import GnssObservationTable
+    from leonav_runtime.inputs.gnss_obs import apply_clock_start
+    from leonav_runtime.params import params_array
+
+    isb = np.array([[np.nan, np.nan], [np.nan, np.nan], [12.5, np.nan], [13.0, np.nan], [np.nan, np.nan]])
+    table = GnssObservationTable(np.zeros(0), np.zeros(0, int), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0),
+                                 np.zeros((0, L.NAUX)), clock_t=np.arange(5.0), clock_m=np.full(5, 100.0), isb_m=isb)
+    x0 = np.zeros(L.NX)
+    x0[L.X_Q_NB] = 1.0
+    for t_start, want in ((0.2, 12.5), (3.4, 13.0), (4.9, 13.0)):
+        x, _, _, _ = apply_clock_start(x0, np.eye(L.NDX), params_array(0.6, 2.4, 50.0), table, t_start, L)
+        assert list(x[L.X_ISB_SLICE]) == [want, 0.0]

@@ -34,6 +34,7 @@ from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gen.profiles import ClockProfile, ImuProfile
 from leonav_runtime.gnss.signals import EPOCH_UNSOLVED, RAIM_EXCLUDED, filter_pseudorange_variance
 from leonav_runtime.gnss.spp import NOT_CONVERGED, SppResult
+from leonav_runtime.inputs.gnss_obs import nearest_finite
 from leonav_runtime.navfuncs import NavFunctions
 from leonav_runtime.params import params_array
 
@@ -199,8 +200,7 @@ def run(spp: SppResult, *, q_acc_m2ps3: float = DEFAULT_Q_ACC_M2PS3, q_cdt_m2ps:
     if ok.size > 1:
         e1 = int(ok[1])
         x0[L.X_C_DDT] = (clock[e1] - clock[e0]) / (spp.t_gps_s[e1] - spp.t_gps_s[e0])
-    isb = spp.isb_m[e0]
-    x0[L.X_ISB_SLICE] = np.nan_to_num(isb)
+    x0[L.X_ISB_SLICE] = nearest_finite(spp.t_gps_s[ok], spp.isb_m[ok], spp.t_gps_s[e0])
     sd = np.zeros(L.NDX)
     sd[L.DX_DP_SLICE] = P0_POSITION_M
     sd[L.DX_DV_SLICE] = P0_VELOCITY_MPS

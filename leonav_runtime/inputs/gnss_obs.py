@@ -13,7 +13,8 @@ it is only checked, turned into records, and used to start the receiver clock:
   `gen/state_layout.AUX_*`), sat_id = ord(system letter) * 1000 + PRN;
 - clock start (`apply_clock_start`): a real receiver clock is anywhere within a millisecond
   (300 km) and drifts by up to metres per second, so x0's clock bias, drift and
-  inter-system biases come from the single-point solutions nearest the filter start, and
+  inter-system biases come from the single-point solutions nearest the filter start (each
+  inter-system bias from the nearest one where its constellation was present), and
   the filter's clock PSDs are the loose ones of a receiver clock that is re-estimated every
   epoch (`GNSS_Q_CDT_M2PS`, `GNSS_Q_CDDT_M2PS3`). No other state reads the clock states, so
   the other observables of a run are not affected.
@@ -138,7 +139,7 @@ def apply_clock_start(x0: np.ndarray, P0: np.ndarray, params: np.ndarray, table:
         drift = float((table.clock_m[j] - table.clock_m[k]) / (table.clock_t[j] - table.clock_t[k]))
     x0[L.X_C_DT] = table.clock_m[k] + drift * (t_start - table.clock_t[k])
     x0[L.X_C_DDT] = drift
-    x0[L.X_ISB_SLICE] = np.nan_to_num(table.isb_m[k])
+    x0[L.X_ISB_SLICE] = nearest_finite(table.clock_t, table.isb_m, t_start)
     for i, s in ((L.DX_DC_DT, CLOCK_START_SIGMA_M), (L.DX_DC_DDT, DRIFT_START_SIGMA_MPS)):
         P0[i, :], P0[:, i], P0[i, i] = 0.0, 0.0, s**2
     isb = np.arange(L.DX_DISB_SLICE.start, L.DX_DISB_SLICE.stop)
@@ -151,6 +152,18 @@ def apply_clock_start(x0: np.ndarray, P0: np.ndarray, params: np.ndarray, table:
                               f"q_cddt {GNSS_Q_CDDT_M2PS3:g} m^2/s^3",
             "clock_m": float(x0[L.X_C_DT]), "clock_drift_mps": drift}
     return x0, P0, params, init
+
+
+def nearest_finite(t: np.ndarray, values: np.ndarray, t_start: float) -> np.ndarray:
+    """Per column of values (E, m), the finite value at the t nearest t_start (0 where none
+    is finite): a constellation absent at the start epoch takes its bias from the nearest
+    epoch that saw it, not 0."""
+    out = np.zeros(values.shape[1])
+    for j in range(values.shape[1]):
+        fin = np.flatnonzero(np.isfinite(values[:, j]))
+        if fin.size:
+            out[j] = values[fin[np.argmin(np.abs(t[fin] - t_start))], j]
+    return out
 
 
 RANGE_RATE_SIGMA_MPS = K.RANGE_RATE_SIGMA_MPS
