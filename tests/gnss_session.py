@@ -30,10 +30,12 @@ from leonav_runtime.session_synth import SynthSessionConfig, write_synthetic_ses
 PR_STDEV_CODE = 5   # 0.01 * 2^5 = 0.32 m (the reader's sigma_pr_m; the filter uses its own error model)
 
 
-def rawx_frame(t_gps_s: float, prn, pseudorange_m, doppler_hz, cn0_dbhz, leap_s: int) -> bytes:
-    """One RXM-RAWX frame of GPS L1 C/A measurements received at GPS time t_gps_s."""
+def rawx_frame(t_gps_s: float, prn, pseudorange_m, doppler_hz, cn0_dbhz, leap_s: int,
+               leap_valid: bool = True) -> bytes:
+    """One RXM-RAWX frame of GPS L1 C/A measurements received at GPS time t_gps_s (recStat
+    bit 0 = leap_valid)."""
     week, tow = gtime.week_tow(t_gps_s)
-    out = [struct.pack("<dHbBBB2x", float(tow), int(week), leap_s, len(prn), 0x01, 1)]
+    out = [struct.pack("<dHbBBB2x", float(tow), int(week), leap_s, len(prn), int(leap_valid), 1)]
     for p, pr, do, cn0 in zip(prn, pseudorange_m, doppler_hz, cn0_dbhz):
         do = 0.0 if not math.isfinite(do) else do
         cn0 = 0 if not math.isfinite(cn0) else int(round(cn0))
@@ -60,12 +62,13 @@ def sfrbx_frames(eph_rows, klobuchar=None, tow_count: int = 100) -> bytes:
 
 def write_rawx_session(folder: Path, t_gps_s, prn, pseudorange_m, doppler_hz, cn0_dbhz, eph_rows, site_ecef_m,
                        *, klobuchar=None, imu_rate_hz: float = 2.0, lead_s: float = 1.0, seed: int = 0,
-                       nmea: bool = False, sdr: bool = False, elements=None, nav=None):
+                       nmea: bool = False, sdr: bool = False, elements=None, nav=None, leap_valid: bool = True):
     """A session of a static receiver at `site_ecef_m` (module doc). Per-row arrays: reception
     GPS time (s), PRN, pseudorange (m), Doppler (Hz, NaN none), C/N0 (dB-Hz, NaN unknown);
     klobuchar: coefficients sent in a page 18; nmea: also the NMEA fixes of `session_synth`
     (truth plus noise) at 1 Hz; sdr: also its Starlink beacon capture (of `elements`, default
-    the built-in Walker set at the start).
+    the built-in Walker set at the start); leap_valid False: RAWX recStat says leapS is not
+    valid yet and leapS holds a wrong value (a receiver before it has decoded UTC parameters).
     Returns (SyntheticSession, epoch_utc)."""
     t_gps_s = np.asarray(t_gps_s, float)
     epochs = np.unique(t_gps_s)
@@ -78,7 +81,8 @@ def write_rawx_session(folder: Path, t_gps_s, prn, pseudorange_m, doppler_hz, cn
     for t in epochs:
         k = t_gps_s == t
         extra.append((float(t - t0), rawx_frame(float(t), np.asarray(prn)[k], np.asarray(pseudorange_m)[k],
-                                                np.asarray(doppler_hz)[k], np.asarray(cn0_dbhz)[k], leap)))
+                                                np.asarray(doppler_hz)[k], np.asarray(cn0_dbhz)[k],
+                                                leap if leap_valid else leap - 3, leap_valid)))
     cfg = SynthSessionConfig(seconds=seconds, seed=seed, epoch_utc=epoch_utc, lat_deg=math.degrees(lat),
                              lon_deg=math.degrees(lon), alt_m=h, imu_rate_hz=imu_rate_hz,
                              gnss_rate_hz=1.0 if nmea else imu_rate_hz,

@@ -134,3 +134,38 @@ def test_inter_system_bias_starts_from_the_nearest_epoch_where_it_is_finite():
     for t_start, want in ((0.2, 12.5), (3.4, 13.0), (4.9, 13.0)):
         x, _, _, _ = apply_clock_start(x0, np.eye(L.NDX), params_array(0.6, 2.4, 50.0), table, t_start, L)
         assert list(x[L.X_ISB_SLICE]) == [want, 0.0]
+
+
+def _leap_invalid_session(folder):
+    """0759, first minute (2 epochs: the 60-s tag is 60.001 s), RAWX with leapS not valid (and
+    wrong), no NMEA; returns (nav, number of epochs)."""
+    from leonav_runtime.gnss.signals import primary_rows
+    from tests.gnss_session import write_rawx_session
+    from tests.test_gnss_coupled import geonet, nav_funcs
+
+    obs, eph, klob = geonet("0759")
+    rows, _ = primary_rows(obs, "G")
+    o = obs.take(rows)
+    o = o.take(np.flatnonzero((o.t_gps_s <= o.t_gps_s[0] + 60.0) & (o.signal == "1C") & np.isfinite(o.pseudorange_m)))
+    write_rawx_session(folder, o.t_gps_s, o.prn, o.pseudorange_m, o.doppler_hz, o.cn0_dbhz, eph.data,
+                       obs.approx_position_ecef_m, klobuchar=klob, nav=nav_funcs(), leap_valid=False)
+    return nav_funcs(), np.unique(o.t_gps_s).size
+
+
+def test_replay_of_rawx_without_valid_leap_seconds_uses_its_gps_time(tmp_path, monkeypatch):
+    """No NMEA, RAWX leapS not valid: the IMU axis comes from the RAWX time map (not the host
+    clock) and the pseudorange mode runs; with no time map at all it is skipped, with why."""
+    import hardware.session_decode
+    from leonav_runtime import replay
+
+    nav, n_epochs = _leap_invalid_session(tmp_path / "s")
+    options = replay.ReplayOptions(modes=("pseudorange+imu",), use_truth=False)
+    inputs = replay.decode_inputs(tmp_path / "s", options, nav=nav)
+    # (the first RAWX waits behind the SFRBX burst on the wire: an outlier of the fit)
+    assert inputs.init["time_axis"].startswith("GNSS time map from RAWX ("), inputs.init["time_axis"]
+    assert inputs.skipped == {} and inputs.counts["gnss_decoder"]["accepted"]["rawx_leap_from_table"] == n_epochs
+    assert inputs.counts["gnss_pseudorange_records"] > 0
+    monkeypatch.setattr(hardware.session_decode, "fit_time_map", lambda tags: TimeMap())
+    inputs = replay.decode_inputs(tmp_path / "s", options, nav=nav)
+    assert "host wall clock" in inputs.init["time_axis"]
+    assert "no GNSS time tag" in inputs.skipped["pseudorange+imu"], inputs.skipped
