@@ -214,22 +214,29 @@ def _strip_comments(data: bytes) -> bytes:
     return b"".join(ln + b"\n" for ln in data.split(b"\n") if ln and not ln.startswith(b"#"))
 
 
+def _mutants(data: bytes, n: int, rng, flip, valid_flip):
+    """n (mutant, offset of the first change) in turn: truncated, a flipped byte, a flip that
+    keeps the checksum valid, the original (rechunked by the check)."""
+    for k in range(n):
+        kind = k % 4
+        if kind == 0:
+            cut = int(rng.integers(0, len(data)))
+            yield data[:cut], cut
+        elif kind == 1:
+            yield flip()
+        elif kind == 2:
+            yield valid_flip()
+        else:
+            yield data, len(data)
+
+
 @pytest.mark.parametrize("name,n", [("nmea/gpsd/nmea-rtk.log", 80), ("nmea/gpsd/ublox-neo-m9n-nmea.log", 40)])
 def test_fuzz_nmea_reader(name, n):
     data = _strip_comments(shared_file(name).read_bytes())[:30000]
     rng = np.random.default_rng(15)
     with bounded(20):
-        for k in range(n):
-            kind = ("truncate", "flip", "valid", "rechunk")[k % 4]
-            if kind == "truncate":
-                cut = int(rng.integers(0, len(data)))
-                mutant, offset = data[:cut], cut
-            elif kind == "flip":
-                mutant, offset = _flip(data, rng, avoid=b"\xb5")
-            elif kind == "valid":
-                mutant, offset = _nmea_valid_flip(data, rng)
-            else:
-                mutant, offset = data, len(data)
+        for mutant, offset in _mutants(data, n, rng, lambda: _flip(data, rng, avoid=b"\xb5"),
+                                       lambda: _nmea_valid_flip(data, rng)):
             _check_gnss_mutant(data, mutant, offset, rng, nmea_only=True)
 
 
@@ -241,17 +248,8 @@ def test_fuzz_ubx_reader(name, limit, n):
     spans = _ubx_frame_spans(data)
     rng = np.random.default_rng(15)
     with bounded(30):
-        for k in range(n):
-            kind = ("truncate", "flip", "valid", "rechunk")[k % 4]
-            if kind == "truncate":
-                cut = int(rng.integers(0, len(data)))
-                mutant, offset = data[:cut], cut
-            elif kind == "flip":
-                mutant, offset = _flip(data, rng)
-            elif kind == "valid":
-                mutant, offset = _ubx_valid_flip(data, spans, rng)
-            else:
-                mutant, offset = data, len(data)
+        for mutant, offset in _mutants(data, n, rng, lambda: _flip(data, rng),
+                                       lambda: _ubx_valid_flip(data, spans, rng)):
             _check_gnss_mutant(data, mutant, offset, rng, nmea_only=False)
 
 
