@@ -66,3 +66,19 @@ def pi_program(cc: str = "cc") -> Path:
                                  capture_output=True, text=True, timeout=300)
             assert run.returncode == 0, run.stderr
     return out / "leonav_filter"
+
+
+def short_paper_scenario(duration_s: float, counts: list[int], source: str,
+                         modes: tuple[str, ...] = ("gps+imu", "leo-alpha+imu"), **sections):
+    """The paper scenario shortened to `duration_s` with the given Starlink counts and modes
+    (and whole sections replaced by `sections`), validated like a scenario file."""
+    import copy
+
+    from leonav_runtime.scenario import load_scenario, scenario_from_dict
+
+    raw = copy.deepcopy(load_scenario("paper").raw)
+    raw["time"]["duration_s"] = duration_s
+    raw["starlink"]["counts"] = list(counts)
+    raw["monte_carlo"]["modes"] = list(modes)
+    raw.update(copy.deepcopy(sections))
+    return scenario_from_dict(raw, source=source)

@@ -2,7 +2,6 @@
 paper's bands on rmse_vs_count, and the result files' units (rmse.csv, findings.csv)."""
 from __future__ import annotations
 
-import copy
 import csv
 import json
 import math
@@ -11,18 +10,14 @@ import numpy as np
 import pytest
 
 from leonav_runtime import plot_style, sweep_plots
-from leonav_runtime.scenario import load_scenario, scenario_from_dict
+from tests.conftest import short_paper_scenario
 from leonav_runtime.sky_plot import short_label
 from leonav_runtime.sweep import run_sweep
 
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
-    raw = copy.deepcopy(load_scenario("paper").raw)
-    raw["time"]["duration_s"] = 3.0
-    raw["starlink"]["counts"] = [5, 10]
-    raw["monte_carlo"]["modes"] = ["gps+imu", "leo-alpha+imu"]
-    scn = scenario_from_dict(raw, source="<figures test>")
+    scn = short_paper_scenario(3.0, [5, 10], "<figures test>")
     out = tmp_path_factory.mktemp("tiny")
     return scn, run_sweep(scn, out, trials=2, workers=1, progress=False, figures=False), out
 

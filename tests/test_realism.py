@@ -1,7 +1,6 @@
 """Realism switches: each changes the truth in the stated way; off leaves trials bit for bit."""
 from __future__ import annotations
 
-import copy
 
 import numpy as np
 import pytest
@@ -10,16 +9,11 @@ from leonav_runtime import montecarlo as mc
 from leonav_runtime import realism, simulate
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gen import state_layout as L
-from leonav_runtime.scenario import load_scenario, scenario_from_dict
+from tests.conftest import short_paper_scenario
 
 
 def _scn(**sections):
-    raw = copy.deepcopy(load_scenario("paper").raw)
-    raw["time"]["duration_s"] = 3.0
-    raw["starlink"]["counts"] = [10]
-    raw["monte_carlo"]["modes"] = ["gps+imu", "leo-alpha+imu"]
-    raw.update(copy.deepcopy(sections))
-    return scenario_from_dict(raw, source="<realism test>")
+    return short_paper_scenario(3.0, [10], "<realism test>", **sections)
 
 
 def _records(scn, mode, index=0):

@@ -2,7 +2,6 @@
 headless browser (Debian's chromium; skipped with the reason when it is absent)."""
 from __future__ import annotations
 
-import copy
 import html.parser
 import json
 import re
@@ -12,8 +11,8 @@ import subprocess
 import pytest
 
 from leonav_runtime import html_report, sweep_plots
-from leonav_runtime.scenario import load_scenario, scenario_from_dict
 from leonav_runtime.sweep import run_sweep
+from tests.conftest import short_paper_scenario
 
 
 class _Refs(html.parser.HTMLParser):
@@ -47,11 +46,7 @@ def external_references(text: str) -> list[str]:
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
-    raw = copy.deepcopy(load_scenario("paper").raw)
-    raw["time"]["duration_s"] = 2.0
-    raw["starlink"]["counts"] = [5, 10]
-    raw["monte_carlo"]["modes"] = ["gps+imu", "leo-alpha+imu"]
-    scn = scenario_from_dict(raw, source="<report test>")
+    scn = short_paper_scenario(2.0, [5, 10], "<report test>")
     out = tmp_path_factory.mktemp("report")
     res = run_sweep(scn, out, trials=2, workers=1, progress=False, figures=False)
     sweep_plots.plot_rmse_vs_count(res.scenario, res, out / "rmse_vs_count.png")
