@@ -5,12 +5,15 @@ copied). Tests that need it skip with a clear reason when it is absent.
 """
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import hashlib
+import http.server
 import os
 import shutil
 import subprocess
 import tempfile
+import threading
 from pathlib import Path
 
 import pytest
@@ -82,3 +85,19 @@ def short_paper_scenario(duration_s: float, counts: list[int], source: str,
     raw["monte_carlo"]["modes"] = list(modes)
     raw.update(copy.deepcopy(sections))
     return scenario_from_dict(raw, source=source)
+
+
+@contextlib.contextmanager
+def local_http_server(handler: type):
+    """An HTTP server on 127.0.0.1 (a free port) answering with `handler` in a thread;
+    yields its base URL 'http://127.0.0.1:PORT' and shuts it down after."""
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    server.daemon_threads = True
+    thread = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}"
+    finally:
+        server.shutdown()
+        server.server_close()
+        thread.join(timeout=5)

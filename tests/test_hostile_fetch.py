@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import http.server
 import json
-import threading
 import time
 from contextlib import contextmanager
 
@@ -19,7 +18,7 @@ import pytest
 from leonav_runtime.cli import main as leonav_main
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.orbits import FetchError, RejectedElementsWarning, fetch_group, load_elements
-from tests.conftest import shared_file
+from tests.conftest import local_http_server, shared_file
 
 QUERY = "?GROUP=gps-ops&FORMAT=tle"
 
@@ -56,16 +55,8 @@ def hostile_server(behaviours: dict):
         def log_message(self, *args):
             pass
 
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
-    server.daemon_threads = True
-    thread = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
-    thread.start()
-    try:
-        yield f"http://127.0.0.1:{server.server_address[1]}", hits
-    finally:
-        server.shutdown()
-        server.server_close()
-        thread.join(timeout=5)
+    with local_http_server(Handler) as base:
+        yield base, hits
 
 
 def ok(body: bytes):

@@ -4,7 +4,6 @@ from __future__ import annotations
 import http.server
 import json
 import socket
-import threading
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -13,7 +12,7 @@ import pytest
 from leonav_runtime.cli import main as leonav_main
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.orbits import FetchError, fetch_group, load_elements
-from tests.conftest import shared_file
+from tests.conftest import local_http_server, shared_file
 
 
 @contextmanager
@@ -33,15 +32,8 @@ def serve(routes: dict[str, tuple[int, bytes]]):
         def log_message(self, *args):  # keep pytest output clean
             pass
 
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
-    thread = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True)
-    thread.start()
-    try:
-        yield f"http://127.0.0.1:{server.server_address[1]}/gp.php", requests
-    finally:
-        server.shutdown()
-        server.server_close()
-        thread.join(timeout=5)
+    with local_http_server(Handler) as base:
+        yield f"{base}/gp.php", requests
 
 
 def _closed_port() -> int:
