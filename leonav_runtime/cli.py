@@ -57,6 +57,15 @@ limits on untrusted input:
 """
 
 
+class _VersionAction(argparse.Action):
+    """`--version`: the version and git commit, looked up only when asked for (the lookup
+    runs git, which every other command line would otherwise pay for)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(provenance.version_text())   # stdout, as argparse's own version action
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the top-level parser with every discovered subcommand (errors are one line)."""
     parser = OneLineErrorParser(
@@ -68,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--version", action="version", version=provenance.version_text(),
+    parser.add_argument("--version", action=_VersionAction, nargs=0,
                         help="print the leonav version and the git commit of this checkout, then exit")
     parser.add_argument("--debug", action="store_true",
                         help="print the Python traceback of an error (also accepted after the command)")
