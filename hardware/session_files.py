@@ -14,7 +14,6 @@ from __future__ import annotations
 import csv
 import math
 import threading
-import warnings
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
@@ -46,10 +45,8 @@ def fit_time_map(tags: Iterable[GnssTimeTag]) -> TimeMap:
     """`TimeMap.fit`, or an empty (invalid) map when the tags leave it nothing to fit (two
     groups of tags more than 1 s apart around their median: every tag is an outlier)."""
     try:
-        with warnings.catch_warnings():   # numpy's "mean of empty slice" on the way to that ValueError
-            warnings.simplefilter("ignore", RuntimeWarning)
-            return TimeMap.fit(tags)
-    except ValueError:
+        return TimeMap.fit(tags)
+    except ValueError:   # TimeMap's UserInputError: no majority of tags to fit
         return TimeMap()
 
 

@@ -18,12 +18,11 @@ import math
 
 import numpy as np
 
-from hardware.gnss.leap import leap_seconds_at_gps, leap_seconds_at_utc  # noqa: F401 (the one table, re-exported)
+from hardware.gnss.leap import (_GPS_EPOCH_ORDINAL, DAY_S, leap_seconds_at_gps,  # noqa: F401 (the one table,
+                                leap_seconds_at_utc)                         # re-exported)
 from leonav_runtime.gen.constants import BDT_MINUS_GPST_S, BDT_WEEK_OFFSET, GPS_WEEK_S
 
 GPS_EPOCH = _dt.datetime(1980, 1, 6, tzinfo=_dt.timezone.utc)
-_GPS_EPOCH_ORDINAL = _dt.date(1980, 1, 6).toordinal()
-DAY_S = 86400.0
 
 
 def calendar_to_seconds(year: int, month: int, day: int, hour: int = 0, minute: int = 0,

@@ -28,7 +28,6 @@ import numpy as np
 
 from leonav_runtime import records
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.gen import constants as K
 from leonav_runtime.gen import state_layout as LAYOUT
 from leonav_runtime.inputs.tables import _bad, check_column
 
@@ -165,6 +164,3 @@ def nearest_finite(t: np.ndarray, values: np.ndarray, t_start: float) -> np.ndar
             out[j] = values[fin[np.argmin(np.abs(t[fin] - t_start))], j]
     return out
 
-
-RANGE_RATE_SIGMA_MPS = K.RANGE_RATE_SIGMA_MPS
-"""Default 1-sigma of a Doppler range rate (m/s) when the receiver gives none."""
