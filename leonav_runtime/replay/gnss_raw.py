@@ -43,13 +43,15 @@ def raw_gnss(gnss_records, options, nav: navfuncs.NavFunctions, source: str) -> 
     log = ubx_records_to_log(epochs, [(f.payload, f"{source}: SFRBX #{k + 1}") for k, f in enumerate(frames)],
                              source)
     eph, klob = log.ephemerides, klobuchar_coefficients(log.iono)
+    klob_source = "none" if klob is None else "SFRBX page 18"
     if options.nav_paths:
         eph2, klob2 = load_nav_files(options.nav_paths)
         eph = eph.concat(eph2).deduplicate()
-        klob = klob if klob is not None else klob2
+        if klob is None and klob2 is not None:
+            klob, klob_source = klob2, "RINEX header"
     summary = {"rawx_epochs": len(epochs), "rawx_rows": len(log.observations), "sfrbx_frames": len(frames),
                "ephemerides": len(eph), "ephemerides_from_sfrbx": len(log.ephemerides),
-               "klobuchar": "none" if klob is None else "SFRBX page 18" if log.iono else "RINEX header",
+               "klobuchar": klob_source,
                "sfrbx_counts": {k: int(v) for k, v in sorted(log.counts.items())}}
     if not epochs:
         return RawGnss(None, summary, "no RXM-RAWX in gnss.raw (enable raw measurements on the receiver)")
