@@ -19,7 +19,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import MODES, Scenario
+from leonav_runtime.scenario import MODES, SCHEMA, Scenario
 from leonav_runtime.scenario import load_scenario as _load_scenario
 
 __all__ = ["MODES", "Scenario", "load_scenario", "run_sweep", "run_replay", "run_study"]
@@ -29,14 +29,14 @@ _BLOCKS = {"position": ("position", "m", 1.0), "velocity": ("velocity", "mps", 1
            "attitude": ("attitude", "deg", 180.0 / math.pi)}
 
 
-MAX_TRIALS = 100000   # as the scenario's [monte_carlo] trials and the command line's --trials
+_TRIALS = SCHEMA["monte_carlo"]["trials"]   # the bounds of the scenario's [monte_carlo] trials and of --trials
 
 
 def _check_run_options(trials: int | None, workers: int | None) -> None:
     """The same limits as the command line's --trials and --workers (UserInputError)."""
     if trials is not None and (not isinstance(trials, (int, np.integer)) or isinstance(trials, bool)
-                               or not 1 <= trials <= MAX_TRIALS):
-        raise UserInputError(f"trials = {trials!r}: expected an integer in 1..{MAX_TRIALS}")
+                               or not _TRIALS.lo <= trials <= _TRIALS.hi):
+        raise UserInputError(f"trials = {trials!r}: expected an integer in {_TRIALS.lo:g}..{_TRIALS.hi:g}")
     if workers is not None and (not isinstance(workers, (int, np.integer)) or isinstance(workers, bool) or workers < 1):
         raise UserInputError(f"workers = {workers!r}: expected an integer >= 1 (or None: all cores)")
 

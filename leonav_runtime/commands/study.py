@@ -34,10 +34,10 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from leonav_runtime.study.run import run_study, summary_table
-    from leonav_runtime.study.spec import load_study
+    from leonav_runtime.study.spec import TRIALS, load_study
 
-    if args.trials is not None and not 1 <= args.trials <= 100000:
-        raise UserInputError(f"--trials {args.trials}: expected an integer in 1..100000")
+    if args.trials is not None and not TRIALS.lo <= args.trials <= TRIALS.hi:
+        raise UserInputError(f"--trials {args.trials}: expected an integer in {TRIALS.lo:g}..{TRIALS.hi:g}")
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"--workers {args.workers}: expected an integer >= 1")
     study = load_study(args.study, args.set)

@@ -19,6 +19,7 @@ import numpy as np
 
 from leonav_runtime import plot_style as ps
 from leonav_runtime.paper_values import PAPER_FINDINGS
+from leonav_runtime.study.spec import value_label
 
 HEAT_KEYS = ("position_rmse_m", "position_sqrt_pcrb_m", "position_final_rmse_m", "position_final_sqrt_pcrb_m",
              "nees_mean", "nees_lo", "nees_hi")
@@ -34,7 +35,7 @@ def _label(text: str) -> str:
 
 
 def _ticks(values: tuple[Any, ...]) -> list[str]:
-    return [f"{v:g}" if isinstance(v, float) else str(v) for v in values]
+    return [value_label(v) for v in values]
 
 
 def paper_band(study, mode: str) -> tuple[float, float] | None:

@@ -92,7 +92,6 @@ def run_study(study: Study, out_dir: Path, *, workers: int | None = None, dask_a
         bar = tqdm(total=len(tasks), unit="task", desc=f"study {study.name}", smoothing=0.05)
     with make_executor(workers, dask_address) as ex:
         blocks = map_in_order(ex, mc.run_block, [t for _, t in tasks], on_done=(bar.update if bar else None))
-    t_trials = time.perf_counter() - t_start
     if bar:
         bar.close()
     results: dict = {}

@@ -31,6 +31,7 @@ from leonav_runtime.scenario import NAME, SCHEMA, Scenario, load_scenario, scena
 MAX_AXES, MAX_VALUES, MAX_CELLS = 2, 50, 400
 STUDY_KEYS = ("name", "description", "scenario", "modes", "count", "trials", "set", "vary")
 BUILTIN_STUDY_DIR = Path(__file__).with_name("studies")
+TRIALS = SCHEMA["monte_carlo"]["trials"]   # the bounds of trials per cell, as a scenario's
 
 
 @dataclass(frozen=True)
@@ -115,7 +116,8 @@ def _value_key(v: Any) -> tuple:
     return ("other", repr(v))
 
 
-def _label(v: Any) -> str:
+def value_label(v: Any) -> str:
+    """A grid value as cells, tables and figure ticks show it ("0.1", not "0.1000")."""
     return f"{v:g}" if isinstance(v, float) else str(v)
 
 
@@ -188,8 +190,8 @@ def study_from_dict(data: dict[str, Any], source: str, base_dir: Path,
     modes = data.get("modes", base.modes)
     count = data.get("count")
     trials = data.get("trials", base.trials)
-    if not isinstance(trials, int) or isinstance(trials, bool) or not 1 <= trials <= 100000:
-        raise UserInputError(f"{source}: trials = {trials!r}: expected an integer in 1..100000")
+    if not isinstance(trials, int) or isinstance(trials, bool) or not TRIALS.lo <= trials <= TRIALS.hi:
+        raise UserInputError(f"{source}: trials = {trials!r}: expected an integer in {TRIALS.lo:g}..{TRIALS.hi:g}")
     if count is not None and (not isinstance(count, int) or isinstance(count, bool) or count < 1):
         raise UserInputError(f"{source}: count = {count!r}: expected an integer >= 1 (Starlink satellites)")
     grid = expand_grid(axes)
@@ -210,7 +212,7 @@ def study_from_dict(data: dict[str, Any], source: str, base_dir: Path,
         raw = copy.deepcopy(base_raw)
         for key, value in values.items():
             apply_setting(raw, key, value)
-        label = ", ".join(f"{k}={_label(v)}" for k, v in values.items())
+        label = ", ".join(f"{k}={value_label(v)}" for k, v in values.items())
         try:
             scn = scenario_from_dict(raw, source=f"{source} ({label})", base_dir=scn_dir)
         except UserInputError as exc:
