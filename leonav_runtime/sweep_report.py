@@ -14,10 +14,10 @@ Files (units in every CSV header; attitude in degrees, as printed on the console
 """
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
+from hardware.jsonfile import jsonable
 from leonav_runtime import html_report
 from leonav_runtime import montecarlo as mc
 from leonav_runtime import output
@@ -133,7 +133,7 @@ def write_results(scn, out_dir: Path, res, figures: bool = True) -> None:
                       "att_rmse_deg", "att_sqrt_pcrb_deg", "nees_mean"], time_rows)
     if figures:
         sweep_plots.plot_all(scn, res, out_dir)
-    html_report.write_sweep_report(out_dir, json.loads((out_dir / "metrics.json").read_text()))
+    html_report.write_sweep_report(out_dir, jsonable(metrics))   # the content of metrics.json, not read back
 
 
 def summary_table(res) -> str:
