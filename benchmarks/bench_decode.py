@@ -16,8 +16,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from hardware.gnss.reader import GnssDecoder  # noqa: E402
-from hardware.imu.witmotion import SampleGrouper, WitMotionParser  # noqa: E402
+from leonav.hardware.gnss.reader import GnssDecoder  # noqa: E402
+from leonav.hardware.imu.witmotion import SampleGrouper, WitMotionParser  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"
 RATE_HZ = 10.0

@@ -123,7 +123,7 @@ def time_c_loop(lib, recs, x0, P0, params, repeats):
 
 def time_casadi(recs, x0, P0, params, gate, kinds: dict[str, int], repeats):
     import casadi as ca
-    from codegen.functions import build_functions
+    from leonav.codegen.functions import build_functions
 
     fns = {f.name(): f for f in build_functions()}
     kind_fn = {k: fns[f"leonav_update_{name}"] for name, k in kinds.items()}

@@ -40,7 +40,7 @@ def main() -> None:
     args = parser.parse_args()
 
     t0 = time.perf_counter()
-    from codegen import observability as ob
+    from leonav.codegen import observability as ob
     t_import = time.perf_counter() - t0
     t0 = time.perf_counter()
     sym = ob.symbolic()

@@ -4,7 +4,7 @@ Each mutant in `benchmarks/mutants.py` is one small edit of one source file (a f
 sign, a swapped field, a wrong scale, a dropped check). The script copies the project's
 tracked files into a temporary folder once, then for every mutant: applies the edit to
 the copy (never to the working files), regenerates the C when the edit is in `models/`
-(`python -m codegen` into the copy), runs that module's tests with pytest, and puts the
+(`python -m leonav.codegen` into the copy), runs that module's tests with pytest, and puts the
 original file back. A mutant is *killed* when pytest fails (or times out), *survives*
 when it passes. Mutants marked equivalent in the catalogue (no behaviour a user could
 see, reason given there) are run but not counted in the score.

@@ -1,4 +1,4 @@
-"""Shared argument handling of `python -m codegen` and `leonav codegen`."""
+"""Shared argument handling of `python -m leonav.codegen` and `leonav codegen`."""
 from __future__ import annotations
 
 import argparse
@@ -14,14 +14,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from codegen.generate import default_output_dir, diff_against, generate
+    from leonav.codegen.generate import default_output_dir, diff_against, generate
 
     out = args.out or default_output_dir()
     start = time.perf_counter()
     if args.check:
         changed = diff_against(out)
         if changed:
-            print(f"generated code is stale in {out}: {', '.join(changed)} differ; run `python -m codegen` to update",
+            print(f"generated code is stale in {out}: {', '.join(changed)} differ; run `python -m leonav.codegen` to update",
                   file=sys.stderr)
             return 1
         print(f"generated code in {out} is up to date ({time.perf_counter() - start:.1f} s)")

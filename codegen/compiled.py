@@ -17,7 +17,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from codegen.generate import GEN_NAME, default_output_dir
+from leonav.codegen.generate import GEN_NAME, default_output_dir
 
 
 def compile_shared(c_file: str | Path | None = None) -> Path:

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import dataclasses
 
-from models import clock as model_clock
-from models import imu as model_imu
-from models.constants import CONSTANTS
+from leonav.models import clock as model_clock
+from leonav.models import imu as model_imu
+from leonav.models.constants import CONSTANTS
 
 
 def constants_py(banner: str) -> str:

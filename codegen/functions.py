@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models import ekf, frames, input_noise, kinematics
-from models.measurements import gnss_code
-from models.measurements import models as measurement_models
-from models.measurements.geometry import receiver_ecef, transmit_state
-from models.measurements.orbit_jacobian import orbit_jacobian, orbit_observables
-from models.state import NAUX, NDX, NP, NU, NX
-from models.state import P as P_BLOCK
+from leonav.models import ekf, frames, input_noise, kinematics
+from leonav.models.measurements import gnss_code
+from leonav.models.measurements import models as measurement_models
+from leonav.models.measurements.geometry import receiver_ecef, transmit_state
+from leonav.models.measurements.orbit_jacobian import orbit_jacobian, orbit_observables
+from leonav.models.state import NAUX, NDX, NP, NU, NX
+from leonav.models.state import P as P_BLOCK
 
 FUNCTION_OPTS = {"cse": True}
 

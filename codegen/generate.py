@@ -7,13 +7,13 @@ from pathlib import Path
 
 import casadi as ca
 
-from codegen import emit_data
-from codegen.driver_codes import RECORD_STATUSES, RETURN_CODES
-from models import state as S
-from models.measurements.orbit_jacobian import NORBIT
+from leonav.codegen import emit_data
+from leonav.codegen.driver_codes import RECORD_STATUSES, RETURN_CODES
+from leonav.models import state as S
+from leonav.models.measurements.orbit_jacobian import NORBIT
 
 GEN_NAME = "leonav_gen"
-COMMAND = "python -m codegen  (or: leonav codegen)"
+COMMAND = "python -m leonav.codegen  (or: leonav codegen)"
 FILES = (f"{GEN_NAME}.c", f"{GEN_NAME}.h", f"{GEN_NAME}.json", "state_layout.h", "state_layout.py",
          "constants.py", "constants.h", "profiles.py", "__init__.py")
 CODEGEN_OPTS = {"with_header": True, "casadi_int": "int", "casadi_real": "double", "verbose": False}
@@ -21,7 +21,10 @@ CODEGEN_OPTS = {"with_header": True, "casadi_int": "int", "casadi_real": "double
 
 def default_output_dir() -> Path:
     """The committed folder `leonav_runtime/gen/`."""
-    return Path(__file__).resolve().parents[1] / "leonav_runtime" / "gen"
+    import importlib.util
+
+    spec = importlib.util.find_spec("leonav_runtime")   # its folder, without importing it
+    return Path(next(iter(spec.submodule_search_locations))) / "gen"
 
 
 def _banner(comment: str) -> str:
@@ -130,7 +133,7 @@ def _py_layout() -> str:
 
 def _orbit_kinds() -> list:
     """The observables (models.state order) that get a leonav_orbit_jac_<suffix>."""
-    from models.measurements.orbit_jacobian import orbit_observables
+    from leonav.models.measurements.orbit_jacobian import orbit_observables
 
     suffixes = orbit_observables()
     return [m for m in S.MEASUREMENTS if m.suffix in suffixes]
@@ -151,7 +154,7 @@ def _manifest(functions) -> str:
 
 def generate(output_dir: str | Path) -> list[Path]:
     """Generate every file of `leonav_runtime/gen/` into `output_dir`; returns the written paths."""
-    from codegen.functions import build_functions
+    from leonav.codegen.functions import build_functions
 
     out = Path(output_dir)
     out.mkdir(parents=True, exist_ok=True)

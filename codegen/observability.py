@@ -53,11 +53,11 @@ import casadi as ca
 import numpy as np
 
 from leonav_runtime import observability as _rt  # naming and mode list (numeric side, no casadi)
-from models import ekf, frames, kinematics
-from models import state as S
-from models.constants import WGS84_A_M, WGS84_GM_M3PS2
-from models.measurements import models as measurement_models
-from models.measurements.geometry import receiver_ecef
+from leonav.models import ekf, frames, kinematics
+from leonav.models import state as S
+from leonav.models.constants import WGS84_A_M, WGS84_GM_M3PS2
+from leonav.models.measurements import models as measurement_models
+from leonav.models.measurements.geometry import receiver_ecef
 from leonav_runtime.params import build_params
 
 # --- scaling and thresholds ----------------------------------------------------------------

@@ -14,7 +14,7 @@ from typing import Any, BinaryIO, Callable, Iterator
 
 import serial
 
-from hardware.errors import UserInputError
+from leonav.hardware.errors import UserInputError
 
 READ_TIMEOUT_S = 0.05   # serial read timeout: bounds how late a stop request is noticed
 FILE_CHUNK = 4096

@@ -21,9 +21,9 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from hardware.errors import UserInputError
-from hardware.records import GnssTimeTag
-from hardware.uart import serialization_s
+from leonav.hardware.errors import UserInputError
+from leonav.hardware.records import GnssTimeTag
+from leonav.hardware.uart import serialization_s
 
 # Preferred source of time tags: one per navigation epoch, best time quality first.
 SOURCE_PRIORITY = ("NAV-PVT", "TIMEGPS", "RAWX", "RMC", "ZDA")

@@ -27,15 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
-from hardware.fakes import serial_chunks
-from hardware.gnss import nmea_write
-from hardware.gnss.reader import GnssDecoder
-from hardware.imu import witmotion_encode as wenc
-from hardware.imu.witmotion import SampleGrouper, WitMotionParser
-from hardware.jsonfile import write_json
-from hardware.records import GnssTimeTag
-from hardware.sdr import capture as sdr_capture
-from hardware.session_files import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, CsvSink, RawLog,
+from leonav.hardware.fakes import serial_chunks
+from leonav.hardware.gnss import nmea_write
+from leonav.hardware.gnss.reader import GnssDecoder
+from leonav.hardware.imu import witmotion_encode as wenc
+from leonav.hardware.imu.witmotion import SampleGrouper, WitMotionParser
+from leonav.hardware.jsonfile import write_json
+from leonav.hardware.records import GnssTimeTag
+from leonav.hardware.sdr import capture as sdr_capture
+from leonav.hardware.session_files import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, CsvSink, RawLog,
                                     RunningTimeMap, gnss_rows, imu_row, session_json)
 
 IMU_TEMPERATURE_C = 24.5

@@ -19,7 +19,7 @@ from typing import Sequence
 
 import numpy as np
 
-from hardware.uart import serialization_s
+from leonav.hardware.uart import serialization_s
 
 
 class PtyDevice:

@@ -38,16 +38,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from hardware.errors import UserInputError
-from hardware.gnss import ubx_config
-from hardware.gnss.reader import GnssReader
-from hardware.imu import witmotion
-from hardware.imu.witmotion import ImuReader
-from hardware.jsonfile import write_json
-from hardware.records import GnssTimeTag, UbxAck
-from hardware.sdr import capture as sdr_capture
-from hardware.session_decode import DecodedSession, decode_session, iter_raw_chunks
-from hardware.session_files import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, SESSION_VERSION, CsvSink,
+from leonav.hardware.errors import UserInputError
+from leonav.hardware.gnss import ubx_config
+from leonav.hardware.gnss.reader import GnssReader
+from leonav.hardware.imu import witmotion
+from leonav.hardware.imu.witmotion import ImuReader
+from leonav.hardware.jsonfile import write_json
+from leonav.hardware.records import GnssTimeTag, UbxAck
+from leonav.hardware.sdr import capture as sdr_capture
+from leonav.hardware.session_decode import DecodedSession, decode_session, iter_raw_chunks
+from leonav.hardware.session_files import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, SESSION_VERSION, CsvSink,
                                     RawLog, RunningTimeMap, gnss_rows, imu_row, session_json)  # noqa: F401
 
 STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")   # end a recording like Ctrl-C

@@ -7,12 +7,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable
 
-from hardware.clock import TimeMap
-from hardware.errors import UserInputError
-from hardware.gnss.reader import GnssDecoder
-from hardware.imu.witmotion import SampleGrouper, WitMotionParser
-from hardware.records import GnssTimeTag, ImuSample
-from hardware.session_files import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, CsvSink, fit_time_map, gnss_rows,
+from leonav.hardware.clock import TimeMap
+from leonav.hardware.errors import UserInputError
+from leonav.hardware.gnss.reader import GnssDecoder
+from leonav.hardware.imu.witmotion import SampleGrouper, WitMotionParser
+from leonav.hardware.records import GnssTimeTag, ImuSample
+from leonav.hardware.session_files import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, CsvSink, fit_time_map, gnss_rows,
                                     imu_row)
 
 

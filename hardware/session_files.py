@@ -17,8 +17,8 @@ import threading
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
-from hardware.clock import TimeMap, utc_unix
-from hardware.records import GnssFix, GnssTimeTag, ImuSample, RxmRawx
+from leonav.hardware.clock import TimeMap, utc_unix
+from leonav.hardware.records import GnssFix, GnssTimeTag, ImuSample, RxmRawx
 
 SESSION_VERSION = 1
 RECORDER_CLOCK_TEXT = "time.monotonic() of the recording host, stamped when a chunk is read"

@@ -6,6 +6,6 @@ catches the errors of both layers.
 """
 from __future__ import annotations
 
-from hardware.errors import UserInputError
+from leonav.hardware.errors import UserInputError
 
 __all__ = ["UserInputError"]

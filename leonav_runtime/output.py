@@ -20,8 +20,8 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from hardware.jsonfile import write_json
-from hardware.jsonfile import replace_file
+from leonav.hardware.jsonfile import write_json
+from leonav.hardware.jsonfile import replace_file
 
 __all__ = ["add_out_argument", "results_dir", "write_json", "write_csv"]
 

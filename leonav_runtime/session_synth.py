@@ -43,9 +43,9 @@ from typing import Callable
 
 import numpy as np
 
-from hardware.clock import utc_unix
-from hardware.fake_session import GnssOutput, HostTiming, ImuOutput, SdrOutput, write_fake_session
-from hardware.sdr import capture as sdr_capture
+from leonav.hardware.clock import utc_unix
+from leonav.hardware.fake_session import GnssOutput, HostTiming, ImuOutput, SdrOutput, write_fake_session
+from leonav.hardware.sdr import capture as sdr_capture
 from leonav_runtime import geometry, navfuncs, simulate
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gen.constants import STARLINK_BEACON_HZ

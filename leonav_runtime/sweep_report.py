@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from hardware.jsonfile import jsonable
+from leonav.hardware.jsonfile import jsonable
 from leonav_runtime import html_report
 from leonav_runtime import montecarlo as mc
 from leonav_runtime import output

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from models.constants import C_LIGHT_MPS
+from leonav.models.constants import C_LIGHT_MPS
 
 
 @dataclass(frozen=True)

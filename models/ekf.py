@@ -17,10 +17,10 @@ from typing import Callable
 
 import casadi as ca
 
-from models import frames, kinematics
-from models.clock import clock_qd
-from models.constants import ISB_RW_PSD_M2PS
-from models.state import DX, NDX, P, U, X
+from leonav.models import frames, kinematics
+from leonav.models.clock import clock_qd
+from leonav.models.constants import ISB_RW_PSD_M2PS
+from leonav.models.state import DX, NDX, P, U, X
 
 def _at_zero(expr, sym):
     return ca.substitute(expr, sym, ca.DM.zeros(sym.shape))

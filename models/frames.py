@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models import constants as K
-from models.state import DX, NX, X
+from leonav.models import constants as K
+from leonav.models.state import DX, NX, X
 
 # Below this squared angle (rad^2) the quaternion exp/log use their Taylor series
 # (4th order in the angle: truncation < 1e-17 there), which keeps the expressions and

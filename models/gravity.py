@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models import constants as K
+from leonav.models import constants as K
 
 
 def normal_gravity(lat, h):

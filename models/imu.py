@@ -14,8 +14,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from models.constants import DEG_RAD as DEG
-from models.constants import G0_MPS2
+from leonav.models.constants import DEG_RAD as DEG
+from leonav.models.constants import G0_MPS2
 
 HOUR_S = 3600.0
 

@@ -8,7 +8,7 @@ measurement variance is the beacon's own plus (f_c/c)^2 vrw^2 / dt. Pure Python.
 """
 from __future__ import annotations
 
-from models.constants import C_LIGHT_MPS
+from leonav.models.constants import C_LIGHT_MPS
 
 
 def doppler_rate_variance(sigma_hz_s: float, f_c_hz: float, vrw: float, imu_dt_s: float) -> float:

@@ -28,10 +28,10 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models import constants as K
-from models import frames
-from models.gravity import normal_gravity_sin
-from models.state import AUX, P, U, X
+from leonav.models import constants as K
+from leonav.models import frames
+from leonav.models.gravity import normal_gravity_sin
+from leonav.models.state import AUX, P, U, X
 
 
 def origin(p):

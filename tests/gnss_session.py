@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hardware.gnss.ubx import build_frame
+from leonav.hardware.gnss.ubx import build_frame
 from leonav_runtime import geometry
 from leonav_runtime.gnss import sfrbx
 from leonav_runtime.gnss import time as gtime

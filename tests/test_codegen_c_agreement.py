@@ -10,8 +10,8 @@ import zlib
 import numpy as np
 import pytest
 
-from codegen.compiled import compile_shared, external
-from codegen.functions import build_functions
+from leonav.codegen.compiled import compile_shared, external
+from leonav.codegen.functions import build_functions
 from leonav_runtime.gen import state_layout as L
 
 FUNCTIONS = build_functions()

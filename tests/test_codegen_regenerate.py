@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from codegen.generate import FILES, default_output_dir, diff_against
+from leonav.codegen.generate import FILES, default_output_dir, diff_against
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -14,13 +14,13 @@ def test_committed_generated_code_is_up_to_date():
     changed = diff_against(default_output_dir())
     assert not changed, (
         f"leonav_runtime/gen/ is stale ({', '.join(changed)} differ from a fresh generation): "
-        "run `python -m codegen` (or `leonav codegen`) and commit the result"
+        "run `python -m leonav.codegen` (or `leonav codegen`) and commit the result"
     )
 
 
 def test_check_flag_fails_on_a_diff(tmp_path):
     out = tmp_path / "gen"
-    run = lambda *a: subprocess.run([sys.executable, "-m", "codegen", *a], cwd=REPO_ROOT,  # noqa: E731
+    run = lambda *a: subprocess.run([sys.executable, "-m", "leonav.codegen", *a], cwd=REPO_ROOT,  # noqa: E731
                                     capture_output=True, text=True)
     assert run("--out", str(out)).returncode == 0
     assert sorted(p.name for p in out.iterdir()) == sorted(FILES)
@@ -29,7 +29,7 @@ def test_check_flag_fails_on_a_diff(tmp_path):
     c_file.write_text(c_file.read_text().replace("casadi_real", "double", 1))
     result = run("--out", str(out), "--check")
     assert result.returncode == 1
-    assert "leonav_gen.c" in result.stderr and "python -m codegen" in result.stderr
+    assert "leonav_gen.c" in result.stderr and "python -m leonav.codegen" in result.stderr
 
 
 def test_layout_twin_matches_header():

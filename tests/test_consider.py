@@ -63,9 +63,9 @@ def test_generated_orbit_jacobian_matches_finite_differences_of_generated_h(geom
 
 def test_generated_orbit_jacobian_equals_the_symbolic_model(geometry):
     ca = pytest.importorskip("casadi", reason="the symbolic models need casadi")
-    from models.measurements import models
-    from models.measurements.orbit_jacobian import orbit_jacobian
-    from models.state import NAUX, NP, NX
+    from leonav.models.measurements import models
+    from leonav.models.measurements.orbit_jacobian import orbit_jacobian
+    from leonav.models.state import NAUX, NP, NX
 
     setup, nav, x, aux = geometry
     xs, auxs, ps = ca.SX.sym("x", NX), ca.SX.sym("aux", NAUX), ca.SX.sym("p", NP)

@@ -7,7 +7,7 @@ import argparse
 import pytest
 
 from leonav_runtime.gnss import sfrbx
-from hardware.records import UbxFrame
+from leonav.hardware.records import UbxFrame
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gnss.cli import register
 from tests.conftest import shared_file

@@ -161,8 +161,8 @@ def test_replay_names_why_pseudorange_modes_cannot_run(geonet_session, tmp_path,
     folder, _, _ = geonet_session
     bare = tmp_path / "bare"
     shutil.copytree(folder, bare)
-    from hardware.gnss.reader import GnssSplitter
-    from hardware.gnss.ubx import build_frame
+    from leonav.hardware.gnss.reader import GnssSplitter
+    from leonav.hardware.gnss.ubx import build_frame
 
     # the same session with the SFRBX frames zeroed in gnss.raw (same length: the chunk index holds)
     data = (bare / "gnss.raw").read_bytes()

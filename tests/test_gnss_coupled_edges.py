@@ -7,10 +7,10 @@ import struct
 
 import numpy as np
 
-from hardware.clock import TimeMap
-from hardware.gnss import ubx
-from hardware.gnss.reader import GnssDecoder
-from hardware.records import GnssTimeTag
+from leonav.hardware.clock import TimeMap
+from leonav.hardware.gnss import ubx
+from leonav.hardware.gnss.reader import GnssDecoder
+from leonav.hardware.records import GnssTimeTag
 from leonav_runtime.gnss import time as gtime
 
 
@@ -155,7 +155,7 @@ def _leap_invalid_session(folder):
 def test_replay_of_rawx_without_valid_leap_seconds_uses_its_gps_time(tmp_path, monkeypatch):
     """No NMEA, RAWX leapS not valid: the IMU axis comes from the RAWX time map (not the host
     clock) and the pseudorange mode runs; with no time map at all it is skipped, with why."""
-    import hardware.session_decode
+    from leonav.hardware import session_decode
     from leonav_runtime import replay
 
     nav, n_epochs = _leap_invalid_session(tmp_path / "s")
@@ -165,7 +165,7 @@ def test_replay_of_rawx_without_valid_leap_seconds_uses_its_gps_time(tmp_path, m
     assert inputs.init["time_axis"].startswith("GNSS time map from RAWX ("), inputs.init["time_axis"]
     assert inputs.skipped == {} and inputs.counts["gnss_decoder"]["accepted"]["rawx_leap_from_table"] == n_epochs
     assert inputs.counts["gnss_pseudorange_records"] > 0
-    monkeypatch.setattr(hardware.session_decode, "fit_time_map", lambda tags: TimeMap())
+    monkeypatch.setattr(session_decode, "fit_time_map", lambda tags: TimeMap())
     inputs = replay.decode_inputs(tmp_path / "s", options, nav=nav)
     assert "host wall clock" in inputs.init["time_axis"]
     assert "no GNSS time tag" in inputs.skipped["pseudorange+imu"], inputs.skipped

@@ -16,8 +16,8 @@ import struct
 import numpy as np
 import pytest
 
-from hardware.gnss.reader import GnssSplitter
-from hardware.gnss.ubx import decode_nav_pvt
+from leonav.hardware.gnss.reader import GnssSplitter
+from leonav.hardware.gnss.ubx import decode_nav_pvt
 from leonav_runtime import geometry
 from leonav_runtime.gnss import glonass
 from leonav_runtime.gnss import time as gtime

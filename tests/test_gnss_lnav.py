@@ -8,9 +8,9 @@ import struct
 import numpy as np
 import pytest
 
-from hardware.gnss import lnav
+from leonav.hardware.gnss import lnav
 from leonav_runtime.gnss import sfrbx
-from hardware.gnss.ubx import build_frame
+from leonav.hardware.gnss.ubx import build_frame
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.rinex_nav import read_rinex_nav
 from leonav_runtime.gnss.ubx_log import parse_ubx_bytes

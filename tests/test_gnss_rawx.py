@@ -68,7 +68,7 @@ def test_f9p_log_systems_and_signals():
 
 
 def test_invalid_zero_and_nan_measurements_are_counted(monkeypatch):
-    from hardware.records import RawxMeasurement, RxmRawx
+    from leonav.hardware.records import RawxMeasurement, RxmRawx
 
     def meas(**kw):
         base = dict(gnss_id=0, sv_id=5, sig_id=0, freq_id=0, pseudorange_m=2.1e7, carrier_phase_cyc=1.1e8,

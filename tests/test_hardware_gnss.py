@@ -15,10 +15,10 @@ import pynmea2
 import pytest
 import serial
 
-from hardware.fakes import PtyDevice, split_bytes
-from hardware.gnss import ubx, ubx_config
-from hardware.gnss.reader import GnssDecoder, GnssReader, GnssSplitter
-from hardware.records import GnssFix, NavPvt, NmeaSentence, RxmMeasx, RxmRawx, UbxAck, UbxFrame
+from leonav.hardware.fakes import PtyDevice, split_bytes
+from leonav.hardware.gnss import ubx, ubx_config
+from leonav.hardware.gnss.reader import GnssDecoder, GnssReader, GnssSplitter
+from leonav.hardware.records import GnssFix, NavPvt, NmeaSentence, RxmMeasx, RxmRawx, UbxAck, UbxFrame
 from tests.conftest import shared_file
 
 NMEA_LOGS = {  # name: (valid sentences, rejected sentence lines) from SOURCES.md

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 import serial
 
-from hardware.fakes import PtyDevice, split_bytes
-from hardware.imu import witmotion as wm
-from hardware.records import ImuSample, WitPacket
+from leonav.hardware.fakes import PtyDevice, split_bytes
+from leonav.hardware.imu import witmotion as wm
+from leonav.hardware.records import ImuSample, WitPacket
 from tests.conftest import shared_file
 
 G = wm.G_MPS2

@@ -18,11 +18,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hardware.clock import TimeMap
-from hardware.fakes import FakeRtlSdr, PtyDevice, split_bytes
-from hardware.records import GnssTimeTag
-from hardware.sdr import capture as sdr_capture
-from hardware.session import RecordSession, decode_session
+from leonav.hardware.clock import TimeMap
+from leonav.hardware.fakes import FakeRtlSdr, PtyDevice, split_bytes
+from leonav.hardware.records import GnssTimeTag
+from leonav.hardware.sdr import capture as sdr_capture
+from leonav.hardware.session import RecordSession, decode_session
 from leonav_runtime.cli import main as leonav_main
 from leonav_runtime.errors import UserInputError
 from tests.conftest import shared_file
@@ -226,8 +226,8 @@ def test_uart_delay_profile_gives_the_readme_figures():
     """hardware/README.md "Time alignment": the NEO-M9N log's default NMEA set (1,336 bytes per
     epoch as logged, RMC first, 10 bits per byte): the end of RMC is 72 / 18 / 6 ms after the
     start of the burst at 9600 / 38400 / 115200 baud, GGA 189 / 47 / 16 ms, ZDA 1.35 / 0.34 / 0.11 s."""
-    from hardware.clock import uart_delay_profile
-    from hardware.uart import serialization_s
+    from leonav.hardware.clock import uart_delay_profile
+    from leonav.hardware.uart import serialization_s
 
     lines = [ln for ln in shared_file("nmea/gpsd/ublox-neo-m9n-nmea.log").read_bytes().split(b"\n")
              if ln.startswith(b"$")]
@@ -249,10 +249,10 @@ def test_uart_delay_profile_gives_the_readme_figures():
 def test_device_layer_and_runtime_share_one_error_class_and_one_json_writer():
     """hardware/ defines UserInputError and write_json; the runtime's names are the same objects,
     so the CLI's `except UserInputError` catches device errors as one line."""
-    import hardware.errors
-    import hardware.jsonfile
+    from leonav.hardware import errors as hw_errors
+    from leonav.hardware import jsonfile as hw_jsonfile
     from leonav_runtime import errors, output
 
-    assert errors.UserInputError is hardware.errors.UserInputError
-    assert output.write_json is hardware.jsonfile.write_json
+    assert errors.UserInputError is hw_errors.UserInputError
+    assert output.write_json is hw_jsonfile.write_json
     assert sdr_capture.SdrUnavailable.__mro__[1] is UserInputError

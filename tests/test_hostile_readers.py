@@ -16,11 +16,11 @@ import struct
 import numpy as np
 import pytest
 
-from hardware.gnss import nmea, ubx
-from hardware.gnss.reader import GnssDecoder, GnssReader
-from hardware.imu.witmotion import PACKET_LEN, ImuReader, SampleGrouper, WitMotionParser
-from hardware.records import GnssFix, GnssTimeTag, NmeaSentence, RxmRawx
-from hardware.session_decode import decode_session
+from leonav.hardware.gnss import nmea, ubx
+from leonav.hardware.gnss.reader import GnssDecoder, GnssReader
+from leonav.hardware.imu.witmotion import PACKET_LEN, ImuReader, SampleGrouper, WitMotionParser
+from leonav.hardware.records import GnssFix, GnssTimeTag, NmeaSentence, RxmRawx
+from leonav.hardware.session_decode import decode_session
 from tests.conftest import shared_file
 from tests.timebox import bounded
 

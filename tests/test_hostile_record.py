@@ -18,10 +18,10 @@ from pathlib import Path
 
 import pytest
 
-from hardware import session_files
-from hardware.fakes import PtyDevice
-from hardware.gnss import nmea
-from hardware.session import RecordSession, decode_session
+from leonav.hardware import session_files
+from leonav.hardware.fakes import PtyDevice
+from leonav.hardware.gnss import nmea
+from leonav.hardware.session import RecordSession, decode_session
 from leonav_runtime.cli import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_IO, main
 from tests.conftest import shared_file
 from tests.timebox import bounded

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hardware.session_decode import decode_session
-from hardware.session_files import RawLog, session_json
+from leonav.hardware.session_decode import decode_session
+from leonav.hardware.session_files import RawLog, session_json
 from leonav_runtime import navfuncs, output, replay
 from leonav_runtime.cli import EXIT_BAD_INPUT, main
 from leonav_runtime.errors import UserInputError

@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from hardware.imu import witmotion_encode as wenc
+from leonav.hardware.imu import witmotion_encode as wenc
 from leonav_runtime import inputs as road
 from leonav_runtime import montecarlo as mc
 from leonav_runtime import navfuncs, replay, session_synth as ss, simulate

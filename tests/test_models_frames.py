@@ -7,12 +7,12 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from models import frames
-from models.clock import TCXO
-from models.imu import TACTICAL, WT901
+from leonav.models import frames
+from leonav.models.clock import TCXO
+from leonav.models.imu import TACTICAL, WT901
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.params import build_params
-from codegen.functions import build_functions
+from leonav.codegen.functions import build_functions
 
 FNS = {f.name(): f for f in build_functions()}
 
@@ -126,7 +126,7 @@ def test_noise_profiles_and_discrete_noise():
 
 def test_ellipsoid_normal_matches_geodetic_and_is_finite_on_the_axis():
     """The trig-free normal, sin(lat) and height equal those from geodetic_from_ecef (atan2 form)."""
-    from models.gravity import normal_gravity, normal_gravity_sin
+    from leonav.models.gravity import normal_gravity, normal_gravity_sin
 
     rng = np.random.default_rng(3)
     for _ in range(20):

@@ -4,10 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from codegen.functions import build_functions
+from leonav.codegen.functions import build_functions
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.params import build_params
-from models.state import MEASUREMENTS, NDX
+from leonav.models.state import MEASUREMENTS, NDX
 
 FNS = {f.name(): f for f in build_functions()}
 P_VEC = np.array(build_params(np.radians(43.0848638), np.radians(-77.6786127), 170.0,
@@ -125,8 +125,8 @@ def test_trapezoid_factorization_reproduces_F_and_G():
     """predict propagates P through F = T F_pre, G = T G_pre: both products equal the Jacobians."""
     import casadi as ca
 
-    from models import ekf
-    from models.state import NP, NU, NX
+    from leonav.models import ekf
+    from leonav.models.state import NP, NU, NX
 
     x, u, dt, p = ca.SX.sym("x", NX), ca.SX.sym("u", NU), ca.SX.sym("dt"), ca.SX.sym("p", NP)
     _, F, G = ekf._nav_jacobians(x, u, dt, p)

@@ -12,7 +12,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from codegen.compiled import external
+from leonav.codegen.compiled import external
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.params import build_params
 

@@ -64,7 +64,7 @@ def _trajectory(out: Path) -> list[dict]:
 
 
 def test_gnss_unplugged_after_garbage_goes_on_with_the_imu(session):
-    from hardware.session import decode_session
+    from leonav.hardware.session import decode_session
 
     out = session / "gnss_lost"
     res = _run_with_ptys(session, out, {"gnss": 4.5}, garbage=True)
@@ -116,7 +116,7 @@ def _interrupt(session: Path, out: Path, sig: int) -> tuple[int, str]:
 
 @pytest.mark.parametrize("sig, code, state", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
 def test_a_signal_flushes_every_output_and_exits_with_its_code(session, sig, code, state):
-    from hardware.session import decode_session
+    from leonav.hardware.session import decode_session
 
     out = session / f"signal_{code}"
     rc, text = _interrupt(session, out, sig)

@@ -82,7 +82,7 @@ def session(tmp_path_factory):
 
 
 def test_fast_playback_is_the_replay_but_causal(session):
-    from hardware.session import decode_session
+    from leonav.hardware.session import decode_session
     from leonav_runtime.nav.run import run_nav
 
     res = run_nav(nav_options(session / "fast", session=session / "s"))
@@ -125,7 +125,7 @@ def test_live_over_ptys_at_the_recorded_pace_agrees_with_the_replay(session):
 
     os.environ.setdefault("MAVLINK20", "1")
     mavutil = pytest.importorskip("pymavlink.mavutil", reason="needs pymavlink")
-    from hardware.session import decode_session
+    from leonav.hardware.session import decode_session
     from leonav_runtime.nav.run import run_nav
 
     tcp_port, mav_port = free_port(), free_port(socket.SOCK_DGRAM)

@@ -15,9 +15,9 @@ import math
 import pynmea2
 import pytest
 
-from hardware.gnss import nmea
-from hardware.gnss.reader import GnssReader
-from hardware.records import GnssFix, GnssTimeTag, NmeaSentence
+from leonav.hardware.gnss import nmea
+from leonav.hardware.gnss.reader import GnssReader
+from leonav.hardware.records import GnssFix, GnssTimeTag, NmeaSentence
 from tests.conftest import shared_file
 
 UTC = dt.timezone.utc
@@ -163,7 +163,7 @@ def test_gga_fields_south_west_and_heights():
 
 def test_rmc_writer_carries_the_rounding_into_the_date():
     """23:59:59.996 is written as 00:00:00.00 of the next day: time and date agree (pynmea2)."""
-    from hardware.gnss import nmea_write
+    from leonav.hardware.gnss import nmea_write
 
     line = nmea_write.rmc(dt.datetime(2026, 12, 31, 23, 59, 59, 996000, tzinfo=dt.timezone.utc),
                           43.08, -77.67, 1.0, 0.0).decode().strip()

@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from codegen import observability as ob
+from leonav.codegen import observability as ob
 from leonav_runtime import compiled
 from leonav_runtime import observability as ro
-from models import frames
-from models import state as S
-from models.measurements import models as measurement_models
+from leonav.models import frames
+from leonav.models import state as S
+from leonav.models.measurements import models as measurement_models
 
 MODES = ro.analysis_modes()
 G = 9.80
@@ -65,7 +65,7 @@ def test_runtime_module_imports_neither_casadi_nor_models():
     import sys
 
     code = ("import sys, leonav_runtime.observability as o, leonav_runtime.commands.observability; "
-            "bad = [m for m in sys.modules if m == 'casadi' or m == 'models' or m.startswith(('casadi.', 'models.'))]; "
+            "bad = [m for m in sys.modules if m == 'casadi' or m == 'leonav.models' or m.startswith(('casadi.', 'leonav.models.'))]; "
             "assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True, cwd=str(Path(__file__).resolve().parents[1]))
 

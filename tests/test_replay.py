@@ -19,12 +19,12 @@ import shutil
 import numpy as np
 import pytest
 
-from hardware.gnss import nmea_write
-from hardware.gnss.reader import GnssDecoder
-from hardware.imu import witmotion_encode as wenc
-from hardware.imu.witmotion import SampleGrouper, WitMotionParser
-from hardware.records import GnssFix, NmeaSentence
-from hardware.session import decode_session
+from leonav.hardware.gnss import nmea_write
+from leonav.hardware.gnss.reader import GnssDecoder
+from leonav.hardware.imu import witmotion_encode as wenc
+from leonav.hardware.imu.witmotion import SampleGrouper, WitMotionParser
+from leonav.hardware.records import GnssFix, NmeaSentence
+from leonav.hardware.session import decode_session
 from leonav_runtime import inputs as road, navfuncs, replay, session_synth as ss
 from leonav_runtime.cli import main as leonav_main
 from leonav_runtime.errors import UserInputError
@@ -45,7 +45,7 @@ def synth(tmp_path_factory):
 @pytest.fixture(scope="module")
 def comparison(synth, tmp_path_factory):
     """compare_replay_direct, counting how often the session is decoded and its capture processed."""
-    import hardware.session
+    from leonav.hardware import session as hw_session
     from leonav_runtime.beacons import pipeline
 
     calls = {"decode_session": 0, "process_capture": 0}
@@ -60,7 +60,7 @@ def comparison(synth, tmp_path_factory):
 
     out = tmp_path_factory.mktemp("replay")
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(hardware.session, "decode_session", counted(hardware.session, "decode_session"))
+        mp.setattr(hw_session, "decode_session", counted(hw_session, "decode_session"))
         mp.setattr(pipeline, "process_capture", counted(pipeline, "process_capture"))
         res = replay.compare_replay_direct(synth, out)
     return res | {"out": out, "calls": calls}

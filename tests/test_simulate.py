@@ -291,7 +291,7 @@ def test_noise_free_trial_adds_the_clock_and_lo_offset_with_their_signs(paper_se
 def test_noisy_trial_records_specific_force_noise_and_outages(paper_setup):
     import dataclasses
 
-    from models.input_noise import doppler_rate_variance
+    from leonav.models.input_noise import doppler_rate_variance
 
     scn, setup, nav = paper_setup
     L = nav.layout

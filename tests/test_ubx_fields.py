@@ -15,9 +15,9 @@ import math
 
 import pytest
 
-from hardware.gnss import ubx
-from hardware.gnss.reader import GnssDecoder
-from hardware.records import NavPvt, NavTimeGps, RxmMeasx, RxmRawx, UbxFrame
+from leonav.hardware.gnss import ubx
+from leonav.hardware.gnss.reader import GnssDecoder
+from leonav.hardware.records import NavPvt, NavTimeGps, RxmMeasx, RxmRawx, UbxFrame
 from tests.conftest import shared_file
 
 pyubx2 = pytest.importorskip("pyubx2", reason="pyubx2 (outside UBX decoder) is in the test extra")

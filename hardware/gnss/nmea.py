@@ -11,7 +11,7 @@ import math
 
 import pynmea2
 
-from hardware.records import GnssFix, GnssTimeTag, NmeaSentence
+from leonav.hardware.records import GnssFix, GnssTimeTag, NmeaSentence
 
 # Reasons a candidate sentence is rejected (keys of the reader's `rejected` counter).
 NO_CHECKSUM = "nmea_no_checksum"

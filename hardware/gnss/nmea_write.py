@@ -11,7 +11,7 @@ from __future__ import annotations
 import datetime as _dt
 import math
 
-from hardware.gnss.nmea import nmea_checksum
+from leonav.hardware.gnss.nmea import nmea_checksum
 
 KNOT_MPS = 1852.0 / 3600.0
 

@@ -18,10 +18,10 @@ import struct
 from collections import Counter
 from typing import Any, Callable, Iterator
 
-from hardware.byte_source import SourceReader
-from hardware.gnss import nmea, ubx
-from hardware.gnss.leap import leap_seconds_at_gps
-from hardware.records import GnssFix, GnssTimeTag, NavPvt, NavTimeGps, RxmRawx, UbxFrame
+from leonav.hardware.byte_source import SourceReader
+from leonav.hardware.gnss import nmea, ubx
+from leonav.hardware.gnss.leap import leap_seconds_at_gps
+from leonav.hardware.records import GnssFix, GnssTimeTag, NavPvt, NavTimeGps, RxmRawx, UbxFrame
 
 MAX_NMEA_BYTES = 200      # NMEA says 82; u-blox proprietary and NMEA 4.1 lines stay far below 200
 MAX_UBX_PAYLOAD = 8192    # largest u-blox output (RAWX with ~100 signals) is ~3.2 kB

@@ -11,7 +11,7 @@ import datetime as _dt
 import math
 import struct
 
-from hardware.records import (
+from leonav.hardware.records import (
     MeasxSatellite,
     NavPvt,
     NavTimeGps,

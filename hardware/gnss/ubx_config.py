@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import struct
 
-from hardware.gnss.ubx import build_frame
+from leonav.hardware.gnss.ubx import build_frame
 
 CFG_CLASS, VALSET_ID, VALGET_ID = 0x06, 0x8A, 0x8B
 LAYER_RAM, LAYER_BBR, LAYER_FLASH = 0x01, 0x02, 0x04

@@ -27,8 +27,8 @@ import struct
 from collections import Counter
 from typing import Any, Callable, Iterator
 
-from hardware.byte_source import SourceReader
-from hardware.records import ImuSample, WitPacket
+from leonav.hardware.byte_source import SourceReader
+from leonav.hardware.records import ImuSample, WitPacket
 
 HEADER = 0x55
 PACKET_LEN = 11

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
-from hardware.imu.witmotion import ACC, ANGLE, G_MPS2, GYRO, build_packet
+from leonav.hardware.imu.witmotion import ACC, ANGLE, G_MPS2, GYRO, build_packet
 
 ACC_LSB_MPS2 = 16.0 * G_MPS2 / 32768.0
 GYRO_LSB_RADPS = 2000.0 / 32768.0 * math.pi / 180.0

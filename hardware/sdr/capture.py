@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from hardware.errors import UserInputError
+from leonav.hardware.errors import UserInputError
 from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
 
 DEFAULT_RF_HZ = STARLINK_BEACON_HZ

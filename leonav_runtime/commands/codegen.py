@@ -14,13 +14,13 @@ def register(subparsers) -> None:
         description="Regenerate the generated C filter and state layout from the CasADi models, "
         "or with --check verify that the committed files are up to date (exit 1 if not).",
     )
-    from codegen.cli import add_arguments
+    from leonav.codegen.cli import add_arguments
 
     add_arguments(parser)
     parser.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
-    from codegen.cli import run
+    from leonav.codegen.cli import run
 
     return run(args)

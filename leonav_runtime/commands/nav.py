@@ -74,7 +74,7 @@ def register(subparsers) -> None:
 
 
 def _sdr_settings(args: argparse.Namespace):
-    from hardware.sdr.capture import SdrSettings
+    from leonav.hardware.sdr.capture import SdrSettings
 
     base = SdrSettings()
     gain = args.sdr_gain

@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     from leonav_runtime import observability as obs
 
     try:
-        from codegen import observability as symbolic  # casadi + models/: the codegen-side path
+        from leonav.codegen import observability as symbolic  # casadi + models/: the codegen-side path
     except ImportError as exc:
         raise UserInputError(f"the structural analysis needs casadi and the models/ package ({exc})") from None
 

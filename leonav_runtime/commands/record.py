@@ -8,7 +8,7 @@ import math
 import shutil
 from pathlib import Path
 
-from hardware.sdr.capture import DEFAULT_LNB_LO_HZ
+from leonav.hardware.sdr.capture import DEFAULT_LNB_LO_HZ
 from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
 
 MAX_SECONDS = 30 * 86400             # one recording at most 30 days
@@ -100,8 +100,8 @@ def check_options(args: argparse.Namespace) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from hardware.sdr.capture import SdrSettings
-    from hardware.session import RecordSession
+    from leonav.hardware.sdr.capture import SdrSettings
+    from leonav.hardware.session import RecordSession
 
     check_options(args)
     settings = SdrSettings(rf_center_hz=args.rf_hz, lnb_lo_hz=args.lnb_lo_hz,

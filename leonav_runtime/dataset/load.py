@@ -141,8 +141,8 @@ def read_fixes(spec: DatasetSpec, counts: dict, notes: list[str]):
 def _decoded_fixes(path, counts: dict, notes: list[str]):
     """Fixes of an NMEA or UBX log through the device layer's decoder (GGA + RMC date, NAV-PVT);
     per-fix sigma as a recorded session's replay takes it (GST, NAV-PVT accuracy, else HDOP)."""
-    from hardware.gnss.reader import GnssDecoder
-    from hardware.records import GnssFix
+    from leonav.hardware.gnss.reader import GnssDecoder
+    from leonav.hardware.records import GnssFix
     from leonav_runtime.replay.gnss_table import fix_height_m, fix_table, usable_fix
 
     dec = GnssDecoder()

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hardware.gnss import lnav
+from leonav.hardware.gnss import lnav
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import EPH_DTYPE, Ephemerides, default_fit_s
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hardware.gnss.lnav import URA_UPPER_M, ura_index
+from leonav.hardware.gnss.lnav import URA_UPPER_M, ura_index
 from leonav_runtime.gen import constants as K
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gnss.ephemeris import NO_EPHEMERIS, OK, STALE, UNHEALTHY, Ephemerides

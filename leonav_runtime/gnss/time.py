@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from hardware.gnss.leap import (_GPS_EPOCH_ORDINAL, DAY_S, leap_seconds_at_gps,  # noqa: F401 (the one table,
+from leonav.hardware.gnss.leap import (_GPS_EPOCH_ORDINAL, DAY_S, leap_seconds_at_gps,  # noqa: F401 (the one table,
                                 leap_seconds_at_utc)                         # re-exported)
 from leonav_runtime.gen.constants import BDT_MINUS_GPST_S, BDT_WEEK_OFFSET, GPS_WEEK_S
 

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from leonav_runtime.gnss import sfrbx as _sfrbx
-from hardware.gnss import ubx as _ubx
-from hardware.gnss.reader import GnssSplitter
+from leonav.hardware.gnss import ubx as _ubx
+from leonav.hardware.gnss.reader import GnssSplitter
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import Ephemerides

@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from hardware.gnss import nmea_write
+from leonav.hardware.gnss import nmea_write
 from leonav_runtime.live.solution import NavSolution
 
 HDOP_PER_M = 1.0 / 1.5  # GGA HDOP from the horizontal sigma, at the UERE the replay assumes

@@ -18,7 +18,7 @@ from __future__ import annotations
 import datetime as _dt
 from typing import Callable
 
-from hardware.records import GnssFix, NmeaSentence
+from leonav.hardware.records import GnssFix, NmeaSentence
 from leonav_runtime.inputs import FixTable
 from leonav_runtime.replay.gnss_table import fix_table
 

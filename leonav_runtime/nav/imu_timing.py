@@ -26,8 +26,8 @@ import math
 
 import numpy as np
 
-from hardware.imu.witmotion import PACKET_LEN as WITMOTION_PACKET_BYTES
-from hardware.uart import serialization_s
+from leonav.hardware.imu.witmotion import PACKET_LEN as WITMOTION_PACKET_BYTES
+from leonav.hardware.uart import serialization_s
 
 OUTLIER_FLOOR_S = 0.03
 GAP_QUANTILE = 0.998        # residual quantile a gap must exceed (by half a period)

@@ -92,7 +92,7 @@ def _source(opts: NavOptions, record_dir: Path | None, beacons):
 
 
 def _realtime_playback(opts: NavOptions, record_dir: Path, beacons):
-    from hardware.sdr.capture import SdrSettings
+    from leonav.hardware.sdr.capture import SdrSettings
     from leonav_runtime.nav import sources
     from leonav_runtime.nav.beacon_feed import capture_meta
 

@@ -26,13 +26,13 @@ import tty
 from pathlib import Path
 from typing import Callable
 
-from hardware.gnss.reader import GnssDecoder
-from hardware.imu.witmotion import SampleGrouper, WitMotionParser
-from hardware.jsonfile import write_json
-from hardware.records import GnssTimeTag, ImuSample
-from hardware.session import RecordSession
-from hardware.session_decode import iter_raw_chunks
-from hardware.session_files import (GNSS_FIX_COLUMNS, IMU_COLUMNS, CsvSink, RawLog, RunningTimeMap, gnss_rows, imu_row,
+from leonav.hardware.gnss.reader import GnssDecoder
+from leonav.hardware.imu.witmotion import SampleGrouper, WitMotionParser
+from leonav.hardware.jsonfile import write_json
+from leonav.hardware.records import GnssTimeTag, ImuSample
+from leonav.hardware.session import RecordSession
+from leonav.hardware.session_decode import iter_raw_chunks
+from leonav.hardware.session_files import (GNSS_FIX_COLUMNS, IMU_COLUMNS, CsvSink, RawLog, RunningTimeMap, gnss_rows, imu_row,
                                     session_json)
 
 TICK_S = 0.05

@@ -15,9 +15,9 @@ import math
 
 import numpy as np
 
-from hardware.clock import TimeMap
-from hardware.records import GnssTimeTag, NmeaSentence
-from hardware.uart import serialization_s
+from leonav.hardware.clock import TimeMap
+from leonav.hardware.records import GnssTimeTag, NmeaSentence
+from leonav.hardware.uart import serialization_s
 from leonav_runtime.replay.timebase import NMEA_LINE_END_BYTES, UBX_NAV_PVT_FRAME_BYTES
 
 MAP_WINDOW_TAGS = 300          # tags in the running fit (the recorder's live map uses as many)

@@ -31,7 +31,7 @@ class RawGnss:
 
 def raw_gnss(gnss_records, options, nav: navfuncs.NavFunctions, source: str) -> RawGnss:
     """The single-point pass over the RXM-RAWX / RXM-SFRBX records of a decoded session."""
-    from hardware.records import RxmRawx, UbxFrame
+    from leonav.hardware.records import RxmRawx, UbxFrame
     from leonav_runtime.gnss import coupled
     from leonav_runtime.gnss import sfrbx as _sfrbx
     from leonav_runtime.gnss.signals import klobuchar_coefficients, load_nav_files

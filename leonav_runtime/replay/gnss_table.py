@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from hardware.records import GnssFix, NmeaSentence
+from leonav.hardware.records import GnssFix, NmeaSentence
 from leonav_runtime import geometry
 from leonav_runtime.inputs import FixTable
 

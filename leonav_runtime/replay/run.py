@@ -78,13 +78,13 @@ def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurem
 def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: Path | None = None,
                   nav: navfuncs.NavFunctions | None = None, progress=None) -> SessionInputs:
     """Decode a session folder into SessionInputs (package doc, steps 1-6)."""
-    import hardware.session
+    from leonav.hardware import session as hw_session
 
     _, mode_notes = canonical_modes(options.modes)
     options = check_options(options)
     nav = nav or navfuncs.NavFunctions()
     folder = Path(folder)
-    dec = hardware.session.decode_session(folder)
+    dec = hw_session.decode_session(folder)
     notes: list[str] = list(mode_notes)
     if not (folder / "imu.raw").exists():
         raise UserInputError(f"{folder}: no imu.raw: every replay mode propagates with the IMU")
@@ -103,7 +103,7 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
         notes.append(f"time: {time_src}")
     imu, epoch, counts = imu_table(dec.imu_samples, to_utc, notes, device_baud(dec, "imu"))
     epoch_utc = utc_of(epoch)
-    from hardware.records import GnssFix
+    from leonav.hardware.records import GnssFix
 
     any_fix = any(isinstance(r, GnssFix) for r in dec.gnss_records)
     first_fix = next((r for r in dec.gnss_records if isinstance(r, GnssFix) and usable_fix(r)), None)

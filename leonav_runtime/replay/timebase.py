@@ -21,11 +21,11 @@ from typing import Callable
 
 import numpy as np
 
-from hardware.clock import utc_unix
-from hardware.imu import witmotion_encode as wenc
-from hardware.imu.witmotion import PACKET_LEN as WITMOTION_PACKET_BYTES
-from hardware.records import NmeaSentence
-from hardware.uart import serialization_s
+from leonav.hardware.clock import utc_unix
+from leonav.hardware.imu import witmotion_encode as wenc
+from leonav.hardware.imu.witmotion import PACKET_LEN as WITMOTION_PACKET_BYTES
+from leonav.hardware.records import NmeaSentence
+from leonav.hardware.uart import serialization_s
 from leonav_runtime.errors import UserInputError
 from leonav_runtime.gen.profiles import WT901
 from leonav_runtime.inputs import ImuTable

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 def models() -> dict:
     """{suffix: h(x, aux, p) -> scalar SX} for every observable, in models.state.MEASUREMENTS order."""
-    from models.measurements import (doppler, doppler_rate, gnss_code, gnss_fix, gnss_pseudorange,
+    from leonav.models.measurements import (doppler, doppler_rate, gnss_code, gnss_fix, gnss_pseudorange,
                                      motion_constraints, ofdm_range_difference)
-    from models.state import MEASUREMENTS
+    from leonav.models.state import MEASUREMENTS
 
     table = {
         "pseudorange": gnss_pseudorange.h,

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models.constants import C_LIGHT_MPS
-from models.measurements.geometry import receiver_ecef
-from models.state import AUX, P, X
+from leonav.models.constants import C_LIGHT_MPS
+from leonav.models.measurements.geometry import receiver_ecef
+from leonav.models.state import AUX, P, X
 
 
 def h(x, aux, p):

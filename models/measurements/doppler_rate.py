@@ -8,10 +8,10 @@ mechanization integrates. The LO offset is modelled constant, so it has no rate 
 """
 from __future__ import annotations
 
-from models import kinematics
-from models.constants import C_LIGHT_MPS
-from models.measurements.geometry import range_rate_accel, receiver_ecef
-from models.state import AUX, P
+from leonav.models import kinematics
+from leonav.models.constants import C_LIGHT_MPS
+from leonav.models.measurements.geometry import range_rate_accel, receiver_ecef
+from leonav.models.state import AUX, P
 
 
 def h(x, aux, p):

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models import kinematics
-from models.constants import C_LIGHT_MPS
-from models.state import X
+from leonav.models import kinematics
+from leonav.models.constants import C_LIGHT_MPS
+from leonav.models.state import X
 
 LIGHT_TIME_ITERATIONS = 2  # fixed-point steps of tau = |r_S(t - tau) - r_U| / c; the second changes r_tx by < 1 um
 

@@ -27,8 +27,8 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models import constants as K
-from models import frames
+from leonav.models import constants as K
+from leonav.models import frames
 
 SECONDS_PER_DAY = 86400.0
 

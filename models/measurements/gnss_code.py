@@ -28,10 +28,10 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models.constants import C_LIGHT_MPS, OMEGA_IE_RADPS
-from models.measurements.geometry import receiver_ecef
-from models.measurements.gnss_atmosphere import klobuchar_l1_s, look_angles, saastamoinen_m
-from models.state import AUX, X
+from leonav.models.constants import C_LIGHT_MPS, OMEGA_IE_RADPS
+from leonav.models.measurements.geometry import receiver_ecef
+from leonav.models.measurements.gnss_atmosphere import klobuchar_l1_s, look_angles, saastamoinen_m
+from leonav.models.state import AUX, X
 
 
 def _aux(aux, name):

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models import frames
-from models.state import P, X
+from leonav.models import frames
+from leonav.models.state import P, X
 
 _P, _V = X["p_enu"].offset, X["v_enu"].offset
 

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models.constants import C_LIGHT_MPS, OMEGA_IE_RADPS
-from models.measurements.geometry import receiver_ecef
-from models.state import AUX, X
+from leonav.models.constants import C_LIGHT_MPS, OMEGA_IE_RADPS
+from leonav.models.measurements.geometry import receiver_ecef
+from leonav.models.state import AUX, X
 
 
 def h(x, aux, p):

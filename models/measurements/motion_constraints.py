@@ -10,8 +10,8 @@ Both use the Earth-relative velocity of the state (v_enu), so they hold on a rot
 """
 from __future__ import annotations
 
-from models import frames
-from models.state import X
+from leonav.models import frames
+from leonav.models.state import X
 
 
 def velocity_body(x):

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models.measurements.geometry import receiver_ecef
-from models.state import AUX
+from leonav.models.measurements.geometry import receiver_ecef
+from leonav.models.state import AUX
 
 
 def h(x, aux, p):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models.state import AUX
+from leonav.models.state import AUX
 
 ORBIT_BLOCKS = ("r_S_ecef", "v_S_ecef", "r_ref_ecef", "v_ref_ecef")
 """The aux blocks differentiated, in the order of the Jacobian's columns."""
@@ -32,8 +32,8 @@ def reads_orbit(h_value, aux) -> bool:
 def orbit_observables() -> tuple[str, ...]:
     """Suffixes of the observables whose h reads a satellite state from aux (models.state
     order): the ones that get a generated `leonav_orbit_jac_<suffix>`."""
-    from models.measurements import models
-    from models.state import NAUX, NP, NX
+    from leonav.models.measurements import models
+    from leonav.models.state import NAUX, NP, NX
 
     x, aux, p = ca.SX.sym("x", NX), ca.SX.sym("aux", NAUX), ca.SX.sym("p", NP)
     return tuple(k for k, h in models().items() if reads_orbit(h(x, aux, p), aux))
