@@ -33,12 +33,12 @@ sys.path.insert(0, str(BENCH_DIR))
 
 from numpy_ekf import NumpyEKF, ecef_from_geodetic, enu_axes  # noqa: E402
 
-from leonav_runtime import compiled, records  # noqa: E402
-from leonav_runtime import filter as lf  # noqa: E402
+from leonav_runtime.core import compiled, records  # noqa: E402
+from leonav_runtime.core import filter as lf  # noqa: E402
 from leonav_runtime.gen import constants as K  # noqa: E402
 from leonav_runtime.gen import state_layout as L  # noqa: E402
-from leonav_runtime.output import results_dir, write_json  # noqa: E402
-from leonav_runtime.params import build_params  # noqa: E402
+from leonav_runtime.common.output import results_dir, write_json  # noqa: E402
+from leonav_runtime.core.params import build_params  # noqa: E402
 
 LAT, LON, H = math.radians(40.0), math.radians(-83.0), 200.0
 IMU_HZ, GPS_HZ, LEO_HZ = 100.0, 10.0, 1.0

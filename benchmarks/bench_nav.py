@@ -55,7 +55,7 @@ def _free_port() -> int:
 
 def latency_and_cpu(seconds: float, work: Path) -> dict:
     from leonav_runtime.nav import sources
-    from leonav_runtime.session_synth import SynthSessionConfig, write_synthetic_session
+    from leonav_runtime.simulation.session_synth import SynthSessionConfig, write_synthetic_session
 
     folder = work / "s100"
     print(f"synthesizing a {seconds:g} s session: IMU 100 Hz at 115200 baud, GNSS 10 Hz at 38400 baud ...", flush=True)
@@ -99,7 +99,7 @@ def beacon_throughput(seconds: float) -> dict:
     from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
     from leonav_runtime.nav.beacon_feed import cu8_to_complex
     from leonav_runtime.nav.beacon_stream import BeaconStream
-    from leonav_runtime.session_synth import PAPER_EPOCH, ROCHESTER, builtin_starlink
+    from leonav_runtime.simulation.session_synth import PAPER_EPOCH, ROCHESTER, builtin_starlink
 
     warnings.simplefilter("ignore")
     fs = 2.4e6

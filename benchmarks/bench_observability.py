@@ -77,8 +77,8 @@ def main() -> None:
     print(f"Lie-derivative check ({c.mode}, {c.motion}): {t_lie:.2f} s, max relative difference {err:.1e}")
 
     if args.scenario:
-        from leonav_runtime import montecarlo
-        from leonav_runtime.scenario import load_scenario
+        from leonav_runtime.sweep import montecarlo
+        from leonav_runtime.scenarios.load import load_scenario
 
         scn = load_scenario(args.scenario)
         t0 = time.perf_counter()

@@ -84,7 +84,7 @@ def rtklib(tmp: Path, repeats: int, atmosphere: bool) -> tuple[float, float]:
 
 def leonav_in_process(tmp: Path, repeats: int, atmosphere: bool) -> tuple[float, float]:
     from leonav_runtime.commands import spp as cmd
-    from leonav_runtime.navfuncs import NavFunctions
+    from leonav_runtime.core.navfuncs import NavFunctions
 
     nav = NavFunctions()
     args = SimpleNamespace(elevation_mask=10.0, cn0_mask=0.0, iono="klobuchar" if atmosphere else "off",

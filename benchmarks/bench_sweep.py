@@ -13,8 +13,8 @@ import resource
 import tempfile
 import time
 
-from leonav_runtime.scenario import load_scenario
-from leonav_runtime.sweep import run_sweep
+from leonav_runtime.scenarios.load import load_scenario
+from leonav_runtime.sweep.run import run_sweep
 
 
 def main() -> None:

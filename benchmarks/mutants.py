@@ -32,10 +32,10 @@ MODULES = {
     "beacons": {"files": ["leonav_runtime/beacons/associate.py", "leonav_runtime/beacons/lo_fit.py"],
                 "tests": ["tests/test_beacons_lo_drift.py", "tests/test_beacons_joint.py",
                           "tests/test_beacons_association.py"]},
-    "scenario": {"files": ["leonav_runtime/scenario.py"], "tests": ["tests/test_scenario.py"]},
-    "simulate": {"files": ["leonav_runtime/simulate.py"],
+    "scenario": {"files": ["leonav_runtime/scenarios/load.py"], "tests": ["tests/test_scenario.py"]},
+    "simulate": {"files": ["leonav_runtime/simulation/simulate.py"],
                  "tests": ["tests/test_simulate.py"]},
-    "filter": {"files": ["leonav_runtime/filter.py"],
+    "filter": {"files": ["leonav_runtime/core/filter.py"],
                "tests": ["tests/test_filter_api.py", "tests/test_runtime_filter.py"]},
     "models": {"files": ["models/"],
                "tests": ["tests/test_filter_api.py", "tests/test_models_physics.py", "tests/test_models_frames.py",
@@ -174,7 +174,7 @@ mutant("beacons-22", LOF, "drift sigma ignores the prediction's jerk", ("np.sqrt
 mutant("beacons-23", LOF, "robust mean sigma not inflated by the scatter", ("sig *= max(1.0, np.sqrt(chi2))", "sig *= 1.0"))
 
 # ---------------------------------------------------------------- scenario.py
-SCN = "leonav_runtime/scenario.py"
+SCN = "leonav_runtime/scenarios/load.py"
 mutant("scenario-01", SCN, "NaN/inf accepted", ("if isinstance(value, float) and not math.isfinite(value):", "if False:"))
 mutant("scenario-02", SCN, "booleans accepted as numbers", ("if not isinstance(value, kinds) or isinstance(value, bool):", "if not isinstance(value, kinds):"))
 mutant("scenario-03", SCN, "lower bound made exclusive", ("(spec.lo is not None and value < spec.lo)", "(spec.lo is not None and value <= spec.lo)"))
@@ -197,7 +197,7 @@ mutant("scenario-17", SCN, "files source with no files accepted", ('if values["e
 mutant("scenario-18", SCN, "attitude sigma left in degrees", ('filt["initial_attitude_sigma_rad"] = math.radians(filt.pop("initial_attitude_sigma_deg"))', 'filt["initial_attitude_sigma_rad"] = filt.pop("initial_attitude_sigma_deg")'))
 
 # ---------------------------------------------------------------- simulate.py
-SIM = "leonav_runtime/simulate.py"
+SIM = "leonav_runtime/simulation/simulate.py"
 mutant("simulate-01", SIM, "light-time correction deleted",
        ("tau = rho[s, j] / C_LIGHT_MPS\n", "tau = 0.0\n"),
        ("                tau = np.linalg.norm(r_tx - r_rx[j]) / C_LIGHT_MPS\n", "                tau = 0.0\n"))
@@ -228,7 +228,7 @@ mutant("simulate-19", SIM, "LO offset with the wrong sign", ('b_lo = _random_wal
 mutant("simulate-20", SIM, "too few GPS satellites accepted", ('if "gps" in needed and gps_min < 4:', 'if "gps" in needed and gps_min < 1:'))
 
 # ---------------------------------------------------------------- filter.py
-FIL = "leonav_runtime/filter.py"
+FIL = "leonav_runtime/core/filter.py"
 mutant("filter-01", FIL, "gate mapping ignored", ("vec[self.lib.kind_id(kind)] = float(value)", "pass"))
 mutant("filter-02", FIL, "gate None means the default gate", ("if gate is None:\n            return np.zeros(n)", "if gate is None:\n            return np.full(n, CHI2_1DOF_999)"))
 mutant("filter-03", FIL, "update reports applied when gated", ("return self.status == STATUS_APPLIED", "return self.status != STATUS_FAILED"))

@@ -58,7 +58,7 @@ from leonav.models import state as S
 from leonav.models.constants import WGS84_A_M, WGS84_GM_M3PS2
 from leonav.models.measurements import models as measurement_models
 from leonav.models.measurements.geometry import receiver_ecef
-from leonav_runtime.params import build_params
+from leonav_runtime.core.params import build_params
 
 # --- scaling and thresholds ----------------------------------------------------------------
 
@@ -149,7 +149,7 @@ def position_fix_observables() -> tuple[str, ...]:
 
 
 def default_modes() -> dict[str, tuple[str, ...]]:
-    """The filter's modes (`leonav_runtime.scenario.MODE_OBSERVABLES`) plus a GNSS position-fix mode."""
+    """The filter's modes (`leonav_runtime.scenarios.load.MODE_OBSERVABLES`) plus a GNSS position-fix mode."""
     return _rt.analysis_modes()
 
 

@@ -1,6 +1,6 @@
 """Write a session folder from sensor values, in exactly the formats `leonav record` writes.
 
-The caller (`leonav_runtime.session_synth`) simulates what the devices *report* (floats:
+The caller (`leonav_runtime.simulation.session_synth`) simulates what the devices *report* (floats:
 GNSS epochs, IMU samples, an IQ capture file); this module turns them into what a
 recording host would have stored:
 

@@ -1,7 +1,7 @@
 """JSON files with NumPy values: the writer behind session.json and every results file.
 
 `write_json` converts NumPy scalars and arrays, datetimes (ISO 8601) and paths, and writes
-NaN/inf as null (JSON has neither). The runtime's `leonav_runtime.output.write_json` is
+NaN/inf as null (JSON has neither). The runtime's `leonav_runtime.common.output.write_json` is
 this function. Every file is written whole through `replace_file` (a temporary file renamed
 over the target), so an interrupted run never leaves half a JSON file behind.
 """

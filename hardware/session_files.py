@@ -5,7 +5,7 @@ monotonic -> UTC map the live CSVs use, record -> CSV row functions and the sess
 content (`session_json`). Every column is described in hardware/README.md.
 
 `hardware.jsonfile.replace_file` writes a whole file through a temporary file renamed over it (session.json,
-and the runtime's results files through `leonav_runtime.output`): a reader, a kill or a
+and the runtime's results files through `leonav_runtime.common.output`): a reader, a kill or a
 full disk never sees half of it. The flushed logs (raw bytes, chunk index, CSV rows)
 instead grow one flushed piece at a time; a write error there names the file.
 """

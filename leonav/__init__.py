@@ -18,7 +18,7 @@ def __getattr__(name: str):
 
         value = getattr(api, name)
     elif name == "__version__":
-        from leonav_runtime.provenance import version
+        from leonav_runtime.common.provenance import version
 
         value = version()
     else:

@@ -18,9 +18,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import MODES, SCHEMA, Scenario
-from leonav_runtime.scenario import load_scenario as _load_scenario
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.scenarios.load import MODES, SCHEMA, Scenario
+from leonav_runtime.scenarios.load import load_scenario as _load_scenario
 
 __all__ = ["MODES", "Scenario", "load_scenario", "run_sweep", "run_replay", "run_study"]
 
@@ -47,7 +47,7 @@ def load_scenario(name_or_path: str | Path = "paper", *, modes: Sequence[str] | 
     """A built-in scenario by name (`paper`, `paper-hardware`, `maritime-outage`) or a TOML
     file, with optional changes validated like the file's values (modes, Starlink counts,
     seed, trials)."""
-    from leonav_runtime.scenario_overrides import apply_overrides
+    from leonav_runtime.scenarios.overrides import apply_overrides
 
     scn, _ = apply_overrides(_load_scenario(name_or_path), modes=modes, counts=counts, seed=seed, trials=trials)
     return scn
@@ -96,13 +96,13 @@ def run_sweep(scenario: Scenario | str | Path = "paper", *, trials: int | None =
     (metrics.json, CSVs, figures unless `figures=False`, report.html); the dict then has it
     under `out_dir`. The raw `SweepResult` is under `result`.
     """
-    from leonav_runtime import sweep
+    from leonav_runtime.sweep import run as sweep
 
     _check_run_options(trials, workers)
     scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     res = sweep.run_sweep(scn, None, trials=trials, workers=workers, progress=progress, figures=figures)
     if out_dir is not None:
-        from leonav_runtime import sweep_report
+        from leonav_runtime.sweep import report as sweep_report
 
         sweep_report.write_results(res.scenario, Path(out_dir), res, figures=figures)
     out = sweep_arrays(res)

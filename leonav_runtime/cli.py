@@ -21,9 +21,9 @@ import sys
 import traceback
 
 from leonav_runtime import commands as _commands_pkg
-from leonav_runtime import provenance
-from leonav_runtime.arg_parser import OneLineErrorParser
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common import provenance
+from leonav_runtime.common.arg_parser import OneLineErrorParser
+from leonav_runtime.common.errors import UserInputError
 
 EXIT_OK = 0
 EXIT_INTERNAL = 1       # an unexpected error: a bug (rerun with --debug and report the traceback)
@@ -135,7 +135,7 @@ def _command_name(args: argparse.Namespace) -> str:
 
 def _build_error_types() -> tuple[type, ...]:
     """Exception types of the C build (only when the build module was imported at all)."""
-    module = sys.modules.get("leonav_runtime.compiled")
+    module = sys.modules.get("leonav_runtime.core.compiled")
     if module is None:
         return ()
     return tuple(t for t in (getattr(module, "CompilerError", None), getattr(module, "LayoutMismatchError", None))
@@ -230,7 +230,7 @@ def report_error(command: str, exc: BaseException, debug: bool = False) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `leonav` console script; returns the process exit code."""
-    from leonav_runtime import log_setup
+    from leonav_runtime.common import log_setup
 
     argv = list(sys.argv[1:] if argv is None else argv)
     provenance.set_command_line(argv)

@@ -77,7 +77,7 @@ def short_paper_scenario(duration_s: float, counts: list[int], source: str,
     (and whole sections replaced by `sections`), validated like a scenario file."""
     import copy
 
-    from leonav_runtime.scenario import load_scenario, scenario_from_dict
+    from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
     raw = copy.deepcopy(load_scenario("paper").raw)
     raw["time"]["duration_s"] = duration_s

@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from leonav.hardware.gnss.ubx import build_frame
-from leonav_runtime import geometry
+from leonav_runtime.orbits import geometry
 from leonav_runtime.gnss import sfrbx
 from leonav_runtime.gnss import time as gtime
-from leonav_runtime.session_synth import SynthSessionConfig, write_synthetic_session
+from leonav_runtime.simulation.session_synth import SynthSessionConfig, write_synthetic_session
 
 PR_STDEV_CODE = 5   # 0.01 * 2^5 = 0.32 m (the reader's sigma_pr_m; the filter uses its own error model)
 
@@ -104,7 +104,7 @@ def simulated_pseudoranges(obs, eph, klobuchar, r_ecef_m, clock_m, clock_drift_m
     from leonav_runtime.gen import state_layout as L
     from leonav_runtime.gnss import spp as _spp
     from leonav_runtime.gnss.signals import filter_pseudorange_variance, gnss_rows, primary_rows
-    from leonav_runtime.params import params_array
+    from leonav_runtime.core.params import params_array
 
     rows_idx, _ = primary_rows(obs, "G")
     o = obs.take(rows_idx)

@@ -12,7 +12,7 @@ import numpy as np
 
 from leonav.hardware.gnss.lnav import URA_UPPER_M, ura_index
 from leonav_runtime.gen.constants import C_LIGHT_MPS, GPS_OMEGA_E_RADPS
-from leonav_runtime.geometry import az_el_range, ecef_to_geodetic
+from leonav_runtime.orbits.geometry import az_el_range, ecef_to_geodetic
 from leonav_runtime.gnss.sat_states import states_for_observations
 
 

@@ -23,9 +23,10 @@ COLUMNS = ["t_s", "e_m", "n_m", "u_m", "ve_mps", "vn_mps", "vu_mps", "qw", "qx",
 
 def golden_rows() -> list[list[float]]:
     """The run: paper scenario shortened to 6 s, 10 Starlink satellites, trial 0, 1 Hz rows."""
-    from leonav_runtime import montecarlo as mc, simulate
-    from leonav_runtime.filter import EKF
-    from leonav_runtime.scenario import load_scenario, scenario_from_dict
+    from leonav_runtime.simulation import simulate
+    from leonav_runtime.sweep import montecarlo as mc
+    from leonav_runtime.core.filter import EKF
+    from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
     raw = copy.deepcopy(load_scenario("paper").raw)
     raw["time"]["duration_s"] = 6.0

@@ -71,7 +71,7 @@ def test_arrays_match_the_summaries_and_the_csv(tmp_path):
 
 
 def test_bad_changes_are_user_errors():
-    from leonav_runtime.errors import UserInputError
+    from leonav_runtime.common.errors import UserInputError
 
     with pytest.raises(UserInputError, match="--modes"):
         leonav.load_scenario("paper", modes=["warp"])
@@ -100,20 +100,20 @@ def test_run_replay_in_memory_leaves_no_folder(tmp_path, monkeypatch):
                                   lambda: leonav.run_sweep("paper", trials=0),
                                   lambda: leonav.run_sweep("paper", trials=1, workers=0)])
 def test_bad_run_options_are_user_errors_before_any_work(call):
-    from leonav_runtime.errors import UserInputError
+    from leonav_runtime.common.errors import UserInputError
 
     with pytest.raises(UserInputError, match=r"(trials|workers) = "):
         call()
 
 
 def test_docs_table_lists_every_entry_point_and_built_in():
-    from leonav_runtime import scenario as scenario_module
+    from leonav_runtime.scenarios import load as scenario_module
 
     text = DOC.read_text()
     table = re.search(r"\| call \| returns \|\n((?:\|.*\|\n)+)", text).group(1)   # contiguous rows only
     for name in ("load_scenario", "run_sweep", "run_replay", "run_study"):
         assert f"`leonav.{name}(" in table, name
-    built_ins = sorted(p.stem for p in (Path(scenario_module.__file__).parent / "scenarios").glob("*.toml"))
+    built_ins = sorted(p.stem for p in Path(scenario_module.__file__).parent.glob("*.toml"))
     assert built_ins and all(f"`{b}`" in table for b in built_ins)
     assert all(f"`{b}`" in leonav.load_scenario.__doc__ for b in built_ins)
     readme = (DOC.parents[1] / "README.md").read_text()

@@ -28,7 +28,7 @@ def elements():
 
 def test_symbolic_prediction_matches_numerical_derivatives_of_range(elements):
     """Doppler = -(f/c) d(rho)/dt and rate = d(Doppler)/dt, by central differences of SGP4 ranges."""
-    from leonav_runtime.geometry import geodetic_to_ecef
+    from leonav_runtime.orbits.geometry import geodetic_to_ecef
     from leonav_runtime.orbits import propagate_ecef
 
     with warnings.catch_warnings():

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from leonav_runtime.beacons import capture_io
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 
 T0 = dt.datetime(2026, 2, 23, 6, 0, tzinfo=dt.timezone.utc)
 

@@ -6,8 +6,8 @@ import copy
 import numpy as np
 import pytest
 
-from leonav_runtime import crb, montecarlo as mc
-from leonav_runtime.scenario import load_scenario, scenario_from_dict
+from leonav_runtime.sweep import crb, montecarlo as mc
+from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from leonav_runtime import provenance
+from leonav_runtime.common import provenance
 from leonav_runtime.cli import main
 from tests.conftest import shared_file
 
@@ -48,8 +48,8 @@ def test_scenario_hash_follows_content_not_layout():
 def test_sweep_options_change_the_run_and_are_recorded(tmp_path, monkeypatch):
     import tomli_w
 
-    from leonav_runtime import sweep_plots
-    from leonav_runtime.scenario import load_scenario
+    from leonav_runtime.sweep import plots as sweep_plots
+    from leonav_runtime.scenarios.load import load_scenario
 
     monkeypatch.setattr(sweep_plots, "plot_all", lambda *a, **k: None)  # figures: tests/test_figures.py
     raw = load_scenario("paper").raw
@@ -145,7 +145,7 @@ def test_a_too_short_capture_is_refused_with_the_minimum(tmp_path, capsys):
 
 def test_verbosity_flags_set_the_log_level():
     from leonav_runtime.cli import _split_verbosity
-    from leonav_runtime.log_setup import level_for
+    from leonav_runtime.common.log_setup import level_for
 
     argv, level = _split_verbosity(["sweep", "-v", "--trials", "2", "-v"])
     assert argv == ["sweep", "--trials", "2"] and level == 2 and level_for(level) == 10

@@ -6,13 +6,13 @@ import copy
 import numpy as np
 import pytest
 
-from leonav_runtime import montecarlo as mc
-from leonav_runtime import realism, simulate
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.sweep import montecarlo as mc
+from leonav_runtime.simulation import realism, simulate
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.inputs import consider
 from leonav_runtime.inputs.measurements import states_from_aux
-from leonav_runtime.scenario import load_scenario, scenario_from_dict
+from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
 ORBIT_COLS = (L.AUX_R_S_ECEF_SLICE, L.AUX_V_S_ECEF_SLICE, L.AUX_R_REF_ECEF_SLICE, L.AUX_V_REF_ECEF_SLICE)
 

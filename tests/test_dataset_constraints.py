@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from leonav_runtime import filter as lfilter
-from leonav_runtime import navfuncs, records
+from leonav_runtime.core import filter as lfilter
+from leonav_runtime.core import navfuncs, records
 from leonav_runtime.dataset import align, constraints, load, spec
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.inputs import prior_sigmas
-from leonav_runtime.params import IMU_PROFILES, build_params
+from leonav_runtime.core.params import IMU_PROFILES, build_params
 from tests.conftest import shared_file
 
 

@@ -13,7 +13,7 @@ import pytest
 
 from leonav_runtime import cli
 from leonav_runtime.dataset import align, load, scoring, spec
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from tests.conftest import shared_file
 
 CPET = "gnss_ins/cpet_run3_navego"

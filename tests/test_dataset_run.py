@@ -66,7 +66,7 @@ def test_trajectory_files_agree(result):
     assert len(points) == csv.size and points[10].latitude == pytest.approx(csv["lat_deg"][10], abs=1e-8)
     assert (out / "trajectory_fix_imu_nhc_zupt.kml").read_text().count(",") >= 2 * csv.size
     # the ECEF columns and the geodetic ones are the same points
-    from leonav_runtime import geometry
+    from leonav_runtime.orbits import geometry
     r = geometry.geodetic_to_ecef(np.radians(csv["lat_deg"]), np.radians(csv["lon_deg"]), csv["h_m"])
     np.testing.assert_allclose(np.atleast_2d(r), np.column_stack([csv["x_ecef_m"], csv["y_ecef_m"],
                                                                   csv["z_ecef_m"]]), atol=2e-3)
@@ -90,7 +90,7 @@ def test_reference_file_in_other_forms_scores_the_same(result, tmp_path):
                                    "quaternion_columns": [], "height_datum": "msl"}, ds.t0_unix, ds.origin, counts,
                                    n_geoid)
     np.testing.assert_allclose(ref.p_enu_m, ds.reference.p_enu_m, atol=1e-3)
-    from leonav_runtime import geometry
+    from leonav_runtime.orbits import geometry
     r = np.atleast_2d(geometry.geodetic_to_ecef(np.radians(lat), np.radians(lon), gt[:, 3] + n_geoid))
     np.savetxt(tmp_path / "ecef.csv", np.column_stack([gt[:, 0], r]), delimiter=",", fmt="%.6f")
     ref_ecef = load.reference_from_file(tmp_path / "ecef.csv", {"format": "csv", "crs": "ecef", "delimiter": ",",

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from leonav_runtime.cli import main
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.orbits import eop, load_elements, propagate_ecef
 
 UTC = dt.timezone.utc

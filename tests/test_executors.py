@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.executors import make_executor, map_in_order
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.sweep.executors import make_executor, map_in_order
 
 
 def _seeded_task(task):

@@ -9,10 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from leonav_runtime import plot_style, sweep_plots
+from leonav_runtime.common import plot_style
+from leonav_runtime.sweep import plots as sweep_plots
 from tests.conftest import short_paper_scenario
-from leonav_runtime.sky_plot import short_label
-from leonav_runtime.sweep import run_sweep
+from leonav_runtime.sky.plot import short_label
+from leonav_runtime.sweep.run import run_sweep
 
 
 @pytest.fixture(scope="module")

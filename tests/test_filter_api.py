@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from leonav_runtime import compiled, records
-from leonav_runtime import filter as lf
-from leonav_runtime.params import build_params
+from leonav_runtime.core import compiled, records
+from leonav_runtime.core import filter as lf
+from leonav_runtime.core.params import build_params
 from tests.test_runtime_filter import P0, gps_aux, static_stream, x_rest
 
 LAT, LON, H = math.radians(40.0), math.radians(-83.0), 200.0

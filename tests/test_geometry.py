@@ -1,4 +1,4 @@
-"""leonav_runtime.geometry against independent references.
+"""leonav_runtime.orbits.geometry against independent references.
 
 References: WGS84 defining values at the equator and poles, skyfield's own WGS84 code
 (`wgs84.latlon(...).itrs_xyz`, `(sat - topos).at(t).altaz()`), and closed-form DOP of a
@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from leonav_runtime import geometry as g
+from leonav_runtime.orbits import geometry as g
 from tests.conftest import shared_file
 
 ROCHESTER = (43.0848638, -77.6786127, 170.0)  # the paper's site: deg, deg, m

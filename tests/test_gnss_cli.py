@@ -8,7 +8,7 @@ import pytest
 
 from leonav_runtime.gnss import sfrbx
 from leonav.hardware.records import UbxFrame
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gnss.cli import register
 from tests.conftest import shared_file
 

@@ -30,9 +30,9 @@ from leonav_runtime.gnss.rinex_nav import read_rinex_nav
 from leonav_runtime.gnss.rinex_obs import read_rinex_obs
 from leonav_runtime.gnss.signals import klobuchar_coefficients, primary_rows
 from leonav_runtime.inputs import ImuTable
-from leonav_runtime.navfuncs import NavFunctions
+from leonav_runtime.core.navfuncs import NavFunctions
 from leonav_runtime.replay.timebase import filter_profile
-from leonav_runtime.session_synth import SynthSessionConfig, simulate_sensors
+from leonav_runtime.simulation.session_synth import SynthSessionConfig, simulate_sensors
 from tests.conftest import shared_file
 from tests.gnss_session import simulated_pseudoranges, write_rawx_session
 
@@ -81,7 +81,7 @@ def check_against_rtklib(r: np.ndarray, ref: np.ndarray, label: str) -> dict:
 
 
 def static_imu(obs_epochs: np.ndarray, site_ecef, epoch_utc, rate_hz: float = 2.0) -> ImuTable:
-    from leonav_runtime import geometry
+    from leonav_runtime.orbits import geometry
 
     lat, lon, h = (float(v) for v in geometry.ecef_to_geodetic(np.asarray(site_ecef, float)))
     cfg = SynthSessionConfig(seconds=float(obs_epochs[-1] - obs_epochs[0]) + 3.0, epoch_utc=epoch_utc,
@@ -241,7 +241,7 @@ def test_simulated_session_with_truth_pseudorange_and_beacons(tmp_path):
 
 
 def test_gnss_observation_table_check_names_the_field_and_row():
-    from leonav_runtime.errors import UserInputError
+    from leonav_runtime.common.errors import UserInputError
     from leonav_runtime.inputs import GnssObservationTable
 
     n = 4

@@ -124,7 +124,7 @@ def test_inter_system_bias_starts_from_the_nearest_epoch_where_it_is_finite():
     from leonav_runtime.gen import state_layout as L
     from leonav_runtime.inputs import GnssObservationTable
     from leonav_runtime.inputs.gnss_obs import apply_clock_start
-    from leonav_runtime.params import params_array
+    from leonav_runtime.core.params import params_array
 
     isb = np.array([[np.nan, np.nan], [np.nan, np.nan], [12.5, np.nan], [13.0, np.nan], [np.nan, np.nan]])
     table = GnssObservationTable(np.zeros(0), np.zeros(0, int), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0),

@@ -18,7 +18,7 @@ import pytest
 
 from leonav.hardware.gnss.reader import GnssSplitter
 from leonav.hardware.gnss.ubx import decode_nav_pvt
-from leonav_runtime import geometry
+from leonav_runtime.orbits import geometry
 from leonav_runtime.gnss import glonass
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.sfrbx import parse_sfrbx_payload

@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.rinex_nav import RejectedRecordsWarning, parse_rinex_nav, read_rinex_nav
 from tests import gnss_rinex3_synth as synth

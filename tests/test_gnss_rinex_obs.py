@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.observations import (FLAG_HALF_CYCLE, FLAG_LOSS_OF_LOCK, FLAG_POWER_FAILURE,
                                               FLAG_PR_VALID, ObservationTable)

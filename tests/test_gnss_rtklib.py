@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from leonav_runtime.geometry import geodetic_to_ecef
+from leonav_runtime.orbits.geometry import geodetic_to_ecef
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import OK
 from leonav_runtime.gnss.rinex_nav import read_rinex_nav

@@ -24,7 +24,7 @@ from leonav.hardware.records import GnssTimeTag
 from leonav.hardware.sdr import capture as sdr_capture
 from leonav.hardware.session import RecordSession, decode_session
 from leonav_runtime.cli import main as leonav_main
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from tests.conftest import shared_file
 
 REPO = Path(__file__).resolve().parents[1]
@@ -251,7 +251,7 @@ def test_device_layer_and_runtime_share_one_error_class_and_one_json_writer():
     so the CLI's `except UserInputError` catches device errors as one line."""
     from leonav.hardware import errors as hw_errors
     from leonav.hardware import jsonfile as hw_jsonfile
-    from leonav_runtime import errors, output
+    from leonav_runtime.common import errors, output
 
     assert errors.UserInputError is hw_errors.UserInputError
     assert output.write_json is hw_jsonfile.write_json

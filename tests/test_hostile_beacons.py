@@ -16,7 +16,7 @@ import pytest
 from leonav_runtime.beacons import capture_io, pipeline
 from leonav_runtime.beacons.ridges import Ridge, RidgeTracker, TrackerConfig
 from leonav_runtime.cli import main
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from tests.conftest import shared_file
 from tests.timebox import bounded
 

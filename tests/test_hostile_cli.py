@@ -55,7 +55,7 @@ def test_non_utf8_input_is_bad_input_in_one_line(tmp_path, capsys):
 
 
 def test_bad_compiler_is_a_build_error_in_one_line(tmp_path, capsys, monkeypatch):
-    from leonav_runtime import compiled
+    from leonav_runtime.core import compiled
     from leonav_runtime.beacons import predict
 
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from leonav_runtime import compiled
+from leonav_runtime.core import compiled
 from leonav_runtime.cli import EXIT_BUILD, classify_error
 
 REPO = Path(__file__).resolve().parents[1]
@@ -108,7 +108,7 @@ def test_a_prebuilt_library_loads_without_a_compiler(monkeypatch):
 KILLED_BUILD = """
 import sys
 from pathlib import Path
-from leonav_runtime import compiled
+from leonav_runtime.core import compiled
 compiled.build(Path(sys.argv[1]), Path(sys.argv[2]), out_dir=Path(sys.argv[3]))
 """
 

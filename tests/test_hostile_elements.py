@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from leonav_runtime.cli import main as leonav_main
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.orbits import load_elements, parse_elements_text
 from leonav_runtime.orbits import tle as tle_mod
 MAX_ELEMENT_MB_ENV = "LEONAV_MAX_ELEMENT_MB"  # documented in orbits/elements.py and `leonav --help`
@@ -171,7 +171,7 @@ def test_cli_reports_hostile_element_files_in_one_line(tmp_path, capsys):
 
 def test_sky_counts_non_finite_positions_as_sgp4_failures():
     # defence behind the element checks: a propagator that returns NaN with no error code
-    from leonav_runtime import sky
+    from leonav_runtime.sky import view as sky
     from tests.test_sky import EPOCH, SITE, T_S, FakeElements, fake_propagate, fixed
 
     def nan_propagate(elements, epoch_utc, t_s):

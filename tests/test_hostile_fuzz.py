@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from leonav_runtime.beacons import capture_io
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.orbits import load_elements, parse_elements_text
 from leonav_runtime.orbits import tle as tle_mod
 from tests.conftest import shared_file

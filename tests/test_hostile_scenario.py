@@ -19,11 +19,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from leonav_runtime import output, scenario
+from leonav_runtime.common import output
+from leonav_runtime.scenarios import load as scenario
 from leonav_runtime.cli import EXIT_BAD_INPUT, main
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import BUILTIN_DIR, load_scenario, scenario_from_dict
-from leonav_runtime.utc import parse_utc
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.scenarios.load import BUILTIN_DIR, load_scenario, scenario_from_dict
+from leonav_runtime.common.utc import parse_utc
 from tests.timebox import bounded
 
 REPO = Path(__file__).resolve().parents[1]
@@ -170,8 +171,8 @@ def test_the_estimate_covers_a_measured_run(tmp_path):
     # came earlier)
     code = (
         "import copy, json, sys, tracemalloc\n"
-        "from leonav_runtime.scenario import load_scenario, scenario_from_dict\n"
-        "from leonav_runtime import montecarlo as mc, navfuncs\n"
+        "from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict\n"
+        "from leonav_runtime.sweep import montecarlo as mc\nfrom leonav_runtime.core import navfuncs\n"
         "navfuncs.NavFunctions()\n"
         "b = load_scenario('paper'); raw = copy.deepcopy(b.raw)\n"
         "raw['time']['duration_s'] = 60.0; raw['monte_carlo']['modes'] = ['gps+leo-alpha+imu']\n"
@@ -179,8 +180,8 @@ def test_the_estimate_covers_a_measured_run(tmp_path):
         "tracemalloc.start()\n"
         "mc.run_trial(scn, 'gps+leo-alpha+imu', 45, 0)\n"
         "peak = tracemalloc.get_traced_memory()[1]\n"
-        "from leonav_runtime.run_size import memory_estimate\n"
-        "from leonav_runtime.scenario import MODE_OBSERVABLES\n"
+        "from leonav_runtime.scenarios.run_size import memory_estimate\n"
+        "from leonav_runtime.scenarios.load import MODE_OBSERVABLES\n"
         "est = memory_estimate(scn, MODE_OBSERVABLES, trials=0, workers=1)\n"
         "print(json.dumps({'measured': peak, 'est': est}))\n"
     )

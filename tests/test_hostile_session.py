@@ -19,9 +19,11 @@ import pytest
 
 from leonav.hardware.session_decode import decode_session
 from leonav.hardware.session_files import RawLog, session_json
-from leonav_runtime import navfuncs, output, replay
+from leonav_runtime import replay
+from leonav_runtime.common import output
+from leonav_runtime.core import navfuncs
 from leonav_runtime.cli import EXIT_BAD_INPUT, main
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from tests.conftest import shared_file
 from tests.timebox import bounded
 

@@ -18,13 +18,15 @@ import pytest
 
 from leonav.hardware.imu import witmotion_encode as wenc
 from leonav_runtime import inputs as road
-from leonav_runtime import montecarlo as mc
-from leonav_runtime import navfuncs, replay, session_synth as ss, simulate
+from leonav_runtime.sweep import montecarlo as mc
+from leonav_runtime import replay
+from leonav_runtime.core import navfuncs
+from leonav_runtime.simulation import session_synth as ss, simulate
 from leonav_runtime.cli import main as leonav_main
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
 from leonav_runtime.gen.profiles import WT901
-from leonav_runtime.scenario import load_scenario, scenario_from_dict
+from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
 ORIGIN = (0.75, -1.35, 170.0)
 

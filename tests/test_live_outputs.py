@@ -13,9 +13,9 @@ import time
 import pynmea2
 import pytest
 
-from leonav_runtime.live import nmea_out
-from leonav_runtime.live.servers import PtyOutput, TcpBroadcastServer
-from leonav_runtime.live.solution import NavSolution
+from leonav_runtime.nav.sinks import nmea_out
+from leonav_runtime.nav.sinks.servers import PtyOutput, TcpBroadcastServer
+from leonav_runtime.nav.sinks.solution import NavSolution
 
 UTC = dt.timezone.utc
 
@@ -148,7 +148,7 @@ def test_pymavlink_receiver_decodes_gps_input():
     os.environ.setdefault("MAVLINK20", "1")
     mavutil = pytest.importorskip("pymavlink.mavutil", reason="needs pymavlink")
     from leonav_runtime.gnss.time import utc_to_gps_seconds
-    from leonav_runtime.live.mavlink_out import MavlinkOutput
+    from leonav_runtime.nav.sinks.mavlink_out import MavlinkOutput
 
     port = _free_port()
     rx = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", dialect="common")

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from leonav_runtime.gen import state_layout as L
-from leonav_runtime.params import build_params
+from leonav_runtime.core.params import build_params
 from tests.eop_reference import skyfield_timescale_same_eop
 
 LAT, LON, H = 43.0848638, -77.6786127, 170.0

@@ -11,7 +11,7 @@ from leonav.models import frames
 from leonav.models.clock import TCXO
 from leonav.models.imu import TACTICAL, WT901
 from leonav_runtime.gen import state_layout as L
-from leonav_runtime.params import build_params
+from leonav_runtime.core.params import build_params
 from leonav.codegen.functions import build_functions
 
 FNS = {f.name(): f for f in build_functions()}

@@ -12,9 +12,9 @@ import pytest
 
 from leonav_runtime.gen import constants as K
 from leonav_runtime.gen import state_layout as L
-from leonav_runtime.geometry import geodetic_to_ecef
-from leonav_runtime.navfuncs import NavFunctions
-from leonav_runtime.params import params_array
+from leonav_runtime.orbits.geometry import geodetic_to_ecef
+from leonav_runtime.core.navfuncs import NavFunctions
+from leonav_runtime.core.params import params_array
 
 LAT, LON, H = math.radians(35.16), math.radians(139.61), 70.0
 P = params_array(LAT, LON, H)
@@ -37,7 +37,7 @@ def state(**kw):
 def sat_at(el_deg, az_deg, rng_m=2.2e7):
     """ECEF of a satellite at elevation/azimuth from the ENU origin."""
     el, az = math.radians(el_deg), math.radians(az_deg)
-    from leonav_runtime.geometry import C_enu_ecef
+    from leonav_runtime.orbits.geometry import C_enu_ecef
     los = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
     r0 = np.asarray(geodetic_to_ecef(LAT, LON, H), float)
     return r0 + rng_m * (C_enu_ecef(LAT, LON).T @ los)

@@ -6,7 +6,7 @@ import pytest
 
 from leonav.codegen.functions import build_functions
 from leonav_runtime.gen import state_layout as L
-from leonav_runtime.params import build_params
+from leonav_runtime.core.params import build_params
 from leonav.models.state import MEASUREMENTS, NDX
 
 FNS = {f.name(): f for f in build_functions()}

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from leonav_runtime import navfuncs
+from leonav_runtime.core import navfuncs
 from leonav_runtime.gen import state_layout as L
-from leonav_runtime.params import build_params
+from leonav_runtime.core.params import build_params
 
 LEVER_FLU = (0.54, -0.22, 1.16)
 

@@ -16,7 +16,7 @@ import numpy as np
 from leonav.codegen.functions import build_functions
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gen.profiles import WT901
-from leonav_runtime.params import build_params
+from leonav_runtime.core.params import build_params
 from leonav.models.state import NDX
 
 FNS = {f.name(): f for f in build_functions()}

@@ -14,7 +14,7 @@ import pytest
 
 from leonav.codegen.compiled import external
 from leonav_runtime.gen import state_layout as L
-from leonav_runtime.params import build_params
+from leonav_runtime.core.params import build_params
 
 P_VEC = np.array(build_params(math.radians(43.0848638), math.radians(-77.6786127), 170.0))
 

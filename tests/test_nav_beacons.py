@@ -18,7 +18,7 @@ SECONDS = 10.0
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
     from leonav_runtime.replay import ReplayOptions, replay_session
-    from leonav_runtime.session_synth import SynthSessionConfig, write_synthetic_session
+    from leonav_runtime.simulation.session_synth import SynthSessionConfig, write_synthetic_session
 
     base = tmp_path_factory.mktemp("navbeacons")
     write_synthetic_session(base / "s", SynthSessionConfig(seconds=SECONDS, seed=0, sdr_rate_hz=240e3))
@@ -30,7 +30,7 @@ def test_streamed_doppler_rate_equals_the_batch_pipeline(session):
     from leonav_runtime.beacons import capture_io, pipeline
     from leonav_runtime.beacons.predict import Site
     from leonav_runtime.nav.beacon_stream import BeaconStream
-    from leonav_runtime.session_synth import ROCHESTER, builtin_starlink
+    from leonav_runtime.simulation.session_synth import ROCHESTER, builtin_starlink
 
     warnings.simplefilter("ignore")
     info = capture_io.open_capture(session / "s" / "sdr.cu8")

@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
-    from leonav_runtime.session_synth import SynthSessionConfig, write_synthetic_session
+    from leonav_runtime.simulation.session_synth import SynthSessionConfig, write_synthetic_session
 
     base = tmp_path_factory.mktemp("navfaults")
     write_synthetic_session(base / "s", SynthSessionConfig(seconds=SECONDS, seed=7, sdr=False))

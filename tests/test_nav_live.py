@@ -30,7 +30,7 @@ def trajectory_ecef(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def replay_ecef(out: Path, mode: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The same for one mode of a `leonav replay` output folder."""
-    from leonav_runtime import geometry
+    from leonav_runtime.orbits import geometry
 
     m = json.loads((out / "metrics.json").read_text())
     epoch = dt.datetime.fromisoformat(m["initialization"]["epoch_utc"]).timestamp()
@@ -73,7 +73,7 @@ def nav_options(out: Path, mode: str = "fix+imu", **kw):
 def session(tmp_path_factory):
     """A synthetic session without SDR, and its batch replay."""
     from leonav_runtime.replay import ReplayOptions, replay_session
-    from leonav_runtime.session_synth import SynthSessionConfig, write_synthetic_session
+    from leonav_runtime.simulation.session_synth import SynthSessionConfig, write_synthetic_session
 
     base = tmp_path_factory.mktemp("navlive")
     write_synthetic_session(base / "s", SynthSessionConfig(seconds=SECONDS, seed=5, sdr=False))

@@ -14,8 +14,9 @@ from leonav.hardware.records import GnssFix, GnssTimeTag
 
 @pytest.fixture(scope="module")
 def trial():
-    from leonav_runtime import montecarlo as mc, simulate
-    from leonav_runtime.scenario import load_scenario, scenario_from_dict
+    from leonav_runtime.simulation import simulate
+    from leonav_runtime.sweep import montecarlo as mc
+    from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
     raw = copy.deepcopy(load_scenario("paper").raw)
     raw["time"]["duration_s"] = 5.0
@@ -35,7 +36,7 @@ def _arrival_order(recs: np.ndarray, seed: int, max_delay_s: float) -> np.ndarra
 
 
 def _step_all(trial, max_delay_s: float, lag_s: float):
-    from leonav_runtime.filter import EKF
+    from leonav_runtime.core.filter import EKF
     from leonav_runtime.nav.stepper import LagStepper
 
     setup, nav, tr = trial
@@ -56,7 +57,7 @@ def _step_all(trial, max_delay_s: float, lag_s: float):
 
 
 def test_stepper_on_out_of_order_batches_equals_one_batch_run_bit_for_bit(trial):
-    from leonav_runtime.filter import EKF
+    from leonav_runtime.core.filter import EKF
 
     setup, nav, tr = trial
     st, settled = _step_all(trial, max_delay_s=1.5, lag_s=2.0)
@@ -127,7 +128,7 @@ def test_streaming_time_map_ends_at_the_sessions_map(tmp_path):
     from leonav.hardware.session import decode_session
     from leonav_runtime.nav.timemap import StreamingTimeMap
     from leonav_runtime.replay.timebase import mono_to_utc_function
-    from leonav_runtime.session_synth import SynthSessionConfig, write_synthetic_session
+    from leonav_runtime.simulation.session_synth import SynthSessionConfig, write_synthetic_session
 
     write_synthetic_session(tmp_path / "s", SynthSessionConfig(seconds=6.0, sdr=False))
     dec = decode_session(tmp_path / "s")

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from leonav.codegen import observability as ob
-from leonav_runtime import compiled
+from leonav_runtime.core import compiled
 from leonav_runtime import observability as ro
 from leonav.models import frames
 from leonav.models import state as S
@@ -55,7 +55,7 @@ def test_states_and_observables_are_enumerated_from_the_models():
     assert [n for n, _ in runtime] == [c.name for c in comps]
     assert [label for _, label in runtime] == [c.label for c in comps]
     assert ob.symbolic().h.keys() == measurement_models().keys()
-    from leonav_runtime.scenario import MODE_OBSERVABLES
+    from leonav_runtime.scenarios.load import MODE_OBSERVABLES
     assert {m: MODES[m] for m in MODE_OBSERVABLES} == MODE_OBSERVABLES
     assert MODES[ro.GNSS_FIX_MODE] == tuple(m.suffix for m in S.MEASUREMENTS if m.suffix.startswith("pos_"))
 
@@ -233,8 +233,8 @@ def test_static_scenario_run_has_the_rank_of_the_static_class():
     """Along the paper's static run (real constellation geometry, 100 Hz IMU; shortened to 10 s) the
     information has the rank the structural analysis gives the static class, mode by mode, and the
     PCRB with the scenario's process noise stays at the prior for the LO offset without Doppler."""
-    from leonav_runtime import montecarlo
-    from leonav_runtime.scenario import load_scenario, scenario_from_dict
+    from leonav_runtime.sweep import montecarlo
+    from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
     base = load_scenario("paper")
     raw = dict(base.raw)

@@ -37,7 +37,7 @@ def test_non_finite_state_without_an_error_code_is_a_named_failure(monkeypatch):
 
 def test_long_capture_predictions_include_satellites_visible_only_mid_window():
     from leonav_runtime.beacons.predict import predict_visible
-    from leonav_runtime.geometry import Site
+    from leonav_runtime.orbits.geometry import Site
 
     es = _quiet_load(shared_file("tle/starlink_2026-02-23.txt"))
     site = Site.from_degrees(43.0848638, -77.6786127, 170.0)
@@ -47,7 +47,7 @@ def test_long_capture_predictions_include_satellites_visible_only_mid_window():
         warnings.simplefilter("ignore")
         pred = predict_visible(es, site, start, duration, step_s=5.0)
     # every satellite above the mask at any epoch of a dense 5 s grid must be a candidate
-    from leonav_runtime.geometry import az_el_range, geodetic_to_ecef
+    from leonav_runtime.orbits.geometry import az_el_range, geodetic_to_ecef
 
     t_dense = np.arange(0.0, duration + 1.0, 5.0)
     with warnings.catch_warnings():

@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.orbits import (
     ElementSet,
     RejectedElementsWarning,

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from leonav_runtime.cli import main as leonav_main
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.orbits import FetchError, fetch_group, load_elements
 from tests.conftest import local_http_server, shared_file
 

@@ -33,7 +33,7 @@ def exported(tmp_path_factory):
     """A short synthetic session with beacons, exported for fix+leo-alpha+imu."""
     from leonav_runtime.commands.export_records import export
     from leonav_runtime.replay import ReplayOptions
-    from leonav_runtime.session_synth import SynthSessionConfig, write_synthetic_session
+    from leonav_runtime.simulation.session_synth import SynthSessionConfig, write_synthetic_session
 
     base = tmp_path_factory.mktemp("pi")
     write_synthetic_session(base / "s", SynthSessionConfig(seconds=6.0, seed=3, sdr_rate_hz=200e3, n_satellites=3))
@@ -61,9 +61,9 @@ def _rows(path: Path) -> list[dict]:
 
 
 def test_export_records_runs_in_the_pi_program_as_in_python(exported, x86_program):
-    from leonav_runtime.filter import EKF
+    from leonav_runtime.core.filter import EKF
     from leonav_runtime.gen import state_layout as L
-    from leonav_runtime.records import RECORD_DTYPE
+    from leonav_runtime.core.records import RECORD_DTYPE
 
     out, info = exported
     _run([str(x86_program), str(out / "records.bin"), str(out / "init.bin"), str(out / "x86.csv")])
@@ -88,7 +88,7 @@ def test_aarch64_program_and_library_equal_the_x86_run_bit_for_bit(exported, x86
     # the program as the Makefile builds it for a 64-bit Pi
     env = os.environ | {"QEMU_LD_PREFIX": str(SYSROOT)}
     _run(["qemu-aarch64", str(pi_program(CROSS)), records, init, str(tmp_path / "arm.csv")], env)
-    # the library as the runtime builds it (leonav_runtime.compiled: same flags), the program linked to it
+    # the library as the runtime builds it (leonav_runtime.core.compiled: same flags), the program linked to it
     flags = ["-O2", "-std=c99", "-fPIC", f"-I{GEN}", f"-I{CSRC}"]
     objs = []
     for src in (GEN / "leonav_gen.c", CSRC / "leonav_driver.c"):

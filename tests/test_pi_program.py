@@ -16,9 +16,10 @@ def program():
 
 
 def test_standalone_program_matches_the_python_runtime(program, tmp_path):
-    from leonav_runtime import montecarlo as mc, simulate
-    from leonav_runtime.filter import EKF
-    from leonav_runtime.scenario import load_scenario, scenario_from_dict
+    from leonav_runtime.simulation import simulate
+    from leonav_runtime.sweep import montecarlo as mc
+    from leonav_runtime.core.filter import EKF
+    from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
     raw = copy.deepcopy(load_scenario("paper").raw)
     raw["time"]["duration_s"] = 3.0
@@ -45,7 +46,7 @@ def test_standalone_program_matches_the_python_runtime(program, tmp_path):
 
 
 def test_standalone_program_names_a_bad_record_kind(program, tmp_path):
-    from leonav_runtime import records
+    from leonav_runtime.core import records
     from leonav_runtime.gen import state_layout as L
 
     rec = records.imu_records([0.01, 0.02], np.zeros((2, 3)), np.zeros((2, 3)), dt_s=0.01)

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from leonav_runtime import montecarlo as mc
-from leonav_runtime import realism, simulate
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.sweep import montecarlo as mc
+from leonav_runtime.simulation import realism, simulate
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen import state_layout as L
 from tests.conftest import short_paper_scenario
 

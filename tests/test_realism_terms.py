@@ -6,10 +6,10 @@ import copy
 import numpy as np
 import pytest
 
-from leonav_runtime import montecarlo as mc
-from leonav_runtime import realism, simulate
+from leonav_runtime.sweep import montecarlo as mc
+from leonav_runtime.simulation import realism, simulate
 from leonav_runtime.gen import state_layout as L
-from leonav_runtime.scenario import load_scenario, scenario_from_dict
+from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
 PAPER_MODES = load_scenario("paper").raw["monte_carlo"]["modes"]
 

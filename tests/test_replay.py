@@ -25,9 +25,11 @@ from leonav.hardware.imu import witmotion_encode as wenc
 from leonav.hardware.imu.witmotion import SampleGrouper, WitMotionParser
 from leonav.hardware.records import GnssFix, NmeaSentence
 from leonav.hardware.session import decode_session
-from leonav_runtime import inputs as road, navfuncs, replay, session_synth as ss
+from leonav_runtime import inputs as road, replay
+from leonav_runtime.core import navfuncs
+from leonav_runtime.simulation import session_synth as ss
 from leonav_runtime.cli import main as leonav_main
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.profiles import WT901
 from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
 
@@ -404,7 +406,7 @@ def test_assemble_starts_at_a_late_first_fix(t_first_fix, start, dropped):
 
 def test_synthetic_imu_noise_is_the_simulators_draw(synth):
     """The session's biases are `simulate.bias_walks` of its seed, as in the Monte Carlo trials."""
-    from leonav_runtime import simulate
+    from leonav_runtime.simulation import simulate
 
     L = navfuncs.NavFunctions().layout
     n, dt_s = synth.u_meas.shape[0], 1.0 / synth.cfg.imu_rate_hz

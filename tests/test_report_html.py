@@ -10,8 +10,9 @@ import subprocess
 
 import pytest
 
-from leonav_runtime import html_report, sweep_plots
-from leonav_runtime.sweep import run_sweep
+from leonav_runtime.common import html_report
+from leonav_runtime.sweep import plots as sweep_plots
+from leonav_runtime.sweep.run import run_sweep
 from tests.conftest import short_paper_scenario
 
 

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from leonav_runtime import compiled
-from leonav_runtime import filter as lf
+from leonav_runtime.core import compiled
+from leonav_runtime.core import filter as lf
 from leonav_runtime.gen import state_layout as L
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_filter.py"

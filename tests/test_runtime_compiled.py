@@ -8,14 +8,14 @@ import types
 
 import pytest
 
-from leonav_runtime import compiled
+from leonav_runtime.core import compiled
 
 NO_CASADI_SCRIPT = r"""
 import sys
 sys.modules["casadi"] = None  # any `import casadi` now raises ImportError
 import math
 import numpy as np
-from leonav_runtime import compiled, records, filter as lf
+from leonav_runtime.core import compiled, records, filter as lf
 from leonav_runtime.gen import state_layout as L
 lib = compiled.load()
 p = np.zeros(L.NP)

@@ -6,12 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from leonav_runtime import compiled, records
-from leonav_runtime import filter as lf
+from leonav_runtime.core import compiled, records
+from leonav_runtime.core import filter as lf
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gen.profiles import ClockProfile, ImuProfile
-from leonav_runtime.navfuncs import GeneratedFunction
-from leonav_runtime.params import params_array
+from leonav_runtime.core.navfuncs import GeneratedFunction
+from leonav_runtime.core.params import params_array
 
 Q_ACC, Q_CDT, Q_CDDT = 0.04, 2.0, 0.3
 PARAMS = params_array(0.6, 2.4, 50.0, imu=ImuProfile("cv", math.sqrt(Q_ACC), 0.0, 0.0, 0.0, 0.0, 0.0, "test"),

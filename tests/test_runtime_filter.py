@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from leonav_runtime import compiled, records
-from leonav_runtime import filter as lf
+from leonav_runtime.core import compiled, records
+from leonav_runtime.core import filter as lf
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gen import constants as K
-from leonav_runtime.params import build_params
+from leonav_runtime.core.params import build_params
 
 LAT, LON, H = math.radians(40.0), math.radians(-83.0), 200.0
 IMU_DT = 0.01

@@ -8,7 +8,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from leonav_runtime import compiled, records
+from leonav_runtime.core import compiled, records
 
 
 def _c_offsets(tmp_path) -> dict[str, int]:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from leonav_runtime import montecarlo as mc
+from leonav_runtime.sweep import montecarlo as mc
 from leonav_runtime.gen import state_layout as L
 from tests.golden_run import COLUMNS, golden_rows, read_golden
 from tests.test_golden_run import _tol
@@ -51,9 +51,9 @@ def test_golden_run_is_reproduced_with_the_prior_block_draw(monkeypatch):
 
 
 def test_inter_system_biases_are_uncoupled_in_the_imu_predict():
-    from leonav_runtime import compiled
-    from leonav_runtime.navfuncs import GeneratedFunction
-    from leonav_runtime.params import build_params
+    from leonav_runtime.core import compiled
+    from leonav_runtime.core.navfuncs import GeneratedFunction
+    from leonav_runtime.core.params import build_params
 
     lib = compiled.load()
     predict = GeneratedFunction(lib.lib, "leonav_predict")

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import BUILTIN_DIR, builtin_scenarios, load_scenario
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.scenarios.load import BUILTIN_DIR, builtin_scenarios, load_scenario
 
 
 def test_builtin_scenarios_load_in_si():
@@ -75,7 +75,7 @@ def test_missing_required_and_bad_epoch(tmp_path):
 
 
 def test_scenario_reference_doc_matches_the_schema():
-    from leonav_runtime.scenario import schema_markdown
+    from leonav_runtime.scenarios.load import schema_markdown
 
     doc = (BUILTIN_DIR.parents[1] / "docs" / "scenarios.md").read_text()
     assert schema_markdown() in doc, "docs/scenarios.md is stale: paste scenario.schema_markdown() under '## Keys'"

@@ -7,11 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from leonav_runtime import geometry, montecarlo as mc, simulate
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.filter import EKF
-from leonav_runtime.scenario import MODES, load_scenario, scenario_from_dict
-from leonav_runtime.trajectory import motion
+from leonav_runtime.orbits import geometry
+from leonav_runtime.simulation import simulate
+from leonav_runtime.sweep import montecarlo as mc
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.core.filter import EKF
+from leonav_runtime.scenarios.load import MODES, load_scenario, scenario_from_dict
+from leonav_runtime.simulation.trajectory import motion
 
 C = 299_792_458.0
 W_E = 7.2921151467e-5  # rad/s, Earth rotation rate (WGS84)

@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from leonav_runtime import geometry, sky, sky_plot
+from leonav_runtime.orbits import geometry
+from leonav_runtime.sky import view as sky, plot as sky_plot
 from leonav_runtime.orbits import RejectedEntry
 
 EPOCH = dt.datetime(2026, 2, 23, 12, 0, 0, tzinfo=dt.timezone.utc)

@@ -26,7 +26,7 @@ from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.rinex_nav import read_rinex_nav
 from leonav_runtime.gnss.rinex_obs import read_rinex_obs
 from leonav_runtime.gnss.signals import gnss_rows, klobuchar_coefficients
-from leonav_runtime.navfuncs import NavFunctions
+from leonav_runtime.core.navfuncs import NavFunctions
 from tests.conftest import shared_file
 
 FIXTURES = Path(__file__).parent / "data" / "rtklib"
@@ -209,7 +209,7 @@ def synthetic_constellation(t_gps_s: float, r_rx: np.ndarray):
     """Ephemeris rows for GPS, Galileo and BeiDou satellites made from a GEONET GPS record
     (system, PRN, mean anomaly and node changed), all above 15 deg at r_rx."""
     from leonav_runtime.gnss.ephemeris import EPH_DTYPE, Ephemerides
-    from leonav_runtime.geometry import az_el_range, ecef_to_geodetic
+    from leonav_runtime.orbits.geometry import az_el_range, ecef_to_geodetic
     from leonav_runtime.orbits.broadcast import satellite_states
 
     base = read_rinex_nav(shared_file("gnss_rinex/07590920.05n")).ephemerides.data
@@ -236,8 +236,8 @@ def test_inter_system_biases_are_estimated_per_constellation():
     and -40 m off the GPS clock) by the generated model itself (a consistency check of the
     per-constellation clock and its plumbing, not of the physics): SPP gives them back."""
     from leonav_runtime.gnss.observations import ObservationTable
-    from leonav_runtime.geometry import ecef_to_geodetic, geodetic_to_ecef
-    from leonav_runtime.params import params_array
+    from leonav_runtime.orbits.geometry import ecef_to_geodetic, geodetic_to_ecef
+    from leonav_runtime.core.params import params_array
 
     nav = nav_funcs()
     r_true = np.asarray(geodetic_to_ecef(np.radians(35.16), np.radians(139.61), 70.0), float)
@@ -299,8 +299,8 @@ def elevation_residuals(station: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
     pseudorange minus the generated model at the static EKF's mean position (15 deg mask, a
     reference the low rows do not pull), less a clock per epoch (median over the rows above
     30 deg)."""
-    from leonav_runtime import geometry
-    from leonav_runtime.params import params_array
+    from leonav_runtime.orbits import geometry
+    from leonav_runtime.core.params import params_array
 
     res0, _ = solve(station, True, 0.0)
     res15, _ = solve(station, True, 15.0)

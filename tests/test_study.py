@@ -8,10 +8,10 @@ from pathlib import Path
 import pytest
 
 from leonav_runtime.cli import main
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.study.run import run_study
 from leonav_runtime.study.spec import Axis, expand_grid, load_study, parse_set, study_from_dict
-from leonav_runtime.sweep import run_sweep
+from leonav_runtime.sweep.run import run_sweep
 
 TINY = {   # 2 s static run, 5 satellites: a cell prepares in a fraction of a second
     "scenario": "paper", "modes": ["leo-alpha+imu"], "count": 5, "trials": 3,
@@ -120,7 +120,7 @@ def test_study_outputs_carry_units_and_a_report_and_the_paper_contours(tmp_path)
 
     from matplotlib.contour import ContourSet
 
-    from leonav_runtime import plot_style as ps
+    from leonav_runtime.common import plot_style as ps
     from leonav_runtime.study import plots
 
     study = _study(tmp_path, [{"key": "filter.initial_position_sigma_m", "values": [3.0, 30.0]},

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from leonav_runtime.cli import main
-from leonav_runtime.scenario import MODES, load_scenario, scenario_from_dict
-from leonav_runtime.sweep import outage_end_error, run_sweep
+from leonav_runtime.scenarios.load import MODES, load_scenario, scenario_from_dict
+from leonav_runtime.sweep.run import outage_end_error, run_sweep
 
 try:
     import tomllib

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from leonav_runtime.scenario import load_scenario
-from leonav_runtime.trajectory import motion
+from leonav_runtime.scenarios.load import load_scenario
+from leonav_runtime.simulation.trajectory import motion
 
 
 def test_static_profile_keeps_site_and_attitude():

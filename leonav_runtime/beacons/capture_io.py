@@ -36,8 +36,8 @@ from typing import Iterator
 
 import numpy as np
 
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.utc import parse_utc  # noqa: F401  (re-exported: callers use capture_io.parse_utc)
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.common.utc import parse_utc  # noqa: F401  (re-exported: callers use capture_io.parse_utc)
 
 DEFAULT_LNB_LO_HZ = 9.75e9
 BYTES_PER_SAMPLE = {"cu8": 2, "ci8": 2, "cf32": 8}

@@ -126,12 +126,12 @@ def write_results(out_dir: Path, rows: list[dict], meta: dict) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from leonav_runtime import output
+    from leonav_runtime.common import output
 
     out_dir = Path(out_dir)
     keys = list(rows[0])
     output.write_csv(out_dir / "impairments.csv", keys, [[r[k] for k in keys] for r in rows])
-    from leonav_runtime.provenance import provenance
+    from leonav_runtime.common.provenance import provenance
 
     output.write_json(out_dir / "impairments.json", {"provenance": provenance(), **meta, "sets": {n: {"impairments": dataclasses.asdict(i)
                                                                           if i else None, "synth": e}

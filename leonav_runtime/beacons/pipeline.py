@@ -18,7 +18,7 @@ from typing import Callable
 import numpy as np
 
 from leonav_runtime.beacons import capture_io
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.beacons.associate import Association, AssociationConfig, associate_capture
 from leonav_runtime.beacons.comb import Comb
 from leonav_runtime.beacons.lo_fit import LoEstimate
@@ -255,7 +255,7 @@ def _iso(start: _dt.datetime | None, t: float) -> str:
 
 def write_outputs(res: PipelineResult, out_dir: Path) -> dict[str, Path]:
     """associations.csv, doppler_rate_measurements.csv (+ .columns.txt), waterfall.png, summary.json."""
-    from leonav_runtime.output import write_csv, write_json
+    from leonav_runtime.common.output import write_csv, write_json
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -303,7 +303,7 @@ def write_outputs(res: PipelineResult, out_dir: Path) -> dict[str, Path]:
     cols.write_text("".join(f"{n} [{u}]: {d}\n" for n, u, d in MEASUREMENT_COLUMNS))
     paths["columns"] = cols
     paths["waterfall"] = plot_waterfall(res, out_dir / "waterfall.png")
-    from leonav_runtime.provenance import provenance
+    from leonav_runtime.common.provenance import provenance
 
     paths["summary"] = write_json(out_dir / "summary.json", {"provenance": provenance(), **summary(res)})
     return paths

@@ -4,7 +4,7 @@ The curves come from the generated measurement functions `leonav_h_doppler` and
 `leonav_h_doppler_rate` (models/measurements/doppler.py, doppler_rate.py), evaluated at the nominal state of a static receiver at the ENU
 origin (p_enu = 0, v_enu = 0, q_nb = identity, biases 0, b_lo = 0) with the specific
 force that holds it still, f_b = -g_enu(0) (so the model's receiver acceleration is 0).
-They are called through `leonav_runtime.navfuncs` (no casadi on this path).
+They are called through `leonav_runtime.core.navfuncs` (no casadi on this path).
 
 Satellite states come from `leonav_runtime.orbits.propagate_ecef` (SGP4, ECEF, with
 acceleration). Visibility uses the elevation mask at any prediction time in the window.
@@ -17,9 +17,9 @@ import functools
 
 import numpy as np
 
-from leonav_runtime.geometry import Site
-from leonav_runtime.navfuncs import NavFunctions
-from leonav_runtime.params import params_array
+from leonav_runtime.orbits.geometry import Site
+from leonav_runtime.core.navfuncs import NavFunctions
+from leonav_runtime.core.params import params_array
 from leonav_runtime.gen.constants import STARLINK_BEACON_HZ, STARLINK_MASK_DEG
 
 DEFAULT_MASK_DEG = STARLINK_MASK_DEG
@@ -104,7 +104,7 @@ def predict_visible(elements, site: Site, start_utc: _dt.datetime, duration_s: f
     The grid spans [-margin_s, duration_s + margin_s] with `step_s` spacing (cubic
     interpolation of these smooth curves is accurate to well below 0.01 Hz/s at 0.5 s).
     """
-    from leonav_runtime.geometry import az_el_range, geodetic_to_ecef
+    from leonav_runtime.orbits.geometry import az_el_range, geodetic_to_ecef
     from leonav_runtime.orbits import propagate_ecef
 
     n = int(np.ceil((duration_s + 2 * margin_s) / step_s)) + 1

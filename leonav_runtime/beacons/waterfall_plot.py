@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import plot_style as ps
+from leonav_runtime.common import plot_style as ps
 from leonav_runtime.gen.constants import COMB_SPACING_HZ
 
 

@@ -9,8 +9,8 @@ import shutil
 import warnings
 from pathlib import Path
 
-from leonav_runtime import output
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common import output
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.constants import STARLINK_BEACON_HZ, STARLINK_MASK_DEG
 
 ROCHESTER_DEG = (43.0848638, -77.6786127, 170.0)  # the paper's site

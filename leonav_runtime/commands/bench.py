@@ -11,8 +11,8 @@ import importlib.util
 from pathlib import Path
 from types import ModuleType
 
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.output import add_out_argument
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.common.output import add_out_argument
 
 BENCH_SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_filter.py"
 

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import output
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import load_scenario, scenario_from_dict
+from leonav_runtime.common import output
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
 OBSERVABLES = ("doppler_rate", "doppler", "ofdm_range_diff")
 
@@ -39,7 +39,8 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from leonav_runtime import crb, montecarlo as mc, simulate
+    from leonav_runtime.simulation import simulate
+    from leonav_runtime.sweep import crb, montecarlo as mc
 
     base = load_scenario(args.scenario)
     raw = copy.deepcopy(base.raw)
@@ -73,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError("no satellite counts to evaluate")
     output.write_csv(out_dir / "crb.csv", ["count", "sqrt_crb_3d_m", "sqrt_crb_e_m", "sqrt_crb_n_m",
                                           "sqrt_crb_u_m", "sqrt_pcrb_static_3d_m"], rows)
-    from leonav_runtime.provenance import provenance
+    from leonav_runtime.common.provenance import provenance
 
     output.write_json(out_dir / "crb.json", {
         "provenance": provenance(scn.raw), "scenario": scn.name, "epoch_utc": scn.epoch_utc, "duration_s": scn.duration_s,

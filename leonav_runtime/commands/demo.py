@@ -5,8 +5,8 @@ import argparse
 import copy
 from pathlib import Path
 
-from leonav_runtime import output
-from leonav_runtime.scenario import load_scenario, scenario_from_dict
+from leonav_runtime.common import output
+from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
 
 def register(subparsers) -> None:
@@ -25,7 +25,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from leonav_runtime.sweep import run_sweep, summary_table
+    from leonav_runtime.sweep.run import run_sweep, summary_table
 
     base = load_scenario(args.scenario)
     raw = copy.deepcopy(base.raw)

@@ -17,7 +17,7 @@ import warnings
 
 import numpy as np
 
-from leonav_runtime.utc import parse_utc
+from leonav_runtime.common.utc import parse_utc
 
 
 def eop_report(date_utc: _dt.datetime, days: int = 1) -> dict:

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import output
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common import output
+from leonav_runtime.common.errors import UserInputError
 
 
 def register(subparsers) -> None:
@@ -43,7 +43,7 @@ def register(subparsers) -> None:
 
 def export(session: Path, out: Path, options, elements=None) -> dict:
     """records.bin, init.bin, export.json for the first mode of `options`; returns export.json's content."""
-    from leonav_runtime import navfuncs, records
+    from leonav_runtime.core import navfuncs, records
     from leonav_runtime.gen import state_layout as L
     from leonav_runtime.gen.constants import CHI2_1DOF_999
     from leonav_runtime.replay import MODE_STREAMS, decode_inputs

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import argparse
 
-from leonav_runtime import output
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common import output
+from leonav_runtime.common.errors import UserInputError
 
 
 def register(subparsers) -> None:
@@ -41,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     from leonav_runtime.beacons import impairment_study as st
     from leonav_runtime.beacons.predict import Site
     from leonav_runtime.orbits import default_elements, group_by_constellation, load_elements
-    from leonav_runtime.utc import parse_utc
+    from leonav_runtime.common.utc import parse_utc
 
     names = list(st.SETS) if args.sets == "all" else [s.strip() for s in args.sets.split(",")]
     bad = [n for n in names if n not in st.SETS]

@@ -6,8 +6,8 @@ import math
 import sys
 from pathlib import Path
 
-from leonav_runtime import output
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common import output
+from leonav_runtime.common.errors import UserInputError
 
 EPILOG = """exit status:
   0    ended as asked (--seconds elapsed or the played-back session ended) and navigated

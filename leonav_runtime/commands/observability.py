@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import output
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common import output
+from leonav_runtime.common.errors import UserInputError
 
 
 def register(subparsers) -> None:
@@ -28,7 +28,7 @@ def register(subparsers) -> None:
         ),
     )
     from leonav_runtime.observability import GNSS_FIX_MODE
-    from leonav_runtime.scenario import MODE_OBSERVABLES
+    from leonav_runtime.scenarios.load import MODE_OBSERVABLES
 
     p.add_argument("--modes", nargs="+", metavar="MODE", default=None,
                    help=f"modes to analyse (default: all: {', '.join([*MODE_OBSERVABLES, GNSS_FIX_MODE])})")
@@ -153,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
         obs.plot_index(mode, comps, by_motion, out_dir / name, None if run is None else run["index"][-1],
                        scenario_info.get("name", "scenario"))
         figures.append(name)
-    from leonav_runtime.provenance import provenance
+    from leonav_runtime.common.provenance import provenance
 
     output.write_json(out_dir / "observability.json", {
         "provenance": provenance(),
@@ -178,9 +178,9 @@ def _scenario_runs(args, modes: dict, targets: dict) -> tuple[list[dict], dict]:
     """Run-along analysis of the selected modes the simulator supports, on the chosen scenario."""
     if str(args.scenario).lower() == "none":
         return [], {}
-    from leonav_runtime import montecarlo
+    from leonav_runtime.sweep import montecarlo
     from leonav_runtime import observability as obs
-    from leonav_runtime.scenario import MODE_OBSERVABLES, load_scenario, scenario_from_dict
+    from leonav_runtime.scenarios.load import MODE_OBSERVABLES, load_scenario, scenario_from_dict
 
     run_modes = [m for m in modes if m in MODE_OBSERVABLES]
     if not run_modes:

@@ -69,7 +69,7 @@ def _existing_parent(path: Path) -> Path:
 
 def check_options(args: argparse.Namespace) -> None:
     """Every option in range before a device is opened or a file written (UserInputError)."""
-    from leonav_runtime.errors import UserInputError
+    from leonav_runtime.common.errors import UserInputError
 
     if not (math.isfinite(args.seconds) and 0 < args.seconds <= MAX_SECONDS):
         raise UserInputError(f"--seconds {args.seconds!r}: expected a duration in (0, {MAX_SECONDS}] s (30 days)")

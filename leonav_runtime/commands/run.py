@@ -5,8 +5,8 @@ import argparse
 import math
 from pathlib import Path
 
-from leonav_runtime import output
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common import output
+from leonav_runtime.common.errors import UserInputError
 
 
 def register(subparsers) -> None:
@@ -19,7 +19,7 @@ def register(subparsers) -> None:
             "the generated filter in every mode of [filter] modes (fix+imu, +nhc, +zupt) and with 30 s GPS "
             "outages, and score at the reference epochs. Writes metrics.json, errors.csv, trajectory_<mode>.csv/"
             ".pos/.kml/.gpx, error_vs_time.png (outages shaded), error_cdf.png and trajectory.png. A bare name "
-            "(cpet_run3) picks a description shipped in leonav_runtime/datasets/."),
+            "(cpet_run3) picks a description shipped in leonav_runtime/dataset/descriptions/."),
     )
     p.add_argument("dataset", metavar="DATASET.toml", help="dataset description file, or a shipped name")
     add_reference_arguments(p, heights=True)

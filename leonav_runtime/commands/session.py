@@ -5,8 +5,8 @@ import argparse
 import math
 from pathlib import Path
 
-from leonav_runtime import output
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common import output
+from leonav_runtime.common.errors import UserInputError
 
 
 def register(subparsers) -> None:
@@ -44,7 +44,8 @@ def register(subparsers) -> None:
 def run_synth(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from leonav_runtime import replay, session_synth as ss
+    from leonav_runtime import replay
+    from leonav_runtime.simulation import session_synth as ss
     from leonav_runtime.beacons.capture_io import parse_utc
     from leonav_runtime.orbits import load_element_files
 

@@ -9,9 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import geometry, output, sky, sky_plot
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.utc import parse_utc
+from leonav_runtime.common import output
+from leonav_runtime.orbits import geometry
+from leonav_runtime.sky import view as sky, plot as sky_plot
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.common.utc import parse_utc
 
 DEFAULT_DURATION_S = 600.0
 DEFAULT_STEP_S = 10.0
@@ -146,7 +148,7 @@ def run(args: argparse.Namespace) -> int:
     summary["window"]["start_source"] = start_source
     summary["elements"] = sources
     out_dir = output.results_dir(args.out, "sky")
-    from leonav_runtime.provenance import provenance
+    from leonav_runtime.common.provenance import provenance
 
     output.write_json(out_dir / "sky.json", {"provenance": provenance(), **summary})
     names = list(view.constellations)

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.output import add_out_argument, results_dir, write_csv, write_json
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.common.output import add_out_argument, results_dir, write_csv, write_json
 
 _RINEX_LABEL = "RINEX VERSION / TYPE"
 
@@ -200,7 +200,7 @@ def _write_satellites_csv(path: Path, res) -> None:
 
 
 def _write_ekf_csv(path: Path, sol) -> None:
-    from leonav_runtime import geometry
+    from leonav_runtime.orbits import geometry
 
     header = ["t_gps_s", "lat_deg", "lon_deg", "height_m", "x_ecef_m", "y_ecef_m", "z_ecef_m", "ve_mps", "vn_mps",
               "vu_mps", "clock_m", "sde_m", "sdn_m", "sdu_m", "n_applied", "n_gated"]
@@ -217,7 +217,7 @@ def _write_ekf_csv(path: Path, sol) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from leonav_runtime.navfuncs import NavFunctions
+    from leonav_runtime.core.navfuncs import NavFunctions
 
     _check(args)
     t0 = time.perf_counter()
@@ -226,7 +226,7 @@ def _run(args: argparse.Namespace) -> int:
     refs = args.compare or [None] * len(args.obs)
     nav_cache: dict = {}
     summaries = [process(Path(p), args.nav, args, nav_funcs, out, ref, nav_cache) for p, ref in zip(args.obs, refs)]
-    from leonav_runtime.provenance import provenance
+    from leonav_runtime.common.provenance import provenance
 
     write_json(out / "spp.json", {"provenance": provenance(),
                                   "options": {k: v for k, v in vars(args).items() if k != "func"},
@@ -286,9 +286,9 @@ def main(argv: list[str] | None = None) -> int:
     `leonav` subcommands (some import SciPy and the simulator): a lean entry for scripts."""
     import sys
 
-    from leonav_runtime.errors import UserInputError as _UIE
+    from leonav_runtime.common.errors import UserInputError as _UIE
 
-    from leonav_runtime.arg_parser import OneLineErrorParser
+    from leonav_runtime.common.arg_parser import OneLineErrorParser
 
     parser = OneLineErrorParser(prog="leonav")
     register(parser.add_subparsers(dest="command"))

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import argparse
 
-from leonav_runtime import output
-from leonav_runtime.executors import add_executor_arguments
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common import output
+from leonav_runtime.sweep.executors import add_executor_arguments
+from leonav_runtime.common.errors import UserInputError
 
 
 def register(subparsers) -> None:

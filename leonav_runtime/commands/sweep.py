@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import argparse
 
-from leonav_runtime import output
-from leonav_runtime.executors import add_executor_arguments
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import MODES, builtin_scenarios, check_run_size, load_scenario
+from leonav_runtime.common import output
+from leonav_runtime.sweep.executors import add_executor_arguments
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.scenarios.load import MODES, builtin_scenarios, check_run_size, load_scenario
 
 
 def register(subparsers) -> None:
@@ -40,13 +40,13 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from leonav_runtime.sweep import run_sweep, summary_table
+    from leonav_runtime.sweep.run import run_sweep, summary_table
 
     if args.trials is not None and args.trials < 1:
         raise UserInputError(f"--trials {args.trials}: expected an integer >= 1")
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"--workers {args.workers}: expected an integer >= 1")
-    from leonav_runtime.scenario_overrides import apply_overrides, parse_counts, split_list
+    from leonav_runtime.scenarios.overrides import apply_overrides, parse_counts, split_list
 
     scn, _changes = apply_overrides(load_scenario(args.scenario), modes=split_list(args.modes),
                                     counts=parse_counts(args.counts), seed=args.seed, trials=args.trials)

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.utc import parse_utc
-from leonav_runtime.output import add_out_argument, results_dir, write_json
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.common.utc import parse_utc
+from leonav_runtime.common.output import add_out_argument, results_dir, write_json
 
 
 def _parse_epoch(text: str | None) -> _dt.datetime:

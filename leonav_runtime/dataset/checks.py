@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 
 G_MPS2 = 9.80665
 RATE_HZ = (1.0, 20000.0)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from leonav_runtime import navfuncs, records
+from leonav_runtime.core import navfuncs, records
 from leonav_runtime.dataset.load import ImuSamples
 
 

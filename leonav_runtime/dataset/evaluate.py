@@ -12,10 +12,10 @@ from typing import Callable
 
 import numpy as np
 
-from leonav_runtime import output
+from leonav_runtime.common import output
 from leonav_runtime.dataset import checks, export, load, plots, runner, scoring
 from leonav_runtime.dataset.spec import DatasetSpec
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 
 GOALS = {"kf_gins_horizontal_rmse_m": 0.947, "yaw_rmse_deg": 5.0, "outage_median_ratio": 0.5,
          "kf_gins_us_per_imu_step": 14.6, "nis_band": [0.5, 2.0]}
@@ -52,7 +52,7 @@ def run_dataset(spec: DatasetSpec, out_dir: Path, reference: dict | None = None,
     prep = runner.prepare(ds, t_end_s=t_end_s)
     L = prep.nav.layout
     sc = spec["scoring"]
-    from leonav_runtime.provenance import provenance
+    from leonav_runtime.common.provenance import provenance
 
     metrics: dict = {"provenance": provenance(), "dataset": spec.name, "description": spec.description, "source": spec.source,
                      "reference": ref.source, "reference_epochs": int(ref.t.size), "t0_unix_s": ds.t0_unix,

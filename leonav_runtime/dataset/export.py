@@ -14,8 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import filter as lfilter
-from leonav_runtime import geometry, output
+from leonav_runtime.core import filter as lfilter
+from leonav_runtime.common import output
+from leonav_runtime.orbits import geometry
 from leonav_runtime.dataset.scoring import states_at, yaw_of
 from leonav_runtime.gnss import solution_io
 from leonav_runtime.gnss import time as gtime

@@ -13,10 +13,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from leonav_runtime import geometry
+from leonav_runtime.orbits import geometry
 from leonav_runtime.dataset import checks, readers
 from leonav_runtime.dataset.spec import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS, DatasetSpec
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.inputs import FixTable
 
 

@@ -21,14 +21,14 @@ def style(mode: str) -> dict:
 
 
 def _pyplot():
-    from leonav_runtime import plot_style
+    from leonav_runtime.common import plot_style
 
     return plot_style.pyplot()
 
 
 def _finish(fig, ax, path: Path) -> Path:
     """Grid, legend, layout; saved at the shared DPI and closed."""
-    from leonav_runtime import plot_style
+    from leonav_runtime.common import plot_style
 
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
@@ -69,7 +69,7 @@ def error_vs_time(path: Path, series: dict, gps: dict, outage_series: dict, leng
     axes[2].set_xlabel(f"time since the first GNSS fix [s]; shaded: {length_s:g} s GPS outages, one at a time")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    from leonav_runtime import plot_style
+    from leonav_runtime.common import plot_style
 
     plot_style.save(fig, path)
     return path

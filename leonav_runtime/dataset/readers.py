@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 
 COMMENTS = ("#", "%")
 

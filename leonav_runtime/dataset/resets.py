@@ -31,8 +31,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from leonav_runtime import filter as lfilter
-from leonav_runtime import records
+from leonav_runtime.core import filter as lfilter
+from leonav_runtime.core import records
 
 
 def long_gaps(recs: np.ndarray, max_gap_s: float, kind: int = records.KIND_IMU) -> np.ndarray:

@@ -24,15 +24,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from leonav_runtime import filter as lfilter
-from leonav_runtime import navfuncs, records
+from leonav_runtime.core import filter as lfilter
+from leonav_runtime.core import navfuncs, records
 from leonav_runtime.dataset import align, checks, constraints, resets
 from leonav_runtime.dataset.load import Dataset, ImuSamples
 from leonav_runtime.dataset.spec import MODE_STREAMS
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.profiles import IMU_PROFILES
 from leonav_runtime.inputs import FilterInputs, FixTable, ImuTable, Prior, assemble, prior_sigmas
-from leonav_runtime.params import ImuProfile, build_params
+from leonav_runtime.core.params import ImuProfile, build_params
 
 FIX_KINDS = ("POS_E", "POS_N", "POS_U")
 

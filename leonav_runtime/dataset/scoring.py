@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from leonav_runtime import filter as lfilter
+from leonav_runtime.core import filter as lfilter
 from leonav_runtime.dataset.load import Reference
 from leonav_runtime.inputs import FixTable
 
@@ -37,7 +37,7 @@ _NAV: list = []
 def yaw_of(q: np.ndarray) -> np.ndarray:
     """Yaw (rad, from East towards North) of q_nb rows [w x y z], by the generated
     euler_from_quat (NaN rows stay NaN)."""
-    from leonav_runtime.navfuncs import NavFunctions
+    from leonav_runtime.core.navfuncs import NavFunctions
 
     if not _NAV:
         _NAV.append(NavFunctions())

@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.scenario import Field, check_numbers, check_tables, show_value, where_key
-from leonav_runtime.toml_file import read_toml_file
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.scenarios.load import Field, check_numbers, check_tables, show_value, where_key
+from leonav_runtime.common.toml_file import read_toml_file
 
 REQ = ...
 MAX_FILE_BYTES = 1_000_000
@@ -276,9 +276,9 @@ def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
 
 def load_spec(path: str | Path) -> DatasetSpec:
     """Load and validate a dataset TOML file; a bare name like `cpet_run3` picks a shipped one
-    (leonav_runtime/datasets/)."""
+    (leonav_runtime/dataset/descriptions/)."""
     path = Path(path)
-    shipped = Path(__file__).resolve().parents[1] / "datasets"
+    shipped = Path(__file__).resolve().parent / "descriptions"
     if not path.exists() and (shipped / f"{path.stem}.toml").exists() and path.parent == Path("."):
         path = shipped / f"{path.stem}.toml"
     if not path.is_file():

@@ -28,9 +28,10 @@ import math
 
 import numpy as np
 
-from leonav_runtime import geometry, navfuncs
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.filter import EKF, RunResult
+from leonav_runtime.core import navfuncs
+from leonav_runtime.orbits import geometry
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.core.filter import EKF, RunResult
 from leonav_runtime.gen import constants as K
 from leonav_runtime.gnss import spp as _spp
 from leonav_runtime.gnss import time as gtime
@@ -145,7 +146,7 @@ def positions_ecef(x: np.ndarray, params: np.ndarray, nav: navfuncs.NavFunctions
 
 def nis_summary(recs: np.ndarray, res: RunResult, kind: int) -> dict:
     """Applied and gated counts and the mean NIS of the applied records of one kind."""
-    from leonav_runtime.filter import STATUS_APPLIED, STATUS_GATED
+    from leonav_runtime.core.filter import STATUS_APPLIED, STATUS_GATED
 
     k = recs["kind"] == kind
     applied = k & (res.status == STATUS_APPLIED)

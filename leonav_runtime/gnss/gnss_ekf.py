@@ -27,16 +27,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from leonav_runtime import geometry, records
-from leonav_runtime.filter import EKF, STATUS_APPLIED, STATUS_GATED, RunResult
+from leonav_runtime.core import records
+from leonav_runtime.orbits import geometry
+from leonav_runtime.core.filter import EKF, STATUS_APPLIED, STATUS_GATED, RunResult
 from leonav_runtime.gen import constants as K
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gen.profiles import ClockProfile, ImuProfile
 from leonav_runtime.gnss.signals import EPOCH_UNSOLVED, RAIM_EXCLUDED, filter_pseudorange_variance
 from leonav_runtime.gnss.spp import NOT_CONVERGED, SppResult
 from leonav_runtime.inputs.gnss_obs import nearest_finite
-from leonav_runtime.navfuncs import NavFunctions
-from leonav_runtime.params import params_array
+from leonav_runtime.core.navfuncs import NavFunctions
+from leonav_runtime.core.params import params_array
 
 DEFAULT_Q_ACC_M2PS3 = 1e-10
 """m^2/s^3: white-acceleration PSD of a static receiver (velocity sigma grows 0.6 mm/s per hour; a car: ~1)."""

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import EPH_DTYPE, Ephemerides, Rejection, default_fit_s, is_bds_geo
 

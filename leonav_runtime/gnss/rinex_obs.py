@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import Rejection
 from leonav_runtime.gnss.rinex_nav import read_rinex_text

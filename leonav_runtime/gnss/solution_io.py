@@ -17,8 +17,8 @@ from typing import Sequence
 
 import numpy as np
 
-from leonav_runtime import geometry
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.orbits import geometry
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.constants import C_LIGHT_MPS
 from leonav_runtime.gnss import time as gtime
 

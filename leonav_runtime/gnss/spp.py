@@ -41,14 +41,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from leonav_runtime import geometry
+from leonav_runtime.orbits import geometry
 from leonav_runtime.gen import constants as K
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gnss.chi2 import chi2_upper
 from leonav_runtime.gnss.signals import (BELOW_MASK, EPOCH_UNSOLVED, IMPLAUSIBLE, ISB_INDEX, RAIM_EXCLUDED, REASONS,
                                          GnssRows, pseudorange_variance)
-from leonav_runtime.navfuncs import NavFunctions
-from leonav_runtime.params import params_array
+from leonav_runtime.core.navfuncs import NavFunctions
+from leonav_runtime.core.params import params_array
 
 # epoch status
 SOLVED, SOLVED_RAIM, TOO_FEW, CHI2_FAILED, GDOP_FAILED, NOT_CONVERGED = 0, 1, 2, 3, 4, 5

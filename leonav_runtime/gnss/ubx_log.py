@@ -17,7 +17,7 @@ from pathlib import Path
 from leonav_runtime.gnss import sfrbx as _sfrbx
 from leonav.hardware.gnss import ubx as _ubx
 from leonav.hardware.gnss.reader import GnssSplitter
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import Ephemerides
 from leonav_runtime.gnss.observations import ObservationTable, rawx_to_table

@@ -2,7 +2,7 @@
 
 Every source (the simulator, a recorded session's replay, a dataset, live devices) turns
 its data into the tables of `tables.py` and calls `assemble`, which returns one
-`FilterInputs` for the generated C loop (`leonav_runtime.filter.EKF.run`):
+`FilterInputs` for the generated C loop (`leonav_runtime.core.filter.EKF.run`):
 
     ImuTable, FixTable, PseudorangeTable, DopplerRateTable, ...   (tables.py: units, frames)
       GnssObservationTable (receiver code / Doppler)              (gnss_obs.py)

@@ -20,8 +20,8 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from leonav_runtime import navfuncs, records
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.core import navfuncs, records
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.inputs.consider import OrbitConsider
 from leonav_runtime.inputs.gnss_obs import GnssObservationTable, apply_clock_start, gnss_records
 from leonav_runtime.inputs.imu import averaged_specific_force, imu_records

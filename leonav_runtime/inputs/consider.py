@@ -7,7 +7,7 @@ satellite in view); their effect enters each record's R through the Jacobian of 
 generated h over the aux satellite states (`leonav_orbit_jac_<kind>`, no casadi here).
 
 P_sat (6 x 6, ECEF, [r, v]) is the linearisation of the orbit-error model the simulator
-uses (leonav_runtime/realism.py `perturb_states`): with R, A, C the satellite's own
+uses (leonav_runtime/simulation/realism.py `perturb_states`): with R, A, C the satellite's own
 radial, along-track and cross-track unit axes (rows of `rac_axes`),
   radial and cross-track errors move the position:  dr = d_R R + d_C C,  dv = 0;
   an along-track error is a time shift dt = d_A / (v.A) along the orbit: dr = v dt, dv = a dt,

@@ -26,8 +26,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from leonav_runtime import records
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.core import records
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen import state_layout as LAYOUT
 from leonav_runtime.inputs.tables import _bad, check_column
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from leonav_runtime import records
+from leonav_runtime.core import records
 from leonav_runtime.inputs.tables import ImuTable
 
 F_B_AVERAGE_S = 0.1

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from leonav_runtime import navfuncs, records
+from leonav_runtime.core import navfuncs, records
 from leonav_runtime.inputs.consider import OrbitConsider
 from leonav_runtime.inputs.imu import latest_sample
 from leonav_runtime.inputs.tables import SAT_A_MPS2, SAT_R_M, SAT_V_MPS, FixTable, ImuTable, SatelliteTable

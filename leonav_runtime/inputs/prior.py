@@ -1,7 +1,7 @@
 """The filter's start: parameters p, initial state x0 and covariance P0.
 
 - `filter_params`: p from the ENU origin, the IMU profile and the beacon carrier f_c
-  (`leonav_runtime.params.build_params`, LO random walk `LO_RANDOM_WALK_HZ2_S`).
+  (`leonav_runtime.core.params.build_params`, LO random walk `LO_RANDOM_WALK_HZ2_S`).
 - `prior_sigmas`: 1-sigma per error state; navigation sigmas as given, IMU biases from the
   profile, clock and LO from the constants below (they only set how fast the filter
   locks; the simulator draws its truth from the same prior).
@@ -22,10 +22,10 @@ import math
 
 import numpy as np
 
-from leonav_runtime import navfuncs
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.core import navfuncs
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.inputs.tables import FixTable, ImuTable
-from leonav_runtime.params import DEFAULT_Q_BLO_HZ2_S, ImuProfile, build_params
+from leonav_runtime.core.params import DEFAULT_Q_BLO_HZ2_S, ImuProfile, build_params
 
 CLOCK_BIAS_SIGMA_M = 300.0      # 1 us
 CLOCK_DRIFT_SIGMA_MPS = 1.0

@@ -15,7 +15,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen import state_layout as LAYOUT
 
 

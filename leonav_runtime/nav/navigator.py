@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import filter as lfilter
-from leonav_runtime import navfuncs, records
+from leonav_runtime.core import filter as lfilter
+from leonav_runtime.core import navfuncs, records
 from leonav_runtime.nav.outputs import COLUMNS_TEXT, Decimator, LiveOutputs, TrajectoryWriter, solution_of
 from leonav_runtime.nav.road import RoadConfig, StreamingRoad
 from leonav_runtime.nav.status import StatusLine, format_status

@@ -3,7 +3,7 @@ trajectory file, flushed as it goes so a stopped or killed run leaves readable f
 
 - `solution_of`: the filter state -> `live.NavSolution` (geodetic position, ENU velocity, Euler
   angles from the generated `leonav_euler_from_q`, 1-sigma from the covariance diagonal).
-- `LiveOutputs`: the sinks of `leonav_runtime.live` (`TcpBroadcastServer`, `PtyOutput`,
+- `LiveOutputs`: the sinks of `leonav_runtime.nav.sinks` (`TcpBroadcastServer`, `PtyOutput`,
   `MavlinkOutput`) plus a JSON-lines file; a sink that fails is closed and counted, never fatal.
 - `TrajectoryWriter`: `trajectory.csv` (columns in `TRAJECTORY_COLUMNS`, described in
   `COLUMNS_TEXT`) from the records as they leave the filter's lag window, i.e. after every
@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import geometry, navfuncs, records
-from leonav_runtime.live.solution import NavSolution
+from leonav_runtime.core import navfuncs, records
+from leonav_runtime.orbits import geometry
+from leonav_runtime.nav.sinks.solution import NavSolution
 
 TRAJECTORY_COLUMNS = [
     "utc_unix_s", "utc", "t_s", "lat_deg", "lon_deg", "h_m", "x_ecef_m", "y_ecef_m", "z_ecef_m",
@@ -63,7 +64,7 @@ class LiveOutputs:
 
     def __init__(self, tcp: tuple[str, int] | None = None, pty_link: str | None = None, mavlink: str | None = None,
                  json_path: Path | None = None) -> None:
-        from leonav_runtime.live.servers import PtyOutput, TcpBroadcastServer
+        from leonav_runtime.nav.sinks.servers import PtyOutput, TcpBroadcastServer
 
         self.sinks: dict[str, object] = {}
         self.errors: dict[str, str] = {}
@@ -74,7 +75,7 @@ class LiveOutputs:
             if pty_link:
                 self.sinks["pty"] = PtyOutput(pty_link)
             if mavlink:
-                from leonav_runtime.live.mavlink_out import MavlinkOutput
+                from leonav_runtime.nav.sinks.mavlink_out import MavlinkOutput
 
                 self.sinks["mavlink"] = MavlinkOutput(mavlink)
             if json_path is not None:
@@ -94,7 +95,7 @@ class LiveOutputs:
         return s.device if s is not None else None
 
     def send(self, sol: NavSolution) -> None:
-        from leonav_runtime.live import nmea_out
+        from leonav_runtime.nav.sinks import nmea_out
 
         self.counts["solutions"] += 1
         nmea = None
@@ -162,7 +163,7 @@ class TrajectoryWriter:
         self._meas_t: list[tuple[float, int]] = []    # (t, kind) of applied measurements, last second
 
     def add(self, settled, epoch_unix: float, origin, fix_kinds: set[int], dr_kind: int) -> None:
-        from leonav_runtime.filter import STATUS_APPLIED
+        from leonav_runtime.core.filter import STATUS_APPLIED
 
         L = self.nav.layout
         recs, t = settled.recs, settled.recs["t"]

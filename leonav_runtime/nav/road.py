@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from leonav.hardware.records import GnssFix
-from leonav_runtime import navfuncs, records
+from leonav_runtime.core import navfuncs, records
 from leonav_runtime.inputs import (DopplerRateTable, FilterInputs, FixTable, ImuTable, assemble,
                                    averaged_specific_force, filter_params, fix_records, imu_records,
                                    satellite_records)

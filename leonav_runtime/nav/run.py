@@ -19,12 +19,12 @@ import threading
 from pathlib import Path
 from typing import Callable
 
-from leonav_runtime import navfuncs
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.core import navfuncs
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.nav.navigator import Navigator, NavConfig
 from leonav_runtime.nav.outputs import LiveOutputs
 from leonav_runtime.nav.status import StatusLine
-from leonav_runtime.output import write_json
+from leonav_runtime.common.output import write_json
 
 EXIT_OK, EXIT_NEVER_NAVIGATED, EXIT_USAGE, EXIT_DEVICE_LOST = 0, 1, 2, 3
 EXIT_SIGINT, EXIT_SIGTERM = 130, 143
@@ -203,7 +203,7 @@ def run_nav(opts: NavOptions, on_started: Callable[[], None] | None = None,
               "session_status": session_info.get("status"), "exit_codes": EXIT_CODES,
               "f_c_hz": cfg.road.f_c_hz, "f_c_source": f_c_source,
               "beacons": beacons.summary() if beacons is not None else None} | summary
-    from leonav_runtime.provenance import provenance
+    from leonav_runtime.common.provenance import provenance
 
     write_json(out / "nav.json", {"provenance": provenance(), **result})
     return result

@@ -19,8 +19,8 @@ import dataclasses
 
 import numpy as np
 
-from leonav_runtime import filter as lfilter
-from leonav_runtime import records
+from leonav_runtime.core import filter as lfilter
+from leonav_runtime.core import records
 from leonav_runtime.inputs import STREAMS
 from leonav_runtime.inputs.measurements import FIX_KINDS
 

@@ -11,8 +11,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from leonav_runtime import compiled, navfuncs, records
-from leonav_runtime import filter as lfilter
+from leonav_runtime.core import compiled, navfuncs, records
+from leonav_runtime.core import filter as lfilter
 from leonav_runtime.observability.naming import *  # noqa: F401,F403
 from leonav_runtime.observability.naming import REL_TOL, VAGUE, Naming, name_subspace, name_vector
 
@@ -216,7 +216,8 @@ def scenario_run(scn, mode: str, count: int | None = None, rate_hz: float = 1.0,
     pcrb_over_prior (per component, final PCRB variance / the prior propagated without
     measurements, with the scenario's process noise) and pcrb_prior_ratios (`pcrb_prior_ratios`).
     """
-    from leonav_runtime import montecarlo, simulate
+    from leonav_runtime.simulation import simulate
+    from leonav_runtime.sweep import montecarlo
 
     if setup is None:
         setup, nav = montecarlo.setup_for(scn)

@@ -10,7 +10,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from leonav_runtime import compiled
+from leonav_runtime.core import compiled
 
 GNSS_FIX_MODE = "fix+imu"
 REL_TOL = 1e-12
@@ -88,7 +88,7 @@ def layout_blocks(layout: ModuleType | None = None) -> list[BlockInfo]:
 def analysis_modes(layout: ModuleType | None = None) -> dict[str, tuple[str, ...]]:
     """Modes analysed: the filter's `scenario.MODE_OBSERVABLES` plus a GNSS position-fix mode
     (`GNSS_FIX_MODE`: every observable named pos_*)."""
-    from leonav_runtime.scenario import MODE_OBSERVABLES
+    from leonav_runtime.scenarios.load import MODE_OBSERVABLES
 
     layout = layout or compiled.load_layout(compiled.GEN_DIR)
     modes = {k: tuple(v) for k, v in MODE_OBSERVABLES.items()}

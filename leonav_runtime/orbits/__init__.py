@@ -9,7 +9,7 @@ Public API::
 Units SI (m, m/s, m/s^2, s); frames in names (TEME from SGP4, ECEF = ITRF); times are
 seconds since a UTC scenario epoch. Element sets use SGP4's WGS-72 constants, opsmode 'i'.
 """
-from leonav_runtime.lazy_exports import lazy_exports
+from leonav_runtime.common.lazy_exports import lazy_exports
 
 # names per module, imported on first use (lazy_exports.py): broadcast-ephemeris users
 # (`leonav spp`) do not import SGP4, the element readers or the HTTP client

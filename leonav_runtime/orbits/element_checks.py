@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 import os
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.orbits import tle as _tle
 
 DEFAULT_MAX_ELEMENT_MB = 64.0

@@ -24,7 +24,7 @@ from typing import Sequence
 import numpy as np
 from sgp4.api import WGS72, Satrec, SatrecArray
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.orbits import omm as _omm
 from leonav_runtime.orbits import tle as _tle
 from leonav_runtime.orbits.element_checks import (DEFAULT_MAX_ELEMENT_MB, MAX_ELEMENT_MB_ENV,  # noqa: F401

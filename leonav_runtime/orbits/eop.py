@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 
 ARCSEC_RAD = math.pi / (180.0 * 3600.0)
 MJD_UNIX_EPOCH = 40587.0          # MJD of 1970-01-01T00:00:00 UTC

@@ -44,7 +44,7 @@ import warnings
 from pathlib import Path
 
 from leonav_runtime import __version__
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.orbits.elements import load_elements, parse_elements_text
 
 log = logging.getLogger("leonav.orbits.fetch")

@@ -23,7 +23,7 @@ Pipeline (`replay_session`), one module per step:
 """
 from __future__ import annotations
 
-from leonav_runtime.lazy_exports import lazy_exports
+from leonav_runtime.common.lazy_exports import lazy_exports
 
 # names per module, imported on first use (lazy_exports.py): the parser of `leonav replay` and
 # commands that need only the mode names do not import the beacon pipeline, simulator or SciPy

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.constants import KU_DOWNLINK_MAX_HZ, KU_DOWNLINK_MIN_HZ, STARLINK_BEACON_HZ
 from leonav_runtime.inputs import SAT_A_MPS2, SAT_R_M, SAT_V_MPS, DopplerRateTable
 from leonav_runtime.replay.timebase import utc_of
@@ -81,7 +81,7 @@ def default_carrier(reason: str) -> dict:
 
 def default_elements(start_utc: _dt.datetime, notes: list[str]):
     """The built-in Walker Starlink set of synthetic sessions (`session_synth.builtin_starlink`)."""
-    from leonav_runtime.session_synth import builtin_starlink
+    from leonav_runtime.simulation.session_synth import builtin_starlink
 
     notes.append("beacons: no --tle given: built-in Walker Starlink constellation at the UTC minute nearest the "
                  "capture start (right for synthetic sessions only; give real element sets for a real capture)")

@@ -7,16 +7,17 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import geometry, navfuncs
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.core import navfuncs
+from leonav_runtime.orbits import geometry
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.inputs import FixTable, ImuTable
-from leonav_runtime.output import write_json
+from leonav_runtime.common.output import write_json
 from leonav_runtime.replay.beacon_table import BeaconMeasurements
 from leonav_runtime.replay.options import ReplayOptions, check_options
 from leonav_runtime.replay.run import SessionInputs, decode_inputs, replay_session, run_modes, session_inputs
 from leonav_runtime.replay.scoring import evaluate, mode_metrics, truth_reference
 from leonav_runtime.replay.timebase import filter_profile
-from leonav_runtime.session_synth import SyntheticSession
+from leonav_runtime.simulation.session_synth import SyntheticSession
 
 
 def direct_inputs(synth: SyntheticSession, replayed: SessionInputs, options: ReplayOptions | None = None,

@@ -14,8 +14,8 @@ import dataclasses
 
 import numpy as np
 
-from leonav_runtime import navfuncs
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.core import navfuncs
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gnss.spp import SppResult
 
 

@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from leonav.hardware.records import GnssFix, NmeaSentence
-from leonav_runtime import geometry
+from leonav_runtime.orbits import geometry
 from leonav_runtime.inputs import FixTable
 
 DEFAULT_UERE_M = 1.5            # per-axis horizontal sigma per unit HDOP when no GST/NAV-PVT accuracy

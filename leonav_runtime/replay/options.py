@@ -14,8 +14,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from leonav_runtime import filter as lfilter
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.core import filter as lfilter
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.constants import GNSS_MASK_DEG
 from leonav_runtime.inputs import COUPLED_MODE_STREAMS
 

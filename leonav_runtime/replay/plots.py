@@ -8,7 +8,7 @@ import numpy as np
 
 
 def _pyplot():
-    from leonav_runtime import plot_style
+    from leonav_runtime.common import plot_style
 
     return plot_style.pyplot()
 
@@ -16,7 +16,7 @@ def _pyplot():
 def plot_rmse_vs_time(path: Path, scored: dict, metrics: dict, layout) -> None:
     plt = _pyplot()
     L = layout
-    from leonav_runtime import plot_style as ps
+    from leonav_runtime.common import plot_style as ps
 
     fig, axes = plt.subplots(3, 1, figsize=(ps.COLUMN_WIDTH_IN, 6.4), sharex=True)
     styles = ps.series_styles(list(scored))
@@ -39,7 +39,7 @@ def plot_rmse_vs_time(path: Path, scored: dict, metrics: dict, layout) -> None:
 
 
 def plot_trajectories(path: Path, scored: dict, ref, inputs, layout) -> None:
-    from leonav_runtime import plot_style as ps
+    from leonav_runtime.common import plot_style as ps
 
     plt = _pyplot()
     fig = plt.figure(figsize=(ps.COLUMN_WIDTH_IN, 6.6))

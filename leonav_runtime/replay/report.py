@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import navfuncs
+from leonav_runtime.core import navfuncs
 from leonav_runtime.inputs import FilterInputs
-from leonav_runtime.output import write_csv, write_json
+from leonav_runtime.common.output import write_csv, write_json
 from leonav_runtime.replay.plots import plot_rmse_vs_time, plot_trajectories
 from leonav_runtime.replay.scoring import Reference
 
@@ -34,7 +34,7 @@ def write_outputs(out_dir: Path, inputs: FilterInputs, scored: dict, metrics: di
                   nav: navfuncs.NavFunctions) -> None:
     """metrics.json, rmse_vs_time.csv, trajectory.csv, columns.txt, rmse_vs_time.png, trajectories.png."""
     L = nav.layout
-    from leonav_runtime.provenance import provenance
+    from leonav_runtime.common.provenance import provenance
 
     metrics = {"provenance": provenance(), **metrics}
     write_json(out_dir / "metrics.json", metrics)
@@ -53,7 +53,7 @@ def write_outputs(out_dir: Path, inputs: FilterInputs, scored: dict, metrics: di
     (out_dir / "columns.txt").write_text(COLUMNS_TEXT)
     plot_rmse_vs_time(out_dir / "rmse_vs_time.png", scored, metrics, L)
     plot_trajectories(out_dir / "trajectories.png", scored, ref, inputs, L)
-    from leonav_runtime import html_report
+    from leonav_runtime.common import html_report
 
     html_report.write_replay_report(out_dir, metrics)
 

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import filter as lfilter
-from leonav_runtime import navfuncs
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.core import filter as lfilter
+from leonav_runtime.core import navfuncs
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.inputs import DopplerRateTable, FilterInputs, FirstFixPrior, FixTable, assemble, filter_params
 from leonav_runtime.replay.beacon_table import (BeaconMeasurements, beacon_measurements, default_carrier,
                                                 doppler_rate_table)

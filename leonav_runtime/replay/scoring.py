@@ -17,9 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime import filter as lfilter
-from leonav_runtime import geometry, navfuncs, records
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.core import filter as lfilter
+from leonav_runtime.core import navfuncs, records
+from leonav_runtime.orbits import geometry
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.inputs import FilterInputs, FixTable
 
 TRUTH_COLUMNS = ("utc_unix_s", "lat_deg", "lon_deg", "h_m", "v_e_mps", "v_n_mps", "v_u_mps", "roll_rad",

@@ -26,7 +26,7 @@ from leonav.hardware.imu import witmotion_encode as wenc
 from leonav.hardware.imu.witmotion import PACKET_LEN as WITMOTION_PACKET_BYTES
 from leonav.hardware.records import NmeaSentence
 from leonav.hardware.uart import serialization_s
-from leonav_runtime.errors import UserInputError
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.profiles import WT901
 from leonav_runtime.inputs import ImuTable
 

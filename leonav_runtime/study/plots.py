@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from leonav_runtime import plot_style as ps
-from leonav_runtime.paper_values import PAPER_FINDINGS
+from leonav_runtime.common import plot_style as ps
+from leonav_runtime.sweep.paper_values import PAPER_FINDINGS
 from leonav_runtime.study.spec import value_label
 
 HEAT_KEYS = ("position_rmse_m", "position_sqrt_pcrb_m", "position_final_rmse_m", "position_final_sqrt_pcrb_m",

@@ -25,10 +25,10 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from leonav_runtime import montecarlo as mc
-from leonav_runtime import output
-from leonav_runtime.executors import make_executor, map_in_order
-from leonav_runtime.scenario import check_run_size
+from leonav_runtime.sweep import montecarlo as mc
+from leonav_runtime.common import output
+from leonav_runtime.sweep.executors import make_executor, map_in_order
+from leonav_runtime.scenarios.load import check_run_size
 from leonav_runtime.study.spec import Study
 
 BLOCK_TRIALS = 50   # a whole cell per task at the usual 20 trials: one setup per task
@@ -149,7 +149,7 @@ def write_results(study: Study, out_dir: Path, res: StudyResult, figures: bool =
             csv_rows.append([cell.values[k] for k in keys] + [mode, cell.count] + [row[k] for k in metric_keys])
             cells.append({"values": cell.values, "mode": mode, "count": cell.count, **row})
     output.write_csv(out_dir / "study.csv", keys + ["mode", "count"] + metric_keys, csv_rows)
-    from leonav_runtime.provenance import provenance
+    from leonav_runtime.common.provenance import provenance
 
     meta = {"provenance": provenance(study.base.raw), "name": study.name, "description": study.description, "source": study.source,
             "base_scenario": study.base.source, "modes": study.modes, "trials_per_cell": study.trials,
@@ -166,7 +166,7 @@ def write_results(study: Study, out_dir: Path, res: StudyResult, figures: bool =
         from leonav_runtime.study import plots
 
         plots.plot_study(study, res.rows, out_dir / "study.png")
-    from leonav_runtime.html_report import write_study_report
+    from leonav_runtime.common.html_report import write_study_report
 
     write_study_report(out_dir, meta)
 

@@ -24,9 +24,9 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
-from leonav_runtime.errors import UserInputError
-from leonav_runtime.toml_file import read_toml_file
-from leonav_runtime.scenario import NAME, SCHEMA, Scenario, load_scenario, scenario_from_dict
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.common.toml_file import read_toml_file
+from leonav_runtime.scenarios.load import NAME, SCHEMA, Scenario, load_scenario, scenario_from_dict
 
 MAX_AXES, MAX_VALUES, MAX_CELLS = 2, 50, 400
 STUDY_KEYS = ("name", "description", "scenario", "modes", "count", "trials", "set", "vary")

@@ -1,0 +1,204 @@
+"""Monte Carlo sweep: RMSE, NEES, NIS and the PCRB per mode and Starlink satellite count.
+
+Work unit: a *task* is (scenario, mode, count, a block of trial indices). Each worker
+process prepares the scenario once (truth, satellites; cached per process) and runs its
+trials through the compiled C filter loop. Trial i draws from the stream
+`SeedSequence(seed).spawn(n)[i]` whatever mode, count or executor runs it, so the
+modes are compared on common random numbers and results do not depend on the executor.
+
+Errors are evaluated on the output grid (`EVAL_RATE_HZ`), after every record at that
+time (so after the updates of that epoch), as `x_est [-] x_true` with the generated
+boxminus: position and velocity in ENU (m, m/s), attitude as the body-frame rotation
+vector (rad). NEES uses the 9 x 9 navigation block of P.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+from leonav_runtime.core import filter as lfilter
+from leonav_runtime.core import navfuncs
+from leonav_runtime.simulation import simulate
+from leonav_runtime.gen import state_layout as L
+from leonav_runtime.scenarios.load import Scenario, scenario_from_dict
+
+EVAL_RATE_HZ = 10.0
+NAV = L.DX_NAV9_SLICE  # the 9D error (dp, dv, dtheta): the leading NNAV entries of dx
+# blocks of the 9D error (and of the PCRB's B_nav, whose rows are those of dx[NAV])
+BLOCKS = {"position": L.DX_DP_SLICE, "velocity": L.DX_DV_SLICE, "attitude": L.DX_DTHETA_SLICE}
+
+_SETUPS: dict[str, simulate.Setup] = {}
+MAX_SETUPS = 4   # prepared scenarios kept per process (bounded memory over a study's cells)
+_NAV: dict[str, navfuncs.NavFunctions] = {}
+
+
+def scenario_key(scn: Scenario) -> str:
+    """Identity of a scenario's content and element files (caches its preparation per process)."""
+    ident = [scn.raw, [str(f) for f in scn.element_files]]
+    return hashlib.sha256(json.dumps(ident, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def setup_for(scn: Scenario) -> tuple[simulate.Setup, navfuncs.NavFunctions]:
+    """The prepared scenario for this process (prepared on first use)."""
+    key = scenario_key(scn)
+    if key not in _SETUPS:
+        while len(_SETUPS) >= MAX_SETUPS:   # a study's cells come one after another: keep the latest
+            oldest = next(iter(_SETUPS))
+            del _SETUPS[oldest], _NAV[oldest]
+        nav = navfuncs.NavFunctions()
+        _SETUPS[key] = simulate.prepare(scn, nav)
+        nav.params = _SETUPS[key].params
+        _NAV[key] = nav
+    return _SETUPS[key], _NAV[key]
+
+
+def trial_rng(seed: int, index: int) -> np.random.Generator:
+    """Random stream of trial `index`: child `index` of SeedSequence(seed), i.e. the same
+    stream as `SeedSequence(seed).spawn(n)[index]` for any n > index."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
+
+
+def eval_grid(t_imu: np.ndarray, imu_rate_hz: float, rate_hz: float = EVAL_RATE_HZ) -> np.ndarray:
+    """IMU sample indices of the output grid (every 1/rate_hz s after the start)."""
+    step = max(1, int(round(imu_rate_hz / rate_hz)))
+    return np.arange(step, t_imu.size, step)
+
+
+def eval_rows(recs: np.ndarray, t_imu: np.ndarray, rate_hz: float, imu_rate_hz: float):
+    """Indices of the last record at each output time, and the truth sample of that time."""
+    k = eval_grid(t_imu, imu_rate_hz, rate_hz)
+    t = t_imu[k]
+    last = np.searchsorted(recs["t"], t + 1e-9, side="left") - 1
+    return last, k
+
+
+@dataclass
+class TrialResult:
+    """One trial: errors (nt, NNAV) of the 9D on the output grid, NEES (nt,), NIS sums per kind.
+
+    p_est: estimated ENU position on the output grid (kept for trial 0 only, for plots);
+    c_seconds: time spent in the C filter loop; seconds: the whole trial.
+    """
+
+    index: int
+    err: np.ndarray
+    nees: np.ndarray
+    nis_sum: dict[int, float]
+    nis_count: dict[int, int]
+    gated: int
+    failed: int
+    p_est: np.ndarray | None
+    c_seconds: float
+    seconds: float
+
+
+def run_trial(scn: Scenario, mode: str, count: int, index: int) -> TrialResult:
+    """Run trial `index` of (mode, count) through the C filter loop."""
+    t0 = time.perf_counter()
+    setup, nav = setup_for(scn)
+    rng = trial_rng(scn.seed, index)
+    trial = simulate.trial_records(setup, mode, count, rng, nav)
+    gate = scn.filter["gate_nis"] or None
+    params = setup.params if trial.params is None else trial.params   # realism compensation may differ
+    ekf = lfilter.EKF(trial.x0, setup.P0, params, gate=gate, library=nav.library)
+    t_c = time.perf_counter()
+    rows, k = eval_rows(trial.records, setup.t_imu, EVAL_RATE_HZ, scn.imu_rate_hz)
+    res = ekf.run(trial.records, P_rows=rows)  # full P only on the output grid, for NEES
+    t_c = time.perf_counter() - t_c
+    err = nav.boxminus(res.x[rows], trial.x_true[k])[:, NAV]
+    P9 = res.P[:, NAV, NAV]
+    nees = np.einsum("ni,ni->n", err, np.linalg.solve(P9, err[:, :, None])[:, :, 0])
+    meas = res.status >= 0
+    nis_sum, nis_count = {}, {}
+    for kind in np.unique(res.kind[meas]):
+        sel = meas & (res.kind == kind) & (res.status <= 1)
+        nis_sum[int(kind)] = float(np.sum(res.nis[sel]))
+        nis_count[int(kind)] = int(np.sum(sel))
+    p_est = res.x[rows, L.X_P_ENU_SLICE].copy() if index == 0 else None
+    return TrialResult(index, err, nees, nis_sum, nis_count, res.n_gated, res.n_failed, p_est,
+                       t_c, time.perf_counter() - t0)
+
+
+@dataclass
+class BlockResult:
+    """What an executor task returns: its trials, the PCRB curve (block with trial 0)."""
+
+    results: list[TrialResult]
+    pcrb: dict[str, np.ndarray] | None
+    p_est_trial0: np.ndarray | None
+    c_seconds: float
+    seconds: float
+
+
+def run_block(task: tuple) -> BlockResult:
+    """Executor entry point: (scenario dict, source, base dir, mode, count, trial indices)."""
+    raw, source, base_dir, mode, count, indices = task
+    scn = scenario_from_dict(raw, source=source, base_dir=Path(base_dir))
+    results = [run_trial(scn, mode, count, i) for i in indices]
+    bound = pcrb_curve(scn, mode, count) if 0 in indices else None
+    p0 = next((r.p_est for r in results if r.p_est is not None), None)
+    return BlockResult(results, bound, p0, sum(r.c_seconds for r in results), sum(r.seconds for r in results))
+
+
+def pcrb_on_truth(setup: simulate.Setup, nav: navfuncs.NavFunctions, mode: str, count: int,
+                  B0: np.ndarray | None = None, params: np.ndarray | None = None):
+    """PCRB of (mode, count) along the scenario's truth, on its noise-free record stream.
+
+    Each record is linearised where it acts: an IMU record at the start of its interval,
+    a measurement at its time. B0 and params default to the filter's prior and parameters.
+    Returns (records, PcrbResult).
+    """
+    trial = simulate.trial_records(setup, mode, count, np.random.default_rng(0), nav, noise_free=True)
+    recs = trial.records
+    k_of = np.rint(recs["t"] * setup.scn.imu_rate_hz).astype(int)
+    k_lin = np.where(recs["kind"] < 0, k_of - 1, k_of)
+    res = lfilter.pcrb(recs, setup.x_true[k_lin], setup.P0 if B0 is None else B0,
+                       setup.params if params is None else params, library=nav.library)
+    return recs, res
+
+
+def pcrb_curve(scn: Scenario, mode: str, count: int) -> dict[str, np.ndarray]:
+    """PCRB on the output grid: sqrt(trace) of the position, velocity, attitude blocks."""
+    setup, nav = setup_for(scn)
+    recs, res = pcrb_on_truth(setup, nav, mode, count)
+    rows, _ = eval_rows(recs, setup.t_imu, EVAL_RATE_HZ, scn.imu_rate_hz)
+    B = res.B_nav[rows]
+    return {name: np.sqrt(np.trace(B[:, s, s], axis1=1, axis2=2)) for name, s in BLOCKS.items()}
+
+
+def summarize(results: list[TrialResult], bound: dict[str, np.ndarray], n_err: int = L.NNAV) -> dict:
+    """RMSE over trials (per time and overall), PCRB, efficiency, NEES and NIS statistics."""
+    err = np.stack([r.err for r in results])               # (trials, nt, NNAV)
+    n = err.shape[0]
+    out: dict = {"trials": n}
+    for name, s in BLOCKS.items():
+        sq = np.sum(err[:, :, s] ** 2, axis=2)              # (trials, nt)
+        rmse_t = np.sqrt(sq.mean(axis=0))
+        rmse = float(np.sqrt(sq.mean()))
+        crb = float(np.sqrt(np.mean(bound[name] ** 2)))
+        out[name] = {"rmse": rmse, "pcrb": crb, "ratio": rmse / crb if crb > 0 else math.nan,
+                     "final_rmse": float(rmse_t[-1]), "final_pcrb": float(bound[name][-1]),
+                     "rmse_t": rmse_t, "pcrb_t": bound[name]}
+    nees = np.stack([r.nees for r in results]).mean(axis=0)  # average over trials, per time
+    lo, hi = stats.chi2.ppf([0.025, 0.975], n_err * n) / n
+    out["nees"] = {"mean": float(nees.mean()), "band95": [float(lo), float(hi)], "dof": n_err,
+                   "fraction_inside": float(np.mean((nees >= lo) & (nees <= hi))), "nees_t": nees}
+    nis = {}
+    kinds = sorted({k for r in results for k in r.nis_count})
+    for kind in kinds:
+        total = sum(r.nis_sum.get(kind, 0.0) for r in results)
+        count = sum(r.nis_count.get(kind, 0) for r in results)
+        lo1, hi1 = stats.chi2.ppf([0.025, 0.975], count) / count if count else (math.nan, math.nan)
+        nis[kind] = {"mean": total / count if count else math.nan, "count": count,
+                     "band95": [float(lo1), float(hi1)]}
+    out["nis"] = nis
+    out["gated"] = int(sum(r.gated for r in results))
+    out["failed"] = int(sum(r.failed for r in results))
+    return out
