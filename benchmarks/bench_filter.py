@@ -162,7 +162,8 @@ def time_numpy(recs, x0, P0, params, gate, suffix_of, repeats):
 def time_bare_c(build: compiled.BuildInfo, recs, x0, P0, params, gate, repeats, tmp: Path):
     src = BENCH_DIR / "bench_bare_loop.c"
     exe = tmp / "bench_bare_loop"
-    gen_objects = [o for o in build.objects if o.name.startswith("leonav_gen")]
+    gen_c = {s.stem for s in compiled.sources() if s.parent.name == "c"}   # the generated functions' objects
+    gen_objects = [o for o in build.objects if o.name.rsplit("-", 1)[0] in gen_c]
     argv = (shlex.split(build.compiler) + build.cflags + [f"-I{compiled.GEN_DIR}", f"-I{compiled.CSRC_DIR}",
             str(src)] + [str(o) for o in gen_objects] + ["-o", str(exe), "-lm"])
     subprocess.run(argv, check=True, capture_output=True, text=True)
@@ -211,7 +212,7 @@ def run_benchmark(seconds: float = 20.0, repeats: int = 20, py_repeats: int = 2,
     pos = L.X_P_ENU_SLICE
     x_a = a_fin["x"]
     res = a_fin["res"]
-    gen_files = sorted(compiled.GEN_DIR.glob("leonav_gen.[ch]"))
+    gen_files = sorted((compiled.GEN_DIR / "c").glob("*.[ch]")) + sorted(compiled.GEN_DIR.glob("*.h"))
     driver_files = sorted(compiled.CSRC_DIR.glob("*.[ch]"))
     result = {
         "scenario": {"seconds": seconds, "records": int(recs.size), "imu_steps": n_imu, "imu_hz": IMU_HZ,
@@ -260,7 +261,7 @@ def _print_table(r: dict) -> None:
     total_l = sum(v["lines"] for v in gen.values())
     drv_l = sum(v["lines"] for v in r["code"]["driver"].values())
     b = r["build"]
-    print(f"generated code: {total_b} bytes, {total_l} lines (leonav_gen.c/.h); driver {drv_l} lines; "
+    print(f"generated code: {total_b} bytes, {total_l} lines (gen/c/*.[ch], gen/*.h); driver {drv_l} lines; "
           f"library {r['code']['library_bytes']} bytes")
     print(f"cold compile: {b['cold_compile_s']:.1f} s with {b['compiler_version']} {' '.join(b['cflags'])}")
 

@@ -21,12 +21,13 @@ def run(args: argparse.Namespace) -> int:
     if args.check:
         changed = diff_against(out)
         if changed:
-            print(f"generated code is stale in {out}: {', '.join(changed)} differ; run `python -m leonav.codegen` to update",
-                  file=sys.stderr)
+            print(f"generated code is stale in {out}: {', '.join(changed)} differ; run `python -m leonav.codegen` "
+                  "to update", file=sys.stderr)
             return 1
         print(f"generated code in {out} is up to date ({time.perf_counter() - start:.1f} s)")
         return 0
-    paths = generate(out)
-    sizes = ", ".join(f"{p.name} {p.stat().st_size} B" for p in paths)
-    print(f"wrote {out} in {time.perf_counter() - start:.1f} s: {sizes}")
+    report = generate(out)
+    n = sum(len(v) for k, v in report.items() if k != "removed")
+    print(f"generated {out} in {time.perf_counter() - start:.1f} s: {n} files, {len(report['changed'])} changed"
+          + "".join(f"\n  {kind}: {rel}" for kind in ("changed", "removed") for rel in report[kind]))
     return 0

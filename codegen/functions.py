@@ -1,9 +1,16 @@
 """The casadi.Functions that are generated to C, with named inputs and outputs.
 
-Names and signatures are the contract of docs/design.md. Every output is dense
-(densified) and every matrix is stored column-major in the generated C.
+Names and signatures are the contract of docs/design.md. Every output of a function the
+runtime calls is dense (densified) and every matrix is stored column-major in the generated
+C. Each function is generated into its own C file (codegen/emit_c.py); a function that calls
+another generated function (an update calls the shared Joseph step, the PCRB information add
+calls the observable's h, the predict calls its three stages) reaches it through `call`:
+for generation an external reference (the callee's own file, linked), for evaluation in
+Python the callee itself.
 """
 from __future__ import annotations
+
+from typing import Callable
 
 import casadi as ca
 
@@ -18,11 +25,11 @@ from leonav.models.state import P as P_BLOCK
 FUNCTION_OPTS = {"cse": True}
 
 
-def _fn(name: str, inputs: dict, outputs: dict, doc: str) -> ca.Function:
+def _fn(name: str, inputs: dict, outputs: dict, doc: str, dense: bool = True) -> ca.Function:
     fn = ca.Function(
         name,
         list(inputs.values()),
-        [ca.densify(v) for v in outputs.values()],
+        [ca.densify(v) if dense else v for v in outputs.values()],
         list(inputs.keys()),
         list(outputs.keys()),
         FUNCTION_OPTS,
@@ -44,13 +51,19 @@ def _syms():
     }
 
 
-def build_functions() -> list[ca.Function]:
-    """All generated functions, in a fixed order (the order of the generated C).
+def _itself(fn: ca.Function) -> ca.Function:
+    return fn
+
+
+def build_functions(call: Callable[[ca.Function], ca.Function] = _itself) -> list[ca.Function]:
+    """All generated functions, in a fixed order (callees before their callers).
 
     The filter steps are SX (straight-line C) with the covariance algebra built on the
     structural non-zeros of F and H and on the symmetry of P (see models.ekf): generic dense
     18 x 18 products (MX, casadi_mtimes loops) were several times slower. Each update is a
-    thin MX function calling its SX innovation and one shared SX Joseph function.
+    thin MX function calling its SX innovation and one shared SX Joseph function; the predict
+    is a thin MX function over its three SX stages (models.ekf.nav_predict). `call(fn)`:
+    how a caller references a generated callee (module doc).
     """
     s = _syms()
     x, P, u, dt, p, aux, z, R = (s[k] for k in ("x", "P", "u", "dt", "p", "aux", "z", "R"))
@@ -59,10 +72,7 @@ def build_functions() -> list[ca.Function]:
     out.append(_fn("leonav_mech", {"x": x, "u": u, "dt": dt, "p": p},
                    {"x_next": kinematics.mech(x, u, dt, p)},
                    "nominal strapdown mechanization over one IMU interval"))
-    x_next, P_next, F, Qd = ekf.nav_predict(x, P, u, dt, p)
-    out.append(_fn("leonav_predict", {"x": x, "P": P, "u": u, "dt": dt, "p": p},
-                   {"x_next": x_next, "P_next": P_next, "F": F, "Qd": Qd},
-                   "error-state EKF predict: P_next = F P F^T + Qd"))
+    out += _predict_functions(call, x, P, u, dt, p)
     x_cv, P_cv, F_cv, Qd_cv = ekf.cv_predict(x, P, dt, p)
     out.append(_fn("leonav_predict_cv", {"x": x, "P": P, "dt": dt, "p": p},
                    {"x_next": x_cv, "P_next": P_cv, "F": F_cv, "Qd": Qd_cv},
@@ -71,8 +81,12 @@ def build_functions() -> list[ca.Function]:
     # shared SX Joseph function: its O(n^2) code is compiled once, not once per observable
     # (ten inlined copies took `cc -O2` from ~9 to ~20 s for ~0.14 us less per update).
     y_s, b_s, S_s = ca.SX.sym("y"), ca.SX.sym("b", NDX), ca.SX.sym("S")
-    joseph = ca.Function("leonav_joseph", [x, P, y_s, b_s, S_s],
-                         list(ekf.joseph_update(x, P, y_s, b_s, S_s, frames.boxplus)), FUNCTION_OPTS)
+    joseph_fn = _fn("leonav_joseph", {"x": x, "P": P, "y": y_s, "b": b_s, "S": S_s},
+                    dict(zip(("x_post", "P_post"), ekf.joseph_update(x, P, y_s, b_s, S_s, frames.boxplus))),
+                    "shared Joseph-form step of every scalar update: K = b / S, x [+] K y, "
+                    "P - K c^T - c K^T with c = b - S K / 2")
+    out.append(joseph_fn)
+    joseph = call(joseph_fn)
     xm, Pm, pm = (ca.MX.sym(n, *v.shape) for n, v in (("x", x), ("P", P), ("p", p)))
     auxm, zm, Rm, Jm = ca.MX.sym("aux", NAUX), ca.MX.sym("z"), ca.MX.sym("R"), ca.MX.sym("J", NDX, NDX)
     for suffix, h in measurement_models().items():
@@ -89,7 +103,7 @@ def build_functions() -> list[ca.Function]:
                        {"x_post": x_post, "P_post": P_post, "y": ym, "S": Sm, "nis": ym * ym / Sm},
                        f"{suffix}: scalar Joseph-form update"))
         # not on the filter path: MX keeps the dense J + H^T H / R a loop
-        _, Hm = hfn(xm, auxm, pm)
+        _, Hm = call(hfn)(xm, auxm, pm)
         out.append(_fn(f"leonav_pcrb_info_{suffix}", {"J": Jm, "x": xm, "aux": auxm, "p": pm, "R": Rm},
                        {"J_next": ekf.information_add(Jm, Hm, Rm)},
                        f"{suffix}: Fisher information add J + H^T H / R"))
@@ -150,3 +164,37 @@ def build_functions() -> list[ca.Function]:
                        f"{suffix}: 1 x 12 Jacobian dh/d[r_S, v_S, r_ref, v_ref] (ECEF, m and m/s) of the aux "
                        "satellite states (consider term R + J P_sat J^T)"))
     return out
+
+
+def _predict_functions(call, x, P, u, dt, p) -> list[ca.Function]:
+    """The predict's three SX stages (models.ekf.nav_predict) and the MX `leonav_predict` over
+    them. F and G pass between the stages with their structural sparsity, so the covariance
+    stages compute on the same non-zeros, in the same order, as one SX function would."""
+    x_next, F, G = ekf.nav_jacobians(x, u, dt, p)
+    F, G = ca.sparsify(F), ca.sparsify(G)
+    transition = _fn("leonav_predict_transition", {"x": x, "u": u, "dt": dt, "p": p},
+                     {"x_next": x_next, "F": F, "G": G},
+                     "predict stage 1: nominal step, error-state transition F and input Jacobian G "
+                     "(structurally sparse)", dense=False)
+    F_s, G_s = ca.SX.sym("F", F.sparsity()), ca.SX.sym("G", G.sparsity())
+    M, Q_pre = ekf.predict_pre_covariance(P, F_s, G_s, dt, p)
+    pre = _fn("leonav_predict_pre_covariance", {"P": P, "F": F_s, "G": G_s, "dt": dt, "p": p},
+              {"M": M, "Q_pre": Q_pre},
+              "predict stage 2: pre-state covariance F_pre P F_pre^T + G_pre V G_pre^T and its IMU "
+              "noise part (position trapezoid factored out)", dense=False)
+    M_s, Q_s = ca.SX.sym("M", M.sparsity()), ca.SX.sym("Q_pre", Q_pre.sparsity())
+    P_next, Qd = ekf.predict_project(M_s, Q_s, dt, p)
+    project = _fn("leonav_predict_project", {"M": M_s, "Q_pre": Q_s, "dt": dt, "p": p},
+                  {"P_next": P_next, "Qd": Qd},
+                  "predict stage 3: P_next = T M T^T + Q_rw and Qd = T Q_pre T^T + Q_rw "
+                  "(T the position trapezoid, Q_rw the bias, clock and LO random walks)")
+    xm, Pm, um, dtm, pm = (ca.MX.sym(n, *v.shape) for n, v in (("x", x), ("P", P), ("u", u), ("dt", dt), ("p", p)))
+    xn_m, F_m, G_m = call(transition)(xm, um, dtm, pm)
+    M_m, Q_m = call(pre)(Pm, F_m, G_m, dtm, pm)
+    P_m, Qd_m = call(project)(M_m, Q_m, dtm, pm)
+    predict = _fn("leonav_predict", {"x": xm, "P": Pm, "u": um, "dt": dtm, "p": pm},
+                  {"x_next": xn_m, "P_next": P_m, "F": F_m, "Qd": Qd_m},
+                  "error-state EKF predict: P_next = F P F^T + Qd")
+    for stage in (transition, pre, project):
+        stage.internal = True   # called by leonav_predict only: sparse arguments, not a driver entry
+    return [transition, pre, project, predict]

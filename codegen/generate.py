@@ -1,22 +1,20 @@
 """Write the generated C, headers, state layout and manifest into an output folder."""
 from __future__ import annotations
 
-import json
-import tempfile
 from pathlib import Path
 
 import casadi as ca
 
-from leonav.codegen import emit_data
+from leonav.codegen import emit_c, emit_data
 from leonav.codegen.driver_codes import RECORD_STATUSES, RETURN_CODES
 from leonav.models import state as S
 from leonav.models.measurements.orbit_jacobian import NORBIT
 
 GEN_NAME = "leonav_gen"
 COMMAND = "python -m leonav.codegen  (or: leonav codegen)"
-FILES = (f"{GEN_NAME}.c", f"{GEN_NAME}.h", f"{GEN_NAME}.json", "state_layout.h", "state_layout.py",
-         "constants.py", "constants.h", "profiles.py", "__init__.py")
-CODEGEN_OPTS = {"with_header": True, "casadi_int": "int", "casadi_real": "double", "verbose": False}
+DATA_FILES = (f"{GEN_NAME}.h", f"{GEN_NAME}.json", "state_layout.h", "state_layout.py",
+              "constants.py", "constants.h", "profiles.py", "__init__.py")
+"""The files of gen/ besides the per-function C in gen/c/ (emit_c.py)."""
 
 
 def default_output_dir() -> Path:
@@ -139,48 +137,59 @@ def _orbit_kinds() -> list:
     return [m for m in S.MEASUREMENTS if m.suffix in suffixes]
 
 
-def _manifest(functions) -> str:
-    entries = []
-    for fn in functions:
-        entries.append({
-            "name": fn.name(),
-            "doc": getattr(fn, "doc", ""),
-            "inputs": [{"name": fn.name_in(i), "shape": list(fn.size_in(i))} for i in range(fn.n_in())],
-            "outputs": [{"name": fn.name_out(i), "shape": list(fn.size_out(i))} for i in range(fn.n_out())],
-        })
-    return json.dumps({"casadi_version": ca.__version__, "storage": "dense, column-major",
-                       "functions": entries}, indent=1) + "\n"
-
-
-def generate(output_dir: str | Path) -> list[Path]:
-    """Generate every file of `leonav_runtime/gen/` into `output_dir`; returns the written paths."""
+def generated_files() -> dict[str, str]:
+    """Every file of `leonav_runtime/gen/`: relative path -> text (nothing is written)."""
     from leonav.codegen.functions import build_functions
 
+    c_banner = _banner("//")
+    functions = build_functions(emit_c.Linker(c_banner))
+    files = emit_c.write_functions(functions, c_banner)
+    files[f"{GEN_NAME}.h"] = emit_c.umbrella_header(functions, c_banner)
+    files[f"{GEN_NAME}.json"] = emit_c.manifest(functions, files)
+    files["state_layout.h"] = _c_header_layout()
+    files["state_layout.py"] = _py_layout()
+    files["constants.py"] = emit_data.constants_py(_banner("#"))
+    files["constants.h"] = emit_data.constants_h(_banner("//"))
+    files["profiles.py"] = emit_data.profiles_py(_banner("#"))
+    files["__init__.py"] = _banner("#") + '"""Generated code (C sources, headers, state layout); see state_layout.py."""\n'
+    return files
+
+
+def existing_files(folder: str | Path) -> dict[str, Path]:
+    """The generated files present in `folder` (relative path -> path): the data files and c/*.[ch]."""
+    folder = Path(folder)
+    found = {name: folder / name for name in DATA_FILES if (folder / name).exists()}
+    for path in sorted((folder / emit_c.C_DIR).glob("*.[ch]")) + sorted(folder.glob("*.c")):
+        found[path.relative_to(folder).as_posix()] = path
+    return found
+
+
+def generate(output_dir: str | Path) -> dict[str, list[str]]:
+    """Generate every file of `leonav_runtime/gen/` into `output_dir`, removing generated files
+    that are no longer generated (a removed function). Unchanged files are not rewritten.
+    Returns {"changed": [...], "removed": [...], "unchanged": [...]} (relative paths)."""
     out = Path(output_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    functions = build_functions()
-    cg = ca.CodeGenerator(f"{GEN_NAME}.c", CODEGEN_OPTS)
-    for fn in functions:
-        cg.add(fn)
-    with tempfile.TemporaryDirectory() as tmp:
-        cg.generate(tmp + "/")
-        for ext in ("c", "h"):
-            text = (Path(tmp) / f"{GEN_NAME}.{ext}").read_text()
-            (out / f"{GEN_NAME}.{ext}").write_text(_banner("//") + text)
-    (out / f"{GEN_NAME}.json").write_text(_manifest(functions))
-    (out / "state_layout.h").write_text(_c_header_layout())
-    (out / "state_layout.py").write_text(_py_layout())
-    (out / "constants.py").write_text(emit_data.constants_py(_banner("#")))
-    (out / "constants.h").write_text(emit_data.constants_h(_banner("//")))
-    (out / "profiles.py").write_text(emit_data.profiles_py(_banner("#")))
-    (out / "__init__.py").write_text(_banner("#") + '"""Generated code (C sources, headers, state layout); see state_layout.py."""\n')
-    return [out / name for name in FILES]
+    files = generated_files()
+    (out / emit_c.C_DIR).mkdir(parents=True, exist_ok=True)
+    report: dict[str, list[str]] = {"changed": [], "removed": [], "unchanged": []}
+    for rel, path in existing_files(out).items():
+        if rel not in files:
+            path.unlink()
+            report["removed"].append(rel)
+    for rel, text in files.items():
+        path = out / rel
+        if path.exists() and path.read_text() == text:
+            report["unchanged"].append(rel)
+        else:
+            path.write_text(text)
+            report["changed"].append(rel)
+    return report
 
 
 def diff_against(reference_dir: str | Path) -> list[str]:
-    """Regenerate into a temp folder; names of files that differ from `reference_dir` (or are missing)."""
-    ref = Path(reference_dir)
-    with tempfile.TemporaryDirectory() as tmp:
-        generate(tmp)
-        return [name for name in FILES
-                if not (ref / name).exists() or (ref / name).read_bytes() != (Path(tmp) / name).read_bytes()]
+    """Files of a fresh generation that differ from `reference_dir`, are missing there, or are
+    there but no longer generated (relative paths, sorted)."""
+    files = generated_files()
+    present = existing_files(reference_dir)
+    changed = [rel for rel, text in files.items() if rel not in present or present[rel].read_text() != text]
+    return sorted(changed + [rel for rel in present if rel not in files])

@@ -219,7 +219,7 @@ class FirstOrderReplay:
         return first_order
 
 
-def _nav_jacobians(x, u, dt, p):
+def nav_jacobians(x, u, dt, p):
     """(x_next, F, G): nominal step, error-state transition and input Jacobians (SX).
 
     mech(x, u) = core(x, w(x, u)) with w the bias-corrected increments, and the biases reach
@@ -243,8 +243,33 @@ def _nav_jacobians(x, u, dt, p):
 
 def nav_transition(x, u, dt, p):
     """(x_next, F, Qd) of the navigation model over one IMU interval (SX)."""
-    x_next, F, G = _nav_jacobians(x, u, dt, p)
+    x_next, F, G = nav_jacobians(x, u, dt, p)
     return x_next, F, nav_process_noise(G, dt, p)
+
+
+_PRE_SIZES = ("dv", "dtheta", "dp", "dv")   # pre-state blocks before the rest (see trapezoid_factors)
+
+
+def trapezoid_pre(F, G):
+    """(F_pre, G_pre): the Jacobians of the pre-state of the position trapezoid (trapezoid_factors)."""
+    dp, dv, dth = DX["dp"].slice, DX["dv"].slice, DX["dtheta"].slice
+    rest = slice(DX["db_a"].offset, NDX)
+    E = ca.SX.eye(NDX)
+    F_pre = ca.vertcat(F[dv, :], F[dth, :], E[dp, :], E[dv, :], F[rest, :])
+    n_pv = DX["dp"].size + DX["dv"].size
+    G_pre = ca.vertcat(G[dv, :], G[dth, :], ca.SX(n_pv, G.shape[1]), G[rest, :])
+    return F_pre, G_pre
+
+
+def trapezoid_map(dt):
+    """T: the sparse, linear map from the trapezoid's pre-state to dx+ (trapezoid_factors)."""
+    n_rest = NDX - DX["db_a"].offset
+    sizes = tuple(DX[name].size for name in _PRE_SIZES)
+    s = ca.SX.sym("s", sum(sizes) + n_rest)
+    ends = [sum(sizes[: k + 1]) for k in range(len(sizes))]
+    v_next, th_next, pos, vel = (s[e - n : e] for e, n in zip(ends, sizes))
+    image = ca.vertcat(kinematics.trapezoid_position(pos, vel, v_next, dt), v_next, th_next, s[ends[-1] :])
+    return ca.jacobian(image, s)
 
 
 def trapezoid_factors(F, G, dt):
@@ -252,24 +277,28 @@ def trapezoid_factors(F, G, dt):
 
     The mechanization ends with p+ = p + (v + v+) dt / 2 (kinematics.trapezoid_position), so
     the dp rows of F and G are combinations of the dv rows. The pre-state of that last step,
-    [dv+, dtheta+, dp, dv, db_a, db_g, dc_dt, dc_ddt, db_lo] (21, the dense rows first),
+    [dv+, dtheta+, dp, dv, db_a, db_g, dc_dt, dc_ddt, db_lo, ...] (the dense rows first),
     has the Jacobian F_pre (F's dv, dtheta and later rows, unit rows for dp and dv) and T
     (its sparse, linear map to dx+) is the Jacobian of that step, so the expensive product
     F_pre P F_pre^T has 3 fewer dense rows. tests/test_models_jacobians checks T F_pre = F.
     """
-    dp, dv, dth = DX["dp"].slice, DX["dv"].slice, DX["dtheta"].slice
-    rest = slice(DX["db_a"].offset, NDX)
-    n_rest = NDX - rest.start
-    E = ca.SX.eye(NDX)
-    F_pre = ca.vertcat(F[dv, :], F[dth, :], E[dp, :], E[dv, :], F[rest, :])
-    n_pv = DX["dp"].size + DX["dv"].size
-    G_pre = ca.vertcat(G[dv, :], G[dth, :], ca.SX(n_pv, G.shape[1]), G[rest, :])
-    sizes = (DX["dv"].size, DX["dtheta"].size, DX["dp"].size, DX["dv"].size)  # pre-state blocks before `rest`
-    s = ca.SX.sym("s", sum(sizes) + n_rest)
-    ends = [sum(sizes[: k + 1]) for k in range(len(sizes))]
-    v_next, th_next, pos, vel = (s[e - n : e] for e, n in zip(ends, sizes))
-    image = ca.vertcat(kinematics.trapezoid_position(pos, vel, v_next, dt), v_next, th_next, s[ends[-1] :])
-    return ca.jacobian(image, s), F_pre, G_pre
+    return (trapezoid_map(dt), *trapezoid_pre(F, G))
+
+
+def predict_pre_covariance(P_, F, G, dt, p):
+    """(M, Q_pre): the pre-state covariance F_pre P F_pre^T + G_pre V G_pre^T (symmetric, upper
+    triangle mirrored) and its IMU noise part Q_pre = G_pre V G_pre^T (SX; nav_predict)."""
+    F_pre, G_pre = trapezoid_pre(F, G)
+    Q_pre = imu_process_noise(G_pre, dt, p)
+    B_pre = congruence(F_pre, symmetric_part(P_))
+    return symmetric_from_upper(B_pre.shape[0], lambda i, j: B_pre[i, j] + Q_pre[i, j]), Q_pre
+
+
+def predict_project(M, Q_pre, dt, p):
+    """(P_next, Qd) = (T M T^T + Q_rw, T Q_pre T^T + Q_rw) from the pre-state covariances (SX; nav_predict)."""
+    T = trapezoid_map(dt)
+    Q_rw = random_walk_noise(dt, p)
+    return congruence(T, M) + Q_rw, congruence(T, Q_pre) + Q_rw
 
 
 def nav_predict(x, P_, u, dt, p):
@@ -277,17 +306,14 @@ def nav_predict(x, P_, u, dt, p):
 
     P_next = F P F^T + Qd computed as T (F_pre P F_pre^T + G_pre V G_pre^T) T^T + Q_rw
     (trapezoid_factors; V the IMU increment variances, Q_rw = random_walk_noise), upper
-    triangles only, on the structural non-zeros (`congruence`).
+    triangles only, on the structural non-zeros (`congruence`). The generated predict runs
+    the same three stages as separate functions (nav_jacobians, predict_pre_covariance,
+    predict_project): each stage's C stays a reviewable size, the values are the same.
     """
-    x_next, F, G = _nav_jacobians(x, u, dt, p)
-    T, F_pre, G_pre = trapezoid_factors(F, G, dt)
-    Q_pre = imu_process_noise(G_pre, dt, p)
-    Q_rw = random_walk_noise(dt, p)
-    B_pre = congruence(F_pre, symmetric_part(P_))
-    n = B_pre.shape[0]
-    P_next = congruence(T, symmetric_from_upper(n, lambda i, j: B_pre[i, j] + Q_pre[i, j]))
-    Qd = congruence(T, Q_pre) + Q_rw
-    return x_next, P_next + Q_rw, F, Qd
+    x_next, F, G = nav_jacobians(x, u, dt, p)
+    M, Q_pre = predict_pre_covariance(P_, F, G, dt, p)
+    P_next, Qd = predict_project(M, Q_pre, dt, p)
+    return x_next, P_next, F, Qd
 
 
 def cv_step(x, dt):

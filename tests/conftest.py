@@ -55,6 +55,7 @@ def pi_program(cc: str = "cc") -> Path:
     if shutil.which("make") is None or shutil.which(cc) is None:
         pytest.skip(f"needs make and the C compiler {cc}")
     sources = sorted([*PI_DIR.glob("Makefile"), *PI_DIR.glob("*.c"), *(REPO_ROOT / "leonav_runtime" / "gen").glob("*.[ch]"),
+                      *(REPO_ROOT / "leonav_runtime" / "gen" / "c").glob("*.[ch]"),
                       *(REPO_ROOT / "leonav_runtime" / "csrc").glob("*.[ch]")])
     version = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=30).stdout
     digest = hashlib.sha256(cc.encode() + version.encode())
@@ -65,7 +66,7 @@ def pi_program(cc: str = "cc") -> Path:
     with open(out / ".lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if not (out / "leonav_filter").is_file():
-            run = subprocess.run(["make", "-s", "-C", str(PI_DIR), f"CC={cc}", f"OUT={out}"],
+            run = subprocess.run(["make", "-s", f"-j{os.cpu_count() or 1}", "-C", str(PI_DIR), f"CC={cc}", f"OUT={out}"],
                                  capture_output=True, text=True, timeout=300)
             assert run.returncode == 0, run.stderr
     return out / "leonav_filter"

@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from leonav.codegen.generate import FILES, default_output_dir, diff_against
+from leonav.codegen.generate import default_output_dir, diff_against, existing_files, generated_files
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -23,13 +23,59 @@ def test_check_flag_fails_on_a_diff(tmp_path):
     run = lambda *a: subprocess.run([sys.executable, "-m", "leonav.codegen", *a], cwd=REPO_ROOT,  # noqa: E731
                                     capture_output=True, text=True)
     assert run("--out", str(out)).returncode == 0
-    assert sorted(p.name for p in out.iterdir()) == sorted(FILES)
+    assert sorted(existing_files(out)) == sorted(generated_files())
     assert run("--out", str(out), "--check").returncode == 0
-    c_file = out / "leonav_gen.c"
+    c_file = out / "c" / "leonav_h_doppler.c"
     c_file.write_text(c_file.read_text().replace("casadi_real", "double", 1))
     result = run("--out", str(out), "--check")
     assert result.returncode == 1
-    assert "leonav_gen.c" in result.stderr and "python -m leonav.codegen" in result.stderr
+    assert "c/leonav_h_doppler.c" in result.stderr and "python -m leonav.codegen" in result.stderr
+    assert "leonav_h_pos_e" not in result.stderr
+    # a file of a function that is no longer generated is stale too, and regeneration removes it
+    (out / "c" / "leonav_h_removed.c").write_text("int leonav_h_removed;\n")
+    result = run("--out", str(out), "--check")
+    assert result.returncode == 1 and "c/leonav_h_removed.c" in result.stderr
+    regenerated = run("--out", str(out))
+    assert regenerated.returncode == 0 and "removed: c/leonav_h_removed.c" in regenerated.stdout
+    assert "changed: c/leonav_h_doppler.c" in regenerated.stdout and "leonav_h_pos_e.c" not in regenerated.stdout
+    assert not (out / "c" / "leonav_h_removed.c").exists()
+    assert run("--out", str(out), "--check").returncode == 0
+
+
+def test_a_model_change_rewrites_only_the_functions_it_reaches(monkeypatch):
+    """One file per generated function: changing one observable's h changes that observable's
+    h, update and orbit Jacobian (and the manifest), nothing else; its information add calls
+    the h as an external and stays as it was."""
+    from leonav.models.measurements import doppler
+
+    before = generated_files()
+    original = doppler.h
+    monkeypatch.setattr(doppler, "h", lambda x, aux, p: 2.0 * original(x, aux, p))
+    after = generated_files()
+    changed = {rel for rel in before if before[rel] != after.get(rel)}
+    functions = {rel.removeprefix("c/").rsplit(".", 1)[0] for rel in changed if rel.startswith("c/")}
+    assert functions == {"leonav_h_doppler", "leonav_update_doppler", "leonav_orbit_jac_doppler"}, functions
+    assert changed - {rel for rel in changed if rel.startswith("c/")} == {"leonav_gen.json"}
+
+
+def test_generated_files_are_small_and_hashed_in_the_manifest():
+    """No generated C file over 5,000 lines (reviewable); the manifest's hash and line count of
+    every function are those of its files."""
+    import hashlib
+    import json
+
+    gen = default_output_dir()
+    manifest = json.loads((gen / "leonav_gen.json").read_text())
+    assert {f["file"] for f in manifest["functions"]} == {p.relative_to(gen).as_posix() for p in (gen / "c").glob("*.c")}
+    for entry in manifest["functions"]:
+        c_text = (gen / entry["file"]).read_text()
+        h_text = (gen / entry["file"]).with_suffix(".h").read_text()
+        assert hashlib.sha256((c_text + h_text).encode()).hexdigest() == entry["sha256"], entry["name"]
+        assert c_text.count("\n") == entry["lines"] <= 5000, (entry["name"], entry["lines"])
+    calls = {f["name"]: f["calls"] for f in manifest["functions"]}
+    assert calls["leonav_predict"] == sorted(["leonav_predict_transition", "leonav_predict_pre_covariance",
+                                              "leonav_predict_project"])
+    assert calls["leonav_update_doppler"] == ["leonav_joseph"] and calls["leonav_pcrb_info_doppler"] == ["leonav_h_doppler"]
 
 
 def test_layout_twin_matches_header():
@@ -46,7 +92,10 @@ def test_layout_twin_matches_header():
     exec(compile(source, "state_layout.py", "exec"), namespace)
     twin = {k: v for k, v in namespace.items() if k.isupper() and isinstance(v, int)}
     assert header == twin
-    assert (twin["NX"], twin["NDX"], twin["NP"], twin["NAUX"], twin["NU"], twin["NMEAS"]) == (21, 20, 14, 36, 6, 17)
+    from leonav.models import state as S
+
+    assert (twin["NX"], twin["NDX"], twin["NP"], twin["NAUX"], twin["NU"], twin["NMEAS"]) == \
+        (S.NX, S.NDX, S.NP, S.NAUX, S.NU, S.NMEAS)
     assert all(twin[f"MEAS_{m.name}"] == m.kind for m in namespace["MEAS_TABLE"])
     assert twin["NNAV"] == 9 and namespace["DX_NAV9_SLICE"] == slice(0, twin["NNAV"])
     # the observable table: C X-macro rows == Python MEAS_TABLE rows (kind, suffix, dim, name, unit)
@@ -62,4 +111,5 @@ def test_layout_twin_matches_header():
     assert all(v < 0 for v in errs.values()) and len(set(errs.values())) == len(errs)
     assert namespace["RETURN_NAMES"] == {v: f"LEONAV_{k}" for k, v in {**ret, **errs}.items()}
     assert [twin[f"STATUS_{k}"] for k in ("IMU", "APPLIED", "GATED", "FAILED")] == [-1, 0, 1, 2]
-    assert twin["X_Q_NB"] == 6 and twin["DX_DTHETA"] == 6 and twin["P_F_C_HZ"] == 10 and twin["AUX_F_B"] == 18
+    assert twin["X_Q_NB"] == S.X["q_nb"].offset and twin["DX_DTHETA"] == S.DX["dtheta"].offset
+    assert twin["P_F_C_HZ"] == S.P["f_c_hz"].offset and twin["AUX_F_B"] == S.AUX["f_b"].offset

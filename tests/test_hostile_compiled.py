@@ -27,9 +27,9 @@ REPO = Path(__file__).resolve().parents[1]
 def tiny(tmp_path):
     """(gen dir, csrc dir, cache dir) of a two-file library that compiles in a blink."""
     gen, csrc = tmp_path / "gen", tmp_path / "csrc"
-    gen.mkdir()
+    (gen / "c").mkdir(parents=True)
     csrc.mkdir()
-    (gen / "tiny_gen.c").write_text("int tiny(void) { return 1; }\n")
+    (gen / "c" / "tiny_gen.c").write_text("int tiny(void) { return 1; }\n")
     (csrc / "tiny_driver.c").write_text("int tiny_driver(void) { return 2; }\n")
     return gen, csrc, tmp_path / "cache"
 

@@ -129,7 +129,7 @@ def test_trapezoid_factorization_reproduces_F_and_G():
     from leonav.models.state import NP, NU, NX
 
     x, u, dt, p = ca.SX.sym("x", NX), ca.SX.sym("u", NU), ca.SX.sym("dt"), ca.SX.sym("p", NP)
-    _, F, G = ekf._nav_jacobians(x, u, dt, p)
+    _, F, G = ekf.nav_jacobians(x, u, dt, p)
     T, F_pre, G_pre = ekf.trapezoid_factors(F, G, dt)
     fn = ca.Function("f", [x, u, dt, p], [F, T @ F_pre, G, T @ G_pre])
     rng = np.random.default_rng(11)

@@ -91,7 +91,7 @@ def test_aarch64_program_and_library_equal_the_x86_run_bit_for_bit(exported, x86
     # the library as the runtime builds it (leonav_runtime.core.compiled: same flags), the program linked to it
     flags = ["-O2", "-std=c99", "-fPIC", f"-I{GEN}", f"-I{CSRC}"]
     objs = []
-    for src in (GEN / "leonav_gen.c", CSRC / "leonav_driver.c"):
+    for src in (*sorted((GEN / "c").glob("*.c")), CSRC / "leonav_driver.c"):
         obj = tmp_path / (src.stem + ".o")
         _run([CROSS, *flags, "-c", str(src), "-o", str(obj)])
         objs.append(str(obj))

@@ -60,10 +60,18 @@ def test_changed_source_or_flags_give_a_new_key(tmp_path):
                                       [compiled.GEN_DIR, compiled.CSRC_DIR], compiled.cflags(), version)
     driver.write_text(driver.read_text() + "\n/* changed */\n")
     assert compiled.object_key(driver, includes, compiled.cflags(), version) != key
-    header = gen / "state_layout.h"  # a header change invalidates every object
-    gen_c = gen / "leonav_gen.c"
+    header = gen / "state_layout.h"  # a header change invalidates what includes it (the driver)...
+    key = compiled.object_key(driver, includes, compiled.cflags(), version)
+    gen_c = gen / "c" / "leonav_h_pos_e.c"
     gen_key = compiled.object_key(gen_c, includes, compiled.cflags(), version)
     header.write_text(header.read_text() + "\n")
+    assert compiled.object_key(driver, includes, compiled.cflags(), version) != key
+    # ... but not a generated function, which includes no project header
+    assert compiled.object_key(gen_c, includes, compiled.cflags(), version) == gen_key
+    other = gen / "c" / "leonav_h_pos_n.c"
+    other.write_text(other.read_text() + "\n")
+    assert compiled.object_key(gen_c, includes, compiled.cflags(), version) == gen_key
+    gen_c.write_text(gen_c.read_text() + "\n")
     assert compiled.object_key(gen_c, includes, compiled.cflags(), version) != gen_key
     assert compiled.object_key(gen_c, includes, compiled.cflags() + ["-O3"], version) != \
         compiled.object_key(gen_c, includes, compiled.cflags(), version)
@@ -91,9 +99,9 @@ def test_missing_compiler_and_compile_errors_are_clear(monkeypatch, tmp_path):
         compiled.build()
     monkeypatch.delenv("CC")
     gen, csrc = tmp_path / "gen", tmp_path / "csrc"
-    gen.mkdir()
+    (gen / "c").mkdir(parents=True)
     csrc.mkdir()
-    (gen / "tiny_gen.c").write_text("int tiny(void) { return 1; }\n")
+    (gen / "c" / "tiny_gen.c").write_text("int tiny(void) { return 1; }\n")
     (csrc / "broken.c").write_text("int broken(void) { return undeclared_name; }\n")
     with pytest.raises(compiled.CompilerError, match="undeclared_name"):
         compiled.build(gen, csrc, out_dir=tmp_path / "build")

@@ -20,6 +20,7 @@ import ctypes
 import hashlib
 import importlib.util
 import os
+import re
 import shlex
 import shutil
 import subprocess
@@ -34,6 +35,8 @@ import numpy as np
 
 from leonav_runtime.core.build_cache import (CompilerError, atomic_output, cache_dir, load_library, prebuilt_library,
                                          prepare_writes, record_prebuilt, split_setting, version_line)
+from leonav_runtime.core import layout_check
+from leonav_runtime.core.layout_check import LayoutMismatchError, check_layout, expected_shapes, measurement_ids  # noqa: F401
 from leonav_runtime.gen import state_layout as _codes  # driver return codes (same in every layout)
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]   # leonav_runtime/
@@ -47,10 +50,6 @@ LIBS: tuple[str, ...] = ("-lm",)
 
 _c_double_p = ctypes.POINTER(ctypes.c_double)
 _c_int_p = ctypes.POINTER(ctypes.c_int)
-
-
-class LayoutMismatchError(RuntimeError):
-    """The compiled generated functions do not match gen/state_layout.py."""
 
 
 # ---- build ------------------------------------------------------------------------
@@ -94,25 +93,44 @@ def cflags() -> list[str]:
 
 
 def sources(gen_dir: Path = GEN_DIR, csrc_dir: Path = CSRC_DIR) -> list[Path]:
-    """The C sources of the library, generated first then the driver, sorted by name."""
-    gen = sorted(Path(gen_dir).glob("*.c"))
+    """The C sources of the library: one generated file per function (gen/c/*.c, sorted by
+    name), then the driver."""
+    gen = sorted((Path(gen_dir) / "c").glob("*.c"))
     if not gen:
         raise CompilerError(
-            f"no generated C in {gen_dir}: run `python -m leonav.codegen` to generate leonav_gen.c"
+            f"no generated C in {Path(gen_dir) / 'c'}: run `python -m leonav.codegen` to generate it"
         )
     return gen + sorted(Path(csrc_dir).glob("*.c"))
 
 
-def _headers(include_dirs: list[Path]) -> list[Path]:
-    return sorted(h for d in include_dirs for h in Path(d).glob("*.h"))
+_INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)
+
+
+def included_headers(source: Path, include_dirs: list[Path]) -> list[Path]:
+    """The project headers `source` includes, transitively (`#include "..."` found beside the
+    including file or in `include_dirs`; system headers are the compiler's)."""
+    seen: dict[Path, None] = {}
+    todo = [Path(source)]
+    while todo:
+        current = todo.pop()
+        for name in _INCLUDE.findall(current.read_text(errors="replace")):
+            for folder in [current.parent, *include_dirs]:
+                path = (Path(folder) / name).resolve()
+                if path.is_file():
+                    if path not in seen:
+                        seen[path] = None
+                        todo.append(path)
+                    break
+    return sorted(seen)
 
 
 def object_key(source: Path, include_dirs: list[Path], flags: list[str], cc_version: str) -> str:
-    """SHA-256 of a source, every header it could include, the flags and the compiler."""
+    """SHA-256 of a source, the headers it includes, the flags and the compiler: a change to one
+    generated function recompiles that function only (and what includes its header)."""
     digest = hashlib.sha256()
     digest.update(cc_version.encode())
     digest.update("\0".join(flags).encode())
-    for path in [Path(source)] + _headers(include_dirs):
+    for path in [Path(source)] + included_headers(source, include_dirs):
         digest.update(b"\0" + path.name.encode() + b"\0")
         digest.update(path.read_bytes())
     return digest.hexdigest()
@@ -203,76 +221,9 @@ def prebuilt(gen_dir: Path, csrc_dir: Path, out_dir: Path | None, problem: Compi
     return BuildInfo(library, library.stem.rpartition("-")[2], f"none (prebuilt; {problem})", "", cflags(), list(LDFLAGS))
 
 
-# ---- layout -----------------------------------------------------------------------
-
 def load_layout(gen_dir: Path = GEN_DIR) -> ModuleType:
     """Import gen/state_layout.py (the Python twin of state_layout.h) from gen_dir."""
-    path = Path(gen_dir) / "state_layout.py"
-    if not path.exists():
-        raise CompilerError(f"{path} is missing: run `python -m leonav.codegen`")
-    spec = importlib.util.spec_from_file_location(f"_leonav_state_layout_{abs(hash(str(path)))}", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)  # type: ignore[union-attr]
-    return module
-
-
-def measurement_ids(layout: ModuleType) -> dict[str, int]:
-    """Observable function suffix (e.g. 'pseudorange') -> LEONAV_MEAS_* id, from the generated
-    observable table (`MEAS_TABLE`, twin of the C driver's LEONAV_MEAS_TABLE)."""
-    return {str(m.suffix): int(m.kind) for m in layout.MEAS_TABLE}
-
-
-def expected_shapes(layout: ModuleType) -> dict[str, tuple[list[tuple[int, int]], list[tuple[int, int]]]]:
-    """Generated function name -> (input shapes, output shapes) required by the driver."""
-    nx, ndx, naux, np_, nu = layout.NX, layout.NDX, layout.NAUX, layout.NP, layout.NU
-    x, P, u, s, p, aux = (nx, 1), (ndx, ndx), (nu, 1), (1, 1), (np_, 1), (naux, 1)
-    shapes = {
-        "leonav_mech": ([x, u, s, p], [x]),
-        "leonav_predict": ([x, P, u, s, p], [x, P, P, P]),
-        "leonav_predict_cv": ([x, P, s, p], [x, P, P, P]),
-        "leonav_boxplus": ([x, (ndx, 1)], [x]),
-        "leonav_gnss_terms": ([x, aux, p], [(4, 1)]),
-        "leonav_boxminus": ([x, x], [(ndx, 1)]),
-        "leonav_pcrb_update": ([P, (1, ndx), s], [P, s]),
-    }
-    for m in layout.MEAS_TABLE:
-        z = (m.dim, 1)
-        shapes[f"leonav_h_{m.suffix}"] = ([x, aux, p], [z, (m.dim, ndx)])
-        shapes[f"leonav_update_{m.suffix}"] = ([x, P, z, s, aux, p], [x, P, z, s, s])
-        shapes[f"leonav_pcrb_info_{m.suffix}"] = ([P, x, aux, p, s], [P])
-    return shapes
-
-
-def _sparsity_shape(sp) -> tuple[int, int]:
-    return int(sp[0]), int(sp[1])  # CasADi sparsity starts with nrow, ncol
-
-
-def check_layout(lib: ctypes.CDLL, layout: ModuleType) -> None:
-    """Compare every generated function's n_in/n_out and shapes with state_layout.py."""
-    problems = []
-    for name, (ins, outs) in expected_shapes(layout).items():
-        try:
-            n_in, n_out = getattr(lib, name + "_n_in"), getattr(lib, name + "_n_out")
-        except AttributeError:
-            problems.append(f"{name}: missing from the library")
-            continue
-        sp_in, sp_out = getattr(lib, name + "_sparsity_in"), getattr(lib, name + "_sparsity_out")
-        for fn, ret in ((n_in, ctypes.c_int), (n_out, ctypes.c_int)):
-            fn.restype, fn.argtypes = ret, []
-        for fn in (sp_in, sp_out):
-            fn.restype, fn.argtypes = _c_int_p, [ctypes.c_int]
-        for label, count, sparsity, want in (("inputs", n_in(), sp_in, ins), ("outputs", n_out(), sp_out, outs)):
-            if count != len(want):
-                problems.append(f"{name}: {count} {label}, expected {len(want)}")
-                continue
-            for i, shape in enumerate(want):
-                got = _sparsity_shape(sparsity(i))
-                if got != shape:
-                    problems.append(f"{name}: {label[:-1]} {i} is {got[0]}x{got[1]}, expected {shape[0]}x{shape[1]}")
-                if label == "inputs" and sparsity(i)[2] != 1:
-                    problems.append(f"{name}: input {i} is sparse; the driver passes dense arrays")
-    if problems:
-        raise LayoutMismatchError("generated code does not match state_layout.py:\n  " + "\n  ".join(problems))
+    return layout_check.load_layout(gen_dir)
 
 
 # ---- loading ----------------------------------------------------------------------
@@ -362,7 +313,7 @@ _stat_memo: dict[tuple, str] = {}
 
 def _stat_signature(gen_dir: Path, csrc_dir: Path, out_dir: Path | None) -> tuple:
     """Cheap identity of the inputs (paths, sizes, mtimes, flags, $CC) to skip re-hashing."""
-    files = sorted(p for d in (gen_dir, csrc_dir) for p in Path(d).glob("*.[ch]"))
+    files = sorted(p for d in (gen_dir, Path(gen_dir) / "c", csrc_dir) for p in Path(d).glob("*.[ch]"))
     stats = tuple((str(p), p.stat().st_size, p.stat().st_mtime_ns) for p in files)
     return stats, tuple(cflags()), os.environ.get("CC", "cc"), str(out_dir or build_dir())
 
