@@ -23,6 +23,8 @@ from pathlib import Path
 
 import casadi as ca
 
+from leonav.codegen.emit_pipeline import pipeline_c
+
 C_DIR = "c"
 """Sub-folder of gen/ holding one .c/.h pair per generated function."""
 CODEGEN_OPTS = {"with_header": True, "casadi_int": "int", "casadi_real": "double", "verbose": False}
@@ -80,7 +82,12 @@ def write_functions(functions: list[ca.Function], banner: str) -> dict[str, str]
     """c/<name>.c and .h of every function: {relative path: text}."""
     files: dict[str, str] = {}
     for fn in functions:
-        source, header = function_c(fn, banner)
+        pipeline = getattr(fn, "pipeline", None)
+        if pipeline is not None:   # calls generated functions only: plain glue (emit_pipeline.py)
+            headers = {s.callee.name(): files[f"{C_DIR}/{s.callee.name()}.h"] for s in pipeline.steps}
+            source, header = pipeline_c(pipeline, headers, banner)
+        else:
+            source, header = function_c(fn, banner)
         files[f"{C_DIR}/{fn.name()}.c"] = source
         files[f"{C_DIR}/{fn.name()}.h"] = header
     return files

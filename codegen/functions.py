@@ -14,6 +14,7 @@ from typing import Callable
 
 import casadi as ca
 
+from leonav.codegen.emit_pipeline import Pipeline, Step
 from leonav.models import ekf, frames, input_noise, kinematics
 from leonav.models.measurements import gnss_code
 from leonav.models.measurements import models as measurement_models
@@ -178,12 +179,16 @@ def _predict_functions(call, x, P, u, dt, p) -> list[ca.Function]:
                      "(structurally sparse)", dense=False)
     F_s, G_s = ca.SX.sym("F", F.sparsity()), ca.SX.sym("G", G.sparsity())
     M, Q_pre = ekf.predict_pre_covariance(P, F_s, G_s, dt, p)
+    # symmetric: its lower triangle passes to the next stage (column-major, that is the upper
+    # triangle's rows one after another: a part of this stage computes a block of F_pre P rows)
+    M = ca.tril(M)
     pre = _fn("leonav_predict_pre_covariance", {"P": P, "F": F_s, "G": G_s, "dt": dt, "p": p},
               {"M": M, "Q_pre": Q_pre},
               "predict stage 2: pre-state covariance F_pre P F_pre^T + G_pre V G_pre^T and its IMU "
               "noise part (position trapezoid factored out)", dense=False)
     M_s, Q_s = ca.SX.sym("M", M.sparsity()), ca.SX.sym("Q_pre", Q_pre.sparsity())
-    P_next, Qd = ekf.predict_project(M_s, Q_s, dt, p)
+    M_full = ekf.symmetric_from_upper(M.shape[0], lambda i, j: M_s[j, i])
+    P_next, Qd = ekf.predict_project(M_full, Q_s, dt, p)
     project = _fn("leonav_predict_project", {"M": M_s, "Q_pre": Q_s, "dt": dt, "p": p},
                   {"P_next": P_next, "Qd": Qd},
                   "predict stage 3: P_next = T M T^T + Q_rw and Qd = T Q_pre T^T + Q_rw "
@@ -197,4 +202,10 @@ def _predict_functions(call, x, P, u, dt, p) -> list[ca.Function]:
                   "error-state EKF predict: P_next = F P F^T + Qd")
     for stage in (transition, pre, project):
         stage.internal = True   # called by leonav_predict only: sparse arguments, not a driver entry
+    # the C of leonav_predict: plain glue over the stages (no copies; codegen/emit_pipeline.py)
+    predict.pipeline = Pipeline(predict, (
+        Step(transition, ("in:x", "in:u", "in:dt", "in:p"), ("out:x_next", "tmp:F", "tmp:G")),
+        Step(pre, ("in:P", "tmp:F", "tmp:G", "in:dt", "in:p"), ("tmp:M", "tmp:Q_pre")),
+        Step(project, ("tmp:M", "tmp:Q_pre", "in:dt", "in:p"), ("out:P_next", "out:Qd")),
+    ), {"F": ("F", F.sparsity())})
     return [transition, pre, project, predict]

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from leonav.codegen import emit_c, emit_data
+from leonav.codegen import emit_c, emit_data, split
 from leonav.codegen.driver_codes import RECORD_STATUSES, RETURN_CODES
 from leonav.models import state as S
 from leonav.models.measurements.orbit_jacobian import NORBIT
@@ -142,7 +142,7 @@ def generated_files() -> dict[str, str]:
     from leonav.codegen.functions import build_functions
 
     c_banner = _banner("//")
-    functions = build_functions(emit_c.Linker(c_banner))
+    functions = split.split_large(build_functions(emit_c.Linker(c_banner)))
     files = emit_c.write_functions(functions, c_banner)
     files[f"{GEN_NAME}.h"] = emit_c.umbrella_header(functions, c_banner)
     files[f"{GEN_NAME}.json"] = emit_c.manifest(functions, files)

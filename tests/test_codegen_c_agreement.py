@@ -13,9 +13,10 @@ import pytest
 
 from leonav.codegen.compiled import compile_shared, external
 from leonav.codegen.functions import build_functions
+from leonav.codegen.split import split_large
 from leonav_runtime.gen import state_layout as L
 
-FUNCTIONS = build_functions()
+FUNCTIONS = split_large(build_functions())   # as generated: large SX functions in parts
 # typical magnitude of each nominal-state block (SI) for random states
 X_SCALE = {"p_enu": 300.0, "v_enu": 30.0, "q_nb": 1.0, "b_a": 1e-2, "b_g": 1e-3, "c_dt": 1e3, "c_ddt": 10.0,
            "b_lo": 1e3}

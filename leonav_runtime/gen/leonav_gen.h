@@ -6,7 +6,9 @@
 
 #include "c/leonav_mech.h"
 #include "c/leonav_predict_transition.h"
-#include "c/leonav_predict_pre_covariance.h"
+#include "c/leonav_predict_pre_covariance_1.h"
+#include "c/leonav_predict_pre_covariance_2.h"
+#include "c/leonav_predict_pre_covariance_3.h"
 #include "c/leonav_predict_project.h"
 #include "c/leonav_predict.h"
 #include "c/leonav_predict_cv.h"
