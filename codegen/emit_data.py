@@ -7,6 +7,7 @@ C text into `leonav_runtime/gen/`, values in `repr` form so they round-trip exac
 from __future__ import annotations
 
 import dataclasses
+import math
 
 from leonav.models import clock as model_clock
 from leonav.models import imu as model_imu
@@ -35,12 +36,20 @@ def constants_h(banner: str) -> str:
 def _dataclass_source(cls) -> list[str]:
     lines = ["@dataclass(frozen=True)", f"class {cls.__name__}:", f'    """{cls.__doc__.strip()}"""', ""]
     for f in dataclasses.fields(cls):
-        lines.append(f"    {f.name}: {f.type}")
+        default = "" if f.default is dataclasses.MISSING else f" = {_literal(f.default)}"
+        lines.append(f"    {f.name}: {f.type}{default}")
     return lines + ["", ""]
 
 
+def _literal(value) -> str:
+    """Python source of a field value (inf and nan as math names: the module imports math)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return "math.inf" if value > 0 else ("-math.inf" if value < 0 else "math.nan")
+    return repr(value)
+
+
 def _instance_source(var: str, obj) -> str:
-    args = ", ".join(f"{f.name}={getattr(obj, f.name)!r}" for f in dataclasses.fields(obj))
+    args = ", ".join(f"{f.name}={_literal(getattr(obj, f.name))}" for f in dataclasses.fields(obj))
     return f"{var} = {type(obj).__name__}({args})"
 
 
@@ -52,7 +61,7 @@ def profiles_py(banner: str) -> str:
              "Units: vrw m/s/sqrt(s), arw rad/sqrt(s), acc_bias_rw m/s^2/sqrt(s), gyro_bias_rw",
              "rad/s/sqrt(s), acc_bias_sigma m/s^2, gyro_bias_sigma rad/s; q_cdt m^2/s, q_cddt m^2/s^3.",
              'Sources are in each profile\'s `source` field."""',
-             "from __future__ import annotations", "", "from dataclasses import dataclass", "", ""]
+             "from __future__ import annotations", "", "import math", "from dataclasses import dataclass", "", ""]
     lines += _dataclass_source(model_imu.ImuProfile)
     lines += _dataclass_source(model_clock.ClockProfile)
     imu_names = []

@@ -15,7 +15,7 @@ from typing import Callable
 import casadi as ca
 
 from leonav.codegen.emit_pipeline import Pipeline, Step
-from leonav.models import ekf, frames, input_noise, kinematics
+from leonav.models import dynamics, ekf, frames, input_noise, kinematics
 from leonav.models.measurements import gnss_code
 from leonav.models.measurements import models as measurement_models
 from leonav.models.measurements.geometry import receiver_ecef, transmit_state
@@ -152,6 +152,11 @@ def build_functions(call: Callable[[ca.Function], ca.Function] = _itself) -> lis
                    {"R": input_noise.doppler_rate_variance(sigma, p[P_BLOCK["f_c_hz"].offset], p[P_BLOCK["vrw"].offset], span)},
                    "Doppler-rate variance (Hz^2/s^2): beacon noise sigma plus the accelerometer noise of "
                    "the specific force averaged over f_b_span_s (s) that enters the model"))
+    dt_e = ca.SX.sym("dt")
+    Phi_e, Qd_e = dynamics.error_step(dt_e, p)
+    out.append(_fn("leonav_sensor_error_step", {"dt": dt_e, "p": p}, {"Phi": Phi_e, "Qd": Qd_e},
+                   "transition and process noise (NDX x NDX) over dt of every block the mechanization does not "
+                   "drive (zero on the 9D): what the simulator draws sensor-error truth with"))
     el, az, iono, tropo = gnss_code.delay_terms(x, aux, p)
     out.append(_fn("leonav_gnss_terms", {"x": x, "aux": aux, "p": p},
                    {"el_az_iono_tropo": ca.vertcat(el, az, iono, tropo)},

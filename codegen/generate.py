@@ -5,7 +5,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from leonav.codegen import emit_c, emit_data, split
+from leonav.codegen import emit_c, emit_data, emit_registry, split
 from leonav.codegen.driver_codes import RECORD_STATUSES, RETURN_CODES
 from leonav.models import state as S
 from leonav.models.measurements.orbit_jacobian import NORBIT
@@ -13,7 +13,7 @@ from leonav.models.measurements.orbit_jacobian import NORBIT
 GEN_NAME = "leonav_gen"
 COMMAND = "python -m leonav.codegen  (or: leonav codegen)"
 DATA_FILES = (f"{GEN_NAME}.h", f"{GEN_NAME}.json", "state_layout.h", "state_layout.py",
-              "constants.py", "constants.h", "profiles.py", "__init__.py")
+              "constants.py", "constants.h", "profiles.py", "registry.py", "__init__.py")
 """The files of gen/ besides the per-function C in gen/c/ (emit_c.py)."""
 
 
@@ -151,6 +151,7 @@ def generated_files() -> dict[str, str]:
     files["constants.py"] = emit_data.constants_py(_banner("#"))
     files["constants.h"] = emit_data.constants_h(_banner("//"))
     files["profiles.py"] = emit_data.profiles_py(_banner("#"))
+    files["registry.py"] = emit_registry.registry_py(_banner("#"))
     files["__init__.py"] = _banner("#") + '"""Generated code (C sources, headers, state layout); see state_layout.py."""\n'
     return files
 

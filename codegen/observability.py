@@ -96,7 +96,8 @@ N_STEPS = 30         # steps along the motion (measurements at steps 0..N_STEPS)
 N_SATS = 6           # satellites per satellite observable (generic geometry)
 SEED = 20260223
 SITE = (math.radians(43.0848638), math.radians(-77.6786127), 170.0)  # the paper's site (rad, rad, m)
-GNSS_OBSERVABLES = ("pseudorange",)   # satellites on GNSS orbits; every other satellite observable: LEO
+GNSS_OBSERVABLES = tuple(m.suffix for m in S.MEASUREMENTS if m.source == "gnss")
+"""Observables whose satellites are on GNSS orbits (registry source gnss); every other: LEO."""
 GNSS_RADIUS_M = 26_560e3
 LEO_RADIUS_M = WGS84_A_M + 550e3
 MIN_ELEVATION_RAD = math.radians(20.0)

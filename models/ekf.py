@@ -18,8 +18,7 @@ from typing import Callable
 import casadi as ca
 
 from leonav.models import frames, kinematics
-from leonav.models.clock import clock_qd
-from leonav.models.constants import ISB_RW_PSD_M2PS
+from leonav.models import dynamics
 from leonav.models.state import DX, NDX, P, U, X
 
 def _at_zero(expr, sym):
@@ -153,27 +152,10 @@ def imu_process_noise(G, dt, p):
 
 
 def random_walk_noise(dt, p):
-    """Discrete noise (NDX x NDX) of the bias random walks, the clock and the LO offset over dt.
-
-    Bias random walks: acc_bias_rw^2 dt, gyro_bias_rw^2 dt on their blocks (first order).
-    Clock: exact two-state discretization; LO offset: q_blo dt. Inter-system biases: a slow
-    random walk, ISB_RW_PSD_M2PS dt (receiver hardware delays drifting with temperature).
-    """
-    def par(name):
-        return p[P[name].offset]
-    diag_extra = ca.SX.zeros(NDX)
-    diag_extra[DX["db_a"].slice] = par("acc_bias_rw") ** 2 * dt
-    diag_extra[DX["db_g"].slice] = par("gyro_bias_rw") ** 2 * dt
-    diag_extra[DX["db_lo"].offset] = par("q_blo") * dt
-    diag_extra[DX["disb"].slice] = ISB_RW_PSD_M2PS * dt
-    Q = ca.diag(diag_extra)
-    q11, q12, q22 = clock_qd(par("q_cdt"), par("q_cddt"), dt)
-    i, j = DX["dc_dt"].offset, DX["dc_ddt"].offset
-    Q[i, i] += q11
-    Q[i, j] += q12
-    Q[j, i] += q12
-    Q[j, j] += q22
-    return Q
+    """Discrete noise (NDX x NDX) of every block the mechanization does not drive (biases,
+    clock, LO offset, inter-system biases, each sensor's own): `models.dynamics.process_noise`,
+    from each block's registry dynamics."""
+    return dynamics.process_noise(dt, p)
 
 
 def nav_process_noise(G, dt, p):
@@ -316,15 +298,12 @@ def nav_predict(x, P_, u, dt, p):
     return x_next, P_next, F, Qd
 
 
-def cv_step(x, dt):
+def cv_step(x, dt, p):
     """Nominal constant-velocity step over dt (s), the motion model of a receiver without IMU:
-    p_enu += v_enu dt, c_dt += c_ddt dt, every other block (velocity, attitude, biases, LO
-    offset, inter-system biases) held."""
-    x_next = ca.SX(x)
-    pos, vel = X["p_enu"].slice, X["v_enu"].slice
-    x_next[pos] = x[pos] + x[vel] * dt
-    x_next[X["c_dt"].offset] = x[X["c_dt"].offset] + x[X["c_ddt"].offset] * dt
-    return x_next
+    p_enu += v_enu dt, velocity and attitude held, every other block by its own dynamics
+    (`models.dynamics.block_step`: c_dt += c_ddt dt, random walks held)."""
+    pos, vel, q = X["p_enu"].slice, X["v_enu"].slice, X["q_nb"].slice
+    return ca.vertcat(x[pos] + x[vel] * dt, x[vel], x[q], *dynamics.block_step(x, dt, p))
 
 
 def cv_process_noise(dt, p):
@@ -352,8 +331,8 @@ def cv_predict(x, P_, dt, p):
     F = d[cv_step(x [+] dx) [-] cv_step(x)]/d dx (identity plus the dt couplings p <- v and
     c_dt <- c_ddt), P_next = F P F^T + Qd on F's structural non-zeros (`congruence`).
     """
-    x_next = cv_step(x, dt)
-    F = error_jacobian(lambda xx: cv_step(xx, dt), x, frames.boxplus, frames.boxminus, NDX)
+    x_next = cv_step(x, dt, p)
+    F = error_jacobian(lambda xx: cv_step(xx, dt, p), x, frames.boxplus, frames.boxminus, NDX)
     Qd = cv_process_noise(dt, p)
     FPF = congruence(F, symmetric_part(P_))
     P_next = symmetric_from_upper(NDX, lambda i, j: FPF[i, j] + Qd[i, j])

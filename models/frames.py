@@ -11,7 +11,7 @@ from __future__ import annotations
 import casadi as ca
 
 from leonav.models import constants as K
-from leonav.models.state import DX, NX, X
+from leonav.models.state import DX, X
 
 # Below this squared angle (rad^2) the quaternion exp/log use their Taylor series
 # (4th order in the angle: truncation < 1e-17 there), which keeps the expressions and
@@ -170,7 +170,7 @@ def boxplus(x, dx):
     q_blk, th_blk = X["q_nb"].slice, DX["dtheta"].slice
     before = dx[0 : th_blk.start]
     after = dx[th_blk.stop :]
-    return ca.vertcat(x[0 : q_blk.start] + before, q_new, x[q_blk.stop : NX] + after)
+    return ca.vertcat(x[0 : q_blk.start] + before, q_new, x[q_blk.stop :] + after)
 
 
 def boxminus(x1, x0):
@@ -178,7 +178,7 @@ def boxminus(x1, x0):
     q0, q1 = x0[X["q_nb"].slice], x1[X["q_nb"].slice]
     dtheta = quat_log(quat_mul(quat_conj(q0), q1))
     i, j = X["q_nb"].slice.start, X["q_nb"].slice.stop
-    return ca.vertcat(x1[0:i] - x0[0:i], dtheta, x1[j:NX] - x0[j:NX])
+    return ca.vertcat(x1[0:i] - x0[0:i], dtheta, x1[j:] - x0[j:])
 
 
 def level_from_specific_force(f_b):

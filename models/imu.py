@@ -7,7 +7,9 @@ Pure Python (no casadi): the runtime reads these to build `p`. The error model i
 A datasheet "bias instability/stability" B is turned into a random walk that reaches B
 after `bias_corr_time_s`: rw = B / sqrt(bias_corr_time_s) (a bounded flicker process
 modelled as an unbounded random walk over the time scale of a run; stated per profile).
-The symbolic process noise built from these is in `models.ekf` (`process_noise`).
+The gyro bias is a random walk unless a profile sets `gyro_bias_tau_s` (then a first-order
+Gauss-Markov process: models/state.py `b_g`, models/dynamics.py). The symbolic process noise
+built from these is in `models.dynamics`.
 """
 from __future__ import annotations
 
@@ -32,6 +34,10 @@ class ImuProfile:
     acc_bias_sigma: float   # m/s^2, initial 1-sigma
     gyro_bias_sigma: float  # rad/s, initial 1-sigma
     source: str
+    # s: gyro bias correlation time. inf: the random walk of density gyro_bias_rw; finite: a
+    # first-order Gauss-Markov process of steady-state sigma gyro_bias_sigma (its driving density
+    # is then gyro_bias_sigma sqrt(2 / tau), and gyro_bias_rw is not used)
+    gyro_bias_tau_s: float = math.inf
 
 
 def _profile(name, vrw, arw, acc_bias, gyro_bias, corr_time_s, source) -> ImuProfile:

@@ -29,7 +29,7 @@ from __future__ import annotations
 import casadi as ca
 
 from leonav.models import constants as K
-from leonav.models import frames
+from leonav.models import dynamics, frames
 from leonav.models.gravity import normal_gravity_sin
 from leonav.models.state import AUX, P, U, X
 
@@ -95,12 +95,12 @@ def mech(x, u, dt, p):
 def mech_corrected(x, w, dt, p, gravity=None):
     """`mech` given the bias-corrected increments w = [phi (rad), dv (m/s)] (see corrected_increments).
 
-    The biases in x only pass through to the next state here. `gravity(pos_enu, p)` replaces
+    The biases and every other non-navigation block follow their own dynamics here
+    (`models.dynamics.block_step`: a random walk's mean is constant). `gravity(pos_enu, p)` replaces
     `gravity_enu` (it is evaluated twice per step: at the start and at the predicted end).
     """
     gravity = gravity or gravity_enu
     pos, vel, q = x[X["p_enu"].slice], x[X["v_enu"].slice], x[X["q_nb"].slice]
-    b_a, b_g = x[X["b_a"].slice], x[X["b_g"].slice]
     phi, dv_b = w[U["dtheta_b"].slice], w[U["dvel_b"].slice]  # w has the layout of u
     w_ie = earth_rate_enu(p)
 
@@ -120,9 +120,7 @@ def mech_corrected(x, w, dt, p, gravity=None):
     vel_next = vel + dv_sf + (a0 + a_gc(pos_pred, vel_pred)) * dt / 2
     pos_next = trapezoid_position(pos, vel, vel_next, dt)
 
-    c_dt, c_ddt = x[X["c_dt"].offset], x[X["c_ddt"].offset]
-    return ca.vertcat(pos_next, vel_next, q_next, b_a, b_g, c_dt + c_ddt * dt, c_ddt, x[X["b_lo"].offset],
-                      x[X["isb"].slice])
+    return ca.vertcat(pos_next, vel_next, q_next, *dynamics.block_step(x, dt, p))
 
 
 def receiver_accel_ecef(x, aux, p):

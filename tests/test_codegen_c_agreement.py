@@ -14,16 +14,15 @@ import pytest
 from leonav.codegen.compiled import compile_shared, external
 from leonav.codegen.functions import build_functions
 from leonav.codegen.split import split_large
+from leonav_runtime.gen import registry as REG
 from leonav_runtime.gen import state_layout as L
 
 FUNCTIONS = split_large(build_functions())   # as generated: large SX functions in parts
-# typical magnitude of each nominal-state block (SI) for random states
-X_SCALE = {"p_enu": 300.0, "v_enu": 30.0, "q_nb": 1.0, "b_a": 1e-2, "b_g": 1e-3, "c_dt": 1e3, "c_ddt": 10.0,
-           "b_lo": 1e3}
-P_VALUES = {"lat0_rad": 0.75, "lon0_rad": -1.35, "h0_m": 170.0, "vrw": 1e-3, "arw": 1e-4, "acc_bias_rw": 1e-5,
-            "gyro_bias_rw": 1e-7, "q_cdt": 0.01, "q_cddt": 0.03, "q_blo": 0.01, "f_c_hz": 11.325e9,
-            "lever_x_m": 0.54, "lever_y_m": -0.22, "lever_z_m": 1.16}
-P_VEC = np.array([P_VALUES[name] for name in L.P_NAMES])
+# typical magnitude of each nominal-state block and a typical value of each parameter (SI): the registry's
+X_SCALE = {s.name: s.typical for s in REG.STATES}
+P_VEC = np.zeros(L.NP)
+for _q in REG.PARAMS:
+    P_VEC[_q.offset] = _q.example
 
 
 def seed_of(name: str) -> int:

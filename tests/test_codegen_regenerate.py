@@ -46,11 +46,14 @@ def test_a_model_change_rewrites_only_the_functions_it_reaches(monkeypatch):
     """One file per generated function: changing one observable's h changes that observable's
     h, update and orbit Jacobian (and the manifest), nothing else; its information add calls
     the h as an external and stays as it was."""
-    from leonav.models.measurements import doppler
+    import dataclasses
+
+    from leonav.models import state as S
 
     before = generated_files()
-    original = doppler.h
-    monkeypatch.setattr(doppler, "h", lambda x, aux, p: 2.0 * original(x, aux, p))
+    changed_doppler = tuple(dataclasses.replace(m, h=lambda x, aux, p, h=m.h: 2.0 * h(x, aux, p))
+                            if m.suffix == "doppler" else m for m in S.MEASUREMENTS)
+    monkeypatch.setattr(S, "MEASUREMENTS", changed_doppler)
     after = generated_files()
     changed = {rel for rel in before if before[rel] != after.get(rel)}
     functions = {rel.removeprefix("c/").rsplit(".", 1)[0] for rel in changed if rel.startswith("c/")}

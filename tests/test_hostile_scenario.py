@@ -181,8 +181,8 @@ def test_the_estimate_covers_a_measured_run(tmp_path):
         "mc.run_trial(scn, 'gps+leo-alpha+imu', 45, 0)\n"
         "peak = tracemalloc.get_traced_memory()[1]\n"
         "from leonav_runtime.scenarios.run_size import memory_estimate\n"
-        "from leonav_runtime.scenarios.load import MODE_OBSERVABLES\n"
-        "est = memory_estimate(scn, MODE_OBSERVABLES, trials=0, workers=1)\n"
+        "from leonav_runtime.scenarios.load import mode_of\n"
+        "est = memory_estimate(scn, mode_of, trials=0, workers=1)\n"
         "print(json.dumps({'measured': peak, 'est': est}))\n"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=REPO)

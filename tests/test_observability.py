@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from leonav.codegen import observability as ob
-from leonav_runtime.core import compiled
+from leonav_runtime.core import compiled, model
 from leonav_runtime import observability as ro
 from leonav.models import frames
 from leonav.models import state as S
@@ -39,8 +39,20 @@ def single_state_nulls(c: ob.CaseResult) -> set[str]:
     return {d["leading"] for d in c.null_directions if len(d["terms"]) == 1}
 
 
-# inter-system bias components (not seen by the paper's GPS-only observables)
-ISB = {c.name for c in ob.components() if c.name.startswith("disb")}
+def unreached(mode: str) -> set[str]:
+    """Components of the measuring sensors' blocks (registry role 'measurement') that no observable
+    of the mode reads, directly or through the dynamics coupling them (a clock bias integrating its
+    drift): these are unobservable in that mode by construction, whatever the motion."""
+    reads = {b for o in model.parse_mode(mode).observables for b in o.reads}
+    blocks = [s for s in model.STATES if s.role == "measurement"]
+    reached = set(reads)
+    for s in blocks:   # an integral pair: reading one block reaches the other
+        if s.dynamics.get("kind") == "integral":
+            of = model.state_block(s.dynamics["of"]).error_name
+            if s.error_name in reached or of in reached:
+                reached |= {s.error_name, of}
+    out = {s.error_name for s in blocks if s.error_name not in reached}
+    return {c.name for c in ob.components() if c.block in out}
 
 # --- the lists come from models/state.py --------------------------------------------------------
 
@@ -55,8 +67,10 @@ def test_states_and_observables_are_enumerated_from_the_models():
     assert [n for n, _ in runtime] == [c.name for c in comps]
     assert [label for _, label in runtime] == [c.label for c in comps]
     assert ob.symbolic().h.keys() == measurement_models().keys()
-    from leonav_runtime.scenarios.load import MODE_OBSERVABLES
-    assert {m: MODES[m] for m in MODE_OBSERVABLES} == MODE_OBSERVABLES
+    for name in model.PAPER_MODES:   # every paper mode is analysed, with the observables its words name
+        assert MODES[name] == model.parse_mode(name).suffixes
+    for token in model.LOCAL_SENSORS:   # and every local sensor of the registry, with no edit here
+        assert any(token in m.split("+") for m in MODES)
     assert MODES[ro.GNSS_FIX_MODE] == tuple(m.suffix for m in S.MEASUREMENTS if m.suffix.startswith("pos_"))
 
 
@@ -106,34 +120,40 @@ def test_position_fixes_static_yaw_unobservable_until_the_vehicle_accelerates():
         d = next(d for d in static.null_directions if d["leading"] == lead)
         coef = next(t["coefficient"] for t in d["terms"] if t["component"] == bias)
         assert abs(abs(coef) - G) < 0.05 * G
-    assert single_state_nulls(static) == {"dc_dt", "dc_ddt", "db_lo"} | ISB
-    assert static.rank == S.NDX - 6 - len(ISB) and static.decision.clear and static.draws_agree
+    blind = unreached(ro.GNSS_FIX_MODE)
+    assert {"dc_dt", "dc_ddt", "db_lo"} <= blind
+    assert single_state_nulls(static) == blind
+    # beyond the unread sensor states: yaw and the two tilt / accelerometer-bias pairs
+    assert static.rank == S.NDX - len(blind) - 3 and static.decision.clear and static.draws_agree
 
     moving = case(ro.GNSS_FIX_MODE, "accelerating")
-    assert moving.rank == S.NDX - 3 - len(ISB) and moving.draws_agree
-    assert null_components(moving) == {"dc_dt", "dc_ddt", "db_lo"} | ISB
+    assert moving.rank == S.NDX - len(blind) and moving.draws_agree
+    assert null_components(moving) == blind
     assert "dtheta_z" in moving.classes["observable"]
 
 
 def test_pseudoranges_from_four_satellites_under_acceleration_observe_everything_but_the_lo():
     c = case("gps+imu", "accelerating", n_sats=4)
-    # the paper's GPS pseudorange: the Galileo/BeiDou inter-system biases are not seen either
-    assert c.rank == S.NDX - 1 - len(ISB) and c.decision.clear and c.draws_agree and c.decision.n_weak == 0
-    assert c.classes["unobservable"] == ["db_lo", *sorted(ISB)]
-    assert c.classes["observable"] == [x.name for x in ob.components() if x.name not in {"db_lo"} | ISB]
+    # the paper's GPS pseudorange reads the clock: only the sensor states it never reads stay unseen
+    # (the LO offset, the Galileo/BeiDou inter-system biases, any local sensor's bias)
+    blind = unreached("gps+imu")
+    assert "db_lo" in blind and not {"dc_dt", "dc_ddt"} & blind
+    assert c.rank == S.NDX - len(blind) and c.decision.clear and c.draws_agree and c.decision.n_weak == 0
+    assert set(c.classes["unobservable"]) == blind
+    assert c.classes["observable"] == [x.name for x in ob.components() if x.name not in blind]
 
 
 def test_doppler_rate_only_leaves_the_receiver_clock_unobservable():
     for motion in ("static", "accelerating"):
         c = case("leo-alpha+imu", motion)
         assert {"dc_dt", "dc_ddt", "db_lo"} <= single_state_nulls(c)
-    assert case("leo-alpha+imu", "accelerating").rank == S.NDX - 3 - len(ISB)
+    assert case("leo-alpha+imu", "accelerating").rank == S.NDX - len(unreached("leo-alpha+imu"))
 
 
 def test_ofdm_range_difference_cancels_the_clock_bias():
     c = case("leo-ofdm+imu", "accelerating")
     assert "dc_dt" in c.classes["unobservable"] and "dc_ddt" in c.classes["unobservable"]
-    assert c.rank == S.NDX - 3 - len(ISB)
+    assert c.rank == S.NDX - len(unreached("leo-ofdm+imu"))
 
 
 def test_lo_offset_observable_only_with_doppler():

@@ -26,6 +26,7 @@ from leonav.hardware.imu.witmotion import SampleGrouper, WitMotionParser
 from leonav.hardware.records import GnssFix, NmeaSentence
 from leonav.hardware.session import decode_session
 from leonav_runtime import inputs as road, replay
+from leonav_runtime.core import model
 from leonav_runtime.core import navfuncs
 from leonav_runtime.simulation import session_synth as ss
 from leonav_runtime.cli import main as leonav_main
@@ -401,7 +402,7 @@ def test_assemble_starts_at_a_late_first_fix(t_first_fix, start, dropped):
     np.testing.assert_allclose(sig[L.DX_DP_SLICE], [1.5, 1.5, 3.0])
     np.testing.assert_allclose(sig[L.DX_DTHETA_SLICE], np.radians([0.5, 0.5, 5.0]))
     np.testing.assert_allclose(sig[L.DX_DB_A_SLICE], WT901.acc_bias_sigma)
-    assert sig[L.DX_DB_LO] == road.LO_OFFSET_SIGMA_HZ and np.all(np.isfinite(inp.params))
+    assert sig[L.DX_DB_LO] == model.state_block("b_lo").prior["value"] and np.all(np.isfinite(inp.params))
 
 
 def test_synthetic_imu_noise_is_the_simulators_draw(synth):

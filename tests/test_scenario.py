@@ -47,7 +47,7 @@ def _write(tmp_path, body):
         ("[imu]\nprofile = 'navigation'\n", "expected one of tactical, wt901"),
         ("[gps]\noutages_s = [[30.0, 10.0]]\n", "outages_s[0] = [30.0, 10.0]: expected 0 <= start < end"),
         ("[starlink]\ncounts = [5, 0]\n", "counts = [5, 0]: expected a non-empty list of integers >= 1"),
-        ("[monte_carlo]\nmodes = ['gps+imu', 'magic']\n", "modes contains 'magic'"),
+        ("[monte_carlo]\nmodes = ['gps+imu', 'magic']\n", "modes: 'magic': unknown word 'magic'"),
         ("[trajectory]\nattitude_deg = [0, 90]\n", "attitude_deg = [0, 90]: expected a list of 3 numbers"),
     ],
 )

@@ -46,14 +46,14 @@ def export(session: Path, out: Path, options, elements=None) -> dict:
     from leonav_runtime.core import navfuncs, records
     from leonav_runtime.gen import state_layout as L
     from leonav_runtime.gen.constants import CHI2_1DOF_999
-    from leonav_runtime.replay import MODE_STREAMS, decode_inputs
+    from leonav_runtime.replay import decode_inputs, replay_mode
 
     nav = navfuncs.NavFunctions()
     inputs = decode_inputs(Path(session), options, elements, out, nav)
     mode = options.modes[0]
     if mode in inputs.skipped:
         raise UserInputError(f"{session}: mode {mode} cannot run: {inputs.skipped[mode]}")
-    recs = np.ascontiguousarray(inputs.merged(MODE_STREAMS[mode]))
+    recs = np.ascontiguousarray(inputs.merged(replay_mode(mode).streams))
     recs.tofile(out / "records.bin")
     init = np.concatenate([inputs.x0, np.asarray(inputs.P0).ravel(order="F"), inputs.params]).astype("<f8")
     init.tofile(out / "init.bin")

@@ -27,11 +27,10 @@ def register(subparsers) -> None:
             "Writes a table (printed and CSV), PNG figures and JSON. The symbolic part needs casadi."
         ),
     )
-    from leonav_runtime.observability import GNSS_FIX_MODE
-    from leonav_runtime.scenarios.load import MODE_OBSERVABLES
+    from leonav_runtime.observability.naming import analysis_modes
 
     p.add_argument("--modes", nargs="+", metavar="MODE", default=None,
-                   help=f"modes to analyse (default: all: {', '.join([*MODE_OBSERVABLES, GNSS_FIX_MODE])})")
+                   help=f"modes to analyse (default: all: {', '.join(analysis_modes())}; or any mode name)")
     p.add_argument("--motions", nargs="+", metavar="MOTION", default=None,
                    help="motion classes: static constant-velocity constant-turn accelerating (default: all)")
     p.add_argument("--scenario", default="paper", metavar="NAME",
@@ -83,11 +82,10 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError(f"the structural analysis needs casadi and the models/ package ({exc})") from None
 
     modes = obs.analysis_modes()
-    if args.modes:
-        unknown = [m for m in args.modes if m not in modes]
-        if unknown:
-            raise UserInputError(f"--modes: unknown mode(s) {', '.join(unknown)}; expected some of {', '.join(modes)}")
-        modes = {m: modes[m] for m in args.modes}
+    if args.modes:   # any mode name: the default list's, or other words of the registry
+        from leonav_runtime.core import model
+
+        modes = {m: modes[m] if m in modes else model.parse_mode(m, where="--modes:").suffixes for m in args.modes}
     motions = args.motions or list(symbolic.MOTIONS)
     unknown = [m for m in motions if m not in symbolic.MOTIONS]
     if unknown:
@@ -180,9 +178,10 @@ def _scenario_runs(args, modes: dict, targets: dict) -> tuple[list[dict], dict]:
         return [], {}
     from leonav_runtime.sweep import montecarlo
     from leonav_runtime import observability as obs
-    from leonav_runtime.scenarios.load import MODE_OBSERVABLES, load_scenario, scenario_from_dict
+    from leonav_runtime.core import model
+    from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
-    run_modes = [m for m in modes if m in MODE_OBSERVABLES]
+    run_modes = [m for m in modes if all(model.simulated(o) for o in model.parse_mode(m).observables)]
     if not run_modes:
         return [], {}
     base = load_scenario(args.scenario)

@@ -6,6 +6,7 @@ import argparse
 from leonav_runtime.common import output
 from leonav_runtime.sweep.executors import add_executor_arguments
 from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.core import model
 from leonav_runtime.scenarios.load import MODES, builtin_scenarios, check_run_size, load_scenario
 
 
@@ -29,7 +30,8 @@ def register(subparsers) -> None:
                    help="trials per (mode, count) (default: the scenario's [monte_carlo] trials)")
     p.add_argument("--modes", nargs="+", default=None, metavar="MODE",
                    help=f"fusion modes to run, comma- or space-separated (default: the scenario's); "
-                        f"any of {', '.join(MODES)}")
+                        f"the paper's {', '.join(MODES)}, or any +-joined words of "
+                        f"{model.mode_words(model.simulated)} (e.g. gps+imu+baro)")
     p.add_argument("--counts", nargs="+", default=None, metavar="N",
                    help="Starlink satellite counts, e.g. 5,10,45 or 5:45:5 (default: the scenario's [starlink] counts)")
     p.add_argument("--seed", type=int, default=None, metavar="N",

@@ -105,6 +105,7 @@ class NavFunctions:
         self._receiver_ecef = GeneratedFunction(lib, "leonav_receiver_ecef")
         self._level = GeneratedFunction(lib, "leonav_level")
         self._dr_variance = GeneratedFunction(lib, "leonav_doppler_rate_variance")
+        self._error_step = GeneratedFunction(lib, "leonav_sensor_error_step")
         self._h = {kid: GeneratedFunction(lib, f"leonav_h_{name}")
                    for name, kid in self.library.meas_ids.items()}
 
@@ -130,6 +131,12 @@ class NavFunctions:
             return float(self._dr_variance(sigma_hz_s, f_b_span_s, p)[0][0, 0])
         return np.array([self._dr_variance(s, f_b_span_s, p)[0][0, 0] for s in np.ravel(sigma_hz_s)]
                         ).reshape(np.shape(sigma_hz_s))
+
+    def sensor_error_step(self, dt: float, params: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(Phi, Qd), NDX x NDX: transition and process noise over dt (s) of every block the
+        mechanization does not drive (zero on the 9D), from the generated model."""
+        Phi, Qd = self._error_step(dt, self.params if params is None else params)
+        return Phi, Qd
 
     def _workspace(self):
         if self._work is None:

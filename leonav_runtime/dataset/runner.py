@@ -28,7 +28,7 @@ from leonav_runtime.core import filter as lfilter
 from leonav_runtime.core import navfuncs, records
 from leonav_runtime.dataset import align, checks, constraints, resets
 from leonav_runtime.dataset.load import Dataset, ImuSamples
-from leonav_runtime.dataset.spec import MODE_STREAMS
+from leonav_runtime.dataset.spec import dataset_mode
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.profiles import IMU_PROFILES
 from leonav_runtime.inputs import FilterInputs, FixTable, ImuTable, Prior, assemble, prior_sigmas
@@ -263,7 +263,7 @@ def run_mode(prep: Prepared, mode: str, outage: tuple[float, float] | None = Non
     removed. Covariance resets at long IMU gaps and gate lockouts (`resets`), counted in the report
     with the measurements dropped inside IMU gaps."""
     parts = [prep.inputs.records["imu"]]
-    for s in MODE_STREAMS[mode]:
+    for s in dataset_mode(mode).streams:
         r = prep.streams[s]
         if s == "fix" and outage is not None:
             r = r[(r["t"] < outage[0]) | (r["t"] >= outage[1])]

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.core import model
 from leonav_runtime.scenarios.load import Field, check_numbers, check_tables, show_value, where_key
 from leonav_runtime.common.toml_file import read_toml_file
 
@@ -27,7 +28,17 @@ GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180}
 ACCEL_UNITS = {"m/s^2": 1.0, "g": 9.80665}
 BODY_FRAMES = ("FRD", "FLU")
 MODES = ("fix+imu", "fix+imu+nhc", "fix+imu+nhc+zupt")
-MODE_STREAMS = {"fix+imu": ("fix",), "fix+imu+nhc": ("fix", "nhc"), "fix+imu+nhc+zupt": ("fix", "nhc", "zupt")}
+
+
+def dataset_observable(o) -> bool:
+    """What a dataset description gives the filter: GNSS fixes, motion constraints and the local
+    sensors it names a section for."""
+    return o.stream == "fix" or o.table in ("constraint", "local")
+
+
+def dataset_mode(name: str, where: str = "[filter] modes:") -> model.Mode:
+    """A dataset mode (observables, record streams), or a UserInputError naming `where`."""
+    return model.parse_mode(name, dataset_observable, where)
 AXES = re.compile(r"^\s*[-+]?[xyz]\s*,\s*[-+]?[xyz]\s*,\s*[-+]?[xyz]\s*$")
 Column = (str, int)   # a header name, or a 0-based column index
 
@@ -255,11 +266,10 @@ def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
     if crs not in ("llh", "ecef") and not re.fullmatch(r"EPSG:\d{4,6}", crs):
         raise UserInputError(f"{where_key(source, 'reference', 'crs')} = {crs!r}: expected llh, ecef or EPSG:<code>")
     modes = v["filter"]["modes"]
-    bad = [m for m in modes if m not in MODES]
-    if not modes or bad:
-        raise UserInputError(f"{where_key(source, 'filter', 'modes')} contains {show_value(bad[0] if bad else modes)}: "
-                             f"expected a non-empty list of {', '.join(MODES)}")
-    v["filter"]["modes"] = list(dict.fromkeys(modes))
+    if not modes or not all(isinstance(m, str) for m in modes):
+        raise UserInputError(f"{where_key(source, 'filter', 'modes')} = {show_value(modes)}: expected a non-empty "
+                             f"list of modes, e.g. {', '.join(MODES)}")
+    v["filter"]["modes"] = model.check_modes(modes, dataset_observable, f"{where_key(source, 'filter', 'modes')}:")
     v["filter"]["roll_pitch_sigma_rad"] = math.radians(v["filter"]["roll_pitch_sigma_deg"])
     al = v["alignment"]
     if not isinstance(al["yaw_deg"], str) and not -360 <= al["yaw_deg"] <= 360:

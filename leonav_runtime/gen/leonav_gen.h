@@ -76,6 +76,7 @@
 #include "c/leonav_transmit_state.h"
 #include "c/leonav_level.h"
 #include "c/leonav_doppler_rate_variance.h"
+#include "c/leonav_sensor_error_step.h"
 #include "c/leonav_gnss_terms.h"
 #include "c/leonav_orbit_jac_pseudorange.h"
 #include "c/leonav_orbit_jac_doppler_rate.h"

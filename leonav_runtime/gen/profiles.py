@@ -7,6 +7,7 @@ rad/s/sqrt(s), acc_bias_sigma m/s^2, gyro_bias_sigma rad/s; q_cdt m^2/s, q_cddt 
 Sources are in each profile's `source` field."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 
@@ -22,6 +23,7 @@ class ImuProfile:
     acc_bias_sigma: float
     gyro_bias_sigma: float
     source: str
+    gyro_bias_tau_s: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -34,8 +36,8 @@ class ClockProfile:
     source: str
 
 
-TACTICAL = ImuProfile(name='tactical', vrw=0.0005, arw=2.908882086657216e-05, acc_bias_rw=8.172208333333333e-06, gyro_bias_rw=8.080228018492267e-08, acc_bias_sigma=0.0004903325, gyro_bias_sigma=4.84813681109536e-06, source='typical tactical-grade class figures: ARW 0.1 deg/sqrt(h), gyro bias 1 deg/h, VRW 0.03 m/s/sqrt(h), accel bias 50 ug; bias random walk reaches the bias in 1 h')
-WT901 = ImuProfile(name='wt901', vrw=0.0029419949999999998, arw=0.00017453292519943296, acc_bias_rw=0.004903325, gyro_bias_rw=8.726646259971648e-05, acc_bias_sigma=0.04903325, gyro_bias_sigma=0.0008726646259971648, source='WitMotion BWT901CL datasheet v20-0707: accel stability 0.005 g, gyro stability 0.05 deg/s (used as bias sigma, random walk reaching it in 100 s); noise densities not in the datasheet, assumed 300 ug/sqrt(Hz) and 0.01 deg/s/sqrt(Hz) (MPU-9250-class typical)')
+TACTICAL = ImuProfile(name='tactical', vrw=0.0005, arw=2.908882086657216e-05, acc_bias_rw=8.172208333333333e-06, gyro_bias_rw=8.080228018492267e-08, acc_bias_sigma=0.0004903325, gyro_bias_sigma=4.84813681109536e-06, source='typical tactical-grade class figures: ARW 0.1 deg/sqrt(h), gyro bias 1 deg/h, VRW 0.03 m/s/sqrt(h), accel bias 50 ug; bias random walk reaches the bias in 1 h', gyro_bias_tau_s=math.inf)
+WT901 = ImuProfile(name='wt901', vrw=0.0029419949999999998, arw=0.00017453292519943296, acc_bias_rw=0.004903325, gyro_bias_rw=8.726646259971648e-05, acc_bias_sigma=0.04903325, gyro_bias_sigma=0.0008726646259971648, source='WitMotion BWT901CL datasheet v20-0707: accel stability 0.005 g, gyro stability 0.05 deg/s (used as bias sigma, random walk reaching it in 100 s); noise densities not in the datasheet, assumed 300 ug/sqrt(Hz) and 0.01 deg/s/sqrt(Hz) (MPU-9250-class typical)', gyro_bias_tau_s=math.inf)
 TCXO = ClockProfile(name='tcxo', q_cdt=0.008987551787368176, q_cddt=0.03548143227025099, source='typical TCXO Allan coefficients h0=2e-19 s, h-2=2e-20 1/s (Brown & Hwang)')
 
 IMU_PROFILES = {'tactical': TACTICAL, 'wt901': WT901}

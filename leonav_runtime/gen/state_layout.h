@@ -5,7 +5,7 @@
 
 #define LEONAV_NX 21
 #define LEONAV_NDX 20
-#define LEONAV_NP 14
+#define LEONAV_NP 15
 #define LEONAV_NAUX 36
 #define LEONAV_NU 6
 #define LEONAV_NNAV 9  /* the 9D navigation error (dp, dv, dtheta) = dx[0:NNAV] */
@@ -83,17 +83,18 @@
 #define LEONAV_P_LAT0_RAD 0  /* rad: ENU origin geodetic latitude (WGS84) */
 #define LEONAV_P_LON0_RAD 1  /* rad: ENU origin longitude */
 #define LEONAV_P_H0_M 2  /* m: ENU origin ellipsoidal height */
-#define LEONAV_P_VRW 3  /* m/s/sqrt(s): velocity random walk (accelerometer white noise) */
-#define LEONAV_P_ARW 4  /* rad/sqrt(s): angle random walk (gyro white noise) */
-#define LEONAV_P_ACC_BIAS_RW 5  /* m/s^2/sqrt(s): accelerometer bias random walk */
-#define LEONAV_P_GYRO_BIAS_RW 6  /* rad/s/sqrt(s): gyro bias random walk */
-#define LEONAV_P_Q_CDT 7  /* m^2/s: clock white-frequency PSD (drives c_dt) */
-#define LEONAV_P_Q_CDDT 8  /* m^2/s^3: clock random-walk-frequency PSD (drives c_ddt) */
+#define LEONAV_P_VRW 3  /* m/s/sqrt(s): velocity random walk (accelerometer white noise); IMU profile */
+#define LEONAV_P_ARW 4  /* rad/sqrt(s): angle random walk (gyro white noise); IMU profile */
+#define LEONAV_P_ACC_BIAS_RW 5  /* m/s^2/sqrt(s): accelerometer bias random walk; IMU profile */
+#define LEONAV_P_GYRO_BIAS_RW 6  /* rad/s/sqrt(s): gyro bias driving-noise density (random walk, or the Gauss-Markov process's); IMU profile */
+#define LEONAV_P_Q_CDT 7  /* m^2/s: clock white-frequency PSD (drives c_dt); clock profile */
+#define LEONAV_P_Q_CDDT 8  /* m^2/s^3: clock random-walk-frequency PSD (drives c_ddt); clock profile */
 #define LEONAV_P_Q_BLO 9  /* Hz^2/s: LO offset random-walk PSD */
 #define LEONAV_P_F_C_HZ 10  /* Hz: beacon carrier frequency */
 #define LEONAV_P_LEVER_X_M 11  /* m: GNSS antenna lever arm, body forward (from the IMU to the antenna phase centre) */
 #define LEONAV_P_LEVER_Y_M 12  /* m: GNSS antenna lever arm, body left */
 #define LEONAV_P_LEVER_Z_M 13  /* m: GNSS antenna lever arm, body up */
+#define LEONAV_P_GYRO_BIAS_BETA 14  /* 1/s: gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile */
 
 #define LEONAV_MEAS_IMU (-1)  /* record kind of an IMU interval */
 #define LEONAV_KIND_CV (-2)  /* record kind of a constant-velocity predict over dt (no IMU) */

@@ -5,7 +5,7 @@ from collections import namedtuple
 
 NX = 21
 NDX = 20
-NP = 14
+NP = 15
 NAUX = 36
 NU = 6
 NNAV = 9  # the 9D navigation error (dp, dv, dtheta) = dx[DX_NAV9_SLICE]
@@ -117,17 +117,18 @@ DX_NAV9_SLICE = slice(0, 9)  # the 9D navigation error: dp, dv, dtheta
 P_LAT0_RAD = 0  # rad: ENU origin geodetic latitude (WGS84)
 P_LON0_RAD = 1  # rad: ENU origin longitude
 P_H0_M = 2  # m: ENU origin ellipsoidal height
-P_VRW = 3  # m/s/sqrt(s): velocity random walk (accelerometer white noise)
-P_ARW = 4  # rad/sqrt(s): angle random walk (gyro white noise)
-P_ACC_BIAS_RW = 5  # m/s^2/sqrt(s): accelerometer bias random walk
-P_GYRO_BIAS_RW = 6  # rad/s/sqrt(s): gyro bias random walk
-P_Q_CDT = 7  # m^2/s: clock white-frequency PSD (drives c_dt)
-P_Q_CDDT = 8  # m^2/s^3: clock random-walk-frequency PSD (drives c_ddt)
+P_VRW = 3  # m/s/sqrt(s): velocity random walk (accelerometer white noise); IMU profile
+P_ARW = 4  # rad/sqrt(s): angle random walk (gyro white noise); IMU profile
+P_ACC_BIAS_RW = 5  # m/s^2/sqrt(s): accelerometer bias random walk; IMU profile
+P_GYRO_BIAS_RW = 6  # rad/s/sqrt(s): gyro bias driving-noise density (random walk, or the Gauss-Markov process's); IMU profile
+P_Q_CDT = 7  # m^2/s: clock white-frequency PSD (drives c_dt); clock profile
+P_Q_CDDT = 8  # m^2/s^3: clock random-walk-frequency PSD (drives c_ddt); clock profile
 P_Q_BLO = 9  # Hz^2/s: LO offset random-walk PSD
 P_F_C_HZ = 10  # Hz: beacon carrier frequency
 P_LEVER_X_M = 11  # m: GNSS antenna lever arm, body forward (from the IMU to the antenna phase centre)
 P_LEVER_Y_M = 12  # m: GNSS antenna lever arm, body left
 P_LEVER_Z_M = 13  # m: GNSS antenna lever arm, body up
+P_GYRO_BIAS_BETA = 14  # 1/s: gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile
 
 MEAS_IMU = -1  # record kind of an IMU interval
 KIND_CV = -2  # record kind of a constant-velocity predict over dt (no IMU)
@@ -172,7 +173,7 @@ MEAS_TABLE = (
     Observable(MEAS_ZUPT_N, 'zupt_n', 1, 'ZUPT_N', 'm/s'),
     Observable(MEAS_ZUPT_U, 'zupt_u', 1, 'ZUPT_U', 'm/s'),
 )
-P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz', 'lever_x_m', 'lever_y_m', 'lever_z_m']
+P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz', 'lever_x_m', 'lever_y_m', 'lever_z_m', 'gyro_bias_beta']
 
 NORBIT = 12  # columns of leonav_orbit_jac_<k>: dh/d[r_S, v_S, r_ref, v_ref] (ECEF)
 # kind ids of the observables with a generated leonav_orbit_jac_<suffix> (twin of LEONAV_ORBIT_JAC_TABLE)

@@ -31,6 +31,7 @@ import numpy as np
 from leonav_runtime.core import navfuncs
 from leonav_runtime.orbits import geometry
 from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.core import model
 from leonav_runtime.core.filter import EKF, RunResult
 from leonav_runtime.gen import constants as K
 from leonav_runtime.gnss import spp as _spp
@@ -39,7 +40,6 @@ from leonav_runtime.gnss.ephemeris import Ephemerides
 from leonav_runtime.gnss.gnss_ekf import clock_jumps_m, filter_rows, filter_sigma_m, sat_ids
 from leonav_runtime.gnss.observations import ObservationTable
 from leonav_runtime.gnss.signals import REASONS, gnss_rows
-from leonav_runtime.inputs import COUPLED_MODE_STREAMS as MODE_STREAMS
 from leonav_runtime.inputs import (FilterInputs, FirstFixPrior, FixTable, GnssObservationTable, ImuTable, Prior,
                                    assemble, filter_params)
 SPP_FIX_MIN_SIGMA_M = 0.5     # floor of a single-point fix's 1-sigma per axis when it starts the filter
@@ -130,11 +130,12 @@ def coupled_inputs(imu: ImuTable, spp: _spp.SppResult, epoch_utc: _dt.datetime, 
 
 def run_mode(inputs: FilterInputs, mode: str, *, gate: float = K.CHI2_1DOF_999,
              nav: navfuncs.NavFunctions | None = None) -> tuple[np.ndarray, RunResult]:
-    """(records, result) of one tightly coupled mode (`MODE_STREAMS`) through the generated C loop."""
-    if mode not in MODE_STREAMS:
-        raise UserInputError(f"mode {mode!r}: expected one of {', '.join(MODE_STREAMS)}")
+    """(records, result) of one tightly coupled mode (e.g. pseudorange+imu) through the generated C loop."""
+    parsed = model.parse_mode(mode, lambda o: o.table == "gnss_obs" or o.stream == "doppler_rate", "mode")
+    if not any(o.table == "gnss_obs" for o in parsed.observables):
+        raise UserInputError(f"mode {mode!r}: expected a tightly coupled mode (its words include pseudorange)")
     nav = nav or navfuncs.NavFunctions(params=inputs.params)
-    recs = inputs.merged(MODE_STREAMS[mode])
+    recs = inputs.merged(parsed.streams)
     ekf = EKF(inputs.x0, inputs.P0, inputs.params, gate=gate or None, library=nav.library)
     return recs, ekf.run(recs)
 

@@ -18,25 +18,24 @@ from __future__ import annotations
 
 from leonav_runtime.inputs.assemble import STREAMS, FilterInputs, assemble
 from leonav_runtime.inputs.consider import OrbitConsider
-from leonav_runtime.inputs.gnss_obs import (COUPLED_MODE_STREAMS, GNSS_Q_CDDT_M2PS3, GNSS_Q_CDT_M2PS, GNSS_STREAMS,
+from leonav_runtime.inputs.gnss_obs import (GNSS_Q_CDDT_M2PS3, GNSS_Q_CDT_M2PS, GNSS_STREAMS,
                                             GnssObservationTable, apply_clock_start, gnss_records)
 from leonav_runtime.inputs.imu import F_B_AVERAGE_S, averaged_specific_force, imu_records, latest_sample
-from leonav_runtime.inputs.measurements import (aux_blocks, doppler_rate_variance, fix_records, satellite_aux,
-                                                satellite_records, states_from_aux)
-from leonav_runtime.inputs.prior import (CLOCK_BIAS_SIGMA_M, CLOCK_DRIFT_SIGMA_MPS, LO_OFFSET_SIGMA_HZ,
-                                         LO_RANDOM_WALK_HZ2_S, FirstFixPrior, Prior, filter_params,
-                                         first_fix_prior, prior_sigmas)
+from leonav_runtime.inputs.measurements import (aux_blocks, doppler_rate_variance, fix_records, local_records,
+                                                satellite_aux, satellite_records, states_from_aux)
+from leonav_runtime.inputs.prior import (LO_RANDOM_WALK_HZ2_S, FirstFixPrior, Prior, filter_params, first_fix_prior,
+                                         prior_sigmas)
 from leonav_runtime.inputs.tables import (SAT_A_MPS2, SAT_R_M, SAT_V_MPS, SATELLITE_TABLES, DopplerRateTable,
-                                          DopplerTable, FixTable, ImuTable, OfdmRangeDiffTable, PseudorangeTable,
-                                          SatelliteTable, check_column)
+                                          DopplerTable, FixTable, ImuTable, LocalSensorTable, OfdmRangeDiffTable,
+                                          PseudorangeTable, SatelliteTable, check_column)
 
 __all__ = [
     "STREAMS", "FilterInputs", "assemble", "OrbitConsider",
-    "COUPLED_MODE_STREAMS", "GNSS_Q_CDDT_M2PS3", "GNSS_Q_CDT_M2PS", "GNSS_STREAMS", "GnssObservationTable", "apply_clock_start", "gnss_records",
+    "GNSS_Q_CDDT_M2PS3", "GNSS_Q_CDT_M2PS", "GNSS_STREAMS", "GnssObservationTable", "apply_clock_start", "gnss_records",
     "F_B_AVERAGE_S", "averaged_specific_force", "imu_records", "latest_sample",
-    "aux_blocks", "doppler_rate_variance", "fix_records", "satellite_aux", "satellite_records", "states_from_aux",
-    "CLOCK_BIAS_SIGMA_M", "CLOCK_DRIFT_SIGMA_MPS", "LO_OFFSET_SIGMA_HZ", "LO_RANDOM_WALK_HZ2_S",
+    "aux_blocks", "doppler_rate_variance", "fix_records", "local_records", "satellite_aux", "satellite_records", "states_from_aux",
+    "LO_RANDOM_WALK_HZ2_S",
     "FirstFixPrior", "Prior", "filter_params", "first_fix_prior", "prior_sigmas",
     "SAT_A_MPS2", "SAT_R_M", "SAT_V_MPS", "SATELLITE_TABLES", "DopplerRateTable", "DopplerTable", "FixTable",
-    "ImuTable", "OfdmRangeDiffTable", "PseudorangeTable", "SatelliteTable", "check_column",
+    "ImuTable", "LocalSensorTable", "OfdmRangeDiffTable", "PseudorangeTable", "SatelliteTable", "check_column",
 ]

@@ -20,18 +20,17 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from leonav_runtime.core import navfuncs, records
+from leonav_runtime.core import model, navfuncs, records
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.inputs.consider import OrbitConsider
 from leonav_runtime.inputs.gnss_obs import GnssObservationTable, apply_clock_start, gnss_records
 from leonav_runtime.inputs.imu import averaged_specific_force, imu_records
-from leonav_runtime.inputs.measurements import fix_records, satellite_records
+from leonav_runtime.inputs.measurements import fix_records, local_records, satellite_records
 from leonav_runtime.inputs.prior import FirstFixPrior, Prior, first_fix_prior
-from leonav_runtime.inputs.tables import FixTable, ImuTable, SatelliteTable
+from leonav_runtime.inputs.tables import FixTable, ImuTable, LocalSensorTable, SatelliteTable
 
-STREAMS = ("imu", "fix", "pseudorange", "doppler_rate", "doppler", "ofdm_range_diff", "gnss_pseudorange",
-           "gnss_range_rate")
-"""Record streams, in merge order: IMU, GNSS fixes, then the satellite observables."""
+STREAMS = model.STREAMS
+"""Record streams, in merge order: the IMU, then each observable's stream in kind-id order (registry)."""
 
 
 @dataclasses.dataclass
@@ -52,6 +51,7 @@ class FilterInputs:
     fixes: FixTable
     satellites: dict[str, SatelliteTable]
     gnss: GnssObservationTable = dataclasses.field(default_factory=GnssObservationTable.empty)
+    local: dict[str, LocalSensorTable] = dataclasses.field(default_factory=dict)
     notes: list[str] = dataclasses.field(default_factory=list)
     counts: dict = dataclasses.field(default_factory=dict)
     init: dict = dataclasses.field(default_factory=dict)
@@ -83,12 +83,13 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
              satellites: Sequence[SatelliteTable] = (), nav: navfuncs.NavFunctions | None = None,
              notes: list[str] | None = None, epoch_utc: _dt.datetime | None = None,
              origin: tuple[float, float, float] | None = None,
-             gnss: GnssObservationTable | None = None, orbit_consider: OrbitConsider | None = None) -> FilterInputs:
+             gnss: GnssObservationTable | None = None, orbit_consider: OrbitConsider | None = None,
+             local: Sequence[LocalSensorTable] = ()) -> FilterInputs:
     """Records, x0, P0 and p from sensor tables (module doc). params: (NP,) (`filter_params`);
     prior: x0/P0 given (`Prior`) or made from the data (`FirstFixPrior`); satellites: at
     most one table per observable kind; gnss: code / Doppler observations of a GNSS receiver;
     orbit_consider: satellite orbit errors added to the satellite records' R (consider term,
-    Jacobian at the prior's state)."""
+    Jacobian at the prior's state); local: at most one table per local sensor (barometer, ...)."""
     nav = nav or navfuncs.NavFunctions(params=params)
     notes = list(notes or [])
     imu.check()
@@ -101,6 +102,11 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
         tab.check()
     if gnss is not None:
         gnss.check()
+    streams = [tab.stream for tab in local]
+    if len(set(streams)) < len(streams):
+        raise UserInputError(f"local sensor tables: {streams}: expected at most one table per sensor")
+    for tab in local:
+        tab.check()
     params = np.asarray(params, dtype=np.float64)
     check_params = nav.layout.NP
     if params.shape != (check_params,) or not np.all(np.isfinite(params)):
@@ -147,8 +153,19 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
             x0, P0, params, clock_init = apply_clock_start(x0, P0, params, gnss, t_start, nav.layout)
             init |= clock_init
 
+    used_local: dict[str, LocalSensorTable] = {}
+    for tab in local:
+        inside = _inside(tab.t, t_start, t_end)
+        counts[f"{tab.stream}_outside_imu_span"] = int((~inside).sum())
+        used = used_local[tab.stream] = tab if inside.all() else tab.select(inside)
+        needs_f_b = any(o.reads_specific_force for o in tab.observables)
+        if needs_f_b and f_b_avg is None:
+            f_b_avg, f_b_span_s = averaged_specific_force(imu.dvel_b, imu.dt)
+        out[tab.stream] = local_records(used, imu, f_b_avg if needs_f_b else None, nav)
+        counts[f"{tab.stream}_records"] = int(out[tab.stream].size)
+
     counts |= {"imu_records": int(out["imu"].size), "fix_epochs": int(used_fixes.t.size)}
     for kind in list(used_sats) + (["gnss_pseudorange", "gnss_range_rate"] if gnss is not None else []):
         counts[f"{kind}_records"] = int(out[kind].size)
-    return FilterInputs(out, x0, P0, params, imu, used_fixes, used_sats, used_gnss, notes, counts, init,
+    return FilterInputs(out, x0, P0, params, imu, used_fixes, used_sats, used_gnss, used_local, notes, counts, init,
                         epoch_utc, origin)

@@ -28,12 +28,12 @@ import numpy as np
 
 from leonav_runtime.core import records
 from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.core import model
 from leonav_runtime.gen import state_layout as LAYOUT
 from leonav_runtime.inputs.tables import _bad, check_column
 
-GNSS_STREAMS = ("gnss_pseudorange", "gnss_range_rate")
-COUPLED_MODE_STREAMS = {"pseudorange+imu": GNSS_STREAMS, "pseudorange+leo-alpha+imu": GNSS_STREAMS + ("doppler_rate",)}
-"""Record streams (`inputs.STREAMS`) of the tightly coupled modes, merged with the IMU records."""
+GNSS_STREAMS = tuple(dict.fromkeys(o.stream for o in model.OBSERVABLES if o.table == "gnss_obs"))
+"""Record streams of a GNSS receiver's raw observations (the registry's `gnss_obs` observables)."""
 GNSS_Q_CDT_M2PS = 1e4
 """m^2/s: receiver clock white-frequency PSD (loose: receiver clocks steer and jump; re-estimated every epoch)."""
 GNSS_Q_CDDT_M2PS3 = 1.0

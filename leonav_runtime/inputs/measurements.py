@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from leonav_runtime.core import navfuncs, records
+from leonav_runtime.core import model, navfuncs, records
 from leonav_runtime.inputs.consider import OrbitConsider
 from leonav_runtime.inputs.imu import latest_sample
-from leonav_runtime.inputs.tables import SAT_A_MPS2, SAT_R_M, SAT_V_MPS, FixTable, ImuTable, SatelliteTable
+from leonav_runtime.inputs.tables import (SAT_A_MPS2, SAT_R_M, SAT_V_MPS, FixTable, ImuTable, LocalSensorTable,
+                                          SatelliteTable)
 
-FIX_KINDS = ("pos_e", "pos_n", "pos_u")
+FIX_KINDS = tuple(o.suffix for o in model.stream_observables("fix"))
 
 
 def fix_records(fixes: FixTable, nav: navfuncs.NavFunctions) -> np.ndarray:
@@ -97,7 +98,7 @@ def satellite_records(table: SatelliteTable, imu: ImuTable, f_b_avg: np.ndarray,
     if not table.t.size:
         return np.zeros(0, records.RECORD_DTYPE)
     aux = satellite_aux(table, f_b_avg[latest_sample(imu, table.t)], nav.layout)
-    if table.KIND == "doppler_rate":
+    if model.observable(table.KIND).reads_specific_force:   # the Doppler-rate's (input_noise.py)
         R = doppler_rate_variance(table.sigma, f_b_span_s, params, nav)
     else:
         R = np.asarray(table.sigma) ** 2 if np.ndim(table.sigma) else table.sigma ** 2
@@ -105,3 +106,18 @@ def satellite_records(table: SatelliteTable, imu: ImuTable, f_b_avg: np.ndarray,
     if extra is not None:
         R = R + extra
     return records.measurement_records(table.t, nav.kind_id(table.KIND), table.z, R, aux, table.sat_id)
+
+
+def local_records(table: LocalSensorTable, imu: ImuTable, f_b_avg: np.ndarray | None, nav: navfuncs.NavFunctions,
+                  ) -> np.ndarray:
+    """Records of a local sensor table: one per row and observable of its stream, R = sigma^2;
+    aux carries the averaged specific force f_b (the rest zero: a local sensor has no satellite)."""
+    if not table.t.size:
+        return np.zeros(0, records.RECORD_DTYPE)
+    aux = np.zeros((table.t.size, nav.layout.NAUX))
+    if f_b_avg is not None:
+        aux[:, nav.layout.AUX_F_B_SLICE] = f_b_avg[latest_sample(imu, table.t)]
+    sig = table.sigma_columns()
+    parts = [records.measurement_records(table.t, nav.kind_id(o.suffix), table.z[:, i], sig[:, i] ** 2, aux)
+             for i, o in enumerate(table.observables)]
+    return records.merge_records(*parts)

@@ -3,8 +3,8 @@
 - `filter_params`: p from the ENU origin, the IMU profile and the beacon carrier f_c
   (`leonav_runtime.core.params.build_params`, LO random walk `LO_RANDOM_WALK_HZ2_S`).
 - `prior_sigmas`: 1-sigma per error state; navigation sigmas as given, IMU biases from the
-  profile, clock and LO from the constants below (they only set how fast the filter
-  locks; the simulator draws its truth from the same prior).
+  profile, every other block its registry prior (`core.model.prior_sigmas`; they only set how
+  fast the filter locks; the simulator draws its truth from the same prior).
 - `Prior`: x0 and P0 given (the simulator: a draw around its truth).
 - `FirstFixPrior`: x0 and P0 from the data (a recorded session, a dataset): position and
   horizontal velocity of the first usable GNSS fix, roll/pitch (and yaw unless given) the
@@ -22,43 +22,32 @@ import math
 
 import numpy as np
 
-from leonav_runtime.core import navfuncs
+from leonav_runtime.core import model, navfuncs
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.inputs.tables import FixTable, ImuTable
 from leonav_runtime.core.params import DEFAULT_Q_BLO_HZ2_S, ImuProfile, build_params
 
-CLOCK_BIAS_SIGMA_M = 300.0      # 1 us
-CLOCK_DRIFT_SIGMA_MPS = 1.0
-LO_OFFSET_SIGMA_HZ = 50e3       # LNB LO tolerance class (tens of kHz)
 LO_RANDOM_WALK_HZ2_S = DEFAULT_Q_BLO_HZ2_S   # LO drift PSD used by filter and truth
 
 
-def filter_params(origin, profile: ImuProfile, f_c_hz: float) -> np.ndarray:
-    """Parameter vector (NP,) for the ENU origin (lat rad, lon rad, h m), an IMU profile and
-    the beacon carrier f_c (Hz); a UserInputError names a non-finite input."""
+def filter_params(origin, profile: ImuProfile, f_c_hz: float, values: dict[str, float] | None = None) -> np.ndarray:
+    """Parameter vector (NP,) for the ENU origin (lat rad, lon rad, h m), an IMU profile, the
+    beacon carrier f_c (Hz) and any registry parameter by name (`values`, e.g. a scenario's
+    magnetic declination); a UserInputError names a non-finite input."""
     lat0, lon0, h0 = origin
-    params = np.array(build_params(lat0, lon0, h0, imu=profile, q_blo=LO_RANDOM_WALK_HZ2_S, f_c_hz=f_c_hz))
+    params = np.array(build_params(lat0, lon0, h0, imu=profile, q_blo=LO_RANDOM_WALK_HZ2_S, f_c_hz=f_c_hz,
+                                   values=values))
     if not np.all(np.isfinite(params)):
         raise UserInputError(f"filter parameters: non-finite value from origin (lat, lon rad, h m) {tuple(origin)}, "
                              f"f_c_hz {f_c_hz}, IMU profile {profile.name}: expected finite numbers")
     return params
 
 
-def prior_sigmas(layout, profile, position_m, velocity_mps, attitude_rad) -> np.ndarray:
+def prior_sigmas(layout, profile, position_m, velocity_mps, attitude_rad, overrides: dict | None = None) -> np.ndarray:
     """1-sigma of the filter prior per error state (NDX,): navigation sigmas as given
-    (scalars or 3-vectors; m, m/s, rad), IMU biases from the profile, clock and LO from the
-    module constants."""
-    L = layout
-    sig = np.zeros(L.NDX)
-    sig[L.DX_DP_SLICE] = position_m
-    sig[L.DX_DV_SLICE] = velocity_mps
-    sig[L.DX_DTHETA_SLICE] = attitude_rad
-    sig[L.DX_DB_A_SLICE] = profile.acc_bias_sigma
-    sig[L.DX_DB_G_SLICE] = profile.gyro_bias_sigma
-    sig[L.DX_DC_DT] = CLOCK_BIAS_SIGMA_M
-    sig[L.DX_DC_DDT] = CLOCK_DRIFT_SIGMA_MPS
-    sig[L.DX_DB_LO] = LO_OFFSET_SIGMA_HZ
-    return sig
+    (scalars or 3-vectors; m, m/s, rad), IMU biases from the profile, every other block its
+    registry prior or `overrides` ({error-state block name: sigma})."""
+    return model.prior_sigmas(layout, profile, position_m, velocity_mps, attitude_rad, overrides)
 
 
 @dataclasses.dataclass

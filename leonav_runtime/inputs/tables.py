@@ -16,6 +16,7 @@ from typing import ClassVar
 import numpy as np
 
 from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.core import model
 from leonav_runtime.gen import state_layout as LAYOUT
 
 
@@ -218,35 +219,72 @@ class SatelliteTable:
         return self
 
 
-class PseudorangeTable(SatelliteTable):
-    """GNSS pseudoranges (m) with the satellite state at transmit time (see SatelliteTable)."""
-
-    KIND, UNIT = "pseudorange", "m"
-
-
-class DopplerRateTable(SatelliteTable):
-    """Doppler-rate (Hz/s, paper eqs. 3-4) of LEO beacons, e.g. Starlink (see SatelliteTable)."""
-
-    KIND, UNIT = "doppler_rate", "Hz/s"
-
-
-class DopplerTable(SatelliteTable):
-    """Doppler (Hz, -(f_c/c) rho_dot + b_lo) of LEO beacons (see SatelliteTable)."""
-
-    KIND, UNIT = "doppler", "Hz"
-
-
-class OfdmRangeDiffTable(SatelliteTable):
-    """OFDM differenced one-way range rho_i - rho_ref (m); ref_ecef is required."""
-
-    KIND, UNIT = "ofdm_range_diff", "m"
-
-    def check(self) -> "OfdmRangeDiffTable":
+def _satellite_table(o) -> type:
+    """The table class of satellite observable `o` (registry entry); one that reads a reference
+    satellite (a differenced observable) requires `ref_ecef`."""
+    def check(self):
         if self.ref_ecef is None:
             raise _bad(self.name, "ref_ecef", "missing", "the reference satellite's state (n, 9)")
-        super().check()
+        return SatelliteTable.check(self)
+
+    body = {"KIND": o.suffix, "UNIT": o.unit, "__doc__": f"{o.doc} ({o.unit}); see SatelliteTable."}
+    if o.reads_ref:
+        body["check"] = check
+    return type(f"{o.suffix.title().replace('_', '')}Table", (SatelliteTable,), body)
+
+
+SATELLITE_TABLES = {o.suffix: _satellite_table(o) for o in model.OBSERVABLES if o.table == "satellite"}
+"""Table class of each satellite observable, by its suffix (from the registry)."""
+globals().update({cls.__name__: cls for cls in SATELLITE_TABLES.values()})   # picklable by name
+PseudorangeTable = SATELLITE_TABLES["pseudorange"]
+DopplerRateTable = SATELLITE_TABLES["doppler_rate"]
+DopplerTable = SATELLITE_TABLES["doppler"]
+OfdmRangeDiffTable = SATELLITE_TABLES["ofdm_range_diff"]
+
+
+@dataclasses.dataclass
+class LocalSensorTable:
+    """Measurements of a sensor on the vehicle (a barometer, a magnetometer): one table kind for
+    every local sensor. `stream`: the sensor's record stream (its mode word); t (n,) s; z (n, k)
+    one column per observable of the stream (kind-id order; a scalar sensor has k = 1), in their
+    units; sigma: 1-sigma per column, a scalar, (k,) or (n, k), > 0."""
+
+    stream: str
+    t: np.ndarray
+    z: np.ndarray
+    sigma: np.ndarray | float
+
+    @classmethod
+    def empty(cls, stream: str) -> "LocalSensorTable":
+        k = len(model.stream_observables(stream))
+        return cls(stream, np.zeros(0), np.zeros((0, k)), 1.0)
+
+    @property
+    def name(self) -> str:
+        return f"{self.stream} table"
+
+    @property
+    def observables(self) -> tuple:
+        return model.stream_observables(self.stream)
+
+    def sigma_columns(self) -> np.ndarray:
+        """sigma broadcast to (n, k)."""
+        return np.broadcast_to(np.asarray(self.sigma, float), np.shape(self.z)).copy()
+
+    def select(self, mask) -> "LocalSensorTable":
+        sig = self.sigma if np.ndim(self.sigma) < 2 else np.asarray(self.sigma)[mask]
+        return LocalSensorTable(self.stream, self.t[mask], self.z[mask], sig)
+
+    def check(self) -> "LocalSensorTable":
+        obs = self.observables
+        if not obs or any(o.table != "local" for o in obs):
+            raise _bad("local sensor table", "stream", repr(self.stream),
+                       f"a local sensor's stream ({', '.join(model.LOCAL_SENSORS) or 'none declared'})")
+        n = np.shape(self.t)[0] if np.ndim(self.t) == 1 else -1
+        check_column(self.name, "t", self.t, (max(n, 0),), unit="s")
+        check_column(self.name, "z", self.z, (n, len(obs)), unit=", ".join(o.unit for o in obs))
+        shape = np.shape(self.sigma)
+        if shape not in ((), (len(obs),), (n, len(obs))):
+            raise _bad(self.name, "sigma", f"shape {shape}", f"a scalar, ({len(obs)},) or ({n}, {len(obs)})")
+        check_column(self.name, "sigma", self.sigma, shape, positive=True)
         return self
-
-
-SATELLITE_TABLES = {c.KIND: c for c in (PseudorangeTable, DopplerRateTable, DopplerTable, OfdmRangeDiffTable)}
-"""Table class of each satellite observable, by the generated observable name."""

@@ -30,7 +30,7 @@ from leonav_runtime.nav.outputs import COLUMNS_TEXT, Decimator, LiveOutputs, Tra
 from leonav_runtime.nav.road import RoadConfig, StreamingRoad
 from leonav_runtime.nav.status import StatusLine, format_status
 from leonav_runtime.nav.stepper import LagStepper
-from leonav_runtime.replay.options import MODE_STREAMS
+from leonav_runtime.replay.options import replay_mode
 from leonav_runtime.replay.timebase import utc_of
 
 LATENCY_KEEP = 200_000        # latency samples kept for the run's percentiles (ring)
@@ -53,7 +53,7 @@ class Navigator:
     def __init__(self, cfg: NavConfig, out_dir: Path, outputs: LiveOutputs | None = None,
                  status: StatusLine | None = None, nav: navfuncs.NavFunctions | None = None) -> None:
         self.cfg = cfg
-        cfg.road.streams = MODE_STREAMS[cfg.mode]
+        cfg.road.streams = replay_mode(cfg.mode).streams
         self.nav = nav or navfuncs.NavFunctions()
         self.road = StreamingRoad(cfg.road, self.nav)
         self.outputs = outputs or LiveOutputs()

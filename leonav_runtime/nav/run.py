@@ -117,10 +117,10 @@ def _beacons(opts: NavOptions, record_dir: Path | None):
     from leonav_runtime.nav.beacon_feed import BeaconFeed, capture_meta, carrier
     from leonav_runtime.nav.beacon_process import BeaconProcess
     from leonav_runtime.orbits.elements import load_element_files
-    from leonav_runtime.replay.options import MODE_STREAMS
+    from leonav_runtime.replay.options import replay_mode
 
     default = (None, STARLINK_BEACON_HZ, "default (no Starlink capture)")
-    if "doppler_rate" not in MODE_STREAMS[opts.nav.mode]:
+    if "doppler_rate" not in replay_mode(opts.nav.mode).streams:
         return default
     elements = load_element_files(opts.tle_files)     # checked here: a bad file is a clear error at once
     floor = opts.nav.road.doppler_rate_sigma_floor_hz_s

@@ -10,7 +10,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from leonav_runtime.core import compiled
+from leonav_runtime.core import compiled, model
 
 GNSS_FIX_MODE = "fix+imu"
 REL_TOL = 1e-12
@@ -86,14 +86,12 @@ def layout_blocks(layout: ModuleType | None = None) -> list[BlockInfo]:
 
 
 def analysis_modes(layout: ModuleType | None = None) -> dict[str, tuple[str, ...]]:
-    """Modes analysed: the filter's `scenario.MODE_OBSERVABLES` plus a GNSS position-fix mode
-    (`GNSS_FIX_MODE`: every observable named pos_*)."""
-    from leonav_runtime.scenarios.load import MODE_OBSERVABLES
-
-    layout = layout or compiled.load_layout(compiled.GEN_DIR)
-    modes = {k: tuple(v) for k, v in MODE_OBSERVABLES.items()}
-    modes[GNSS_FIX_MODE] = tuple(m.suffix for m in layout.MEAS_TABLE if m.suffix.startswith("pos_"))
-    return modes
+    """Modes analysed (name -> observable suffixes): the paper's, GNSS position fixes
+    (`GNSS_FIX_MODE`), and each local sensor of the registry added to the paper's first two
+    (GNSS and LEO) modes, e.g. gps+imu+baro, leo-alpha+imu+baro."""
+    names = [*model.PAPER_MODES, GNSS_FIX_MODE]
+    names += [f"{base}+{token}" for token in model.LOCAL_SENSORS for base in model.PAPER_MODES[:2]]
+    return {name: model.parse_mode(name).suffixes for name in names}
 
 
 @dataclass(frozen=True)

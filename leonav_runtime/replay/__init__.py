@@ -31,7 +31,7 @@ __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "beacon_table": ("BeaconMeasurements", "beacon_measurements", "capture_carrier", "doppler_rate_table"),
     "direct": ("compare_replay_direct", "direct_inputs"),
     "gnss_table": ("DEFAULT_UERE_M", "fix_height_m", "fix_table", "usable_fix"),
-    "options": ("ALL_MODES", "MODE_ALIASES", "MODE_STREAMS", "MODES", "PSEUDORANGE_MODES", "ReplayOptions",
+    "options": ("ALL_MODES", "MODE_ALIASES", "MODES", "ReplayOptions", "replay_mode", "replayable", "uses_raw_gnss",
                 "canonical_modes", "check_options"),
     "report": ("write_outputs",),
     "run": ("SessionInputs", "decode_inputs", "replay_session", "run_modes", "session_inputs", "skip_reasons"),

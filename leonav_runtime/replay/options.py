@@ -17,15 +17,28 @@ import math
 from leonav_runtime.core import filter as lfilter
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.constants import GNSS_MASK_DEG
-from leonav_runtime.inputs import COUPLED_MODE_STREAMS
+from leonav_runtime.core import model
 
 MODES = ("fix+imu", "leo-alpha+imu", "fix+leo-alpha+imu")
 """The modes a replay runs by default."""
-PSEUDORANGE_MODES = tuple(COUPLED_MODE_STREAMS)
-ALL_MODES = MODES + PSEUDORANGE_MODES
-MODE_STREAMS = {"fix+imu": ("fix",), "leo-alpha+imu": ("doppler_rate",), "fix+leo-alpha+imu": ("fix", "doppler_rate"),
-                **COUPLED_MODE_STREAMS}
-"""Record streams (`inputs.STREAMS`) each mode merges with the IMU records."""
+ALL_MODES = MODES + ("pseudorange+imu", "pseudorange+leo-alpha+imu")
+"""The replay's modes as listed in help and completion; any mode of `replayable` words is accepted."""
+
+
+def replayable(o) -> bool:
+    """What a recorded session gives the filter: GNSS fixes, the raw GNSS observations of
+    RXM-RAWX (tightly coupled modes) and the beacon capture's Doppler-rates."""
+    return o.stream == "fix" or o.table == "gnss_obs" or o.stream == "doppler_rate"
+
+
+def replay_mode(name: str, where: str = "--modes:") -> model.Mode:
+    """A replay mode (its observables and record streams), or a UserInputError naming `where`."""
+    return model.parse_mode(name, replayable, where)
+
+
+def uses_raw_gnss(mode: str) -> bool:
+    """Whether the mode fuses a receiver's raw pseudoranges (tightly coupled)."""
+    return any(o.table == "gnss_obs" for o in replay_mode(mode).observables)
 MODE_ALIASES = {"gps+imu": "fix+imu", "gps+leo-alpha+imu": "fix+leo-alpha+imu"}
 """Old replay mode names (they meant position fixes) -> the current ones."""
 DOPPLER_RATE_SIGMA_FLOOR_HZ_S = 0.5   # the fit sigma can be optimistic for short ridges
@@ -61,9 +74,8 @@ def canonical_modes(modes) -> tuple[tuple[str, ...], list[str]]:
 def check_options(options: ReplayOptions) -> ReplayOptions:
     """The options with canonical mode names, or a UserInputError naming the bad one."""
     modes, _ = canonical_modes(options.modes)
-    bad = [m for m in modes if m not in ALL_MODES]
-    if bad:
-        raise UserInputError(f"--modes: {bad[0]!r}: expected some of {', '.join(ALL_MODES)}")
+    for m in modes:
+        replay_mode(m)
     if not 0.0 <= options.elevation_mask_deg <= 90.0:
         raise UserInputError(f"--elevation-mask: {options.elevation_mask_deg!r}: expected degrees in 0..90")
     if options.origin_deg is not None and not all(math.isfinite(v) for v in options.origin_deg):

@@ -21,7 +21,7 @@ from leonav_runtime.replay.beacon_table import (BeaconMeasurements, beacon_measu
                                                 doppler_rate_table)
 from leonav_runtime.replay.gnss_raw import RawGnss, raw_gnss
 from leonav_runtime.replay.gnss_table import fix_height_m, fix_table, usable_fix
-from leonav_runtime.replay.options import (MODE_STREAMS, PSEUDORANGE_MODES, ReplayOptions, canonical_modes,
+from leonav_runtime.replay.options import (ReplayOptions, canonical_modes, replay_mode, uses_raw_gnss,
                                            check_options)
 from leonav_runtime.replay.timebase import device_baud, filter_profile, imu_table, mono_to_utc_function, utc_of
 
@@ -96,7 +96,7 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
                              f"at t_mono_s {dec.imu_samples[0].t_mono_s!r}: the stamps do not advance, so the "
                              "samples cannot be placed in time")
     raw = RawGnss(None, {}, "")
-    if set(options.modes) & set(PSEUDORANGE_MODES):
+    if any(uses_raw_gnss(m) for m in options.modes):
         raw = raw_gnss(dec.gnss_records, options, nav, str(folder / "gnss.raw"))
     to_utc, time_src = mono_to_utc_function(dec, options.gnss_latency_s)
     if not dec.time_map.valid:
@@ -151,13 +151,13 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
     if origin_src == "--origin":
         inputs.init["origin_given"] = True
     for mode in options.modes:
-        if mode in PSEUDORANGE_MODES and raw.reason:
+        if uses_raw_gnss(mode) and raw.reason:
             inputs.skipped[mode] = raw.reason
-        elif mode in PSEUDORANGE_MODES and not dec.time_map.valid:
+        elif uses_raw_gnss(mode) and not dec.time_map.valid:
             # pseudoranges are on GPS time; an IMU axis on the host clock can be seconds off it
             inputs.skipped[mode] = ("no GNSS time tag in gnss.raw: the IMU is on the host clock, which can be "
                                     "seconds off the pseudoranges' GPS time")
-        elif "fix" in MODE_STREAMS[mode] and fixes.t.size == 0:
+        elif "fix" in replay_mode(mode).streams and fixes.t.size == 0:
             inputs.skipped[mode] = ("no GNSS fix in gnss.raw" if not any_fix else
                                     "no GNSS fix with a finite latitude, longitude and height in gnss.raw"
                                     if first_fix is None else "no GNSS fix inside the IMU time span")
@@ -203,11 +203,11 @@ def skip_reasons(inputs: SessionInputs, modes) -> dict[str, str]:
     """Modes that cannot run on these inputs, with the reason."""
     out = {}
     for mode in modes:
-        if "fix" in MODE_STREAMS[mode] and inputs.records["fix"].size == 0:
+        if "fix" in replay_mode(mode).streams and inputs.records["fix"].size == 0:
             out[mode] = "no GNSS fix inside the IMU time span"
-        elif "gnss_pseudorange" in MODE_STREAMS[mode] and np.size(inputs.records.get("gnss_pseudorange", ())) == 0:
+        elif "gnss_pseudorange" in replay_mode(mode).streams and np.size(inputs.records.get("gnss_pseudorange", ())) == 0:
             out[mode] = "no RXM-RAWX pseudorange inside the IMU time span"
-        elif "doppler_rate" in MODE_STREAMS[mode] and inputs.records["doppler_rate"].size == 0:
+        elif "doppler_rate" in replay_mode(mode).streams and inputs.records["doppler_rate"].size == 0:
             out[mode] = "no associated Doppler-rate measurement: " + str(
                 inputs.beacons.get("reason_empty") or "no ridge was associated with a satellite")
     return out
@@ -221,7 +221,7 @@ def run_modes(inputs: FilterInputs, modes, gate_nis: float, nav: navfuncs.NavFun
     for mode in modes:
         if mode in skipped:
             continue
-        recs = inputs.merged(MODE_STREAMS[mode])
+        recs = inputs.merged(replay_mode(mode).streams)
         ekf = lfilter.EKF(inputs.x0, inputs.P0, inputs.params, gate=gate_nis or None, library=nav.library)
         t0 = time.perf_counter()
         res = ekf.run(recs)

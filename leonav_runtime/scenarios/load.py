@@ -32,8 +32,10 @@ from leonav_runtime.scenarios import run_size
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.common.toml_file import read_toml_file
 from leonav_runtime.common.utc import parse_utc
-from leonav_runtime.scenarios.schema import (IMU_PROFILES, MODE_OBSERVABLES, MODES, SCHEMA,  # noqa: F401
-                                         SELECTION_RULES, TRAJECTORY_KINDS, Field, _REQUIRED)
+from leonav_runtime.core import model
+from leonav_runtime.core.model import LOCAL_SENSORS
+from leonav_runtime.scenarios.schema import (IMU_PROFILES, MODES, SCHEMA, SELECTION_RULES,  # noqa: F401
+                                             TRAJECTORY_KINDS, Field, _REQUIRED, mode_of)
 
 BUILTIN_DIR = Path(__file__).resolve().parent   # the built-in scenario files sit beside this module
 MAX_FILE_BYTES = 1_000_000
@@ -66,6 +68,8 @@ class Scenario:
     source: str = "<defaults>"
     raw: dict[str, Any] = field(default_factory=dict, repr=False)
     realism: dict[str, dict[str, Any]] = field(default_factory=dict)  # "ephemeris", "imu": SI, see realism.py
+    local: dict[str, dict[str, Any]] = field(default_factory=dict)    # each local sensor's section (rate_hz, sigma)
+    params: dict[str, float] = field(default_factory=dict)            # registry parameters a scenario key sets (SI)
 
 
 def where_key(source: str, section: str, key: str) -> str:
@@ -212,26 +216,26 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
         raise UserInputError(f"{source}: [elements] source = 'files' but files is empty")
 
     modes = values["monte_carlo"]["modes"]
-    bad = [m for m in modes if m not in MODES] if isinstance(modes, list) else [modes]
-    if bad or not modes:
-        raise UserInputError(f"{source}: [monte_carlo] modes contains "
-                             f"{show_value(bad[0] if bad else modes)}: expected a "
-                             f"non-empty list of {', '.join(MODES)}")
+    if not isinstance(modes, list) or not modes or not all(isinstance(m, str) for m in modes):
+        raise UserInputError(f"{source}: [monte_carlo] modes = {show_value(modes)}: expected a non-empty list of "
+                             f"mode names, e.g. {', '.join(MODES)}")
     modes = list(dict.fromkeys(modes))  # keep the given order, drop repeats
+    for m in modes:
+        mode_of(m, f"{source}: [monte_carlo] modes:")
     filt = dict(values["filter"])
     filt["initial_attitude_sigma_rad"] = math.radians(filt.pop("initial_attitude_sigma_deg"))
     if not NAME.fullmatch(values[""]["name"]):   # it names output folders: never a path
         raise UserInputError(f"{source}: name = {show_value(values['']['name'])}: "
                              "expected 1-64 letters, digits, '.', '_', "
                              "'+' or '-' (it names the results folder), starting with a letter or digit")
-    used = {k for m in modes for k in MODE_OBSERVABLES[m]}
+    used = {section for m in modes for section in (*mode_of(m).constellations, *mode_of(m).local_sensors)}
     imu_hz = values["imu"]["rate_hz"]
-    for section, needed in (("gps", "pseudorange" in used), ("starlink", bool(used - {"pseudorange"}))):
+    for section in sorted(used):
         rate = values[section]["rate_hz"]
-        if needed and abs(imu_hz / rate - round(imu_hz / rate)) > 1e-9:
+        if abs(imu_hz / rate - round(imu_hz / rate)) > 1e-9:
             raise UserInputError(f"{source}: [{section}] rate_hz = {rate:g}: measurements are tagged on IMU samples, "
                                  f"so it must divide the IMU rate {imu_hz:g} Hz")
-        if needed and round(imu_hz / rate) > round(duration * imu_hz):
+        if round(imu_hz / rate) > round(duration * imu_hz):
             raise UserInputError(f"{source}: [{section}] rate_hz = {rate:g}: one epoch every {1 / rate:g} s, none "
                                  f"within duration_s = {duration:g} s; expected a rate >= {1 / duration:g} Hz")
 
@@ -255,9 +259,22 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
         trials=values["monte_carlo"]["trials"],
         seed=values["monte_carlo"]["seed"],
         modes=list(modes),
+        local={token: dict(values[token]) for token in LOCAL_SENSORS},
+        params=_scenario_params(values),
         source=source,
         raw=data,
     )
+
+
+def _scenario_params(values: dict[str, dict[str, Any]]) -> dict[str, float]:
+    """The registry parameters set by scenario keys, SI (a `_deg` key converts to rad)."""
+    out = {}
+    for q in model.PARAMS:
+        if q.scenario:
+            section, _, key = q.scenario.partition(".")
+            value = values[section][key]
+            out[q.name] = math.radians(value) if key.endswith("_deg") else float(value)
+    return out
 
 
 def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any]) -> dict[str, dict[str, Any]]:
@@ -300,7 +317,7 @@ def load_scenario(path: str | Path) -> Scenario:
 
 def check_run_size(scn: Scenario, trials: int | None = None, workers: int | None = None) -> None:
     """`run_size.check_run_size` with this module's modes (trials None: the scenario's; workers None: all cores)."""
-    run_size.check_run_size(scn, MODE_OBSERVABLES, SCHEMA["monte_carlo"]["trials"].hi, trials, workers)
+    run_size.check_run_size(scn, mode_of, SCHEMA["monte_carlo"]["trials"].hi, trials, workers)
 
 
 def builtin_scenarios() -> list[str]:

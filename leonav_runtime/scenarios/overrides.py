@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Iterable, Sequence
 
 from leonav_runtime.common.errors import UserInputError
-from leonav_runtime.scenarios.load import MAX_COUNT, MODES, SCHEMA, Scenario, scenario_from_dict
+from leonav_runtime.scenarios.load import MAX_COUNT, MODES, SCHEMA, Scenario, mode_of, scenario_from_dict
 
 
 def split_list(values: Iterable[str] | None) -> list[str] | None:
@@ -60,9 +60,10 @@ def apply_overrides(scn: Scenario, *, modes: Sequence[str] | None = None, counts
     changes: dict = {}
     raw = copy.deepcopy(scn.raw)
     if modes is not None:
-        bad = [m for m in modes if m not in MODES]
-        if bad or not modes:
-            raise UserInputError(f"--modes: {bad[0] if bad else '(none)'!r}: expected one or more of {', '.join(MODES)}")
+        if not modes:
+            raise UserInputError(f"--modes: (none): expected one or more modes, e.g. {', '.join(MODES)}")
+        for m in modes:
+            mode_of(m, "--modes:")
         raw.setdefault("monte_carlo", {})["modes"] = list(dict.fromkeys(modes))
         changes["modes"] = list(dict.fromkeys(modes))
     if counts is not None:

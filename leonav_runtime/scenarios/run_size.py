@@ -15,7 +15,7 @@ fresh measurement. `check_run_size` refuses a run above LEONAV_MAX_MEMORY_MB meg
 from __future__ import annotations
 
 import os
-from typing import Any
+from typing import Any, Callable
 
 from leonav_runtime.common.errors import UserInputError
 
@@ -37,14 +37,14 @@ BYTES_PER_ELEMENT_SET = 140     # the smallest element-set text (a TLE without a
 OUTPUT_RATE_HZ = 10.0
 
 
-def memory_estimate(scn: Any, mode_observables: dict[str, tuple[str, ...]], trials: int = 0,
-                    workers: int = 1) -> dict[str, float]:
+def memory_estimate(scn: Any, mode_of: Callable, trials: int = 0, workers: int = 1) -> dict[str, float]:
     """Bytes a run of scenario `scn` needs at its peak: "setup" (per preparing process),
-    "trial" (per running worker), "results" (`trials` per mode and count) and "total"."""
-    used = {k for m in scn.modes for k in mode_observables[m]}
+    "trial" (per running worker), "results" (`trials` per mode and count) and "total".
+    `mode_of(name)`: the parsed mode (its constellations)."""
+    used = {c for m in scn.modes for c in mode_of(m).constellations}
     n_imu = scn.duration_s * scn.imu_rate_hz
-    gps_ep = scn.duration_s * scn.gps["rate_hz"] * ("pseudorange" in used)
-    sl_ep = scn.duration_s * scn.starlink["rate_hz"] * bool(used - {"pseudorange"})
+    gps_ep = scn.duration_s * scn.gps["rate_hz"] * ("gps" in used)
+    sl_ep = scn.duration_s * scn.starlink["rate_hz"] * ("starlink" in used)
     sats = dict(BUILTIN_SATELLITES)
     if scn.element_source == "files":   # all the files' sets, propagated at the densest epochs used
         size = sum(os.path.getsize(f) for f in scn.element_files if os.path.isfile(f))
@@ -55,8 +55,7 @@ def memory_estimate(scn: Any, mode_observables: dict[str, tuple[str, ...]], tria
              + (gps_rows + 3 * sl_rows) * COST["measurement_row"])
     n_out = scn.duration_s * OUTPUT_RATE_HZ
     trial = (n_imu + gps_rows + 2 * sl_rows) * COST["record"] + n_out * COST["output_sample"]
-    pairs = sum(len(scn.starlink["counts"]) if set(mode_observables[m]) - {"pseudorange"} else 1
-                for m in scn.modes)
+    pairs = sum(len(scn.starlink["counts"]) if mode_of(m).uses("starlink") else 1 for m in scn.modes)
     results = trials * pairs * n_out * COST["result_sample"]
     processes = 1 + (workers if workers > 1 else 0)   # one worker runs in the caller's process
     total = processes * (COST["process"] + setup) + max(workers, 1) * trial + results
@@ -80,7 +79,7 @@ def memory_limit_mb() -> float:
     return limit
 
 
-def check_run_size(scn: Any, mode_observables: dict[str, tuple[str, ...]], max_trials: float,
+def check_run_size(scn: Any, mode_of: Callable, max_trials: float,
                    trials: int | None = None, workers: int | None = None) -> None:
     """Refuse `trials` outside 0..max_trials, `workers` < 1, and a run whose estimate is above
     the limit. trials None: the scenario's own; workers None: one per core."""
@@ -90,7 +89,7 @@ def check_run_size(scn: Any, mode_observables: dict[str, tuple[str, ...]], max_t
     workers = (os.cpu_count() or 1) if workers is None else workers
     if workers < 1:
         raise UserInputError(f"--workers {workers}: expected an integer >= 1")
-    est, limit = memory_estimate(scn, mode_observables, trials, workers), memory_limit_mb()
+    est, limit = memory_estimate(scn, mode_of, trials, workers), memory_limit_mb()
     if est["total"] > limit * 1e6:
         mb = {k: v / 1e6 for k, v in est.items()}
         raise UserInputError(

@@ -1,27 +1,31 @@
 """The scenario schema: every key of a scenario file with its type, unit, range and default.
 
-`scenario.py` validates files against `SCHEMA` and converts them to SI; docs/scenarios.md
-carries the table `scenario.schema_markdown()` generates from it.
+`load.py` validates files against `SCHEMA` and converts them to SI; docs/scenarios.md
+carries the table `load.schema_markdown()` generates from it. The sigma keys of the simulated
+satellite observables and a section per local sensor (`[baro]`: its rate, sigma and the
+parameters it declares) come from the model registry (`core.model`), not from this file.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any
 
+import functools
+import math
+
+from leonav_runtime.core import model
 from leonav_runtime.core.params import IMU_PROFILES as IMU_PROFILE_DATA
 from leonav_runtime.gen.constants import CHI2_1DOF_999, STARLINK_BEACON_HZ, STARLINK_MASK_DEG
 
-MODES = ("gps+imu", "leo-alpha+imu", "gps+leo-alpha+imu", "leo-ofdm+imu", "leo-alpha+ofdm+imu", "leo-doppler+alpha+imu")
-"""Fusion modes: which observables feed the filter (IMU always propagates)."""
+MODES = model.PAPER_MODES
+"""The default fusion modes of a scenario: the paper's (registry). Any mode of the simulated
+observables can be asked for by name (`mode_of`): `gps+imu+baro`, `leo-doppler+imu`, ..."""
 
-MODE_OBSERVABLES: dict[str, tuple[str, ...]] = {
-    "gps+imu": ("pseudorange",),
-    "leo-alpha+imu": ("doppler_rate",),
-    "gps+leo-alpha+imu": ("pseudorange", "doppler_rate"),
-    "leo-ofdm+imu": ("ofdm_range_diff",),
-    "leo-alpha+ofdm+imu": ("doppler_rate", "ofdm_range_diff"),
-    "leo-doppler+alpha+imu": ("doppler", "doppler_rate"),
-}
+
+@functools.lru_cache(maxsize=None)
+def mode_of(name: str, where: str = "[monte_carlo] modes") -> model.Mode:
+    """A scenario mode: its observables among the simulated ones (satellites, local sensors)."""
+    return model.parse_mode(name, model.simulated, where)
 
 IMU_PROFILES = tuple(IMU_PROFILE_DATA)  # names of the emitted profiles (gen/profiles.py): tactical, wt901
 TRAJECTORY_KINDS, SELECTION_RULES = ("static", "maneuvers"), ("highest-elevation", "random")
@@ -77,7 +81,6 @@ SCHEMA: dict[str, dict[str, Field]] = {
     },
     "gps": {
         "rate_hz": Field(float, "Hz", 0.01, 100, default=10.0, doc="pseudorange epoch rate"),
-        "pseudorange_sigma_m": Field(float, "m", 1e-3, 1e3, default=3.0, doc="1-sigma pseudorange noise"),
         "elevation_mask_deg": Field(float, "deg", -5, 90, default=10.0, doc="GPS mask (paper: 10 deg)"),
         "max_satellites": Field(int, "-", 4, 64, default=8, doc="highest GPS satellites used per epoch"),
         "clock_bias_m": Field(float, "m", -1e6, 1e6, default=100.0, doc="true initial c*dt"),
@@ -94,11 +97,7 @@ SCHEMA: dict[str, dict[str, Field]] = {
                            doc="which N satellites are used (see the rules in scenario.py)"),
         "selection_seed": Field(int, "-", 0, 2**63 - 1, default=0,
                                 doc="seed of the `random` rule's satellite priorities"),
-        # Paper's five matched beacons: median |d alpha| 0.8 Hz/s -> sigma = 0.8/0.6745 = 1.19.
-        "doppler_rate_sigma_hz_s": Field(float, "Hz/s", 1e-4, 1e3, default=1.2, doc="beacon Doppler-rate noise"),
-        "doppler_sigma_hz": Field(float, "Hz", 1e-3, 1e4, default=5.0, doc="beacon Doppler noise"),
         "lo_offset_hz": Field(float, "Hz", -5e6, 5e6, default=120e3, doc="true LNB LO offset"),
-        "ofdm_sigma_m": Field(float, "m", 1e-3, 1e4, default=3.0, doc="OFDM differenced-range noise"),
     },
     "elements": {
         "source": Field(str, "-", default="builtin", choices=("builtin", "files"),
@@ -150,6 +149,36 @@ SCHEMA: dict[str, dict[str, Field]] = {
     "monte_carlo": {
         "trials": Field(int, "-", 1, 100000, default=100, doc="trials per (mode, count)"),
         "seed": Field(int, "-", 0, 2**63 - 1, default=1, doc="master seed"),
-        "modes": Field(list, "-", default=list(MODES), doc=", ".join(MODES)),
+        "modes": Field(list, "-", default=list(MODES), doc="the paper's: " + ", ".join(MODES) + "; or any mode of "
+                       "the simulated observables' words (" + model.mode_words(model.simulated) + ")"),
     },
 }
+
+
+def _unit_of(key: str) -> str:
+    """The unit a key's suffix names (sigma_m -> m, rate_hz -> Hz, declination_deg -> deg)."""
+    suffix = key.rsplit("_", 1)[-1]
+    return {"m": "m", "mps": "m/s", "hz": "Hz", "deg": "deg", "s": "s", "rad": "rad", "pa": "Pa", "t": "T"}.get(
+        suffix, suffix)
+
+
+def _registry_fields() -> None:
+    """The satellite observables' sigma keys into their constellation's section, and one section per
+    local sensor: its rate, sigma and the scenario keys of its parameters (registry)."""
+    for o in model.OBSERVABLES:
+        if o.noise is None or not model.simulated(o):
+            continue
+        n = o.noise
+        section = SCHEMA.setdefault(n.section, {})
+        if o.table == "local" and "rate_hz" not in section:
+            section["rate_hz"] = Field(float, "Hz", 0.01, 1000, default=o.rate_hz, doc=f"{o.token} sample rate")
+        section[n.key] = Field(float, _unit_of(n.key), n.lo, n.hi, default=n.default, doc=n.doc)
+    for q in model.PARAMS:
+        if q.scenario:
+            section, _, key = q.scenario.partition(".")
+            unit = _unit_of(key)
+            value = q.default if unit != "deg" else math.degrees(q.default)
+            SCHEMA.setdefault(section, {})[key] = Field(float, unit, -1e9, 1e9, default=value, doc=q.doc)
+
+
+_registry_fields()

@@ -30,11 +30,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from leonav_runtime.core import model
 from leonav_runtime.inputs.consider import OrbitConsider, rac_axes
 from leonav_runtime.inputs.measurements import aux_blocks
 
-KIND_CONSTELLATION = {"pseudorange": "gps", "doppler_rate": "starlink", "doppler": "starlink",
-                      "ofdm_range_diff": "starlink"}
+
+
+def _satellite_constellations() -> dict[str, str]:
+    """Simulated satellite observable -> its constellation (registry)."""
+    return {o.suffix: o.constellation for o in model.OBSERVABLES if o.table == "satellite"}
 
 
 def starlink_sigma_rac(eph: dict) -> np.ndarray:
@@ -63,7 +67,8 @@ def draw_orbit_errors(rng: np.random.Generator, setup) -> dict[str, dict[int, np
     """Per constellation, per NORAD id: radial/along/cross offsets (m) of this trial. Every
     satellite of the run gets one, in id order, whatever the mode (common random numbers)."""
     eph, out = setup.scn.realism["ephemeris"], {}
-    for constellation, kinds in (("gps", ("pseudorange",)), ("starlink", ("doppler_rate", "doppler"))):
+    for constellation in ("gps", "starlink"):
+        kinds = [o.suffix for o in model.OBSERVABLES if o.table == "satellite" and o.constellation == constellation]
         ids = np.unique(np.concatenate([setup.series[k].sat_id for k in kinds]))
         d = rng.standard_normal((ids.size, 3)) * sigma_rac(eph, constellation)
         out[constellation] = dict(zip(ids.tolist(), d))
@@ -72,9 +77,11 @@ def draw_orbit_errors(rng: np.random.Generator, setup) -> dict[str, dict[int, np
 
 def _ref_ids(setup, kind_name: str, rows: np.ndarray) -> np.ndarray:
     """NORAD id of each row's reference satellite: the rank-0 satellite of its epoch, taken
-    from the doppler_rate series, which holds every ranked satellite of every Starlink epoch
-    (the differenced OFDM series has no rank-0 rows of its own)."""
-    ref = setup.series["doppler_rate"]
+    from a series of the same constellation that is not differenced, which holds every ranked
+    satellite of every epoch (a differenced series has no rank-0 rows of its own)."""
+    c = model.observable(kind_name).constellation
+    ref = setup.series[next(o.suffix for o in model.OBSERVABLES
+                            if o.table == "satellite" and o.constellation == c and not o.reads_ref)]
     top = ref.rank == 0
     by_t = dict(zip(ref.t_s[top].tolist(), ref.sat_id[top].tolist()))
     return np.array([by_t[t] for t in setup.series[kind_name].t_s[rows].tolist()], dtype=np.int64)
@@ -104,9 +111,9 @@ def _moved_aux(setup, kind_name: str, rows: np.ndarray, d_sat: np.ndarray, d_ref
 def ephemeris_delta(setup, nav, kind_name: str, rows: np.ndarray, errors: dict) -> np.ndarray:
     """Change (measurement unit) of each row's noise-free value when its satellite (and its
     reference) fly their true orbits instead of the element orbits."""
-    s, constellation = setup.series[kind_name], KIND_CONSTELLATION[kind_name]
+    s, constellation = setup.series[kind_name], model.observable(kind_name).constellation
     d_sat = _offsets(errors[constellation], s.sat_id[rows])
-    d_ref = None if kind_name == "pseudorange" else _offsets(errors[constellation], _ref_ids(setup, kind_name, rows))
+    d_ref = _offsets(errors[constellation], _ref_ids(setup, kind_name, rows)) if s.has_ref else None
     aux = _moved_aux(setup, kind_name, rows, d_sat, d_ref, nav.layout)
     return _model(setup, nav, kind_name, rows, aux) - s.z_true[rows]
 
@@ -115,16 +122,16 @@ def ephemeris_sigma(setup, nav, kind_name: str, rows: np.ndarray) -> np.ndarray:
     """1-sigma (measurement unit) the orbit error adds to each row: the model's change with
     the satellite (and, independently, the reference) moved one sigma along each axis."""
     s = setup.series[kind_name]
-    sig = sigma_rac(setup.scn.realism["ephemeris"], KIND_CONSTELLATION[kind_name])
+    sig = sigma_rac(setup.scn.realism["ephemeris"], model.observable(kind_name).constellation)
     base = s.z_true[rows]
     var = np.zeros(rows.size)
-    for moved in (("sat",) if kind_name == "pseudorange" else ("sat", "ref")):
+    for moved in (("sat", "ref") if s.has_ref else ("sat",)):
         for axis in range(3):
             d = np.zeros((rows.size, 3))
             d[:, axis] = sig[axis]
             zero = np.zeros_like(d)
             aux = _moved_aux(setup, kind_name, rows, d if moved == "sat" else zero,
-                             None if kind_name == "pseudorange" else (d if moved == "ref" else zero), nav.layout)
+                             (d if moved == "ref" else zero) if s.has_ref else None, nav.layout)
             var += (_model(setup, nav, kind_name, rows, aux) - base) ** 2
     return np.sqrt(var)
 
@@ -135,7 +142,7 @@ def orbit_consider(scn) -> OrbitConsider | None:
     eph = scn.realism.get("ephemeris", {})
     if eph.get("compensate") != "consider":
         return None
-    return OrbitConsider({k: sigma_rac(eph, c) for k, c in KIND_CONSTELLATION.items() if c in eph["apply_to"]},
+    return OrbitConsider({k: sigma_rac(eph, c) for k, c in _satellite_constellations().items() if c in eph["apply_to"]},
                          eph.get("consider_correlation_s", 0.0))
 
 
@@ -180,11 +187,11 @@ def apply(setup, nav, rng: np.random.Generator, u: np.ndarray, parts: list) -> t
     if eph.get("enabled"):
         errors = draw_orbit_errors(rng, setup)
         for part in parts:
-            if KIND_CONSTELLATION[part[0]] in eph["apply_to"]:
+            if model.observable(part[0]).constellation in eph["apply_to"]:
                 part[2] = part[2] + ephemeris_delta(setup, nav, part[0], part[1], errors)
     if eph.get("compensate") == "inflate-r":
         for part in parts:
-            if KIND_CONSTELLATION[part[0]] in eph["apply_to"]:
+            if model.observable(part[0]).constellation in eph["apply_to"]:
                 part[3] = np.sqrt(part[3] ** 2 + ephemeris_sigma(setup, nav, part[0], part[1]) ** 2)
     if imu.get("enabled"):
         dt = 1.0 / scn.imu_rate_hz

@@ -1,29 +1,104 @@
-"""Random sensor errors of the simulated trials: IMU bias random walks and measured increments.
+"""The truth of the simulated sensor errors (IMU biases, receiver clock, LO offset, each sensor's
+own bias), drawn through the generated model: every block the mechanization does not drive
+follows the transition Phi and process noise Qd of `leonav_sensor_error_step` - the filter's own
+dynamics of that block (registry `dynamics`), so a model change changes the truth too.
 
-Draw order is part of the contract (common random numbers across modes, counts and
-executors): change it only together with the golden run.
+A block starts at its registry `truth.start` (a draw from its prior, zero, or a scenario key)
+and draws its noise from `truth.stream`: the trial's stream in layout order (the paper's blocks:
+the draws every earlier result shares; an integral pair draws its drift's noise, then its own),
+or a stream of its own keyed by its name (a block added later never changes another's draws).
+The realism switches (truth != model) stay in realism.py. IMU white noise: `measured_increments`.
 """
 from __future__ import annotations
 
 import math
+import zlib
 
 import numpy as np
+from scipy.signal import lfilter
+
+from leonav_runtime.core import model, navfuncs
+from leonav_runtime.core.params import params_array
 
 
-def _random_walk(rng, n, dt, x0, q):
-    steps = rng.standard_normal((n,) + np.shape(x0)) * math.sqrt(q * dt)
-    return np.concatenate([[x0], x0 + np.cumsum(steps, axis=0)])
+def own_stream(rng: np.random.Generator, name: str) -> np.random.Generator:
+    """A stream of its own for `name`, derived from the trial's stream seed (independent of the
+    draws made from the trial's stream)."""
+    seq = rng.bit_generator.seed_seq
+    return np.random.default_rng(np.random.SeedSequence(seq.entropy, spawn_key=(*seq.spawn_key,
+                                                                                 zlib.crc32(name.encode()))))
 
 
-def bias_walks(rng: np.random.Generator, profile, n: int, dt: float, scale: float = 1.0):
-    """True accelerometer and gyro biases (n+1, 3) each at the IMU samples: an initial draw
-    from the profile's bias sigma, then its random walk (m/s^2, rad/s; body frame).
-    scale 0 gives zero biases (the draws are still made, to keep random streams aligned)."""
-    b_a = _random_walk(rng, n, dt, scale * profile.acc_bias_sigma * rng.standard_normal(3),
-                       scale * profile.acc_bias_rw**2)
-    b_g = _random_walk(rng, n, dt, scale * profile.gyro_bias_sigma * rng.standard_normal(3),
-                       scale * profile.gyro_bias_rw**2)
-    return b_a, b_g
+def _walk(steps: np.ndarray, x0: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """x_{k+1} = phi x_k + steps_k per component, from x0: (n+1, size). phi = 1: a cumulative sum."""
+    if np.all(phi == 1.0):
+        return np.concatenate([[x0], x0 + np.cumsum(steps, axis=0)])
+    out = np.empty((steps.shape[0] + 1, x0.size))
+    out[0] = x0
+    for j in range(x0.size):   # first-order recursion, per component
+        out[1:, j] = lfilter([1.0], [1.0, -phi[j]], steps[:, j], zi=[phi[j] * x0[j]])[0]
+    return out
+
+
+def _start(block, scn, scale: float, rng: np.random.Generator, profile, layout) -> np.ndarray:
+    start = block.truth["start"]
+    if start == "zero":
+        return np.zeros(block.size)
+    if start == "prior":
+        sigma = model.prior_sigmas(layout, profile, 0.0, 0.0, 0.0)[block.error_offset:block.error_offset + block.size]
+        return scale * sigma * rng.standard_normal(block.size)
+    section, _, key = start.partition(".")
+    return np.full(block.size, float(getattr(scn, section)[key]))
+
+
+def draw_truth(rng: np.random.Generator, blocks, n: int, dt: float, Phi: np.ndarray, Qd: np.ndarray, scn, profile,
+               layout, scale: float = 1.0) -> dict[str, np.ndarray]:
+    """Truth (n+1, size) of each block in `blocks` (registry entries, layout order) over n steps of
+    dt, drawn from `rng` or each block's own stream (module doc). scale 0: no noise and no random
+    start (the draws are still made, to keep the streams aligned)."""
+    out: dict[str, np.ndarray] = {}
+    names = {b.name for b in blocks}
+    for b in blocks:
+        if b.name in out or b.truth["stream"] == "none":
+            continue
+        r = rng if b.truth["stream"] == "trial" else own_stream(rng, b.name)
+        e = slice(b.error_offset, b.error_offset + b.error_size)
+        dyn = b.dynamics
+        drift = model.state_block(dyn["of"]) if dyn["kind"] == "integral" else None
+        if drift is not None and drift.name in names:   # an integral pair: exact two-state draw
+            d = slice(drift.error_offset, drift.error_offset + drift.error_size)
+            x_b0, x_d0 = _start(b, scn, scale, r, profile, layout), _start(drift, scn, scale, r, profile, layout)
+            w_d = r.standard_normal((n, drift.size))
+            w_b = r.standard_normal((n, b.size))
+            l11 = np.sqrt(np.diag(Qd[e, e]))
+            l21 = np.diag(Qd[d, e]) / np.where(l11 > 0, l11, 1.0)
+            l22 = np.sqrt(np.maximum(np.diag(Qd[d, d]) - l21**2, 0.0))
+            x_d = np.concatenate([[x_d0], x_d0 + np.cumsum(scale * (l21 * w_b + l22 * w_d), axis=0)])
+            x_b = np.concatenate([[x_b0], x_b0 + np.cumsum(x_d[:-1] * np.diag(Phi[e, d]) + scale * l11 * w_b,
+                                                            axis=0)])
+            out[b.name], out[drift.name] = x_b, x_d
+            continue
+        x0 = _start(b, scn, scale, r, profile, layout)
+        steps = r.standard_normal((n, b.size)) * (scale * np.sqrt(np.diag(Qd[e, e])))
+        out[b.name] = _walk(steps, x0, np.diag(Phi[e, e]).copy())
+    return out
+
+
+def error_model(nav: navfuncs.NavFunctions, dt: float, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(Phi, Qd) of the generated sensor-error step (NDX x NDX)."""
+    return nav.sensor_error_step(dt, params)
+
+
+def bias_walks(rng: np.random.Generator, profile, n: int, dt: float, scale: float = 1.0,
+               nav: navfuncs.NavFunctions | None = None):
+    """True accelerometer and gyro biases (n+1, 3) each at the IMU samples of a profile's IMU:
+    a draw from the profile's bias sigma, then their generated dynamics (m/s^2, rad/s; body)."""
+    nav = nav or navfuncs.NavFunctions()
+    params = params_array(0.0, 0.0, 0.0, imu=profile)
+    Phi, Qd = error_model(nav, dt, params)
+    imu = [b for b in model.STATES if b.role == "imu"]
+    truth = draw_truth(rng, imu, n, dt, Phi, Qd, None, profile, nav.layout, scale)
+    return truth["b_a"], truth["b_g"]
 
 
 def measured_increments(rng: np.random.Generator, profile, u_true: np.ndarray, b_a: np.ndarray,

@@ -9,14 +9,13 @@ import numpy as np
 from leonav_runtime.orbits import geometry
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.orbits import ElementSet, default_elements, group_by_constellation, load_elements, propagate_ecef
-from leonav_runtime.scenarios.load import MODE_OBSERVABLES, Scenario
+from leonav_runtime.scenarios.load import Scenario, mode_of
 
 
 def needed_constellations(scn: Scenario) -> tuple[str, ...]:
-    """Constellations the scenario's modes use (GPS for pseudoranges, Starlink for the rest)."""
-    used = {k for m in scn.modes for k in MODE_OBSERVABLES[m]}
-    return tuple(c for c, needed in (("gps", "pseudorange" in used), ("starlink", bool(used - {"pseudorange"})))
-                 if needed)
+    """Constellations the scenario's modes use (each satellite observable names its own)."""
+    used = {c for m in scn.modes for c in mode_of(m).constellations}
+    return tuple(c for c in ("gps", "starlink") if c in used)
 
 
 def scenario_elements(scn: Scenario) -> dict[str, ElementSet]:

@@ -13,7 +13,7 @@ from matplotlib.ticker import MaxNLocator
 
 from leonav_runtime.common import plot_style as ps
 from leonav_runtime.sweep.paper_values import PAPER_FINDINGS
-from leonav_runtime.scenarios.load import MODE_OBSERVABLES
+from leonav_runtime.scenarios.load import mode_of
 
 # block -> (axis label, unit, scale from SI)
 BLOCKS = {"position": ("position RMSE", "m", 1.0), "velocity": ("velocity RMSE", "m/s", 1.0),
@@ -21,7 +21,7 @@ BLOCKS = {"position": ("position RMSE", "m", 1.0), "velocity": ("velocity RMSE",
 
 
 def _uses_starlink(mode: str) -> bool:
-    return any(k != "pseudorange" for k in MODE_OBSERVABLES[mode])
+    return mode_of(mode).uses("starlink")
 
 
 def _paper_bands(scn) -> list[tuple[str, float, float, object]]:
@@ -30,7 +30,7 @@ def _paper_bands(scn) -> list[tuple[str, float, float, object]]:
         return []  # the paper's 1-2 m / 6-9 m are for its static run
     styles = ps.series_styles(scn.modes)
     out = []
-    if any("pseudorange" in MODE_OBSERVABLES[m] for m in scn.modes):
+    if any(mode_of(m).uses("gps") for m in scn.modes):
         lo, hi = PAPER_FINDINGS["gps_aided_position_m"]
         out.append((f"paper: GPS-aided {lo:g}-{hi:g} m", lo, hi, "0.55"))
     if "leo-alpha+imu" in scn.modes:

@@ -23,7 +23,7 @@ from leonav_runtime.common import output
 from leonav_runtime.sweep.executors import make_executor, map_in_order
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.sweep.paper_values import PAPER_FINDINGS
-from leonav_runtime.scenarios.load import MODE_OBSERVABLES, Scenario
+from leonav_runtime.scenarios.load import Scenario, mode_of
 
 log = logging.getLogger("leonav.sweep")
 
@@ -32,7 +32,7 @@ BLOCK_TRIALS = 10  # trials per executor task: enough work per task to hide sche
 
 
 def uses_starlink(mode: str) -> bool:
-    return any(k != "pseudorange" for k in MODE_OBSERVABLES[mode])
+    return mode_of(mode).uses("starlink")
 
 
 @dataclass
@@ -101,7 +101,7 @@ def check_findings(scn: Scenario, summaries: dict[tuple[str, int], dict], t_eval
             all(b < a for a, b in falls.values()),
             {m: f"{a:.2f} m at {lo_c} -> {b:.2f} m at {hi_c}" for m, (a, b) in falls.items()},
             [(m, c) for m in leo for c in (lo_c, hi_c)])
-    gps_modes = [m for m in scn.modes if "pseudorange" in MODE_OBSERVABLES[m]]
+    gps_modes = [m for m in scn.modes if mode_of(m).uses("gps")]
     static_paper_like = not scn.gps["outages"]  # the paper's 1-2 m / 6-9 m are for its static run
     if gps_modes and static_paper_like:
         vals = {m: pos(m, hi_c) for m in gps_modes}

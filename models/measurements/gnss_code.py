@@ -28,10 +28,21 @@ from __future__ import annotations
 
 import casadi as ca
 
-from leonav.models.constants import C_LIGHT_MPS, OMEGA_IE_RADPS
+from leonav.models import registry as R
+from leonav.models.constants import C_LIGHT_MPS, ISB_RW_PSD_M2PS, OMEGA_IE_RADPS
 from leonav.models.measurements.geometry import receiver_ecef
 from leonav.models.measurements.gnss_atmosphere import klobuchar_l1_s, look_angles, saastamoinen_m
 from leonav.models.state import AUX, X
+
+
+# Inter-system biases: differences of hardware delays, nearly constant (docs/design.md, "State")
+STATES = (
+    R.StateBlock("isb", 2, "m", "inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c",
+                 R.RandomWalk(psd_value=ISB_RW_PSD_M2PS),
+                 R.Prior(0.0, doc="started from the single-point clocks of the data (inputs/gnss_obs.py)"),
+                 fd_step=1e-2, typical=5.0, truth=R.Truth("zero", "none"),
+                 error_doc="inter-system bias errors [Galileo - GPS, BeiDou - GPS]"),
+)
 
 
 def _aux(aux, name):
@@ -72,3 +83,12 @@ def h_range_rate(x, aux, p):
     u = los / ca.norm_2(los)
     sagnac_rate = OMEGA_IE_RADPS / C_LIGHT_MPS * (v_S[0] * r_U[1] + r_S[0] * v_U[1] - v_S[1] * r_U[0] - r_S[1] * v_U[0])
     return ca.dot(u, v_S - v_U) + sagnac_rate + x[X["c_ddt"].offset] - _aux(aux, "sat_clock")[1]
+
+
+OBSERVABLES = (
+    R.Observable("GNSS_PSEUDORANGE", "gnss_pseudorange", 10, h_pseudorange, "m", source="gnss", token="pseudorange",
+                 stream="gnss_pseudorange", table="gnss_obs",
+                 doc="a real receiver's code pseudorange, any constellation, broadcast atmosphere"),
+    R.Observable("GNSS_RANGE_RATE", "gnss_range_rate", 11, h_range_rate, "m/s", source="gnss", token="pseudorange",
+                 stream="gnss_range_rate", table="gnss_obs", doc="a real receiver's Doppler as a range rate"),
+)

@@ -11,9 +11,16 @@ from __future__ import annotations
 import casadi as ca
 
 from leonav.models import frames
+from leonav.models import registry as R
 from leonav.models.state import P, X
 
 _P, _V = X["p_enu"].offset, X["v_enu"].offset
+
+
+def _fix(name: str, kind_id: int, h, unit: str, token: str, doc: str) -> R.Observable:
+    # sigma per fix and axis comes with the data (NMEA GST, NAV-PVT accuracies, a dataset's columns)
+    return R.Observable(name, name.lower(), kind_id, h, unit, source="gnss", token=token, stream=token,
+                        table="fix", doc=doc)
 
 
 def antenna_enu(x, p):
@@ -50,3 +57,13 @@ def h_vel_n(x, aux, p):
 def h_vel_u(x, aux, p):
     """Up velocity (m/s)."""
     return x[_V + 2]
+
+
+OBSERVABLES = (
+    _fix("POS_E", 1, h_pos_e, "m", "fix", "GNSS fix, antenna East (ENU at the origin)"),
+    _fix("POS_N", 2, h_pos_n, "m", "fix", "GNSS fix, antenna North"),
+    _fix("POS_U", 3, h_pos_u, "m", "fix", "GNSS fix, antenna Up"),
+    _fix("VEL_E", 4, h_vel_e, "m/s", "vel", "GNSS velocity East"),
+    _fix("VEL_N", 5, h_vel_n, "m/s", "vel", "GNSS velocity North"),
+    _fix("VEL_U", 6, h_vel_u, "m/s", "vel", "GNSS velocity Up"),
+)

@@ -11,6 +11,7 @@ Both use the Earth-relative velocity of the state (v_enu), so they hold on a rot
 from __future__ import annotations
 
 from leonav.models import frames
+from leonav.models import registry as R
 from leonav.models.state import X
 
 
@@ -42,3 +43,18 @@ def h_zupt_n(x, aux, p):
 def h_zupt_u(x, aux, p):
     """Up velocity (m/s); ZUPT: z = 0."""
     return x[X["v_enu"].offset + 2]
+
+
+def _constraint(name: str, kind_id: int, h, token: str, doc: str) -> R.Observable:
+    # z = 0 at the rate and with the sigma of the dataset description's [constraints]
+    return R.Observable(name, name.lower(), kind_id, h, "m/s", source="constraint", token=token, stream=token,
+                        table="constraint", doc=doc)
+
+
+OBSERVABLES = (
+    _constraint("NHC_Y", 12, h_nhc_y, "nhc", "non-holonomic constraint: lateral body velocity 0"),
+    _constraint("NHC_Z", 13, h_nhc_z, "nhc", "non-holonomic constraint: vertical body velocity 0"),
+    _constraint("ZUPT_E", 14, h_zupt_e, "zupt", "zero-velocity update at a standstill: East velocity 0"),
+    _constraint("ZUPT_N", 15, h_zupt_n, "zupt", "zero-velocity update: North velocity 0"),
+    _constraint("ZUPT_U", 16, h_zupt_u, "zupt", "zero-velocity update: Up velocity 0"),
+)

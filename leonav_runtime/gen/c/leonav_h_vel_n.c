@@ -64,11 +64,11 @@ CASADI_SYMBOL_EXPORT int leonav_h_vel_n_casadi_real_size(void) { return (int) si
 
 static const casadi_int casadi_s0[3] = {21, 1, 1};
 static const casadi_int casadi_s1[3] = {36, 1, 1};
-static const casadi_int casadi_s2[3] = {14, 1, 1};
+static const casadi_int casadi_s2[3] = {15, 1, 1};
 static const casadi_int casadi_s3[3] = {1, 1, 1};
 static const casadi_int casadi_s4[3] = {1, 20, 1};
 
-/* leonav_h_vel_n:(x[21],aux[36],p[14])->(h,H[1x20]) */
+/* leonav_h_vel_n:(x[21],aux[36],p[15])->(h,H[1x20]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1;
   a0=arg[0]? arg[0][4] : 0;

@@ -77,9 +77,9 @@ CASADI_SYMBOL_EXPORT int leonav_mech_casadi_real_size(void) { return (int) sizeo
 static const casadi_int casadi_s0[3] = {21, 1, 1};
 static const casadi_int casadi_s1[3] = {6, 1, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
-static const casadi_int casadi_s3[3] = {14, 1, 1};
+static const casadi_int casadi_s3[3] = {15, 1, 1};
 
-/* leonav_mech:(x[21],u[6],dt,p[14])->(x_next[21]) */
+/* leonav_mech:(x[21],u[6],dt,p[15])->(x_next[21]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
@@ -646,21 +646,28 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][10]=a19;
   if (res[0]!=0) res[0][11]=a17;
   if (res[0]!=0) res[0][12]=a14;
+  a14=arg[3]? arg[3][14] : 0;
+  a14=(a14*a07);
+  a14=(-a14);
+  a14=exp(a14);
+  a23=(a14*a23);
   if (res[0]!=0) res[0][13]=a23;
+  a26=(a14*a26);
   if (res[0]!=0) res[0][14]=a26;
-  if (res[0]!=0) res[0][15]=a28;
-  a28=arg[0]? arg[0][16] : 0;
-  a26=arg[0]? arg[0][17] : 0;
-  a07=(a26*a07);
-  a28=(a28+a07);
-  if (res[0]!=0) res[0][16]=a28;
-  if (res[0]!=0) res[0][17]=a26;
-  a26=arg[0]? arg[0][18] : 0;
-  if (res[0]!=0) res[0][18]=a26;
-  a26=arg[0]? arg[0][19] : 0;
-  if (res[0]!=0) res[0][19]=a26;
-  a26=arg[0]? arg[0][20] : 0;
-  if (res[0]!=0) res[0][20]=a26;
+  a14=(a14*a28);
+  if (res[0]!=0) res[0][15]=a14;
+  a14=arg[0]? arg[0][16] : 0;
+  a28=arg[0]? arg[0][17] : 0;
+  a07=(a28*a07);
+  a14=(a14+a07);
+  if (res[0]!=0) res[0][16]=a14;
+  if (res[0]!=0) res[0][17]=a28;
+  a28=arg[0]? arg[0][18] : 0;
+  if (res[0]!=0) res[0][18]=a28;
+  a28=arg[0]? arg[0][19] : 0;
+  if (res[0]!=0) res[0][19]=a28;
+  a28=arg[0]? arg[0][20] : 0;
+  if (res[0]!=0) res[0][20]=a28;
   return 0;
 }
 

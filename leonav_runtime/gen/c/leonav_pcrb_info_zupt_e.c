@@ -121,7 +121,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_zupt_e_max_num_threads(void) { return 
 static const casadi_int casadi_s0[3] = {20, 20, 1};
 static const casadi_int casadi_s1[3] = {21, 1, 1};
 static const casadi_int casadi_s2[3] = {36, 1, 1};
-static const casadi_int casadi_s3[3] = {14, 1, 1};
+static const casadi_int casadi_s3[3] = {15, 1, 1};
 static const casadi_int casadi_s4[3] = {1, 1, 1};
 
 static const casadi_real casadi_zeros[400] = 
@@ -135,7 +135,7 @@ void leonav_h_zupt_e_incref(void);
 void leonav_h_zupt_e_release(int mem);
 
 
-/* leonav_h_zupt_e:(x[21],aux[36],p[14])->(h,H[1x20]) */
+/* leonav_h_zupt_e:(x[21],aux[36],p[15])->(h,H[1x20]) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (leonav_h_zupt_e(arg, res, iw, w, mem)) return 1;
   return 0;
@@ -157,7 +157,7 @@ void casadi_f1_decref(void) {
   leonav_h_zupt_e_decref();
 }
 
-/* leonav_pcrb_info_zupt_e:(J[20x20],x[21],aux[36],p[14],R)->(J_next[20x20]) */
+/* leonav_pcrb_info_zupt_e:(J[20x20],x[21],aux[36],p[15],R)->(J_next[20x20]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+20, *w1=w+420, *w5=w+820, *w6=w+840, w7;

@@ -92,10 +92,10 @@ static const casadi_int casadi_s2[54] =
   4, 5, 0, 1, 2, 3, 4, 5,
   0, 1, 2, 3, 4, 5};
 static const casadi_int casadi_s3[3] = {1, 1, 1};
-static const casadi_int casadi_s4[3] = {14, 1, 1};
+static const casadi_int casadi_s4[3] = {15, 1, 1};
 static const casadi_int casadi_s5[3] = {138, 1, 1};
 
-/* leonav_predict_pre_covariance_2:(P[20x20],F[20x20,120nz],G[20x6,45nz],dt,p[14])->(M_nz_138[138]) */
+/* leonav_predict_pre_covariance_2:(P[20x20],F[20x20,120nz],G[20x6,45nz],dt,p[15])->(M_nz_138[138]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15;

@@ -31,6 +31,7 @@ extern "C" {
 #endif
 
 /* Add prefix to internal symbols */
+#define casadi_expm1 CASADI_PREFIX(expm1)
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
@@ -55,6 +56,15 @@ extern "C" {
 #endif
 
 casadi_real casadi_sq(casadi_real x) { return x*x;}
+
+casadi_real casadi_expm1(casadi_real x) {
+/* Pre-c99 compatibility */
+#if __STDC_VERSION__ < 199901L
+  return exp(x)-1;
+#else
+  return expm1(x);
+#endif
+}
 
 /* Configuration this file was compiled with */
 CASADI_SYMBOL_EXPORT void leonav_predict_project_casadi_version(int* major, int* minor, int* patch) {
@@ -114,10 +124,10 @@ static const casadi_int casadi_s1[62] =
   4, 5, 0, 1, 2, 3, 4, 5,
   0, 1, 2, 3, 4, 5};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
-static const casadi_int casadi_s3[3] = {14, 1, 1};
+static const casadi_int casadi_s3[3] = {15, 1, 1};
 static const casadi_int casadi_s4[3] = {20, 20, 1};
 
-/* leonav_predict_project:(M[23x23,276nz],Q_pre[23x23,36nz],dt,p[14])->(P_next[20x20],Qd[20x20]) */
+/* leonav_predict_project:(M[23x23,276nz],Q_pre[23x23,36nz],dt,p[15])->(P_next[20x20],Qd[20x20]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;
@@ -900,22 +910,44 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a009=arg[3]? arg[3][6] : 0;
   a009=casadi_sq(a009);
   a009=(a009*a001);
+  a080=arg[3]? arg[3][14] : 0;
+  a080=(2.*a080);
+  a080=(a080*a001);
+  a053=1.0000000000000000e-04;
+  a053=(a080<a053);
+  a014=1.;
+  a017=2.;
+  a085=(a080/a017);
+  a014=(a014-a085);
+  a085=casadi_sq(a080);
+  a061=6.;
+  a085=(a085/a061);
+  a014=(a014+a085);
+  a014=(a053?a014:0);
+  a053=(!a053);
+  a085=(-a080);
+  a085=casadi_expm1(a085);
+  a085=(a085/a080);
+  a085=(-a085);
+  a053=(a053?a085:0);
+  a014=(a014+a053);
+  a009=(a009*a014);
   a050=(a050+a009);
   if (res[0]!=0) res[0][252]=a050;
   a050=arg[0]? arg[0][241] : 0;
   if (res[0]!=0) res[0][253]=a050;
-  a080=arg[0]? arg[0][242] : 0;
-  if (res[0]!=0) res[0][254]=a080;
+  a014=arg[0]? arg[0][242] : 0;
+  if (res[0]!=0) res[0][254]=a014;
   a053=arg[0]? arg[0][243] : 0;
   if (res[0]!=0) res[0][255]=a053;
-  a014=arg[0]? arg[0][244] : 0;
-  if (res[0]!=0) res[0][256]=a014;
-  a017=arg[0]? arg[0][245] : 0;
-  if (res[0]!=0) res[0][257]=a017;
-  a085=arg[0]? arg[0][246] : 0;
-  if (res[0]!=0) res[0][258]=a085;
-  a061=arg[0]? arg[0][247] : 0;
-  if (res[0]!=0) res[0][259]=a061;
+  a085=arg[0]? arg[0][244] : 0;
+  if (res[0]!=0) res[0][256]=a085;
+  a080=arg[0]? arg[0][245] : 0;
+  if (res[0]!=0) res[0][257]=a080;
+  a061=arg[0]? arg[0][246] : 0;
+  if (res[0]!=0) res[0][258]=a061;
+  a028=arg[0]? arg[0][247] : 0;
+  if (res[0]!=0) res[0][259]=a028;
   if (res[0]!=0) res[0][260]=a031;
   if (res[0]!=0) res[0][261]=a064;
   if (res[0]!=0) res[0][262]=a088;
@@ -956,15 +988,15 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][289]=a022;
   if (res[0]!=0) res[0][290]=a049;
   if (res[0]!=0) res[0][291]=a079;
-  if (res[0]!=0) res[0][292]=a080;
+  if (res[0]!=0) res[0][292]=a014;
   if (res[0]!=0) res[0][293]=a050;
   a050=arg[0]? arg[0][255] : 0;
   a050=(a050+a009);
   if (res[0]!=0) res[0][294]=a050;
   a050=arg[0]? arg[0][256] : 0;
   if (res[0]!=0) res[0][295]=a050;
-  a080=arg[0]? arg[0][257] : 0;
-  if (res[0]!=0) res[0][296]=a080;
+  a014=arg[0]? arg[0][257] : 0;
+  if (res[0]!=0) res[0][296]=a014;
   a079=arg[0]? arg[0][258] : 0;
   if (res[0]!=0) res[0][297]=a079;
   a049=arg[0]? arg[0][259] : 0;
@@ -1000,16 +1032,15 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][315]=a050;
   a050=arg[0]? arg[0][262] : 0;
   a018=(a053*a018);
-  a081=2.;
-  a018=(a018/a081);
+  a018=(a018/a017);
   a050=(a050+a018);
   if (res[0]!=0) res[0][316]=a050;
-  a081=arg[0]? arg[0][263] : 0;
-  if (res[0]!=0) res[0][317]=a081;
-  a077=arg[0]? arg[0][264] : 0;
-  if (res[0]!=0) res[0][318]=a077;
-  a054=arg[0]? arg[0][265] : 0;
-  if (res[0]!=0) res[0][319]=a054;
+  a017=arg[0]? arg[0][263] : 0;
+  if (res[0]!=0) res[0][317]=a017;
+  a081=arg[0]? arg[0][264] : 0;
+  if (res[0]!=0) res[0][318]=a081;
+  a077=arg[0]? arg[0][265] : 0;
+  if (res[0]!=0) res[0][319]=a077;
   if (res[0]!=0) res[0][320]=a037;
   if (res[0]!=0) res[0][321]=a070;
   if (res[0]!=0) res[0][322]=a094;
@@ -1022,9 +1053,9 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][329]=a056;
   if (res[0]!=0) res[0][330]=a057;
   if (res[0]!=0) res[0][331]=a008;
-  if (res[0]!=0) res[0][332]=a014;
+  if (res[0]!=0) res[0][332]=a085;
   if (res[0]!=0) res[0][333]=a051;
-  if (res[0]!=0) res[0][334]=a080;
+  if (res[0]!=0) res[0][334]=a014;
   if (res[0]!=0) res[0][335]=a050;
   a050=arg[0]? arg[0][266] : 0;
   a053=(a053*a001);
@@ -1032,8 +1063,8 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][336]=a050;
   a050=arg[0]? arg[0][267] : 0;
   if (res[0]!=0) res[0][337]=a050;
-  a080=arg[0]? arg[0][268] : 0;
-  if (res[0]!=0) res[0][338]=a080;
+  a014=arg[0]? arg[0][268] : 0;
+  if (res[0]!=0) res[0][338]=a014;
   a051=arg[0]? arg[0][269] : 0;
   if (res[0]!=0) res[0][339]=a051;
   if (res[0]!=0) res[0][340]=a039;
@@ -1048,15 +1079,15 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][349]=a023;
   if (res[0]!=0) res[0][350]=a024;
   if (res[0]!=0) res[0][351]=a083;
-  if (res[0]!=0) res[0][352]=a017;
+  if (res[0]!=0) res[0][352]=a080;
   if (res[0]!=0) res[0][353]=a055;
   if (res[0]!=0) res[0][354]=a079;
-  if (res[0]!=0) res[0][355]=a081;
+  if (res[0]!=0) res[0][355]=a017;
   if (res[0]!=0) res[0][356]=a050;
   a050=arg[0]? arg[0][270] : 0;
-  a081=arg[3]? arg[3][9] : 0;
-  a081=(a081*a001);
-  a050=(a050+a081);
+  a017=arg[3]? arg[3][9] : 0;
+  a017=(a017*a001);
+  a050=(a050+a017);
   if (res[0]!=0) res[0][357]=a050;
   a050=arg[0]? arg[0][271] : 0;
   if (res[0]!=0) res[0][358]=a050;
@@ -1074,16 +1105,16 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][369]=a101;
   if (res[0]!=0) res[0][370]=a082;
   if (res[0]!=0) res[0][371]=a059;
-  if (res[0]!=0) res[0][372]=a085;
+  if (res[0]!=0) res[0][372]=a061;
   if (res[0]!=0) res[0][373]=a020;
   if (res[0]!=0) res[0][374]=a049;
-  if (res[0]!=0) res[0][375]=a077;
-  if (res[0]!=0) res[0][376]=a080;
+  if (res[0]!=0) res[0][375]=a081;
+  if (res[0]!=0) res[0][376]=a014;
   if (res[0]!=0) res[0][377]=a050;
   a050=arg[0]? arg[0][273] : 0;
-  a080=9.9999999999999995e-07;
-  a080=(a080*a001);
-  a050=(a050+a080);
+  a014=9.9999999999999995e-07;
+  a014=(a014*a001);
+  a050=(a050+a014);
   if (res[0]!=0) res[0][378]=a050;
   a050=arg[0]? arg[0][274] : 0;
   if (res[0]!=0) res[0][379]=a050;
@@ -1099,31 +1130,31 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][389]=a102;
   if (res[0]!=0) res[0][390]=a058;
   if (res[0]!=0) res[0][391]=a026;
-  if (res[0]!=0) res[0][392]=a061;
+  if (res[0]!=0) res[0][392]=a028;
   if (res[0]!=0) res[0][393]=a052;
   if (res[0]!=0) res[0][394]=a022;
-  if (res[0]!=0) res[0][395]=a054;
+  if (res[0]!=0) res[0][395]=a077;
   if (res[0]!=0) res[0][396]=a051;
   if (res[0]!=0) res[0][397]=a079;
   if (res[0]!=0) res[0][398]=a050;
   a050=arg[0]? arg[0][275] : 0;
-  a050=(a050+a080);
+  a050=(a050+a014);
   if (res[0]!=0) res[0][399]=a050;
   a050=arg[1]? arg[1][0] : 0;
   a079=(a000*a050);
   a051=(a079*a000);
   if (res[1]!=0) res[1][0]=a051;
   a051=arg[1]? arg[1][6] : 0;
-  a054=(a000*a051);
-  a022=(a054*a000);
+  a077=(a000*a051);
+  a022=(a077*a000);
   if (res[1]!=0) res[1][1]=a022;
   a052=arg[1]? arg[1][12] : 0;
-  a061=(a000*a052);
-  a026=(a061*a000);
+  a028=(a000*a052);
+  a026=(a028*a000);
   if (res[1]!=0) res[1][2]=a026;
   if (res[1]!=0) res[1][3]=a079;
-  if (res[1]!=0) res[1][4]=a054;
-  if (res[1]!=0) res[1][5]=a061;
+  if (res[1]!=0) res[1][4]=a077;
+  if (res[1]!=0) res[1][5]=a028;
   a058=arg[1]? arg[1][18] : 0;
   a102=(a000*a058);
   if (res[1]!=0) res[1][6]=a102;
@@ -1159,12 +1190,12 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][23]=a001;
   if (res[1]!=0) res[1][24]=a042;
   if (res[1]!=0) res[1][25]=a076;
-  a077=arg[1]? arg[1][19] : 0;
-  a049=(a000*a077);
+  a081=arg[1]? arg[1][19] : 0;
+  a049=(a000*a081);
   if (res[1]!=0) res[1][26]=a049;
   a020=arg[1]? arg[1][25] : 0;
-  a085=(a000*a020);
-  if (res[1]!=0) res[1][27]=a085;
+  a061=(a000*a020);
+  if (res[1]!=0) res[1][27]=a061;
   a059=arg[1]? arg[1][31] : 0;
   a082=(a000*a059);
   if (res[1]!=0) res[1][28]=a082;
@@ -1232,13 +1263,13 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][77]=a075;
   if (res[1]!=0) res[1][78]=a075;
   if (res[1]!=0) res[1][79]=a075;
-  if (res[1]!=0) res[1][80]=a054;
+  if (res[1]!=0) res[1][80]=a077;
   if (res[1]!=0) res[1][81]=a042;
   if (res[1]!=0) res[1][82]=a005;
   if (res[1]!=0) res[1][83]=a051;
   if (res[1]!=0) res[1][84]=a022;
   if (res[1]!=0) res[1][85]=a100;
-  if (res[1]!=0) res[1][86]=a077;
+  if (res[1]!=0) res[1][86]=a081;
   if (res[1]!=0) res[1][87]=a020;
   if (res[1]!=0) res[1][88]=a059;
   if (res[1]!=0) res[1][89]=a075;
@@ -1252,7 +1283,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][97]=a075;
   if (res[1]!=0) res[1][98]=a075;
   if (res[1]!=0) res[1][99]=a075;
-  if (res[1]!=0) res[1][100]=a061;
+  if (res[1]!=0) res[1][100]=a028;
   if (res[1]!=0) res[1][101]=a076;
   if (res[1]!=0) res[1][102]=a026;
   if (res[1]!=0) res[1][103]=a052;
@@ -1276,14 +1307,14 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][121]=a049;
   if (res[1]!=0) res[1][122]=a012;
   if (res[1]!=0) res[1][123]=a058;
-  if (res[1]!=0) res[1][124]=a077;
+  if (res[1]!=0) res[1][124]=a081;
   if (res[1]!=0) res[1][125]=a007;
   a007=arg[1]? arg[1][21] : 0;
   if (res[1]!=0) res[1][126]=a007;
   a007=arg[1]? arg[1][27] : 0;
   if (res[1]!=0) res[1][127]=a007;
-  a077=arg[1]? arg[1][33] : 0;
-  if (res[1]!=0) res[1][128]=a077;
+  a081=arg[1]? arg[1][33] : 0;
+  if (res[1]!=0) res[1][128]=a081;
   if (res[1]!=0) res[1][129]=a075;
   if (res[1]!=0) res[1][130]=a075;
   if (res[1]!=0) res[1][131]=a075;
@@ -1296,7 +1327,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][138]=a075;
   if (res[1]!=0) res[1][139]=a075;
   if (res[1]!=0) res[1][140]=a002;
-  if (res[1]!=0) res[1][141]=a085;
+  if (res[1]!=0) res[1][141]=a061;
   if (res[1]!=0) res[1][142]=a073;
   if (res[1]!=0) res[1][143]=a003;
   if (res[1]!=0) res[1][144]=a020;
@@ -1323,7 +1354,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][163]=a004;
   if (res[1]!=0) res[1][164]=a059;
   if (res[1]!=0) res[1][165]=a040;
-  if (res[1]!=0) res[1][166]=a077;
+  if (res[1]!=0) res[1][166]=a081;
   if (res[1]!=0) res[1][167]=a007;
   a007=arg[1]? arg[1][35] : 0;
   if (res[1]!=0) res[1][168]=a007;
@@ -1515,7 +1546,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][354]=a075;
   if (res[1]!=0) res[1][355]=a075;
   if (res[1]!=0) res[1][356]=a075;
-  if (res[1]!=0) res[1][357]=a081;
+  if (res[1]!=0) res[1][357]=a017;
   if (res[1]!=0) res[1][358]=a075;
   if (res[1]!=0) res[1][359]=a075;
   if (res[1]!=0) res[1][360]=a075;
@@ -1536,7 +1567,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][375]=a075;
   if (res[1]!=0) res[1][376]=a075;
   if (res[1]!=0) res[1][377]=a075;
-  if (res[1]!=0) res[1][378]=a080;
+  if (res[1]!=0) res[1][378]=a014;
   if (res[1]!=0) res[1][379]=a075;
   if (res[1]!=0) res[1][380]=a075;
   if (res[1]!=0) res[1][381]=a075;
@@ -1557,7 +1588,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][396]=a075;
   if (res[1]!=0) res[1][397]=a075;
   if (res[1]!=0) res[1][398]=a075;
-  if (res[1]!=0) res[1][399]=a080;
+  if (res[1]!=0) res[1][399]=a014;
   return 0;
 }
 
