@@ -50,7 +50,7 @@ def registry_py(banner: str) -> str:
              "from collections import namedtuple", "",
              'StateBlock = namedtuple("StateBlock", "name error_name offset size error_offset error_size unit error_unit role '
              'dynamics prior truth fd_step typical doc")',
-             'Param = namedtuple("Param", "name offset unit default example scenario doc")',
+             'Param = namedtuple("Param", "name offset unit default example scenario lo hi doc")',
              'Noise = namedtuple("Noise", "section key default lo hi doc")',
              'Observable = namedtuple("Observable", "kind name suffix unit source token stream table constellation '
              'paper rate_hz noise reads reads_orbit reads_ref reads_specific_force reads_params doc")', "",
@@ -65,7 +65,7 @@ def registry_py(banner: str) -> str:
     lines += [")", "", "PARAMS = ("]
     for q in S.PARAMS:
         lines.append(f"    Param({q.name!r}, {S.P[q.name].offset}, {q.unit!r}, {q.default!r}, {q.example!r}, "
-                     f"{q.scenario!r}, {q.doc!r}),")
+                     f"{q.scenario!r}, {q.lo!r}, {q.hi!r}, {q.doc!r}),")
     lines += [")", "", "OBSERVABLES = ("]
     for o in S.MEASUREMENTS:
         noise = "None"

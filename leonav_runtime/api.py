@@ -26,7 +26,7 @@ __all__ = ["MODES", "Scenario", "load_scenario", "run_sweep", "run_replay", "run
 
 # block -> (key prefix, unit suffix, scale from the SI value in the summaries)
 _BLOCKS = {"position": ("position", "m", 1.0), "velocity": ("velocity", "mps", 1.0),
-           "attitude": ("attitude", "deg", 180.0 / math.pi)}
+           "attitude": ("attitude", "deg", 180.0 / math.pi), "vertical": ("vertical", "m", 1.0)}
 
 
 _TRIALS = SCHEMA["monte_carlo"]["trials"]   # the bounds of the scenario's [monte_carlo] trials and of --trials

@@ -152,8 +152,8 @@ class StateBlock:
 class Param:
     """One entry of the parameter vector p. `default`: its value when the run gives none (None:
     the run must give it); `example`: a typical value for tests; `scenario`: 'section.key' of a
-    scenario/dataset key that sets it (the key's unit suffix converts: `_deg` -> rad); `doc`
-    says where the runtime takes it from."""
+    scenario/dataset key that sets it (the key's unit suffix converts: `_deg` -> rad), within
+    [lo, hi] in the key's unit; `doc` says where the runtime takes it from."""
 
     name: str
     unit: str
@@ -161,12 +161,15 @@ class Param:
     default: float | None = None
     example: float = 1.0
     scenario: str = ""
+    lo: float | None = None
+    hi: float | None = None
 
 
 @dataclass(frozen=True)
 class Noise:
     """The 1-sigma of an observable's measurements as a scenario / dataset key: `section.key`
-    (the key names its unit), default and range, in the observable's unit."""
+    (the key names its unit: the observable's, or `_deg` for an angle in rad), default and
+    range in the key's unit."""
 
     key: str
     default: float

@@ -8,6 +8,7 @@ from leonav.codegen.functions import build_functions
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.core.params import build_params
 from leonav.models.state import MEASUREMENTS, NDX
+from tests.registry_reference import fd_steps, random_state
 
 FNS = {f.name(): f for f in build_functions()}
 P_VEC = np.array(build_params(np.radians(43.0848638), np.radians(-77.6786127), 170.0,
@@ -15,15 +16,9 @@ P_VEC = np.array(build_params(np.radians(43.0848638), np.radians(-77.6786127), 1
 
 
 def _state(rng):
-    x = np.zeros(L.NX)
-    x[L.X_P_ENU_SLICE] = rng.normal(size=3) * [2000, 2000, 50]
-    x[L.X_V_ENU_SLICE] = rng.normal(size=3) * [20, 20, 2]
-    q = rng.normal(size=4)
-    x[L.X_Q_NB_SLICE] = q / np.linalg.norm(q)
-    x[L.X_B_A_SLICE] = rng.normal(size=3) * 0.05
-    x[L.X_B_G_SLICE] = rng.normal(size=3) * 1e-3
-    x[[L.X_C_DT, L.X_C_DDT, L.X_B_LO]] = [300.0, -2.0, 1500.0]
-    x[L.X_ISB_SLICE] = [4.0, -7.0]
+    """A random state: every block at its registry magnitude (position several km from the origin)."""
+    x = random_state(rng, {"p_enu": 2000.0, "v_enu": 20.0, "b_a": 0.05})
+    x[L.X_P_ENU + 2] *= 0.025   # heights of tens of metres
     return x
 
 
@@ -63,10 +58,7 @@ def _fd(fun, x, step):
     return np.array(cols).T
 
 
-STEP = np.zeros(NDX)  # finite-difference step per error-state block
-for _name, _step in (("DP", 1e-2), ("DV", 1e-3), ("DTHETA", 1e-4), ("DB_A", 1e-3), ("DB_G", 1e-4),
-                     ("DC_DT", 1e-2), ("DC_DDT", 1e-3), ("DB_LO", 1e-3), ("DISB", 1e-2)):
-    STEP[getattr(L, f"DX_{_name}_SLICE")] = _step
+STEP = fd_steps()  # finite-difference step per error-state component (registry)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

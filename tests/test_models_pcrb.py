@@ -18,6 +18,7 @@ from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gen.profiles import WT901
 from leonav_runtime.core.params import build_params
 from leonav.models.state import NDX
+from tests.registry_reference import prior_sd
 
 FNS = {f.name(): f for f in build_functions()}
 
@@ -30,11 +31,8 @@ def test_information_recursion_equals_kalman_covariance():
     x[[L.X_C_DT, L.X_C_DDT, L.X_B_LO]] = [10.0, 1.0, 100.0]
     site = np.array(FNS["leonav_receiver_ecef"](x, p)[0]).ravel()
     sats = [site + 6e5 * (site / np.linalg.norm(site) + 0.6 * rng.normal(size=3)) for _ in range(4)]
-    P = np.zeros((NDX, NDX))
-    for name, var in (("DP", 25.0), ("DV", 1.0), ("DTHETA", 1e-3), ("DB_A", 1e-2), ("DB_G", 1e-4), ("DC_DT", 1e6),
-                      ("DC_DDT", 100.0), ("DB_LO", 1e4), ("DISB", 1e4)):
-        block = getattr(L, f"DX_{name}_SLICE")
-        P[block, block] = np.eye(block.stop - block.start) * var
+    P = np.diag(prior_sd({"dp": 5.0, "dv": 1.0, "dtheta": 1e-3**0.5, "db_a": 0.1, "db_g": 1e-2, "dc_dt": 1e3,
+                          "dc_ddt": 10.0, "db_lo": 100.0, "disb": 100.0}) ** 2)
     J = np.linalg.inv(P)
     B = P.copy()
     dt = 0.1

@@ -9,6 +9,7 @@ import pytest
 from leonav_runtime.core import compiled, records
 from leonav_runtime.core import filter as lf
 from leonav_runtime.gen import state_layout as L
+from tests.registry_reference import prior_sd
 from leonav_runtime.gen import constants as K
 from leonav_runtime.core.params import build_params
 
@@ -36,13 +37,10 @@ def x_rest() -> np.ndarray:
 
 
 def P0() -> np.ndarray:
-    sd = {"DP": 10.0, "DV": 0.5, "DTHETA": 0.01, "DB_A": 0.05, "DB_G": 1e-4, "DC_DT": 100.0, "DC_DDT": 1.0,
-          "DB_LO": 10.0, "DISB": 10.0}  # prior standard deviation per error-state block (SI)
-    P = np.zeros((L.NDX, L.NDX))
-    for name, s in sd.items():
-        block = getattr(L, f"DX_{name}_SLICE")
-        P[block, block] = np.eye(block.stop - block.start) * s**2
-    return P
+    # prior standard deviation per error-state block (SI); any other block: its registry prior
+    sd = {"dp": 10.0, "dv": 0.5, "dtheta": 0.01, "db_a": 0.05, "db_g": 1e-4, "dc_dt": 100.0, "dc_ddt": 1.0,
+          "db_lo": 10.0, "disb": 10.0}
+    return np.diag(prior_sd(sd) ** 2)
 
 
 def ecef_and_enu_axes():

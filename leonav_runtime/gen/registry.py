@@ -6,7 +6,7 @@ STATES, PARAMS, OBSERVABLES; see models/registry.py for the meaning of every fie
 from collections import namedtuple
 
 StateBlock = namedtuple("StateBlock", "name error_name offset size error_offset error_size unit error_unit role dynamics prior truth fd_step typical doc")
-Param = namedtuple("Param", "name offset unit default example scenario doc")
+Param = namedtuple("Param", "name offset unit default example scenario lo hi doc")
 Noise = namedtuple("Noise", "section key default lo hi doc")
 Observable = namedtuple("Observable", "kind name suffix unit source token stream table constellation paper rate_hz noise reads reads_orbit reads_ref reads_specific_force reads_params doc")
 
@@ -23,21 +23,21 @@ STATES = (
 )
 
 PARAMS = (
-    Param('lat0_rad', 0, 'rad', None, 0.75, '', 'ENU origin geodetic latitude (WGS84)'),
-    Param('lon0_rad', 1, 'rad', None, -1.35, '', 'ENU origin longitude'),
-    Param('h0_m', 2, 'm', None, 170.0, '', 'ENU origin ellipsoidal height'),
-    Param('vrw', 3, 'm/s/sqrt(s)', None, 0.001, '', 'velocity random walk (accelerometer white noise); IMU profile'),
-    Param('arw', 4, 'rad/sqrt(s)', None, 0.0001, '', 'angle random walk (gyro white noise); IMU profile'),
-    Param('acc_bias_rw', 5, 'm/s^2/sqrt(s)', None, 1e-05, '', 'accelerometer bias random walk; IMU profile'),
-    Param('gyro_bias_rw', 6, 'rad/s/sqrt(s)', None, 1e-07, '', "gyro bias driving-noise density (random walk, or the Gauss-Markov process's); IMU profile"),
-    Param('q_cdt', 7, 'm^2/s', None, 0.01, '', 'clock white-frequency PSD (drives c_dt); clock profile'),
-    Param('q_cddt', 8, 'm^2/s^3', None, 0.03, '', 'clock random-walk-frequency PSD (drives c_ddt); clock profile'),
-    Param('q_blo', 9, 'Hz^2/s', None, 0.01, '', 'LO offset random-walk PSD'),
-    Param('f_c_hz', 10, 'Hz', None, 11325000000.0, '', 'beacon carrier frequency'),
-    Param('lever_x_m', 11, 'm', 0.0, 0.54, '', 'GNSS antenna lever arm, body forward (from the IMU to the antenna phase centre)'),
-    Param('lever_y_m', 12, 'm', 0.0, -0.22, '', 'GNSS antenna lever arm, body left'),
-    Param('lever_z_m', 13, 'm', 0.0, 1.16, '', 'GNSS antenna lever arm, body up'),
-    Param('gyro_bias_beta', 14, '1/s', 0.0, 0.0016666666666666668, '', 'gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile'),
+    Param('lat0_rad', 0, 'rad', None, 0.75, '', None, None, 'ENU origin geodetic latitude (WGS84)'),
+    Param('lon0_rad', 1, 'rad', None, -1.35, '', None, None, 'ENU origin longitude'),
+    Param('h0_m', 2, 'm', None, 170.0, '', None, None, 'ENU origin ellipsoidal height'),
+    Param('vrw', 3, 'm/s/sqrt(s)', None, 0.001, '', None, None, 'velocity random walk (accelerometer white noise); IMU profile'),
+    Param('arw', 4, 'rad/sqrt(s)', None, 0.0001, '', None, None, 'angle random walk (gyro white noise); IMU profile'),
+    Param('acc_bias_rw', 5, 'm/s^2/sqrt(s)', None, 1e-05, '', None, None, 'accelerometer bias random walk; IMU profile'),
+    Param('gyro_bias_rw', 6, 'rad/s/sqrt(s)', None, 1e-07, '', None, None, "gyro bias driving-noise density (random walk, or the Gauss-Markov process's); IMU profile"),
+    Param('q_cdt', 7, 'm^2/s', None, 0.01, '', None, None, 'clock white-frequency PSD (drives c_dt); clock profile'),
+    Param('q_cddt', 8, 'm^2/s^3', None, 0.03, '', None, None, 'clock random-walk-frequency PSD (drives c_ddt); clock profile'),
+    Param('q_blo', 9, 'Hz^2/s', None, 0.01, '', None, None, 'LO offset random-walk PSD'),
+    Param('f_c_hz', 10, 'Hz', None, 11325000000.0, '', None, None, 'beacon carrier frequency'),
+    Param('lever_x_m', 11, 'm', 0.0, 0.54, '', None, None, 'GNSS antenna lever arm, body forward (from the IMU to the antenna phase centre)'),
+    Param('lever_y_m', 12, 'm', 0.0, -0.22, '', None, None, 'GNSS antenna lever arm, body left'),
+    Param('lever_z_m', 13, 'm', 0.0, 1.16, '', None, None, 'GNSS antenna lever arm, body up'),
+    Param('gyro_bias_beta', 14, '1/s', 0.0, 0.0016666666666666668, '', None, None, 'gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile'),
 )
 
 OBSERVABLES = (

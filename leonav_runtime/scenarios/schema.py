@@ -178,7 +178,7 @@ def _registry_fields() -> None:
             section, _, key = q.scenario.partition(".")
             unit = _unit_of(key)
             value = q.default if unit != "deg" else math.degrees(q.default)
-            SCHEMA.setdefault(section, {})[key] = Field(float, unit, -1e9, 1e9, default=value, doc=q.doc)
+            SCHEMA.setdefault(section, {})[key] = Field(float, unit, q.lo, q.hi, default=value, doc=q.doc)
 
 
 _registry_fields()

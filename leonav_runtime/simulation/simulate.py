@@ -157,7 +157,7 @@ def noise_sigma(scn: Scenario, kind_name: str) -> float:
     """The 1-sigma of a simulated observable: its registry noise key in the scenario."""
     n = model.observable(kind_name).noise
     section = scn.local[n.section] if n.section in scn.local else getattr(scn, n.section)
-    return section[n.key]
+    return math.radians(section[n.key]) if n.key.endswith("_deg") else section[n.key]
 
 
 def selected_rows(setup: Setup, kind_name: str, count: int) -> np.ndarray:

@@ -33,7 +33,8 @@ from leonav_runtime.study.spec import Study
 
 BLOCK_TRIALS = 50   # a whole cell per task at the usual 20 trials: one setup per task
 # block -> (unit suffix of its keys, scale from the summaries' SI value)
-BLOCK_UNITS = {"position": ("m", 1.0), "velocity": ("mps", 1.0), "attitude": ("deg", 180.0 / math.pi)}
+BLOCK_UNITS = {"position": ("m", 1.0), "velocity": ("mps", 1.0), "attitude": ("deg", 180.0 / math.pi),
+               "vertical": ("m", 1.0)}
 # summary field -> key infix: the bound is a square root (sqrt(PCRB) in the unit of the RMSE)
 KINDS = {"rmse": "rmse", "pcrb": "sqrt_pcrb", "final_rmse": "final_rmse", "final_pcrb": "final_sqrt_pcrb"}
 

@@ -32,7 +32,8 @@ from leonav_runtime.scenarios.load import Scenario, scenario_from_dict
 EVAL_RATE_HZ = 10.0
 NAV = L.DX_NAV9_SLICE  # the 9D error (dp, dv, dtheta): the leading NNAV entries of dx
 # blocks of the 9D error (and of the PCRB's B_nav, whose rows are those of dx[NAV])
-BLOCKS = {"position": L.DX_DP_SLICE, "velocity": L.DX_DV_SLICE, "attitude": L.DX_DTHETA_SLICE}
+BLOCKS = {"position": L.DX_DP_SLICE, "velocity": L.DX_DV_SLICE, "attitude": L.DX_DTHETA_SLICE,
+          "vertical": slice(L.DX_DP_SLICE.start + 2, L.DX_DP_SLICE.start + 3)}   # the Up component of dp
 
 _SETUPS: dict[str, simulate.Setup] = {}
 MAX_SETUPS = 4   # prepared scenarios kept per process (bounded memory over a study's cells)

@@ -24,8 +24,10 @@ from leonav_runtime.common import output
 from leonav_runtime.common.provenance import provenance
 
 # block -> (column prefix, unit, scale from the SI value held in the summaries)
-CSV_BLOCKS = {"position": ("pos", "m", 1.0), "velocity": ("vel", "mps", 1.0), "attitude": ("att", "deg", 180 / math.pi)}
-UNITS = {"position": "m", "velocity": "m/s", "attitude": "rad (attitude_deg: deg)", "t_s": "s"}
+CSV_BLOCKS = {"position": ("pos", "m", 1.0), "velocity": ("vel", "mps", 1.0), "attitude": ("att", "deg", 180 / math.pi),
+              "vertical": ("up", "m", 1.0)}
+UNITS = {"position": "m", "velocity": "m/s", "attitude": "rad (attitude_deg: deg)", "vertical": "m (Up component)",
+         "t_s": "s"}
 
 
 def rmse_columns() -> list[str]:
@@ -119,18 +121,17 @@ def write_results(scn, out_dir: Path, res, figures: bool = True) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     write_config(scn, out_dir / "config.toml")
     time_rows = []
-    deg = 180 / math.pi
     for (mode, count), s in sorted(res.summaries.items()):
         for i, t in enumerate(res.t_eval):
-            vals = [s[b][k][i] * (deg if b == "attitude" else 1.0) for b in mc.BLOCKS for k in ("rmse_t", "pcrb_t")]
+            vals = [s[b][k][i] * CSV_BLOCKS[b][2] for b in CSV_BLOCKS for k in ("rmse_t", "pcrb_t")]
             time_rows.append([mode, count, t, *vals, s["nees"]["nees_t"][i]])
     metrics = metrics_dict(scn, res)
     output.write_json(out_dir / "metrics.json", metrics)
     output.write_csv(out_dir / "rmse.csv", rmse_columns(), rmse_rows(res))
     output.write_csv(out_dir / "findings.csv", FINDINGS_COLUMNS, findings_rows(res.findings))
     output.write_csv(out_dir / "rmse_vs_time.csv",
-                     ["mode", "count", "t_s", "pos_rmse_m", "pos_sqrt_pcrb_m", "vel_rmse_mps", "vel_sqrt_pcrb_mps",
-                      "att_rmse_deg", "att_sqrt_pcrb_deg", "nees_mean"], time_rows)
+                     ["mode", "count", "t_s", *(f"{p}_{k}_{u}" for p, u, _ in CSV_BLOCKS.values()
+                                                 for k in ("rmse", "sqrt_pcrb")), "nees_mean"], time_rows)
     if figures:
         sweep_plots.plot_all(scn, res, out_dir)
     html_report.write_sweep_report(out_dir, jsonable(metrics))   # the content of metrics.json, not read back
