@@ -84,3 +84,62 @@ def registry_py(banner: str) -> str:
               f"PAPER_MODES = {tuple(PAPER_MODES)!r}",
               '"""The paper\'s fusion modes: the default mode list of every scenario."""', ""]
     return "\n".join(lines)
+
+
+def _md_table(header: list[str], rows: list[list]) -> list[str]:
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    return out + ["| " + " | ".join(str(c) for c in row) + " |" for row in rows] + [""]
+
+
+def _dyn_text(d) -> str:
+    if isinstance(d, R.RandomWalk):
+        return ("random walk, PSD " + (d.psd or (f"{d.density}^2" if d.density else f"{d.psd_value:g}")))
+    if isinstance(d, R.GaussMarkov):
+        return f"Gauss-Markov, rate {d.beta}, density {d.density}"
+    if isinstance(d, R.Integral):
+        return f"integral of {d.of}, PSD {d.psd}"
+    return d.kind
+
+
+def registry_md(banner: str) -> str:
+    """The text of gen/REGISTRY.md: the registry's tables for people (docs/design.md links it)."""
+    lines = [banner, "", "# The model registry", "",
+             "Generated from models/ (state.py and each measurement module's STATES, PARAMS, OBSERVABLES;",
+             "models/registry.py says what every field means). Regenerate with `leonav codegen`.", "",
+             "## State blocks (layout order)", ""]
+    rows = []
+    for s in S.STATES:
+        x, dx = S.X[s.name], S.DX[s.error_name]
+        prior = (f"{s.prior.value:g}" if s.prior.value is not None else
+                 f"profile `{s.prior.profile_field}`" if s.prior.profile_field else "given by the run")
+        rows.append([f"`{s.name}`", f"{x.offset}:{x.offset + x.size}", f"`{s.error_name}` {dx.offset}:{dx.offset + dx.size}",
+                     s.err_unit, s.role, _dyn_text(s.dynamics), prior, f"{s.truth.start}, {s.truth.stream}", s.doc])
+    lines += _md_table(["block", "x", "dx", "unit", "role", "dynamics", "prior sigma", "truth (start, stream)",
+                        "meaning"], rows)
+    lines += ["## Parameters p", ""]
+    lines += _md_table(["name", "offset", "unit", "default", "scenario key", "meaning"],
+                       [[f"`{q.name}`", S.P[q.name].offset, q.unit, "-" if q.default is None else f"{q.default:g}",
+                         f"`{q.scenario}`" if q.scenario else "", q.doc] for q in S.PARAMS])
+    lines += ["## Observables (kind-id order)", ""]
+    rows = []
+    for o in S.MEASUREMENTS:
+        r = _reads(o)
+        noise = f"`{o.noise.key}` = {o.noise.default:g}" if o.noise else "with the data"
+        rows.append([o.kind_id, f"`{o.name}`", o.unit, o.source, f"`{o.token}`", o.stream, o.table,
+                     o.constellation or "", "yes" if o.paper else "", noise, ", ".join(r["reads"]), o.doc])
+    lines += _md_table(["kind", "name", "unit", "source", "mode word", "stream", "table", "satellites", "paper",
+                        "sigma", "reads", "meaning"], rows)
+    lines += ["## Modes", "", "The paper's (every scenario's default): " + ", ".join(f"`{m}`" for m in PAPER_MODES)
+              + ". Any other is named by its words (models/modes.py).", "",
+              "## Sections of local sensors (scenario and dataset description)", ""]
+    for token in dict.fromkeys(o.token for o in S.MEASUREMENTS if o.table == "local"):
+        obs = [o for o in S.MEASUREMENTS if o.token == token]
+        n = obs[0].noise
+        keys = [["`rate_hz`", "Hz", f"{obs[0].rate_hz:g}", "scenario: sample rate of the simulated sensor"],
+                [f"`{n.key.split('.', 1)[1]}`", n.key.rsplit("_", 1)[-1], f"{n.default:g}", n.doc]]
+        keys += [[f"`{q.scenario.split('.', 1)[1]}`", q.scenario.rsplit("_", 1)[-1],
+                  f"{q.default:g}", q.doc] for q in S.PARAMS if q.scenario.startswith(token + ".")]
+        keys += [["`file`, `columns`, `time_column`, `time_unit`, `delimiter`", "-", "",
+                  "dataset description: the CSV and its columns (" + ", ".join(o.suffix for o in obs) + ")"]]
+        lines += [f"### [{token}]", ""] + _md_table(["key", "unit", "default", "meaning"], keys)
+    return "\n".join(lines)

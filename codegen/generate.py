@@ -13,7 +13,7 @@ from leonav.models.measurements.orbit_jacobian import NORBIT
 GEN_NAME = "leonav_gen"
 COMMAND = "python -m leonav.codegen  (or: leonav codegen)"
 DATA_FILES = (f"{GEN_NAME}.h", f"{GEN_NAME}.json", "state_layout.h", "state_layout.py",
-              "constants.py", "constants.h", "profiles.py", "registry.py", "__init__.py")
+              "constants.py", "constants.h", "profiles.py", "registry.py", "REGISTRY.md", "__init__.py")
 """The files of gen/ besides the per-function C in gen/c/ (emit_c.py)."""
 
 
@@ -152,6 +152,7 @@ def generated_files() -> dict[str, str]:
     files["constants.h"] = emit_data.constants_h(_banner("//"))
     files["profiles.py"] = emit_data.profiles_py(_banner("#"))
     files["registry.py"] = emit_registry.registry_py(_banner("#"))
+    files["REGISTRY.md"] = emit_registry.registry_md("<!-- " + _banner("").replace("\n", " ").strip() + " -->")
     files["__init__.py"] = _banner("#") + '"""Generated code (C sources, headers, state layout); see state_layout.py."""\n'
     return files
 

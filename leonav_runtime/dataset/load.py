@@ -17,7 +17,8 @@ from leonav_runtime.orbits import geometry
 from leonav_runtime.dataset import checks, readers
 from leonav_runtime.dataset.spec import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS, DatasetSpec
 from leonav_runtime.common.errors import UserInputError
-from leonav_runtime.inputs import FixTable
+from leonav_runtime.core import model
+from leonav_runtime.inputs import FixTable, LocalSensorTable
 
 
 @dataclass
@@ -51,11 +52,19 @@ class Dataset:
     reference: Reference | None
     counts: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    local_raw: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)   # sensor -> (t as in file, z)
+
+    def _axis(self, offset_s: float) -> float:
+        return (0.0 if self.spec["imu"]["time_base"] == "first_fix" else -self.t0_unix) + offset_s
 
     def imu_on_axis(self, offset_s: float) -> ImuSamples:
         """The IMU samples with time offset `offset_s` (s) applied on the run axis."""
-        base = 0.0 if self.spec["imu"]["time_base"] == "first_fix" else -self.t0_unix
-        return ImuSamples(self.imu_raw_t + base + offset_s, self.imu.w_b_radps, self.imu.f_b_mps2)
+        return ImuSamples(self.imu_raw_t + self._axis(offset_s), self.imu.w_b_radps, self.imu.f_b_mps2)
+
+    def local_on_axis(self, offset_s: float) -> list[LocalSensorTable]:
+        """Each local sensor's samples on the run axis (its times share the IMU's base and offset)."""
+        return [LocalSensorTable(token, t + self._axis(offset_s), z, self.spec[token]["sigma_si"])
+                for token, (t, z) in self.local_raw.items()]
 
 
 def _vehicle_flu(raw: np.ndarray, axis_map, frame: str) -> np.ndarray:
@@ -231,6 +240,20 @@ def _to_geodetic(xyz: np.ndarray, crs: str, path) -> tuple[np.ndarray, np.ndarra
     return np.radians(lat), np.radians(lon), xyz[:, 2], conv
 
 
+def read_local(spec: DatasetSpec, token: str, counts: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(t s as in the file, z (n, k) in the observables' units) of a local sensor's good rows."""
+    s = spec[token]
+    path = readers.resolve(spec.data_dir / s["file"], token, spec.where(token, "file"), spec.shared)
+    data = readers.read_columns(path, [("time_column", s["time_column"])] + [("columns", c) for c in s["columns"]],
+                                s["delimiter"])
+    t = data.values[:, 0] * TIME_UNITS[s["time_unit"]]
+    keep, order = readers.monotonic_rows(t)
+    counts[token] = data.counts | order | {"rows_used": int(keep.sum())}
+    if not keep.any():
+        raise UserInputError(f"{path}: no usable {token} row: expected samples with increasing time")
+    return t[keep], data.values[keep, 1:]
+
+
 def load(spec: DatasetSpec) -> Dataset:
     """Read every file the description names (module doc)."""
     counts: dict = {}
@@ -248,4 +271,5 @@ def load(spec: DatasetSpec) -> Dataset:
     fixes = FixTable(t_fix - t0, p, np.asarray(sig, float), np.full((t_fix.size, 2), np.nan))
     t_imu, w, f = read_imu(spec, counts)
     ref = read_reference(spec, t0, origin, counts)
-    return Dataset(spec, t0, origin, t_imu, ImuSamples(t_imu, w, f), fixes, ref, counts, notes)
+    local = {token: read_local(spec, token, counts) for token in model.LOCAL_SENSORS if spec[token]["file"]}
+    return Dataset(spec, t0, origin, t_imu, ImuSamples(t_imu, w, f), fixes, ref, counts, notes, local)

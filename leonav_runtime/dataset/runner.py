@@ -28,6 +28,7 @@ from leonav_runtime.core import filter as lfilter
 from leonav_runtime.core import navfuncs, records
 from leonav_runtime.dataset import align, checks, constraints, resets
 from leonav_runtime.dataset.load import Dataset, ImuSamples
+from leonav_runtime.core import model
 from leonav_runtime.dataset.spec import dataset_mode
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.profiles import IMU_PROFILES
@@ -181,7 +182,8 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
     given = spec["imu"]["time_offset_s"]
     off0 = 0.0 if isinstance(given, str) else float(given)
     checks.time_overlap(spec, ds.imu_on_axis(off0).t, ds.fixes.t, off0)
-    imu = ds.imu_on_axis(time_offset(ds, report))
+    offset = time_offset(ds, report)
+    imu = ds.imu_on_axis(offset)
     if t_end_s is not None:
         checks.until(t_end_s, float(imu.t[0]) + 1.0, "the IMU starts (+ 1 s)")
         keep = imu.t <= t_end_s
@@ -191,7 +193,8 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
                              con["standstill_gyro_std_radps"])
     rest = align.initial_rest(imu, still, spec["alignment"]["static_max_s"])
     profile = _profile(spec, rest, report)
-    params = np.asarray(build_params(*ds.origin, imu=profile, lever_b_m=tuple(spec["gnss"]["lever_arm_flu_m"])))
+    params = np.asarray(build_params(*ds.origin, imu=profile, lever_b_m=tuple(spec["gnss"]["lever_arm_flu_m"]),
+                                     values=sensor_params(spec)))
     nav = nav or navfuncs.NavFunctions(params=params)
     nav.params = params
     prior = initial_state(ds, imu, rest, profile, nav, report)
@@ -200,7 +203,8 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
     scale = spec["gnss"]["sigma_scale"]
     fixes = FixTable(fixes.t, fixes.p_enu_m, fixes.sigma_enu_m * (1.0 if isinstance(scale, str) else scale),
                      fixes.v_en_mps)
-    inputs = assemble(table, params, prior, fixes=fixes, nav=nav, notes=list(ds.notes), origin=ds.origin)
+    inputs = assemble(table, params, prior, fixes=fixes, nav=nav, notes=list(ds.notes), origin=ds.origin,
+                      local=ds.local_on_axis(offset))
     streams = constraints.records_for(imu, still, prior.t_start_s, float(imu.t[-1]), con, nav)
     report["standstill"] = {"seconds": float(np.sum(np.diff(imu.t)[still[1:]])), "initial_s": rest.seconds}
     dt = np.diff(imu.t[imu.t >= prior.t_start_s])
@@ -209,12 +213,24 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
     report["imu_gaps"] = {"bridged_by_one_imu_step": int(short.sum()), "long": int(long.sum()),
                           "long_seconds": float(dt[long].sum()), "max_gap_s": spec["imu"]["max_gap_s"],
                           "long_handling": "constant-velocity predict, covariance inflated (dataset/resets.py)"}
+    streams |= {token: inputs.records[token] for token in inputs.local}
     prep = Prepared(inputs, {"fix": inputs.records["fix"]} | streams, imu, ds.fixes, nav,
                     spec["filter"]["gate_nis"], report, spec["imu"]["max_gap_s"], spec["filter"]["lockout_fixes"])
     if isinstance(scale, str):
         auto_scale(prep, spec["filter"]["modes"][-1])
     report["fix_sigma_scale"] = prep.report.get("fix_sigma_scale", {"value": scale, "source": "given"})
     return prep
+
+
+def sensor_params(spec) -> dict[str, float]:
+    """The registry parameters a local sensor's section sets (e.g. [mag] declination_deg), SI."""
+    out = {}
+    for q in model.PARAMS:
+        section, _, key = q.scenario.partition(".")
+        if section in model.LOCAL_SENSORS:
+            value = spec[section][key]
+            out[q.name] = math.radians(value) if key.endswith("_deg") else float(value)
+    return out
 
 
 SCALE_BOUNDS = (0.2, 5.0)

@@ -147,6 +147,35 @@ SCHEMA: dict[str, dict[str, Field]] = {
 }
 
 
+def _local_sections() -> None:
+    """A section per local sensor of the registry (`[baro]`, `[mag]`): its file and columns, the
+    sigma key and the parameters it declares (the same keys as in a scenario's section)."""
+    import math as _math
+
+    for token in model.LOCAL_SENSORS:
+        obs = [o for o in model.OBSERVABLES if o.token == token]
+        n = obs[0].noise
+        SCHEMA[token] = {
+            "file": Field(str, "-", default="", doc=f"{token} samples (CSV); empty: none"),
+            "delimiter": Field(str, "-", default=","),
+            "time_column": Field(Column, "-", default=0, doc="time in the IMU's time base; the IMU's time offset "
+                                 "applies"),
+            "time_unit": Field(str, "-", default="s", choices=tuple(TIME_UNITS)),
+            "columns": Field(list, "-", default=[], doc="one column per observable: " + ", ".join(
+                f"{o.suffix} ({o.unit})" for o in obs)),
+            n.key: Field(float, n.key.rsplit("_", 1)[-1].replace("mps", "m/s"), n.lo, n.hi, default=n.default,
+                         doc=n.doc),
+        }
+        for q in model.PARAMS:
+            section, _, key = q.scenario.partition(".")
+            if section == token:
+                value = _math.degrees(q.default) if key.endswith("_deg") else q.default
+                SCHEMA[token][key] = Field(float, key.rsplit("_", 1)[-1], q.lo, q.hi, default=value, doc=q.doc)
+
+
+_local_sections()
+
+
 @dataclass
 class DatasetSpec:
     """A validated dataset description: `sections[name][key]` with SI values (angles in rad
@@ -210,7 +239,7 @@ def parse_axes(text: str, where: str) -> list[tuple[int, float]]:
 
 def spec_from_dict(data: dict[str, Any], source: str = "<dict>", base_dir: Path | None = None) -> DatasetSpec:
     """Validate a parsed dataset TOML mapping (module doc)."""
-    values = check_tables(source, data, SCHEMA, REQ, optional_sections=("reference",))
+    values = check_tables(source, data, SCHEMA, REQ, optional_sections=("reference", *model.LOCAL_SENSORS))
     _finish(values, source)
     base = base_dir or Path.cwd()
     text = values["data"]["dir"].replace("{shared}", str(shared_data_dir()))
@@ -270,6 +299,16 @@ def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
         raise UserInputError(f"{where_key(source, 'filter', 'modes')} = {show_value(modes)}: expected a non-empty "
                              f"list of modes, e.g. {', '.join(MODES)}")
     v["filter"]["modes"] = model.check_modes(modes, dataset_observable, f"{where_key(source, 'filter', 'modes')}:")
+    used = {t for m in v["filter"]["modes"] for t in dataset_mode(m).local_sensors}
+    for token in model.LOCAL_SENSORS:
+        sec = v[token]
+        k = len(model.stream_observables(token))
+        sec["columns"] = _columns(source, token, "columns", sec["columns"], k if sec["file"] else None)
+        if token in used and not sec["file"]:
+            raise UserInputError(f"{where_key(source, token, 'file')}: missing: a mode uses {token} "
+                                 f"({', '.join(m for m in v['filter']['modes'] if token in m.split('+'))})")
+        noise = model.stream_observables(token)[0].noise
+        sec["sigma_si"] = math.radians(sec[noise.key]) if noise.key.endswith("_deg") else sec[noise.key]
     v["filter"]["roll_pitch_sigma_rad"] = math.radians(v["filter"]["roll_pitch_sigma_deg"])
     al = v["alignment"]
     if not isinstance(al["yaw_deg"], str) and not -360 <= al["yaw_deg"] <= 360:

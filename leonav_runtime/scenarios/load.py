@@ -325,10 +325,14 @@ def builtin_scenarios() -> list[str]:
     return sorted(p.stem for p in BUILTIN_DIR.glob("*.toml"))
 
 
-def schema_markdown() -> str:
-    """The key reference of docs/scenarios.md, generated from SCHEMA (a test keeps them equal)."""
+def schema_markdown(local_sensors: bool = False) -> str:
+    """The key reference of docs/scenarios.md, generated from SCHEMA (a test keeps them equal);
+    the sections of local sensors (`[baro]`, ...: registry-made, one per sensor module) only with
+    `local_sensors` (they are listed in leonav_runtime/gen/REGISTRY.md, which codegen writes)."""
     lines = []
     for section, fields in SCHEMA.items():
+        if (section in LOCAL_SENSORS) != local_sensors and section:
+            continue
         lines += [f"### {'top level' if not section else '[' + section + ']'}", "",
                   "| key | unit | range / choices | default | meaning |", "|---|---|---|---|---|"]
         for key, f in fields.items():

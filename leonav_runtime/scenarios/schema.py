@@ -149,8 +149,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
     "monte_carlo": {
         "trials": Field(int, "-", 1, 100000, default=100, doc="trials per (mode, count)"),
         "seed": Field(int, "-", 0, 2**63 - 1, default=1, doc="master seed"),
-        "modes": Field(list, "-", default=list(MODES), doc="the paper's: " + ", ".join(MODES) + "; or any mode of "
-                       "the simulated observables' words (" + model.mode_words(model.simulated) + ")"),
+        "modes": Field(list, "-", default=list(MODES), doc="the paper's: " + ", ".join(MODES) + "; or any mode named "
+                       "by the simulated observables' words, e.g. gps+imu+baro (leonav_runtime/gen/REGISTRY.md)"),
     },
 }
 
