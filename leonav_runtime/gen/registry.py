@@ -20,6 +20,7 @@ STATES = (
     StateBlock('c_ddt', 'dc_ddt', 17, 1, 16, 1, 'm/s', 'm/s', 'measurement', {'psd': 'q_cddt', 'kind': 'random-walk'}, {'value': 1.0, 'doc': "a TCXO's drift class"}, {'start': 'gps.clock_drift_mps', 'stream': 'trial'}, 0.001, 10.0, 'receiver clock drift times c'),
     StateBlock('b_lo', 'db_lo', 18, 1, 17, 1, 'Hz', 'Hz', 'measurement', {'psd': 'q_blo', 'kind': 'random-walk'}, {'value': 50000.0, 'doc': 'LNB LO tolerance class (tens of kHz)'}, {'start': 'starlink.lo_offset_hz', 'stream': 'trial'}, 0.001, 1000.0, 'beacon front-end frequency offset at baseband'),
     StateBlock('isb', 'disb', 19, 2, 18, 2, 'm', 'm', 'measurement', {'psd_value': 1e-06, 'kind': 'random-walk'}, {'value': 0.0, 'doc': 'started from the single-point clocks of the data (inputs/gnss_obs.py)'}, {'start': 'zero', 'stream': 'none'}, 0.01, 5.0, 'inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c'),
+    StateBlock('b_baro', 'db_baro', 21, 1, 20, 1, 'm', 'm', 'measurement', {'density': 'baro_bias_rw', 'kind': 'random-walk'}, {'value': 5.0, 'doc': 'a barometer set to the reference pressure at the start (QNH): a few metres'}, {'start': 'prior', 'stream': 'own'}, 0.01, 5.0, 'barometric height bias'),
 )
 
 PARAMS = (
@@ -38,6 +39,7 @@ PARAMS = (
     Param('lever_y_m', 12, 'm', 0.0, -0.22, '', None, None, 'GNSS antenna lever arm, body left'),
     Param('lever_z_m', 13, 'm', 0.0, 1.16, '', None, None, 'GNSS antenna lever arm, body up'),
     Param('gyro_bias_beta', 14, '1/s', 0.0, 0.0016666666666666668, '', None, None, 'gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile'),
+    Param('baro_bias_rw', 15, 'm/sqrt(s)', 0.05, 0.05, '', None, None, 'barometer bias random walk (weather: ~8 m in 3 h)'),
 )
 
 OBSERVABLES = (
@@ -58,9 +60,10 @@ OBSERVABLES = (
     Observable(14, 'ZUPT_E', 'zupt_e', 'm/s', 'constraint', 'zupt', 'zupt', 'constraint', '', False, 10.0, None, ('dv',), False, False, False, (), 'zero-velocity update at a standstill: East velocity 0'),
     Observable(15, 'ZUPT_N', 'zupt_n', 'm/s', 'constraint', 'zupt', 'zupt', 'constraint', '', False, 10.0, None, ('dv',), False, False, False, (), 'zero-velocity update: North velocity 0'),
     Observable(16, 'ZUPT_U', 'zupt_u', 'm/s', 'constraint', 'zupt', 'zupt', 'constraint', '', False, 10.0, None, ('dv',), False, False, False, (), 'zero-velocity update: Up velocity 0'),
+    Observable(17, 'BARO_HEIGHT', 'baro_height', 'm', 'local', 'baro', 'baro', 'local', '', False, 10.0, Noise('baro', 'sigma_m', 0.5, 0.001, 1000.0, '1-sigma barometric height noise (MEMS sensor, 10 Hz)'), ('dp', 'db_baro'), False, False, False, ('lat0_rad', 'lon0_rad', 'h0_m'), 'barometric altimeter: ellipsoidal height plus a random-walk bias'),
 )
 
-STREAMS = ('imu', 'pseudorange', 'fix', 'vel', 'doppler_rate', 'doppler', 'ofdm_range_diff', 'gnss_pseudorange', 'gnss_range_rate', 'nhc', 'zupt')
+STREAMS = ('imu', 'pseudorange', 'fix', 'vel', 'doppler_rate', 'doppler', 'ofdm_range_diff', 'gnss_pseudorange', 'gnss_range_rate', 'nhc', 'zupt', 'baro')
 """Record streams in merge order (at equal t: the IMU first, then this order)."""
 PAPER_MODES = ('gps+imu', 'leo-alpha+imu', 'gps+leo-alpha+imu', 'leo-ofdm+imu', 'leo-alpha+ofdm+imu', 'leo-doppler+alpha+imu')
 """The paper's fusion modes: the default mode list of every scenario."""

@@ -3,9 +3,9 @@
 #ifndef LEONAV_STATE_LAYOUT_H
 #define LEONAV_STATE_LAYOUT_H
 
-#define LEONAV_NX 21
-#define LEONAV_NDX 20
-#define LEONAV_NP 15
+#define LEONAV_NX 22
+#define LEONAV_NDX 21
+#define LEONAV_NP 16
 #define LEONAV_NAUX 36
 #define LEONAV_NU 6
 #define LEONAV_NNAV 9  /* the 9D navigation error (dp, dv, dtheta) = dx[0:NNAV] */
@@ -28,6 +28,8 @@
 #define LEONAV_X_B_LO_SIZE 1
 #define LEONAV_X_ISB 19  /* m: inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c */
 #define LEONAV_X_ISB_SIZE 2
+#define LEONAV_X_B_BARO 21  /* m: barometric height bias */
+#define LEONAV_X_B_BARO_SIZE 1
 
 #define LEONAV_DX_DP 0  /* m: position error, ENU */
 #define LEONAV_DX_DP_SIZE 3
@@ -47,6 +49,8 @@
 #define LEONAV_DX_DB_LO_SIZE 1
 #define LEONAV_DX_DISB 18  /* m: inter-system bias errors [Galileo - GPS, BeiDou - GPS] */
 #define LEONAV_DX_DISB_SIZE 2
+#define LEONAV_DX_DB_BARO 20  /* m: barometric height bias error */
+#define LEONAV_DX_DB_BARO_SIZE 1
 
 #define LEONAV_AUX_R_S_ECEF 0  /* m: satellite position, ECEF (pseudorange: at transmit time, ECEF of transmit epoch) */
 #define LEONAV_AUX_R_S_ECEF_SIZE 3
@@ -95,6 +99,7 @@
 #define LEONAV_P_LEVER_Y_M 12  /* m: GNSS antenna lever arm, body left */
 #define LEONAV_P_LEVER_Z_M 13  /* m: GNSS antenna lever arm, body up */
 #define LEONAV_P_GYRO_BIAS_BETA 14  /* 1/s: gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile */
+#define LEONAV_P_BARO_BIAS_RW 15  /* m/sqrt(s): barometer bias random walk (weather: ~8 m in 3 h) */
 
 #define LEONAV_MEAS_IMU (-1)  /* record kind of an IMU interval */
 #define LEONAV_KIND_CV (-2)  /* record kind of a constant-velocity predict over dt (no IMU) */
@@ -115,7 +120,8 @@
 #define LEONAV_MEAS_ZUPT_E 14  /* m/s */
 #define LEONAV_MEAS_ZUPT_N 15  /* m/s */
 #define LEONAV_MEAS_ZUPT_U 16  /* m/s */
-#define LEONAV_NMEAS 17
+#define LEONAV_MEAS_BARO_HEIGHT 17  /* m */
+#define LEONAV_NMEAS 18
 
 /* Observables: X(kind id, function suffix, dimension of z, name, unit of z), in kind-id order.
  * The driver builds its dispatch table from this list (leonav_h_<suffix>, leonav_update_<suffix>),
@@ -137,7 +143,8 @@
     X(LEONAV_MEAS_NHC_Z, nhc_z, 1, "NHC_Z", "m/s") \
     X(LEONAV_MEAS_ZUPT_E, zupt_e, 1, "ZUPT_E", "m/s") \
     X(LEONAV_MEAS_ZUPT_N, zupt_n, 1, "ZUPT_N", "m/s") \
-    X(LEONAV_MEAS_ZUPT_U, zupt_u, 1, "ZUPT_U", "m/s")
+    X(LEONAV_MEAS_ZUPT_U, zupt_u, 1, "ZUPT_U", "m/s") \
+    X(LEONAV_MEAS_BARO_HEIGHT, baro_height, 1, "BARO_HEIGHT", "m")
 
 #define LEONAV_NORBIT 12  /* columns of leonav_orbit_jac_<k>: dh/d[r_S, v_S, r_ref, v_ref] */
 /* Observables with a generated leonav_orbit_jac_<suffix> (h reads a satellite state from aux):

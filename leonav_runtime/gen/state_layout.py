@@ -3,9 +3,9 @@
 """State, parameter, aux and observable layout, driver codes (twin of state_layout.h). No casadi."""
 from collections import namedtuple
 
-NX = 21
-NDX = 20
-NP = 15
+NX = 22
+NDX = 21
+NP = 16
 NAUX = 36
 NU = 6
 NNAV = 9  # the 9D navigation error (dp, dv, dtheta) = dx[DX_NAV9_SLICE]
@@ -37,6 +37,9 @@ X_B_LO_SLICE = slice(18, 19)
 X_ISB = 19  # m: inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c
 X_ISB_SIZE = 2
 X_ISB_SLICE = slice(19, 21)
+X_B_BARO = 21  # m: barometric height bias
+X_B_BARO_SIZE = 1
+X_B_BARO_SLICE = slice(21, 22)
 
 DX_DP = 0  # m: position error, ENU
 DX_DP_SIZE = 3
@@ -65,6 +68,9 @@ DX_DB_LO_SLICE = slice(17, 18)
 DX_DISB = 18  # m: inter-system bias errors [Galileo - GPS, BeiDou - GPS]
 DX_DISB_SIZE = 2
 DX_DISB_SLICE = slice(18, 20)
+DX_DB_BARO = 20  # m: barometric height bias error
+DX_DB_BARO_SIZE = 1
+DX_DB_BARO_SLICE = slice(20, 21)
 
 AUX_R_S_ECEF = 0  # m: satellite position, ECEF (pseudorange: at transmit time, ECEF of transmit epoch)
 AUX_R_S_ECEF_SIZE = 3
@@ -129,6 +135,7 @@ P_LEVER_X_M = 11  # m: GNSS antenna lever arm, body forward (from the IMU to the
 P_LEVER_Y_M = 12  # m: GNSS antenna lever arm, body left
 P_LEVER_Z_M = 13  # m: GNSS antenna lever arm, body up
 P_GYRO_BIAS_BETA = 14  # 1/s: gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile
+P_BARO_BIAS_RW = 15  # m/sqrt(s): barometer bias random walk (weather: ~8 m in 3 h)
 
 MEAS_IMU = -1  # record kind of an IMU interval
 KIND_CV = -2  # record kind of a constant-velocity predict over dt (no IMU)
@@ -149,7 +156,8 @@ MEAS_NHC_Z = 13  # m/s
 MEAS_ZUPT_E = 14  # m/s
 MEAS_ZUPT_N = 15  # m/s
 MEAS_ZUPT_U = 16  # m/s
-NMEAS = 17
+MEAS_BARO_HEIGHT = 17  # m
+NMEAS = 18
 
 # Observables in kind-id order (twin of LEONAV_MEAS_TABLE): kind id, function suffix
 # (leonav_h_<suffix>, leonav_update_<suffix>), dimension of z, name, unit.
@@ -172,8 +180,9 @@ MEAS_TABLE = (
     Observable(MEAS_ZUPT_E, 'zupt_e', 1, 'ZUPT_E', 'm/s'),
     Observable(MEAS_ZUPT_N, 'zupt_n', 1, 'ZUPT_N', 'm/s'),
     Observable(MEAS_ZUPT_U, 'zupt_u', 1, 'ZUPT_U', 'm/s'),
+    Observable(MEAS_BARO_HEIGHT, 'baro_height', 1, 'BARO_HEIGHT', 'm'),
 )
-P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz', 'lever_x_m', 'lever_y_m', 'lever_z_m', 'gyro_bias_beta']
+P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz', 'lever_x_m', 'lever_y_m', 'lever_z_m', 'gyro_bias_beta', 'baro_bias_rw']
 
 NORBIT = 12  # columns of leonav_orbit_jac_<k>: dh/d[r_S, v_S, r_ref, v_ref] (ECEF)
 # kind ids of the observables with a generated leonav_orbit_jac_<suffix> (twin of LEONAV_ORBIT_JAC_TABLE)
