@@ -40,6 +40,7 @@ PARAMS = (
     Param('lever_z_m', 13, 'm', 0.0, 1.16, '', None, None, 'GNSS antenna lever arm, body up'),
     Param('gyro_bias_beta', 14, '1/s', 0.0, 0.0016666666666666668, '', None, None, 'gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile'),
     Param('baro_bias_rw', 15, 'm/sqrt(s)', 0.05, 0.05, '', None, None, 'barometer bias random walk (weather: ~8 m in 3 h)'),
+    Param('mag_declination_rad', 16, 'rad', 0.0, 0.2, 'mag.declination_deg', -180.0, 180.0, 'magnetic declination at the site (positive East)'),
 )
 
 OBSERVABLES = (
@@ -61,9 +62,11 @@ OBSERVABLES = (
     Observable(15, 'ZUPT_N', 'zupt_n', 'm/s', 'constraint', 'zupt', 'zupt', 'constraint', '', False, 10.0, None, ('dv',), False, False, False, (), 'zero-velocity update: North velocity 0'),
     Observable(16, 'ZUPT_U', 'zupt_u', 'm/s', 'constraint', 'zupt', 'zupt', 'constraint', '', False, 10.0, None, ('dv',), False, False, False, (), 'zero-velocity update: Up velocity 0'),
     Observable(17, 'BARO_HEIGHT', 'baro_height', 'm', 'local', 'baro', 'baro', 'local', '', False, 10.0, Noise('baro', 'sigma_m', 0.5, 0.001, 1000.0, '1-sigma barometric height noise (MEMS sensor, 10 Hz)'), ('dp', 'db_baro'), False, False, False, ('lat0_rad', 'lon0_rad', 'h0_m'), 'barometric altimeter: ellipsoidal height plus a random-walk bias'),
+    Observable(18, 'MAG_COS', 'mag_cos', '-', 'local', 'mag', 'mag', 'local', '', False, 10.0, Noise('mag', 'sigma_deg', 2.0, 0.01, 90.0, '1-sigma heading noise of a calibrated magnetometer'), ('dtheta',), False, False, False, ('mag_declination_rad',), 'magnetometer heading, cos of the magnetic yaw'),
+    Observable(19, 'MAG_SIN', 'mag_sin', '-', 'local', 'mag', 'mag', 'local', '', False, 10.0, Noise('mag', 'sigma_deg', 2.0, 0.01, 90.0, '1-sigma heading noise of a calibrated magnetometer'), ('dtheta',), False, False, False, ('mag_declination_rad',), 'magnetometer heading, sin of the magnetic yaw'),
 )
 
-STREAMS = ('imu', 'pseudorange', 'fix', 'vel', 'doppler_rate', 'doppler', 'ofdm_range_diff', 'gnss_pseudorange', 'gnss_range_rate', 'nhc', 'zupt', 'baro')
+STREAMS = ('imu', 'pseudorange', 'fix', 'vel', 'doppler_rate', 'doppler', 'ofdm_range_diff', 'gnss_pseudorange', 'gnss_range_rate', 'nhc', 'zupt', 'baro', 'mag')
 """Record streams in merge order (at equal t: the IMU first, then this order)."""
 PAPER_MODES = ('gps+imu', 'leo-alpha+imu', 'gps+leo-alpha+imu', 'leo-ofdm+imu', 'leo-alpha+ofdm+imu', 'leo-doppler+alpha+imu')
 """The paper's fusion modes: the default mode list of every scenario."""

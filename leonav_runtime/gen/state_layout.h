@@ -5,7 +5,7 @@
 
 #define LEONAV_NX 22
 #define LEONAV_NDX 21
-#define LEONAV_NP 16
+#define LEONAV_NP 17
 #define LEONAV_NAUX 36
 #define LEONAV_NU 6
 #define LEONAV_NNAV 9  /* the 9D navigation error (dp, dv, dtheta) = dx[0:NNAV] */
@@ -100,6 +100,7 @@
 #define LEONAV_P_LEVER_Z_M 13  /* m: GNSS antenna lever arm, body up */
 #define LEONAV_P_GYRO_BIAS_BETA 14  /* 1/s: gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile */
 #define LEONAV_P_BARO_BIAS_RW 15  /* m/sqrt(s): barometer bias random walk (weather: ~8 m in 3 h) */
+#define LEONAV_P_MAG_DECLINATION_RAD 16  /* rad: magnetic declination at the site (positive East) */
 
 #define LEONAV_MEAS_IMU (-1)  /* record kind of an IMU interval */
 #define LEONAV_KIND_CV (-2)  /* record kind of a constant-velocity predict over dt (no IMU) */
@@ -121,7 +122,9 @@
 #define LEONAV_MEAS_ZUPT_N 15  /* m/s */
 #define LEONAV_MEAS_ZUPT_U 16  /* m/s */
 #define LEONAV_MEAS_BARO_HEIGHT 17  /* m */
-#define LEONAV_NMEAS 18
+#define LEONAV_MEAS_MAG_COS 18  /* - */
+#define LEONAV_MEAS_MAG_SIN 19  /* - */
+#define LEONAV_NMEAS 20
 
 /* Observables: X(kind id, function suffix, dimension of z, name, unit of z), in kind-id order.
  * The driver builds its dispatch table from this list (leonav_h_<suffix>, leonav_update_<suffix>),
@@ -144,7 +147,9 @@
     X(LEONAV_MEAS_ZUPT_E, zupt_e, 1, "ZUPT_E", "m/s") \
     X(LEONAV_MEAS_ZUPT_N, zupt_n, 1, "ZUPT_N", "m/s") \
     X(LEONAV_MEAS_ZUPT_U, zupt_u, 1, "ZUPT_U", "m/s") \
-    X(LEONAV_MEAS_BARO_HEIGHT, baro_height, 1, "BARO_HEIGHT", "m")
+    X(LEONAV_MEAS_BARO_HEIGHT, baro_height, 1, "BARO_HEIGHT", "m") \
+    X(LEONAV_MEAS_MAG_COS, mag_cos, 1, "MAG_COS", "-") \
+    X(LEONAV_MEAS_MAG_SIN, mag_sin, 1, "MAG_SIN", "-")
 
 #define LEONAV_NORBIT 12  /* columns of leonav_orbit_jac_<k>: dh/d[r_S, v_S, r_ref, v_ref] */
 /* Observables with a generated leonav_orbit_jac_<suffix> (h reads a satellite state from aux):

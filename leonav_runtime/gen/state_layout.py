@@ -5,7 +5,7 @@ from collections import namedtuple
 
 NX = 22
 NDX = 21
-NP = 16
+NP = 17
 NAUX = 36
 NU = 6
 NNAV = 9  # the 9D navigation error (dp, dv, dtheta) = dx[DX_NAV9_SLICE]
@@ -136,6 +136,7 @@ P_LEVER_Y_M = 12  # m: GNSS antenna lever arm, body left
 P_LEVER_Z_M = 13  # m: GNSS antenna lever arm, body up
 P_GYRO_BIAS_BETA = 14  # 1/s: gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile
 P_BARO_BIAS_RW = 15  # m/sqrt(s): barometer bias random walk (weather: ~8 m in 3 h)
+P_MAG_DECLINATION_RAD = 16  # rad: magnetic declination at the site (positive East)
 
 MEAS_IMU = -1  # record kind of an IMU interval
 KIND_CV = -2  # record kind of a constant-velocity predict over dt (no IMU)
@@ -157,7 +158,9 @@ MEAS_ZUPT_E = 14  # m/s
 MEAS_ZUPT_N = 15  # m/s
 MEAS_ZUPT_U = 16  # m/s
 MEAS_BARO_HEIGHT = 17  # m
-NMEAS = 18
+MEAS_MAG_COS = 18  # -
+MEAS_MAG_SIN = 19  # -
+NMEAS = 20
 
 # Observables in kind-id order (twin of LEONAV_MEAS_TABLE): kind id, function suffix
 # (leonav_h_<suffix>, leonav_update_<suffix>), dimension of z, name, unit.
@@ -181,8 +184,10 @@ MEAS_TABLE = (
     Observable(MEAS_ZUPT_N, 'zupt_n', 1, 'ZUPT_N', 'm/s'),
     Observable(MEAS_ZUPT_U, 'zupt_u', 1, 'ZUPT_U', 'm/s'),
     Observable(MEAS_BARO_HEIGHT, 'baro_height', 1, 'BARO_HEIGHT', 'm'),
+    Observable(MEAS_MAG_COS, 'mag_cos', 1, 'MAG_COS', '-'),
+    Observable(MEAS_MAG_SIN, 'mag_sin', 1, 'MAG_SIN', '-'),
 )
-P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz', 'lever_x_m', 'lever_y_m', 'lever_z_m', 'gyro_bias_beta', 'baro_bias_rw']
+P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz', 'lever_x_m', 'lever_y_m', 'lever_z_m', 'gyro_bias_beta', 'baro_bias_rw', 'mag_declination_rad']
 
 NORBIT = 12  # columns of leonav_orbit_jac_<k>: dh/d[r_S, v_S, r_ref, v_ref] (ECEF)
 # kind ids of the observables with a generated leonav_orbit_jac_<suffix> (twin of LEONAV_ORBIT_JAC_TABLE)

@@ -64,11 +64,11 @@ CASADI_SYMBOL_EXPORT int leonav_h_vel_n_casadi_real_size(void) { return (int) si
 
 static const casadi_int casadi_s0[3] = {22, 1, 1};
 static const casadi_int casadi_s1[3] = {36, 1, 1};
-static const casadi_int casadi_s2[3] = {16, 1, 1};
+static const casadi_int casadi_s2[3] = {17, 1, 1};
 static const casadi_int casadi_s3[3] = {1, 1, 1};
 static const casadi_int casadi_s4[3] = {1, 21, 1};
 
-/* leonav_h_vel_n:(x[22],aux[36],p[16])->(h,H[1x21]) */
+/* leonav_h_vel_n:(x[22],aux[36],p[17])->(h,H[1x21]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1;
   a0=arg[0]? arg[0][4] : 0;

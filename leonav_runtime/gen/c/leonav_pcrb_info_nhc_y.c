@@ -121,7 +121,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_nhc_y_max_num_threads(void) { return C
 static const casadi_int casadi_s0[3] = {21, 21, 1};
 static const casadi_int casadi_s1[3] = {22, 1, 1};
 static const casadi_int casadi_s2[3] = {36, 1, 1};
-static const casadi_int casadi_s3[3] = {16, 1, 1};
+static const casadi_int casadi_s3[3] = {17, 1, 1};
 static const casadi_int casadi_s4[3] = {1, 1, 1};
 
 static const casadi_real casadi_zeros[441] = 
@@ -135,7 +135,7 @@ void leonav_h_nhc_y_incref(void);
 void leonav_h_nhc_y_release(int mem);
 
 
-/* leonav_h_nhc_y:(x[22],aux[36],p[16])->(h,H[1x21]) */
+/* leonav_h_nhc_y:(x[22],aux[36],p[17])->(h,H[1x21]) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (leonav_h_nhc_y(arg, res, iw, w, mem)) return 1;
   return 0;
@@ -157,7 +157,7 @@ void casadi_f1_decref(void) {
   leonav_h_nhc_y_decref();
 }
 
-/* leonav_pcrb_info_nhc_y:(J[21x21],x[22],aux[36],p[16],R)->(J_next[21x21]) */
+/* leonav_pcrb_info_nhc_y:(J[21x21],x[22],aux[36],p[17],R)->(J_next[21x21]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+21, *w1=w+462, *w5=w+903, *w6=w+924, w7;

@@ -77,9 +77,9 @@ CASADI_SYMBOL_EXPORT int leonav_predict_cv_casadi_real_size(void) { return (int)
 static const casadi_int casadi_s0[3] = {22, 1, 1};
 static const casadi_int casadi_s1[3] = {21, 21, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
-static const casadi_int casadi_s3[3] = {16, 1, 1};
+static const casadi_int casadi_s3[3] = {17, 1, 1};
 
-/* leonav_predict_cv:(x[22],P[21x21],dt,p[16])->(x_next[22],P_next[21x21],F[21x21],Qd[21x21]) */
+/* leonav_predict_cv:(x[22],P[21x21],dt,p[17])->(x_next[22],P_next[21x21],F[21x21],Qd[21x21]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;

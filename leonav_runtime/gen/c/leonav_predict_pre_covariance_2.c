@@ -93,10 +93,10 @@ static const casadi_int casadi_s2[54] =
   4, 5, 0, 1, 2, 3, 4, 5,
   0, 1, 2, 3, 4, 5};
 static const casadi_int casadi_s3[3] = {1, 1, 1};
-static const casadi_int casadi_s4[3] = {16, 1, 1};
+static const casadi_int casadi_s4[3] = {17, 1, 1};
 static const casadi_int casadi_s5[3] = {187, 1, 1};
 
-/* leonav_predict_pre_covariance_2:(P[21x21],F[21x21,121nz],G[21x6,45nz],dt,p[16])->(M_nz_113[187]) */
+/* leonav_predict_pre_covariance_2:(P[21x21],F[21x21,121nz],G[21x6,45nz],dt,p[17])->(M_nz_113[187]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;

@@ -127,10 +127,10 @@ static const casadi_int casadi_s1[63] =
   3, 4, 5, 0, 1, 2, 3, 4,
   5, 0, 1, 2, 3, 4, 5};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
-static const casadi_int casadi_s3[3] = {16, 1, 1};
+static const casadi_int casadi_s3[3] = {17, 1, 1};
 static const casadi_int casadi_s4[3] = {21, 21, 1};
 
-/* leonav_predict_project:(M[24x24,300nz],Q_pre[24x24,36nz],dt,p[16])->(P_next[21x21],Qd[21x21]) */
+/* leonav_predict_project:(M[24x24,300nz],Q_pre[24x24,36nz],dt,p[17])->(P_next[21x21],Qd[21x21]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;

@@ -79,7 +79,7 @@ CASADI_SYMBOL_EXPORT int leonav_predict_transition_casadi_real_size(void) { retu
 static const casadi_int casadi_s0[3] = {22, 1, 1};
 static const casadi_int casadi_s1[3] = {6, 1, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
-static const casadi_int casadi_s3[3] = {16, 1, 1};
+static const casadi_int casadi_s3[3] = {17, 1, 1};
 static const casadi_int casadi_s4[145] = 
   {21, 21, 0, 6, 12, 18, 24, 30,
   36, 45, 54, 63, 70, 77, 84, 94,
@@ -109,7 +109,7 @@ static const casadi_int casadi_s5[54] =
   4, 5, 0, 1, 2, 3, 4, 5,
   0, 1, 2, 3, 4, 5};
 
-/* leonav_predict_transition:(x[22],u[6],dt,p[16])->(x_next[22],F[21x21,121nz],G[21x6,45nz]) */
+/* leonav_predict_transition:(x[22],u[6],dt,p[17])->(x_next[22],F[21x21,121nz],G[21x6,45nz]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;

@@ -74,10 +74,10 @@ CASADI_SYMBOL_EXPORT int leonav_sensor_error_step_casadi_int_size(void) { return
 CASADI_SYMBOL_EXPORT int leonav_sensor_error_step_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {1, 1, 1};
-static const casadi_int casadi_s1[3] = {16, 1, 1};
+static const casadi_int casadi_s1[3] = {17, 1, 1};
 static const casadi_int casadi_s2[3] = {21, 21, 1};
 
-/* leonav_sensor_error_step:(dt,p[16])->(Phi[21x21],Qd[21x21]) */
+/* leonav_sensor_error_step:(dt,p[17])->(Phi[21x21],Qd[21x21]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8;
   a0=0.;

@@ -125,7 +125,7 @@ static const casadi_int casadi_s0[3] = {22, 1, 1};
 static const casadi_int casadi_s1[3] = {21, 21, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
 static const casadi_int casadi_s3[3] = {36, 1, 1};
-static const casadi_int casadi_s4[3] = {16, 1, 1};
+static const casadi_int casadi_s4[3] = {17, 1, 1};
 
 static const casadi_real casadi_zeros[441] = 
   {0.};
@@ -138,7 +138,7 @@ void leonav_joseph_incref(void);
 void leonav_joseph_release(int mem);
 
 
-/* leonav_innovation_gnss_pseudorange:(i0[22],i1[21x21],i2,i3,i4[36],i5[16])->(o0,o1[21],o2) */
+/* leonav_innovation_gnss_pseudorange:(i0[22],i1[21x21],i2,i3,i4[36],i5[17])->(o0,o1[21],o2) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;
@@ -1498,7 +1498,7 @@ void casadi_f2_decref(void) {
   leonav_joseph_decref();
 }
 
-/* leonav_update_gnss_pseudorange:(x[22],P[21x21],z,R,aux[36],p[16])->(x_post[22],P_post[21x21],y,S,nis) */
+/* leonav_update_gnss_pseudorange:(x[22],P[21x21],z,R,aux[36],p[17])->(x_post[22],P_post[21x21],y,S,nis) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+134, w08, *w09=w+155, *w10=w+177;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;

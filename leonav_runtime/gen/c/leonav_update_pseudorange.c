@@ -95,7 +95,7 @@ static const casadi_int casadi_s0[3] = {22, 1, 1};
 static const casadi_int casadi_s1[3] = {21, 21, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
 static const casadi_int casadi_s3[3] = {36, 1, 1};
-static const casadi_int casadi_s4[3] = {16, 1, 1};
+static const casadi_int casadi_s4[3] = {17, 1, 1};
 
 static const casadi_real casadi_zeros[441] = 
   {0.};
@@ -108,7 +108,7 @@ void leonav_joseph_incref(void);
 void leonav_joseph_release(int mem);
 
 
-/* leonav_innovation_pseudorange:(i0[22],i1[21x21],i2,i3,i4[36],i5[16])->(o0,o1[21],o2) */
+/* leonav_innovation_pseudorange:(i0[22],i1[21x21],i2,i3,i4[36],i5[17])->(o0,o1[21],o2) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21;
@@ -684,7 +684,7 @@ void casadi_f2_decref(void) {
   leonav_joseph_decref();
 }
 
-/* leonav_update_pseudorange:(x[22],P[21x21],z,R,aux[36],p[16])->(x_post[22],P_post[21x21],y,S,nis) */
+/* leonav_update_pseudorange:(x[22],P[21x21],z,R,aux[36],p[17])->(x_post[22],P_post[21x21],y,S,nis) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+22, w08, *w09=w+43, *w10=w+65;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
