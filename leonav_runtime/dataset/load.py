@@ -8,7 +8,6 @@ are counted (`Dataset.counts`) and skipped.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np

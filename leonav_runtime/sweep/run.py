@@ -19,7 +19,6 @@ from pathlib import Path
 import numpy as np
 
 from leonav_runtime.sweep import montecarlo as mc
-from leonav_runtime.common import output
 from leonav_runtime.sweep.executors import make_executor, map_in_order
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.sweep.paper_values import PAPER_FINDINGS
