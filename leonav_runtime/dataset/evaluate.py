@@ -13,7 +13,8 @@ from typing import Callable
 import numpy as np
 
 from leonav_runtime.common import output
-from leonav_runtime.dataset import checks, export, load, plots, runner, scoring
+from leonav_runtime.dataset import checks, load, plots, runner, scoring
+from leonav_runtime.scoring import export
 from leonav_runtime.dataset.spec import DatasetSpec
 from leonav_runtime.common.errors import UserInputError
 

@@ -1,5 +1,5 @@
 """Replay outputs: metrics.json, rmse_vs_time.csv, trajectory.csv, columns.txt, the plots, and per mode
-the geodetic trajectory files (trajectory_<mode>.csv/.pos/.kml/.gpx, `dataset.export`)."""
+the geodetic trajectory files (trajectory_<mode>.csv/.pos/.kml/.gpx, `scoring.export`)."""
 from __future__ import annotations
 
 import math
@@ -62,7 +62,7 @@ def write_geodetic_trajectories(out_dir: Path, inputs: FilterInputs, runs: dict,
                                 source: str = "") -> dict[str, list[str]]:
     """trajectory_<mode>.csv/.pos/.kml/.gpx (WGS84 lat/lon/h, ECEF, ENU, per-epoch sigma) of each
     run, as `leonav run` writes them; none when the run has no UTC epoch or ENU origin."""
-    from leonav_runtime.dataset import export
+    from leonav_runtime.scoring import export
 
     if inputs.epoch_utc is None or inputs.origin is None:
         return {}

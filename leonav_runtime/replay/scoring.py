@@ -22,6 +22,7 @@ from leonav_runtime.core import navfuncs, records
 from leonav_runtime.orbits import geometry
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.inputs import FilterInputs, FixTable
+from leonav_runtime.scoring.errors import rms
 
 TRUTH_COLUMNS = ("utc_unix_s", "lat_deg", "lon_deg", "h_m", "v_e_mps", "v_n_mps", "v_u_mps", "roll_rad",
                  "pitch_rad", "yaw_rad")
@@ -103,12 +104,6 @@ def evaluate(inputs: FilterInputs, runs: dict, ref: Reference | None, nav: navfu
     return out
 
 
-def _rmse(e: np.ndarray) -> float | None:
-    if e.size == 0 or np.all(np.isnan(e)):
-        return None
-    return float(np.sqrt(np.nanmean(np.sum(e**2, axis=1))))
-
-
 def mode_metrics(runs: dict, scored: dict, nav: navfuncs.NavFunctions) -> dict:
     """Per mode: RMSE (position, horizontal, vertical, velocity, attitude), final errors, record counts."""
     L = nav.layout
@@ -131,9 +126,9 @@ def mode_metrics(runs: dict, scored: dict, nav: navfuncs.NavFunctions) -> dict:
         att = e[:, L.DX_DTHETA_SLICE] * 180 / math.pi
         final = dp[-1] if e.size else None
         out[mode] = {
-            "rmse_position_m": _rmse(dp), "rmse_horizontal_m": _rmse(dp[:, :2]),
-            "rmse_vertical_m": _rmse(dp[:, 2:]), "rmse_velocity_mps": _rmse(e[:, L.DX_DV_SLICE]),
-            "rmse_attitude_deg": _rmse(att),
+            "rmse_position_m": rms(dp), "rmse_horizontal_m": rms(dp[:, :2]),
+            "rmse_vertical_m": rms(dp[:, 2:]), "rmse_velocity_mps": rms(e[:, L.DX_DV_SLICE]),
+            "rmse_attitude_deg": rms(att),
             "final_position_error_m": (float(np.linalg.norm(final)) if final is not None and np.all(np.isfinite(final))
                                        else None),
             "eval_points": int(s["t"].size),
