@@ -163,3 +163,13 @@ def test_seeded_mutations(seed):
     assert len(changed) <= 2, (kind, k, changed)
     for rej in obs.rejected:
         assert rej.source == "f" and rej.line > 0
+
+
+def test_an_epoch_of_no_satellite_is_read_not_looped_on():
+    """A RINEX 2 epoch line announcing 0 satellites (a receiver that lost every signal) ends at its
+    line: the reader goes on with the next epoch (it looped forever on it before)."""
+    lines = _text().splitlines()
+    empty = lines[17][:29] + "  0"     # the first epoch's line, its satellite count set to 0, no list
+    obs = parse_rinex_obs("\n".join(lines[:17] + [empty] + lines[17:]), "f.o")
+    clean = parse_rinex_obs(_text(), "f.o")
+    assert len(obs) == len(clean) and obs.epochs().size == clean.epochs().size

@@ -16,7 +16,7 @@ PACKAGES = ("leonav_runtime", "hardware")
 INSTALLED_AS = {"hardware": "leonav.hardware"}   # repository folder -> import name (setup.py)
 MAX_LINES = 400
 # Modules over the limit that belong to other work in progress; they may not grow.
-OVER_LIMIT = {"leonav_runtime/gnss/rinex_obs.py": 415}
+OVER_LIMIT: dict[str, int] = {}
 
 
 def _modules() -> dict[str, Path]:

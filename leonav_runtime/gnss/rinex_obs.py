@@ -17,10 +17,8 @@ GPS-UTC leap seconds of the date.
 """
 from __future__ import annotations
 
-import functools
 import logging
 import math
-import re
 import warnings
 from collections import Counter
 from pathlib import Path
@@ -28,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.gnss import rinex_obs_v2
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import Rejection
 from leonav_runtime.gnss.rinex_nav import read_rinex_text
@@ -45,32 +44,8 @@ from leonav_runtime.gnss.observations import (
 log = logging.getLogger("leonav.gnss")
 
 SUPPORTED = "RINEX 2.10/2.11 or 3.00-3.05 observation files ('O')"
-_V2_EPOCH = re.compile(r"^ [ \d]\d [ \d]\d [ \d]\d [ \d]\d [ \d]\d [ \d]\d\.\d{7}  [0-6][ \d]{2}\d")
-_V2_EVENT = re.compile(r"^ {28}[2-5][ \d]{2}\d")  # event flags 2-5 may leave the epoch blank
-# RINEX 2 observation code -> (RINEX 3 signal code, quantity). L/D/S follow the code of
-# their band: L1 goes with C/A (1C), L2 with P(Y) (2W), as a RINEX 2 receiver tracks them.
-_V2_SIGNAL = {"1": "1C", "2": "2W", "5": "5X", "6": "6X", "7": "7X", "8": "8X"}
-_V2_CODE = {"C1": "1C", "P1": "1W", "C2": "2X", "P2": "2W", "C5": "5X", "C6": "6X", "C7": "7X", "C8": "8X"}
-
-
 class RejectedObservationsWarning(UserWarning):
     """Some observation lines or fields were rejected (see `ObservationTable.rejected`)."""
-
-
-@functools.lru_cache(maxsize=None)
-def _v2_type(obs_type: str, system: str) -> tuple[str, str] | None:
-    """(signal, quantity C/L/D/S) of a RINEX 2 observation code; None when unknown."""
-    if len(obs_type) != 2 or obs_type[0] not in "CPLDS":
-        return None
-    if obs_type[0] in "CP":
-        sig = _V2_CODE.get(obs_type)
-        if sig and system == "E":
-            sig = sig[0] + "X"
-        return (sig, "C") if sig else None
-    sig = _V2_SIGNAL.get(obs_type[1])
-    if sig and system == "E":
-        sig = sig[0] + "X"
-    return (sig, obs_type[0]) if sig else None
 
 
 class _Reader:
@@ -175,7 +150,7 @@ class _Reader:
         by_signal: dict[str, list] = {}
         for code, value, lli, ssi in values:
             if self.version < 3:
-                st = _v2_type(code, system)
+                st = rinex_obs_v2.v2_type(code, system)
             else:
                 st = (code[1:3], code[0]) if len(code) == 3 and code[0] in "CLDS" else None
             if st is None:
@@ -241,88 +216,6 @@ class _Reader:
         lli = int(lli_c) if lli_c.isdigit() else 0
         ssi = int(ssi_c) if ssi_c.isdigit() else 0
         return value, lli, ssi
-
-    # -------------------------------------------------------------- RINEX 2 body
-    def body_v2(self, i: int) -> None:
-        lines, n = self.lines, len(self.lines)
-        while i < n:
-            line = lines[i]
-            if not line.strip():
-                i += 1
-                continue
-            if _V2_EVENT.match(line):
-                flag, nsat = int(line[28]), int(line[29:32])
-                self.counts[f"event_flag_{flag}"] += 1
-                i += 1 + nsat
-                continue
-            if not _V2_EPOCH.match(line):
-                self.reject(i, "epoch", "expected an epoch line (' yy mm dd hh mm ss.sssssss  f nnn'); "
-                            "skipped to the next epoch")
-                i = self._next_v2_epoch(i + 1)
-                continue
-            try:
-                yy, mo, dd, hh, mi = (int(line[1 + 3 * k:3 + 3 * k]) for k in range(5))
-                sec = float(line[15:26])
-                flag = int(line[28])
-                nsat = int(line[29:32])
-                t = self.to_gps(gtime.calendar_to_seconds(yy + (1900 if yy >= 80 else 2000), mo, dd, hh, mi, sec))
-            except ValueError as exc:
-                self.reject(i, "epoch", f"unreadable epoch ({exc})")
-                i = self._next_v2_epoch(i + 1)
-                continue
-            if 2 <= flag <= 5:
-                self.counts[f"event_flag_{flag}"] += 1
-                for k in range(i + 1, min(n, i + 1 + nsat)):
-                    label = lines[k][60:].strip()
-                    if label in ("# / TYPES OF OBSERV",):
-                        self._header_line(k, lines[k], label, None)
-                i += 1 + nsat
-                continue
-            sats = []
-            j = i
-            while len(sats) < nsat:
-                chunk = lines[j][32:68] if j < n else ""
-                take = min(12, nsat - len(sats))
-                ids = [chunk[3 * k:3 * k + 3].ljust(3) for k in range(take)]
-                ids = [(x[0] if x[0].strip() else self.file_system) + x[1:3].replace(" ", "0") for x in ids]
-                if j > i and (j >= n or lines[j][:32].strip()):
-                    break
-                sats += ids
-                j += 1
-            if len(sats) != nsat:
-                self.reject(i, "satellite list", f"{len(sats)} of {nsat} satellite ids; epoch skipped")
-                i = self._next_v2_epoch(j)
-                continue
-            if flag == 6:
-                self.counts["cycle_slip_records"] += 1
-            ntypes = len(self.types_v2)
-            per_sat = max(1, -(-ntypes // 5))
-            i = j
-            complete = True
-            for sat in sats:
-                block = lines[i:i + per_sat]
-                if len(block) < per_sat or any(_V2_EPOCH.match(b) for b in block):
-                    cut = next((k for k, b in enumerate(block) if _V2_EPOCH.match(b)), len(block))
-                    self.reject(i + cut, f"observations of {sat.strip() or '?'}",
-                                "satellite block cut short (end of file or next epoch); rest of the epoch dropped")
-                    i += cut
-                    complete = False
-                    break
-                values = []
-                for k, code in enumerate(self.types_v2):
-                    text = block[k // 5][16 * (k % 5):16 * (k % 5) + 16]
-                    v, lli, ssi = self.field(i + k // 5, text, f"{code} of {sat.strip()}")
-                    if not math.isnan(v):
-                        values.append((code, v, lli, ssi))
-                if flag != 6:
-                    self.add_sat(t, sat, values, flag == 1)
-                i += per_sat
-            self.counts["epochs" if flag != 6 else "cycle_slip_epochs"] += 1 if complete or flag != 6 else 0
-
-    def _next_v2_epoch(self, i: int) -> int:
-        while i < len(self.lines) and not (_V2_EPOCH.match(self.lines[i]) or _V2_EVENT.match(self.lines[i])):
-            i += 1
-        return i
 
     # -------------------------------------------------------------- RINEX 3 body
     def body_v3(self, i: int) -> None:
@@ -397,7 +290,7 @@ def parse_rinex_obs(text: str, source: str = "<string>") -> ObservationTable:
     r = _Reader(text, source)
     first = r.header()
     if r.version < 3:
-        r.body_v2(first)
+        rinex_obs_v2.read_body(r, first)
     else:
         r.body_v3(first)
     table = r.rows.table(source=source, rejected=r.rejected, counts=r.counts, approx_position_ecef_m=r.approx)
