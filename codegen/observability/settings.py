@@ -19,6 +19,7 @@ UNIT_SCALES: dict[str, float] = {
     "m/s^2": 1e-3,     # accelerometer bias (~100 ug)
     "rad/s": 1e-5,     # gyro bias (~2 deg/h)
     "Hz": 1.0,         # LO offset
+    "s": 1e-2,         # time offset (fix latency, 10 ms)
 }
 """Column scale per state unit: one 'typical error' of that unit. A unit not listed scales by 1."""
 

@@ -18,9 +18,10 @@ STATES = (
     StateBlock('b_g', 'db_g', 13, 3, 12, 3, 'rad/s', 'rad/s', 'imu', {'beta': 'gyro_bias_beta', 'density': 'gyro_bias_rw', 'kind': 'gauss-markov'}, {'profile_field': 'gyro_bias_sigma', 'doc': "the IMU profile's bias stability"}, {'start': 'prior', 'stream': 'trial'}, 0.0001, 0.001, 'gyro bias, body'),
     StateBlock('c_dt', 'dc_dt', 16, 1, 15, 1, 'm', 'm', 'measurement', {'of': 'c_ddt', 'psd': 'q_cdt', 'kind': 'integral'}, {'value': 300.0, 'doc': '1 us: a receiver clock before its first solution'}, {'start': 'gps.clock_bias_m', 'stream': 'trial'}, 0.01, 1000.0, 'receiver clock bias times c'),
     StateBlock('c_ddt', 'dc_ddt', 17, 1, 16, 1, 'm/s', 'm/s', 'measurement', {'psd': 'q_cddt', 'kind': 'random-walk'}, {'value': 1.0, 'doc': "a TCXO's drift class"}, {'start': 'gps.clock_drift_mps', 'stream': 'trial'}, 0.001, 10.0, 'receiver clock drift times c'),
-    StateBlock('b_lo', 'db_lo', 18, 1, 17, 1, 'Hz', 'Hz', 'measurement', {'psd': 'q_blo', 'kind': 'random-walk'}, {'value': 50000.0, 'doc': 'LNB LO tolerance class (tens of kHz)'}, {'start': 'starlink.lo_offset_hz', 'stream': 'trial'}, 0.001, 1000.0, 'beacon front-end frequency offset at baseband'),
-    StateBlock('isb', 'disb', 19, 2, 18, 2, 'm', 'm', 'measurement', {'psd_value': 1e-06, 'kind': 'random-walk'}, {'value': 0.0, 'doc': 'started from the single-point clocks of the data (inputs/gnss_obs.py)'}, {'start': 'zero', 'stream': 'none'}, 0.01, 5.0, 'inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c'),
-    StateBlock('b_baro', 'db_baro', 21, 1, 20, 1, 'm', 'm', 'measurement', {'density': 'baro_bias_rw', 'kind': 'random-walk'}, {'value': 5.0, 'doc': 'a barometer set to the reference pressure at the start (QNH): a few metres'}, {'start': 'prior', 'stream': 'own'}, 0.01, 5.0, 'barometric height bias'),
+    StateBlock('dt_fix', 'ddt_fix', 18, 1, 17, 1, 's', 's', 'measurement', {'density': 'dt_fix_rw', 'kind': 'random-walk'}, {'value': 0.0, 'doc': '0: a known latency (the tags are shifted); a run estimating it sets the sigma'}, {'start': 'zero', 'stream': 'none'}, 0.001, 0.1, 'GNSS fix latency: a fix tagged t is the antenna at t - dt_fix'),
+    StateBlock('b_lo', 'db_lo', 19, 1, 18, 1, 'Hz', 'Hz', 'measurement', {'psd': 'q_blo', 'kind': 'random-walk'}, {'value': 50000.0, 'doc': 'LNB LO tolerance class (tens of kHz)'}, {'start': 'starlink.lo_offset_hz', 'stream': 'trial'}, 0.001, 1000.0, 'beacon front-end frequency offset at baseband'),
+    StateBlock('isb', 'disb', 20, 2, 19, 2, 'm', 'm', 'measurement', {'psd_value': 1e-06, 'kind': 'random-walk'}, {'value': 0.0, 'doc': 'started from the single-point clocks of the data (inputs/gnss_obs.py)'}, {'start': 'zero', 'stream': 'none'}, 0.01, 5.0, 'inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c'),
+    StateBlock('b_baro', 'db_baro', 22, 1, 21, 1, 'm', 'm', 'measurement', {'density': 'baro_bias_rw', 'kind': 'random-walk'}, {'value': 5.0, 'doc': 'a barometer set to the reference pressure at the start (QNH): a few metres'}, {'start': 'prior', 'stream': 'own'}, 0.01, 5.0, 'barometric height bias'),
 )
 
 PARAMS = (
@@ -39,18 +40,19 @@ PARAMS = (
     Param('lever_y_m', 12, 'm', 0.0, -0.22, '', None, None, 'GNSS antenna lever arm, body left'),
     Param('lever_z_m', 13, 'm', 0.0, 1.16, '', None, None, 'GNSS antenna lever arm, body up'),
     Param('gyro_bias_beta', 14, '1/s', 0.0, 0.0016666666666666668, '', None, None, 'gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile'),
-    Param('baro_bias_rw', 15, 'm/sqrt(s)', 0.05, 0.05, '', None, None, 'barometer bias random walk (weather: ~8 m in 3 h)'),
-    Param('mag_declination_rad', 16, 'rad', 0.0, 0.2, 'mag.declination_deg', -180.0, 180.0, 'magnetic declination at the site (positive East)'),
+    Param('dt_fix_rw', 15, 's/sqrt(s)', 0.0, 0.0001, '', None, None, 'fix latency random walk (0: frozen; the runtime sets it when estimating)'),
+    Param('baro_bias_rw', 16, 'm/sqrt(s)', 0.05, 0.05, '', None, None, 'barometer bias random walk (weather: ~8 m in 3 h)'),
+    Param('mag_declination_rad', 17, 'rad', 0.0, 0.2, 'mag.declination_deg', -180.0, 180.0, 'magnetic declination at the site (positive East)'),
 )
 
 OBSERVABLES = (
     Observable(0, 'PSEUDORANGE', 'pseudorange', 'm', 'gnss', 'gps', 'pseudorange', 'satellite', 'gps', True, 10.0, Noise('gps', 'pseudorange_sigma_m', 3.0, 0.001, 1000.0, '1-sigma pseudorange noise'), ('dp', 'dc_dt'), True, False, False, ('lat0_rad', 'lon0_rad', 'h0_m'), "GPS pseudorange, the paper's (atmosphere absorbed in R, GPS clock only)"),
-    Observable(1, 'POS_E', 'pos_e', 'm', 'gnss', 'fix', 'fix', 'fix', '', False, 10.0, None, ('dp', 'dtheta'), False, False, False, ('lever_x_m', 'lever_y_m', 'lever_z_m'), 'GNSS fix, antenna East (ENU at the origin)'),
-    Observable(2, 'POS_N', 'pos_n', 'm', 'gnss', 'fix', 'fix', 'fix', '', False, 10.0, None, ('dp', 'dtheta'), False, False, False, ('lever_x_m', 'lever_y_m', 'lever_z_m'), 'GNSS fix, antenna North'),
-    Observable(3, 'POS_U', 'pos_u', 'm', 'gnss', 'fix', 'fix', 'fix', '', False, 10.0, None, ('dp', 'dtheta'), False, False, False, ('lever_x_m', 'lever_y_m', 'lever_z_m'), 'GNSS fix, antenna Up'),
-    Observable(4, 'VEL_E', 'vel_e', 'm/s', 'gnss', 'vel', 'vel', 'fix', '', False, 10.0, None, ('dv',), False, False, False, (), 'GNSS velocity East'),
-    Observable(5, 'VEL_N', 'vel_n', 'm/s', 'gnss', 'vel', 'vel', 'fix', '', False, 10.0, None, ('dv',), False, False, False, (), 'GNSS velocity North'),
-    Observable(6, 'VEL_U', 'vel_u', 'm/s', 'gnss', 'vel', 'vel', 'fix', '', False, 10.0, None, ('dv',), False, False, False, (), 'GNSS velocity Up'),
+    Observable(1, 'POS_E', 'pos_e', 'm', 'gnss', 'fix', 'fix', 'fix', '', False, 10.0, None, ('dp', 'dv', 'dtheta', 'ddt_fix'), False, False, False, ('lever_x_m', 'lever_y_m', 'lever_z_m'), 'GNSS fix, antenna East (ENU at the origin)'),
+    Observable(2, 'POS_N', 'pos_n', 'm', 'gnss', 'fix', 'fix', 'fix', '', False, 10.0, None, ('dp', 'dv', 'dtheta', 'ddt_fix'), False, False, False, ('lever_x_m', 'lever_y_m', 'lever_z_m'), 'GNSS fix, antenna North'),
+    Observable(3, 'POS_U', 'pos_u', 'm', 'gnss', 'fix', 'fix', 'fix', '', False, 10.0, None, ('dp', 'dv', 'dtheta', 'ddt_fix'), False, False, False, ('lever_x_m', 'lever_y_m', 'lever_z_m'), 'GNSS fix, antenna Up'),
+    Observable(4, 'VEL_E', 'vel_e', 'm/s', 'gnss', 'vel', 'vel', 'fix', '', False, 10.0, None, ('dp', 'dv', 'dtheta', 'db_a', 'db_g', 'ddt_fix'), False, False, True, ('lat0_rad', 'lon0_rad', 'h0_m', 'lever_x_m', 'lever_y_m', 'lever_z_m'), 'GNSS velocity of the antenna, East'),
+    Observable(5, 'VEL_N', 'vel_n', 'm/s', 'gnss', 'vel', 'vel', 'fix', '', False, 10.0, None, ('dp', 'dv', 'dtheta', 'db_a', 'db_g', 'ddt_fix'), False, False, True, ('lat0_rad', 'lon0_rad', 'h0_m', 'lever_x_m', 'lever_y_m', 'lever_z_m'), 'GNSS velocity of the antenna, North'),
+    Observable(6, 'VEL_U', 'vel_u', 'm/s', 'gnss', 'vel', 'vel', 'fix', '', False, 10.0, None, ('dp', 'dv', 'dtheta', 'db_a', 'db_g', 'ddt_fix'), False, False, True, ('lat0_rad', 'lon0_rad', 'h0_m', 'lever_x_m', 'lever_y_m', 'lever_z_m'), 'GNSS velocity of the antenna, Up'),
     Observable(7, 'DOPPLER_RATE', 'doppler_rate', 'Hz/s', 'leo', 'alpha', 'doppler_rate', 'satellite', 'starlink', True, 10.0, Noise('starlink', 'doppler_rate_sigma_hz_s', 1.2, 0.0001, 1000.0, 'beacon Doppler-rate noise'), ('dp', 'dv', 'dtheta', 'db_a'), True, False, True, ('lat0_rad', 'lon0_rad', 'h0_m', 'f_c_hz'), 'Starlink beacon Doppler-rate, paper eqs. 3-4 (receiver acceleration included)'),
     Observable(8, 'DOPPLER', 'doppler', 'Hz', 'leo', 'doppler', 'doppler', 'satellite', 'starlink', True, 10.0, Noise('starlink', 'doppler_sigma_hz', 5.0, 0.001, 10000.0, 'beacon Doppler noise'), ('dp', 'dv', 'db_lo'), True, False, False, ('lat0_rad', 'lon0_rad', 'h0_m', 'f_c_hz'), 'Starlink beacon Doppler -(f_c/c) rho_dot + b_lo (beyond the paper)'),
     Observable(9, 'OFDM_RANGE_DIFF', 'ofdm_range_diff', 'm', 'leo', 'ofdm', 'ofdm_range_diff', 'satellite', 'starlink', True, 10.0, Noise('starlink', 'ofdm_sigma_m', 3.0, 0.001, 10000.0, 'OFDM differenced-range noise'), ('dp',), True, True, False, ('lat0_rad', 'lon0_rad', 'h0_m'), "simulated OFDM differenced one-way range rho_i - rho_ref, the paper's baseline"),

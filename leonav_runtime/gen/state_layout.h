@@ -3,10 +3,10 @@
 #ifndef LEONAV_STATE_LAYOUT_H
 #define LEONAV_STATE_LAYOUT_H
 
-#define LEONAV_NX 22
-#define LEONAV_NDX 21
-#define LEONAV_NP 17
-#define LEONAV_NAUX 36
+#define LEONAV_NX 23
+#define LEONAV_NDX 22
+#define LEONAV_NP 18
+#define LEONAV_NAUX 39
 #define LEONAV_NU 6
 #define LEONAV_NNAV 9  /* the 9D navigation error (dp, dv, dtheta) = dx[0:NNAV] */
 
@@ -24,11 +24,13 @@
 #define LEONAV_X_C_DT_SIZE 1
 #define LEONAV_X_C_DDT 17  /* m/s: receiver clock drift times c */
 #define LEONAV_X_C_DDT_SIZE 1
-#define LEONAV_X_B_LO 18  /* Hz: beacon front-end frequency offset at baseband */
+#define LEONAV_X_DT_FIX 18  /* s: GNSS fix latency: a fix tagged t is the antenna at t - dt_fix */
+#define LEONAV_X_DT_FIX_SIZE 1
+#define LEONAV_X_B_LO 19  /* Hz: beacon front-end frequency offset at baseband */
 #define LEONAV_X_B_LO_SIZE 1
-#define LEONAV_X_ISB 19  /* m: inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c */
+#define LEONAV_X_ISB 20  /* m: inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c */
 #define LEONAV_X_ISB_SIZE 2
-#define LEONAV_X_B_BARO 21  /* m: barometric height bias */
+#define LEONAV_X_B_BARO 22  /* m: barometric height bias */
 #define LEONAV_X_B_BARO_SIZE 1
 
 #define LEONAV_DX_DP 0  /* m: position error, ENU */
@@ -45,11 +47,13 @@
 #define LEONAV_DX_DC_DT_SIZE 1
 #define LEONAV_DX_DC_DDT 16  /* m/s: clock drift error */
 #define LEONAV_DX_DC_DDT_SIZE 1
-#define LEONAV_DX_DB_LO 17  /* Hz: LO offset error */
+#define LEONAV_DX_DDT_FIX 17  /* s: fix latency error */
+#define LEONAV_DX_DDT_FIX_SIZE 1
+#define LEONAV_DX_DB_LO 18  /* Hz: LO offset error */
 #define LEONAV_DX_DB_LO_SIZE 1
-#define LEONAV_DX_DISB 18  /* m: inter-system bias errors [Galileo - GPS, BeiDou - GPS] */
+#define LEONAV_DX_DISB 19  /* m: inter-system bias errors [Galileo - GPS, BeiDou - GPS] */
 #define LEONAV_DX_DISB_SIZE 2
-#define LEONAV_DX_DB_BARO 20  /* m: barometric height bias error */
+#define LEONAV_DX_DB_BARO 21  /* m: barometric height bias error */
 #define LEONAV_DX_DB_BARO_SIZE 1
 
 #define LEONAV_AUX_R_S_ECEF 0  /* m: satellite position, ECEF (pseudorange: at transmit time, ECEF of transmit epoch) */
@@ -78,6 +82,8 @@
 #define LEONAV_AUX_ISB_SELECT_SIZE 2
 #define LEONAV_AUX_KLOBUCHAR 28  /* s, s/sc, s/sc^2, s/sc^3, s, s/sc, s/sc^2, s/sc^3: GPS broadcast ionosphere alpha0..3, beta0..3 (IS-GPS-200 20.3.3.5.1.7) */
 #define LEONAV_AUX_KLOBUCHAR_SIZE 8
+#define LEONAV_AUX_W_B 36  /* rad/s: latest angular rate, body (the gyro averaged like f_b) */
+#define LEONAV_AUX_W_B_SIZE 3
 
 #define LEONAV_U_DTHETA_B 0  /* rad: gyro angle increment over dt, body FLU */
 #define LEONAV_U_DTHETA_B_SIZE 3
@@ -99,8 +105,9 @@
 #define LEONAV_P_LEVER_Y_M 12  /* m: GNSS antenna lever arm, body left */
 #define LEONAV_P_LEVER_Z_M 13  /* m: GNSS antenna lever arm, body up */
 #define LEONAV_P_GYRO_BIAS_BETA 14  /* 1/s: gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile */
-#define LEONAV_P_BARO_BIAS_RW 15  /* m/sqrt(s): barometer bias random walk (weather: ~8 m in 3 h) */
-#define LEONAV_P_MAG_DECLINATION_RAD 16  /* rad: magnetic declination at the site (positive East) */
+#define LEONAV_P_DT_FIX_RW 15  /* s/sqrt(s): fix latency random walk (0: frozen; the runtime sets it when estimating) */
+#define LEONAV_P_BARO_BIAS_RW 16  /* m/sqrt(s): barometer bias random walk (weather: ~8 m in 3 h) */
+#define LEONAV_P_MAG_DECLINATION_RAD 17  /* rad: magnetic declination at the site (positive East) */
 
 #define LEONAV_MEAS_IMU (-1)  /* record kind of an IMU interval */
 #define LEONAV_KIND_CV (-2)  /* record kind of a constant-velocity predict over dt (no IMU) */

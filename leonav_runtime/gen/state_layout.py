@@ -3,10 +3,10 @@
 """State, parameter, aux and observable layout, driver codes (twin of state_layout.h). No casadi."""
 from collections import namedtuple
 
-NX = 22
-NDX = 21
-NP = 17
-NAUX = 36
+NX = 23
+NDX = 22
+NP = 18
+NAUX = 39
 NU = 6
 NNAV = 9  # the 9D navigation error (dp, dv, dtheta) = dx[DX_NAV9_SLICE]
 
@@ -31,15 +31,18 @@ X_C_DT_SLICE = slice(16, 17)
 X_C_DDT = 17  # m/s: receiver clock drift times c
 X_C_DDT_SIZE = 1
 X_C_DDT_SLICE = slice(17, 18)
-X_B_LO = 18  # Hz: beacon front-end frequency offset at baseband
+X_DT_FIX = 18  # s: GNSS fix latency: a fix tagged t is the antenna at t - dt_fix
+X_DT_FIX_SIZE = 1
+X_DT_FIX_SLICE = slice(18, 19)
+X_B_LO = 19  # Hz: beacon front-end frequency offset at baseband
 X_B_LO_SIZE = 1
-X_B_LO_SLICE = slice(18, 19)
-X_ISB = 19  # m: inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c
+X_B_LO_SLICE = slice(19, 20)
+X_ISB = 20  # m: inter-system biases [Galileo - GPS, BeiDou - GPS] of the receiver clock, times c
 X_ISB_SIZE = 2
-X_ISB_SLICE = slice(19, 21)
-X_B_BARO = 21  # m: barometric height bias
+X_ISB_SLICE = slice(20, 22)
+X_B_BARO = 22  # m: barometric height bias
 X_B_BARO_SIZE = 1
-X_B_BARO_SLICE = slice(21, 22)
+X_B_BARO_SLICE = slice(22, 23)
 
 DX_DP = 0  # m: position error, ENU
 DX_DP_SIZE = 3
@@ -62,15 +65,18 @@ DX_DC_DT_SLICE = slice(15, 16)
 DX_DC_DDT = 16  # m/s: clock drift error
 DX_DC_DDT_SIZE = 1
 DX_DC_DDT_SLICE = slice(16, 17)
-DX_DB_LO = 17  # Hz: LO offset error
+DX_DDT_FIX = 17  # s: fix latency error
+DX_DDT_FIX_SIZE = 1
+DX_DDT_FIX_SLICE = slice(17, 18)
+DX_DB_LO = 18  # Hz: LO offset error
 DX_DB_LO_SIZE = 1
-DX_DB_LO_SLICE = slice(17, 18)
-DX_DISB = 18  # m: inter-system bias errors [Galileo - GPS, BeiDou - GPS]
+DX_DB_LO_SLICE = slice(18, 19)
+DX_DISB = 19  # m: inter-system bias errors [Galileo - GPS, BeiDou - GPS]
 DX_DISB_SIZE = 2
-DX_DISB_SLICE = slice(18, 20)
-DX_DB_BARO = 20  # m: barometric height bias error
+DX_DISB_SLICE = slice(19, 21)
+DX_DB_BARO = 21  # m: barometric height bias error
 DX_DB_BARO_SIZE = 1
-DX_DB_BARO_SLICE = slice(20, 21)
+DX_DB_BARO_SLICE = slice(21, 22)
 
 AUX_R_S_ECEF = 0  # m: satellite position, ECEF (pseudorange: at transmit time, ECEF of transmit epoch)
 AUX_R_S_ECEF_SIZE = 3
@@ -111,6 +117,9 @@ AUX_ISB_SELECT_SLICE = slice(26, 28)
 AUX_KLOBUCHAR = 28  # s, s/sc, s/sc^2, s/sc^3, s, s/sc, s/sc^2, s/sc^3: GPS broadcast ionosphere alpha0..3, beta0..3 (IS-GPS-200 20.3.3.5.1.7)
 AUX_KLOBUCHAR_SIZE = 8
 AUX_KLOBUCHAR_SLICE = slice(28, 36)
+AUX_W_B = 36  # rad/s: latest angular rate, body (the gyro averaged like f_b)
+AUX_W_B_SIZE = 3
+AUX_W_B_SLICE = slice(36, 39)
 
 U_DTHETA_B = 0  # rad: gyro angle increment over dt, body FLU
 U_DTHETA_B_SIZE = 3
@@ -135,8 +144,9 @@ P_LEVER_X_M = 11  # m: GNSS antenna lever arm, body forward (from the IMU to the
 P_LEVER_Y_M = 12  # m: GNSS antenna lever arm, body left
 P_LEVER_Z_M = 13  # m: GNSS antenna lever arm, body up
 P_GYRO_BIAS_BETA = 14  # 1/s: gyro bias Gauss-Markov rate 1/tau (0: random walk); IMU profile
-P_BARO_BIAS_RW = 15  # m/sqrt(s): barometer bias random walk (weather: ~8 m in 3 h)
-P_MAG_DECLINATION_RAD = 16  # rad: magnetic declination at the site (positive East)
+P_DT_FIX_RW = 15  # s/sqrt(s): fix latency random walk (0: frozen; the runtime sets it when estimating)
+P_BARO_BIAS_RW = 16  # m/sqrt(s): barometer bias random walk (weather: ~8 m in 3 h)
+P_MAG_DECLINATION_RAD = 17  # rad: magnetic declination at the site (positive East)
 
 MEAS_IMU = -1  # record kind of an IMU interval
 KIND_CV = -2  # record kind of a constant-velocity predict over dt (no IMU)
@@ -187,7 +197,7 @@ MEAS_TABLE = (
     Observable(MEAS_MAG_COS, 'mag_cos', 1, 'MAG_COS', '-'),
     Observable(MEAS_MAG_SIN, 'mag_sin', 1, 'MAG_SIN', '-'),
 )
-P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz', 'lever_x_m', 'lever_y_m', 'lever_z_m', 'gyro_bias_beta', 'baro_bias_rw', 'mag_declination_rad']
+P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz', 'lever_x_m', 'lever_y_m', 'lever_z_m', 'gyro_bias_beta', 'dt_fix_rw', 'baro_bias_rw', 'mag_declination_rad']
 
 NORBIT = 12  # columns of leonav_orbit_jac_<k>: dh/d[r_S, v_S, r_ref, v_ref] (ECEF)
 # kind ids of the observables with a generated leonav_orbit_jac_<suffix> (twin of LEONAV_ORBIT_JAC_TABLE)

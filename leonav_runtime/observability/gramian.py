@@ -232,8 +232,15 @@ def scenario_run(scn, mode: str, count: int | None = None, rate_hz: float = 1.0,
     # the stochastic view beside it: PCRB (process noise, prior P0) against the prior propagated alone
     pr = pcrb_prior_ratios(recs, x_lin, setup.params, setup.P0, nav.library)
     out.update({"mode": mode, "count": count, "prior_sigma": prior,
-                "pcrb_over_prior": np.diag(pr["B"]) / np.diag(pr["B_prior"]),
+                # nan for a state held known (zero prior): nothing to improve on
+                "pcrb_over_prior": _ratio_or_nan(np.diag(pr["B"]), np.diag(pr["B_prior"])),
                 "pcrb_prior_ratios": pr["ratio"]})
+    return out
+
+
+def _ratio_or_nan(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    out = np.full(a.shape, np.nan)
+    np.divide(a, b, out=out, where=b > 0)
     return out
 
 
@@ -257,18 +264,23 @@ def pcrb_prior_ratios(recs: np.ndarray, x_lin: np.ndarray, params: np.ndarray, B
     Runs `filter.pcrb` on the stream (B) and on its IMU records only (B_prior: the prior
     propagated without measurements) and solves B d = ratio B_prior d. ratio = 1: the bound of
     the functional d^T dx did not improve on the prior (an unobservable direction); ratio < 1:
-    the measurements reduced it. Returns {"ratio" (ascending), "directions" (NDX, NDX) columns
+    the measurements reduced it. States held known (zero prior variance and no process noise) are
+    left out. Returns {"ratio" (ascending, one per free state), "directions" (NDX, n_free) columns
     d, "B", "B_prior"}.
     """
     imu = recs["kind"] < 0
     B = lfilter.pcrb(recs, x_lin, B0, params, library=library).B
     Bp = lfilter.pcrb(recs[imu], x_lin[imu], B0, params, library=library).B
     B, Bp = (B + B.T) / 2, (Bp + Bp.T) / 2
+    # a state with a zero prior and no process noise is held known (e.g. a fix latency the run does
+    # not estimate): it has no direction to compare, so the eigenproblem is over the others
+    free = np.diag(Bp) > 0
     # generalized symmetric eigenproblem via the Cholesky factor of B_prior
-    C = np.linalg.cholesky(Bp)
-    M = np.linalg.solve(C, np.linalg.solve(C, B).T).T
+    C = np.linalg.cholesky(Bp[np.ix_(free, free)])
+    M = np.linalg.solve(C, np.linalg.solve(C, B[np.ix_(free, free)]).T).T
     ratio, Y = np.linalg.eigh((M + M.T) / 2)
-    D = np.linalg.solve(C.T, Y)
+    D = np.zeros((B.shape[0], ratio.size))
+    D[free] = np.linalg.solve(C.T, Y)
     return {"ratio": ratio, "directions": D, "B": B, "B_prior": Bp}
 
 

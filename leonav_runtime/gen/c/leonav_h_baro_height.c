@@ -65,13 +65,13 @@ CASADI_SYMBOL_EXPORT void leonav_h_baro_height_casadi_version(int* major, int* m
 CASADI_SYMBOL_EXPORT int leonav_h_baro_height_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int leonav_h_baro_height_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {22, 1, 1};
-static const casadi_int casadi_s1[3] = {36, 1, 1};
-static const casadi_int casadi_s2[3] = {17, 1, 1};
+static const casadi_int casadi_s0[3] = {23, 1, 1};
+static const casadi_int casadi_s1[3] = {39, 1, 1};
+static const casadi_int casadi_s2[3] = {18, 1, 1};
 static const casadi_int casadi_s3[3] = {1, 1, 1};
-static const casadi_int casadi_s4[3] = {1, 21, 1};
+static const casadi_int casadi_s4[3] = {1, 22, 1};
 
-/* leonav_h_baro_height:(x[22],aux[36],p[17])->(h,H[1x21]) */
+/* leonav_h_baro_height:(x[23],aux[39],p[18])->(h,H[1x22]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
@@ -161,7 +161,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a36=sqrt(a36);
   a37=(a00*a36);
   a33=(a33-a37);
-  a37=arg[0]? arg[0][21] : 0;
+  a37=arg[0]? arg[0][22] : 0;
   a33=(a33+a37);
   if (res[0]!=0) res[0][0]=a33;
   a07=(2.*a07);
@@ -260,7 +260,8 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][17]=a04;
   if (res[1]!=0) res[1][18]=a04;
   if (res[1]!=0) res[1][19]=a04;
-  if (res[1]!=0) res[1][20]=a01;
+  if (res[1]!=0) res[1][20]=a04;
+  if (res[1]!=0) res[1][21]=a01;
   return 0;
 }
 

@@ -65,17 +65,17 @@ CASADI_SYMBOL_EXPORT void leonav_h_doppler_casadi_version(int* major, int* minor
 CASADI_SYMBOL_EXPORT int leonav_h_doppler_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int leonav_h_doppler_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {22, 1, 1};
-static const casadi_int casadi_s1[3] = {36, 1, 1};
-static const casadi_int casadi_s2[3] = {17, 1, 1};
+static const casadi_int casadi_s0[3] = {23, 1, 1};
+static const casadi_int casadi_s1[3] = {39, 1, 1};
+static const casadi_int casadi_s2[3] = {18, 1, 1};
 static const casadi_int casadi_s3[3] = {1, 1, 1};
-static const casadi_int casadi_s4[3] = {1, 21, 1};
+static const casadi_int casadi_s4[3] = {1, 22, 1};
 
-/* leonav_h_doppler:(x[22],aux[36],p[17])->(h,H[1x21]) */
+/* leonav_h_doppler:(x[23],aux[39],p[18])->(h,H[1x22]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
-  a00=arg[0]? arg[0][18] : 0;
+  a00=arg[0]? arg[0][19] : 0;
   a01=arg[2]? arg[2][10] : 0;
   a02=299792458.;
   a01=(a01/a02);
@@ -243,10 +243,11 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][14]=a07;
   if (res[1]!=0) res[1][15]=a07;
   if (res[1]!=0) res[1][16]=a07;
-  if (res[1]!=0) res[1][17]=a04;
-  if (res[1]!=0) res[1][18]=a07;
+  if (res[1]!=0) res[1][17]=a07;
+  if (res[1]!=0) res[1][18]=a04;
   if (res[1]!=0) res[1][19]=a07;
   if (res[1]!=0) res[1][20]=a07;
+  if (res[1]!=0) res[1][21]=a07;
   return 0;
 }
 

@@ -95,13 +95,13 @@ CASADI_SYMBOL_EXPORT void leonav_h_gnss_pseudorange_casadi_version(int* major, i
 CASADI_SYMBOL_EXPORT int leonav_h_gnss_pseudorange_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int leonav_h_gnss_pseudorange_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {22, 1, 1};
-static const casadi_int casadi_s1[3] = {36, 1, 1};
-static const casadi_int casadi_s2[3] = {17, 1, 1};
+static const casadi_int casadi_s0[3] = {23, 1, 1};
+static const casadi_int casadi_s1[3] = {39, 1, 1};
+static const casadi_int casadi_s2[3] = {18, 1, 1};
 static const casadi_int casadi_s3[3] = {1, 1, 1};
-static const casadi_int casadi_s4[3] = {1, 21, 1};
+static const casadi_int casadi_s4[3] = {1, 22, 1};
 
-/* leonav_h_gnss_pseudorange:(x[22],aux[36],p[17])->(h,H[1x21]) */
+/* leonav_h_gnss_pseudorange:(x[23],aux[39],p[18])->(h,H[1x22]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;
@@ -181,10 +181,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a013=(a016+a013);
   a007=arg[0]? arg[0][16] : 0;
   a006=arg[1]? arg[1][26] : 0;
-  a024=arg[0]? arg[0][19] : 0;
+  a024=arg[0]? arg[0][20] : 0;
   a024=(a006*a024);
   a025=arg[1]? arg[1][27] : 0;
-  a026=arg[0]? arg[0][20] : 0;
+  a026=arg[0]? arg[0][21] : 0;
   a026=(a025*a026);
   a024=(a024+a026);
   a007=(a007+a024);
@@ -781,9 +781,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][15]=a002;
   if (res[1]!=0) res[1][16]=a092;
   if (res[1]!=0) res[1][17]=a092;
-  if (res[1]!=0) res[1][18]=a006;
-  if (res[1]!=0) res[1][19]=a025;
-  if (res[1]!=0) res[1][20]=a092;
+  if (res[1]!=0) res[1][18]=a092;
+  if (res[1]!=0) res[1][19]=a006;
+  if (res[1]!=0) res[1][20]=a025;
+  if (res[1]!=0) res[1][21]=a092;
   return 0;
 }
 
