@@ -91,6 +91,20 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "geoid_separation_m": Field(float, "m", -120, 90, default=0.0, doc="geoid height N above the ellipsoid at "
                                     "the site, for msl heights (fixes and reference)"),
         "rate_hz": Field(float, "Hz", 0, 100, default=0.0, doc="use at most this many fixes per second (0: all)"),
+        "time_offset_s": Field((float, str), "s", default=0.0,
+                               doc="fix latency on the IMU's time axis: a fix tagged t is the antenna at t - "
+                               "time_offset_s (a known value shifts the tags); 'estimate': a filter state "
+                               "(prior time_offset_sigma_s, random walk time_offset_rw), reported with its sigma"),
+        "time_offset_sigma_s": Field(float, "s", 1e-4, 10, default=0.3, doc="prior 1-sigma of the estimated "
+                                     "latency (around time_offset_prior_s)"),
+        "time_offset_prior_s": Field(float, "s", -10, 10, default=0.0, doc="prior mean of the estimated latency"),
+        "time_offset_rw": Field(float, "s/sqrt(s)", 0, 1, default=1e-4, doc="random walk of the estimated latency "
+                                "(0: constant)"),
+        "velocity_columns": Field(list, "-", default=[], doc="GNSS velocity E N U columns (m/s), if the file has "
+                                  "them; used as a measurement in modes with 'vel'"),
+        "velocity_sigma_columns": Field(list, "-", default=[], doc="per-fix 1-sigma E N U velocity columns (m/s)"),
+        "velocity_sigma_mps": Field(list, "m/s", default=[0.1, 0.1, 0.2], doc="1-sigma E N U velocity without "
+                                    "sigma columns"),
         "lever_arm_m": Field(list, "m", default=[0.0, 0.0, 0.0], doc="IMU -> antenna, in `lever_arm_frame`"),
         "lever_arm_frame": Field(str, "-", default="FRD", choices=BODY_FRAMES),
     },
@@ -258,10 +272,11 @@ def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
                                  "expected 3 column names or "
                                  "indices (x y z; mat: also one (n, 3) field)")
     imu["axis_map"] = parse_axes(imu["axes"], where_key(source, "imu", "axes"))
-    for sec, key in (("imu", "time_offset_s"), ("gnss", "sigma_scale"), ("alignment", "yaw_deg")):
+    for sec, key in (("imu", "time_offset_s"), ("gnss", "time_offset_s"), ("gnss", "sigma_scale"),
+                     ("alignment", "yaw_deg")):
         val = v[sec][key]
-        words = {"time_offset_s": ("calibrate", "calibrate_reference"), "sigma_scale": ("auto",),
-                 "yaw_deg": ("gnss",)}[key]
+        words = {("imu", "time_offset_s"): ("calibrate", "calibrate_reference"), ("gnss", "time_offset_s"): ("estimate",),
+                 ("gnss", "sigma_scale"): ("auto",), ("alignment", "yaw_deg"): ("gnss",)}[(sec, key)]
         if isinstance(val, str) and val not in words:
             raise UserInputError(f"{where_key(source, sec, key)} = {show_value(val)}: expected a number or "
                                  f"{' or '.join(repr(w) for w in words)}")
@@ -272,6 +287,20 @@ def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
     gnss["sigma_columns"] = _columns(source, "gnss", "sigma_columns", gnss["sigma_columns"], None)
     if len(gnss["sigma_columns"]) not in (0, 3):
         raise UserInputError(f"{where_key(source, 'gnss', 'sigma_columns')}: expected 3 columns (E N U) or none")
+    if not isinstance(gnss["time_offset_s"], str) and abs(gnss["time_offset_s"]) > 10:
+        raise UserInputError(f"{where_key(source, 'gnss', 'time_offset_s')}: expected a latency within +-10 s or "
+                             "'estimate' (a clock offset of the IMU is [imu] time_offset_s)")
+    for key in ("velocity_columns", "velocity_sigma_columns"):
+        gnss[key] = _columns(source, "gnss", key, gnss[key], None)
+        if len(gnss[key]) not in (0, 3):
+            raise UserInputError(f"{where_key(source, 'gnss', key)}: expected 3 columns (E N U, m/s) or none")
+    if gnss["velocity_sigma_columns"] and not gnss["velocity_columns"]:
+        raise UserInputError(f"{where_key(source, 'gnss', 'velocity_sigma_columns')}: given without "
+                             "velocity_columns: expected both or neither")
+    gnss["velocity_sigma_mps"] = check_numbers(source, "gnss", "velocity_sigma_mps", gnss["velocity_sigma_mps"], 3,
+                                               "m/s", limit=100.0)
+    if min(gnss["velocity_sigma_mps"]) <= 0:
+        raise UserInputError(f"{where_key(source, 'gnss', 'velocity_sigma_mps')}: expected 3 numbers > 0 (m/s)")
     gnss["sigma_m"] = check_numbers(source, "gnss", "sigma_m", gnss["sigma_m"], 3, "m", limit=1e4)
     if min(gnss["sigma_m"]) <= 0:
         raise UserInputError(f"{where_key(source, 'gnss', 'sigma_m')}: expected 3 numbers > 0 (m)")
