@@ -82,11 +82,11 @@ def run(args: argparse.Namespace) -> int:
             bar.set_description_str(msg)
         m = run_dataset(spec, out, reference=ref, t_end_s=args.until, outages=not args.no_outages, progress=say)
     print(f"run {spec.name} -> {out}  (reference: {m['reference']}, {m['reference_epochs']} epochs)")
-    g = m["gps_alone"]
     print(f"  {'':<20} {'horiz RMSE m':>12} {'vert m':>7} {'3D m':>6} {'yaw deg':>8} {'fix NIS':>8} {'us/IMU':>7}"
           "  outage end m (hold last fix)")
-    print(f"  {'GPS alone':<20} {fmt(g['rmse_horizontal_m']):>12} {fmt(g['rmse_vertical_m']):>7} "
-          f"{fmt(g['rmse_3d_m']):>6}")
+    for label, g in (("GPS alone (hold)", m["gps_alone"]), ("GPS alone (interp.)", m["gps_alone_interpolated"])):
+        print(f"  {label:<20} {fmt(g['rmse_horizontal_m']):>12} {fmt(g['rmse_vertical_m']):>7} "
+              f"{fmt(g['rmse_3d_m']):>6}")
     for mode, s in m["modes"].items():
         o = s.get("outages", {}).get("outages", [])
         outs = " ".join(f"{r['filter_horizontal_m']:.1f}({r['hold_last_fix_horizontal_m']:.1f})" for r in o
@@ -94,6 +94,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {mode:<20} {fmt(s['rmse_horizontal_m']):>12} {fmt(s['rmse_vertical_m']):>7} {fmt(s['rmse_3d_m']):>6} "
               f"{fmt(s.get('rmse_yaw_deg_after_skip'), 2):>8} {fmt(s['fix_nis_mean']['all'], 2):>8} "
               f"{s['us_per_imu_step']:>7.2f}  {outs}")
+        if "fix_latency_s" in s:
+            lat = s["fix_latency_s"]
+            print(f"  {'':<20} fix latency estimated: {lat['value'] * 1e3:.1f} +- {lat['sigma'] * 1e3:.1f} ms")
+    a = m.get("alignment", {})
+    if a:
+        print(f"  alignment: {a.get('kind', '?')} at {a.get('start_s', 0):.2f} s; {a.get('gyro_bias_source', '')}")
+    for note in m.get("notes", []):
+        if note.startswith("WARNING"):
+            print(f"  {note}")
     for goal, v in m["summary"].items():
         if isinstance(v, dict):
             state = "not scored" if v["met"] is None else "met" if v["met"] else "NOT met"

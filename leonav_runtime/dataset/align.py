@@ -7,6 +7,9 @@
   specific force used for leveling (generated `leonav_level`).
 - `gnss_velocity`: ENU velocity from fix positions differenced over a window (central,
   on a regular grid); its course is the heading of a vehicle driving forward.
+- `level_in_motion`: roll and pitch when the data starts moving: the specific force less the
+  GNSS acceleration (rotated into the body by the course heading) is the reaction to gravity,
+  so the climb (pitch) and the centripetal acceleration of a turn (roll) do not tilt the level.
 - `calibrate_time_offset`: the IMU time offset that best lines up the gyro's yaw rate with
   the rate of the GNSS course (both smoothed over the same window): a grid search on the
   correlation (reported; used when `[imu] time_offset_s = "calibrate"`).
@@ -41,6 +44,21 @@ def standstill(imu: ImuSamples, window_s: float, accel_std_mps2: float, gyro_rad
     acc_std = np.sqrt(np.clip(var, 0, None)).max(axis=1)
     gyro = _moving(np.linalg.norm(imu.w_b_radps, axis=1), n)
     return (acc_std < accel_std_mps2) & (gyro < gyro_radps)
+
+
+def veto_moving(still: np.ndarray, imu_t_s: np.ndarray, fixes: FixTable, window_s: float,
+                speed_mps: float) -> tuple[np.ndarray, float]:
+    """(still, seconds vetoed): IMU samples flagged at rest are not where the GNSS speed (fixes
+    differenced over `window_s`) exceeds `speed_mps`; outside the fixes' span the IMU decides."""
+    t_v, v = gnss_velocity(fixes, window_s)
+    if t_v.size < 2:
+        return still, 0.0
+    speed = np.hypot(np.interp(imu_t_s, t_v, v[:, 0]), np.interp(imu_t_s, t_v, v[:, 1]))
+    inside = (imu_t_s >= t_v[0] - window_s / 2) & (imu_t_s <= t_v[-1] + window_s / 2)
+    moving = inside & (speed > speed_mps)
+    veto = still & moving
+    dt = np.diff(imu_t_s, prepend=imu_t_s[0])
+    return still & ~moving, float(dt[veto].sum())
 
 
 @dataclass
@@ -125,3 +143,64 @@ def calibrate_time_offset(imu_t_s: np.ndarray, gyro_up_radps: np.ndarray, t_head
     best = min(cost, key=cost.get)
     return {"offset_s": best, "cost_rad": cost[best], "cost_at_zero_rad": cost.get(0.0), "pairs": int(a.size),
             "pair_s": pair_s, "search_s": [-span_s, span_s], "step_s": step_s}
+
+
+def _rot_b_to_n(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """C_b_n (body FLU -> ENU) of Z-Y-X Euler angles, yaw from East towards North."""
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    return rz @ ry @ rx
+
+
+def along_track_accel(fixes: FixTable, t_s: float, yaw_rad: float, window_s: float) -> tuple[float, float]:
+    """(a m/s^2, its 1-sigma) along the heading at t_s: the second derivative of a quadratic
+    least-squares fit to the fixes' horizontal positions within window_s of t_s (the fix sigmas
+    weigh it). Fix noise makes a differenced velocity's derivative useless; the fit averages it."""
+    sel = np.abs(fixes.t - t_s) <= window_s / 2
+    if sel.sum() < 5:
+        return 0.0, math.inf
+    dt = fixes.t[sel] - t_s
+    along = fixes.p_enu_m[sel, 0] * math.cos(yaw_rad) + fixes.p_enu_m[sel, 1] * math.sin(yaw_rad)
+    sigma = np.hypot(fixes.sigma_enu_m[sel, 0], fixes.sigma_enu_m[sel, 1]) / math.sqrt(2)
+    A = np.column_stack([np.ones_like(dt), dt, 0.5 * dt**2]) / sigma[:, None]
+    coef, *_ = np.linalg.lstsq(A, along / sigma, rcond=None)
+    cov = np.linalg.inv(A.T @ A)
+    return float(coef[2]), float(math.sqrt(cov[2, 2]))
+
+
+def level_in_motion(imu: ImuSamples, fixes: FixTable, t_v: np.ndarray, v_enu: np.ndarray, t_s: float,
+                    yaw_rad: float, window_s: float, nav, iterations: int = 4) -> tuple[float, float, dict]:
+    """(roll, pitch (rad), report) at t_s of a moving vehicle (module doc).
+
+    f_b: the mean specific force (m/s^2, body FLU) over `window_s` centred on t_s. The vehicle's
+    acceleration: centripetal from the gyro's mean up rate times the GNSS horizontal velocity
+    (a turn), along the heading from `along_track_accel` over 2 window_s, kept only where it
+    exceeds twice its sigma (else the fix noise would tilt the level more than it corrects);
+    no vertical acceleration (a road vehicle). The generated `leonav_level` is applied to
+    f_b - C_n_b a_enu, C_n_b from the current roll, pitch and the course yaw, a few fixed-point
+    iterations. The report has both levels and the naive one's difference (deg).
+    """
+    half = window_s / 2
+    sel = (imu.t >= t_s - half) & (imu.t <= t_s + half)
+    k = min(int(np.searchsorted(imu.t, t_s)), imu.t.size - 1)
+    f_b = imu.f_b_mps2[sel].mean(axis=0) if sel.any() else imu.f_b_mps2[k]
+    w_up = float(imu.w_b_radps[sel, 2].mean()) if sel.any() else float(imu.w_b_radps[k, 2])
+    v = np.array([np.interp(t_s, t_v, v_enu[:, j]) for j in range(2)])
+    a_c = w_up * np.array([-v[1], v[0], 0.0])
+    a_t, a_t_sigma = along_track_accel(fixes, t_s, yaw_rad, 2 * window_s)
+    a_t_used = a_t if abs(a_t) > 2 * a_t_sigma else 0.0
+    a_enu = a_c + a_t_used * np.array([math.cos(yaw_rad), math.sin(yaw_rad), 0.0])
+    naive = nav.level(f_b)
+    roll, pitch = naive
+    for _ in range(iterations):
+        a_b = _rot_b_to_n(roll, pitch, yaw_rad).T @ a_enu
+        roll, pitch = nav.level(f_b - a_b)
+    err = float(np.degrees(np.max(np.abs(np.array(naive) - [roll, pitch]))))
+    return roll, pitch, {"accel_enu_mps2": a_enu.tolist(), "centripetal_mps2": float(np.linalg.norm(a_c)),
+                         "along_track_mps2": a_t, "along_track_sigma_mps2": a_t_sigma,
+                         "along_track_used": a_t_used != 0.0, "f_b_mean_mps2": f_b.tolist(),
+                         "naive_roll_pitch_deg": np.degrees(naive).tolist(),
+                         "roll_pitch_deg": np.degrees([roll, pitch]).tolist(), "naive_error_deg": err,
+                         "window_s": window_s}

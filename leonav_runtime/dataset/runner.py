@@ -18,6 +18,7 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -36,6 +37,10 @@ from leonav_runtime.inputs import FilterInputs, FixTable, ImuTable, Prior, assem
 from leonav_runtime.core.params import ImuProfile, build_params
 
 FIX_KINDS = ("POS_E", "POS_N", "POS_U")
+MOVING_GYRO_BIAS_SIGMA_RADPS = math.radians(0.5)
+"""Gyro bias prior sigma (rad/s) when no standstill measured it: a consumer MEMS gyro's turn-on bias."""
+LEVEL_WARN_DEG = 1.0
+"""Warn when levelling on the moving specific force would differ from the in-motion alignment by more."""
 
 
 @dataclass
@@ -88,8 +93,10 @@ def _profile(spec, rest: align.Rest, report: dict) -> ImuProfile:
                       bias.gyro_bias_sigma, src)
 
 
-def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuProfile, nav, report: dict) -> Prior:
-    """Prior at the filter start from the coarse alignment (module doc)."""
+def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuProfile, nav, report: dict,
+                  notes: list[str] | None = None) -> Prior:
+    """Prior at the filter start from the coarse alignment (module doc); warnings go to `notes`."""
+    notes = notes if notes is not None else []
     spec, L = ds.spec, nav.layout
     al = spec["alignment"]
     t_v, v = align.gnss_velocity(ds.fixes, al["window_s"])
@@ -101,17 +108,26 @@ def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuPr
     if imu.t[-1] < t_start + 1.0:
         raise UserInputError(f"the IMU ends at {imu.t[-1]:.6g} s, before the filter start at {t_start:.6g} s (the "
                              "vehicle first moves) + 1 s: expected a longer record, or --until beyond that")
-    if rest.n:
-        f_level, level_src = rest.f_mean, f"specific force over the initial standstill ({rest.seconds:.2f} s)"
-    else:
-        sel = (imu.t > t_start - 1.0) & (imu.t <= t_start)
-        f_level, level_src = imu.f_b_mps2[sel].mean(axis=0), "specific force over the second before the start"
-    roll, pitch = nav.level(f_level)
     if al["yaw_rad"] is None:
         j = int(np.searchsorted(t_v, t_start))
         yaw, yaw_src = float(np.arctan2(v[j, 1], v[j, 0])), f"GNSS course at t={t_start:.2f} s"
     else:
         yaw, yaw_src = al["yaw_rad"], "given"
+    if rest.n:
+        kind = "static"
+        f_level, level_src = rest.f_mean, f"specific force over the initial standstill ({rest.seconds:.2f} s)"
+        roll, pitch = nav.level(f_level)
+    else:
+        kind = "in motion"
+        roll, pitch, moving = align.level_in_motion(imu, ds.fixes, t_v, v, t_start, yaw, al["window_s"], nav)
+        level_src = (f"specific force over {al['window_s']:g} s at the start less the vehicle's acceleration "
+                     f"({np.linalg.norm(moving['accel_enu_mps2']):.2f} m/s^2: centripetal from the gyro and GNSS "
+                     "velocity, along-track from the fixes) rotated to the body (in motion)")
+        if moving["naive_error_deg"] > LEVEL_WARN_DEG:
+            notes.append(f"WARNING: no standstill at the start: levelling on the moving specific force would be off by "
+                         f"{moving['naive_error_deg']:.1f} deg (roll/pitch); the alignment removed the GNSS "
+                         "acceleration (in-motion alignment)")
+        report["alignment_in_motion"] = moving
     x0 = np.zeros(L.NX)
     q = nav.quat_from_euler(np.array([roll, pitch, yaw]))[0]
     x0[L.X_Q_NB_SLICE] = q
@@ -126,6 +142,8 @@ def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuPr
     # at rest the gyro measures its bias plus the Earth's rotation (7.3e-5 rad/s) in body axes of the
     # aligned attitude (level from gravity, heading from the later GNSS course): the rate the generated
     # mechanization needs to keep that attitude at rest
+    if spec["gnss"]["time_offset_s"] == "estimate":
+        x0[L.X_DT_FIX] = spec["gnss"]["time_offset_prior_s"]
     if rest.n:
         at_rest = x0.copy()
         at_rest[L.X_V_ENU_SLICE] = 0.0
@@ -134,9 +152,18 @@ def initial_state(ds: Dataset, imu: ImuSamples, rest: align.Rest, profile: ImuPr
         x0[L.X_B_G_SLICE] = rest.gyro_mean - w_ie_b
     f = spec["filter"]
     i_fix = int(np.clip(np.searchsorted(ds.fixes.t, t_start), 0, ds.fixes.t.size - 1))
+    overrides = {}
+    if not rest.n:   # no standstill to measure the gyro bias: the filter estimates it from a wide prior
+        overrides["db_g"] = max(profile.gyro_bias_sigma, MOVING_GYRO_BIAS_SIGMA_RADPS)
+    if spec["gnss"]["time_offset_s"] == "estimate":
+        overrides["ddt_fix"] = spec["gnss"]["time_offset_sigma_s"]
     sig = prior_sigmas(L, profile, ds.fixes.sigma_enu_m[i_fix], f["velocity_sigma_mps"],
-                       [f["roll_pitch_sigma_rad"]] * 2 + [al["yaw_sigma_rad"]])
-    report["alignment"] = {"start_s": t_start, "roll_pitch_yaw_deg": np.degrees([roll, pitch, yaw]).tolist(),
+                       [f["roll_pitch_sigma_rad"]] * 2 + [al["yaw_sigma_rad"]], overrides)
+    report["alignment"] = {"kind": kind, "start_s": t_start,
+                           "roll_pitch_yaw_deg": np.degrees([roll, pitch, yaw]).tolist(),
+                           "gyro_bias_source": ("mean rate at the standstill less the Earth rate" if rest.n else
+                                                f"none measured (no standstill): 0 with a prior sigma of "
+                                                f"{math.degrees(overrides['db_g']):.2f} deg/s, left to the filter"),
                            "roll_pitch": f"generated leonav_level on the {level_src}", "yaw": yaw_src,
                            "gyro_bias_radps": x0[L.X_B_G_SLICE].tolist(),
                            "velocity_enu_mps": x0[L.X_V_ENU_SLICE].tolist()}
@@ -191,19 +218,27 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
     con = spec["constraints"]
     still = align.standstill(imu, con["standstill_window_s"], con["standstill_accel_std_mps2"],
                              con["standstill_gyro_std_radps"])
+    # a quiet IMU is not a standstill while the fixes move (a smooth straight drive is quiet too)
+    still, vetoed = align.veto_moving(still, imu.t, shift_fixes(ds.fixes, spec["gnss"]["time_offset_s"]),
+                                      spec["alignment"]["window_s"], spec["alignment"]["speed_mps"])
+    report["standstill_vetoed_by_gnss_speed_s"] = vetoed
     rest = align.initial_rest(imu, still, spec["alignment"]["static_max_s"])
     profile = _profile(spec, rest, report)
+    latency = fix_latency(spec, report)
     params = np.asarray(build_params(*ds.origin, imu=profile, lever_b_m=tuple(spec["gnss"]["lever_arm_flu_m"]),
-                                     values=sensor_params(spec)))
+                                     values=sensor_params(spec) | latency))
     nav = nav or navfuncs.NavFunctions(params=params)
     nav.params = params
-    prior = initial_state(ds, imu, rest, profile, nav, report)
+    all_fixes = shift_fixes(ds.fixes, spec["gnss"]["time_offset_s"])
+    notes = list(ds.notes)
+    moved = dataclasses.replace(ds, fixes=all_fixes)
+    prior = initial_state(moved, imu, rest, profile, nav, report, notes)
     table, _ = imu_table(imu).from_time(prior.t_start_s)
-    fixes = thin_fixes(ds.fixes, spec["gnss"]["rate_hz"])
+    fixes = thin_fixes(all_fixes, spec["gnss"]["rate_hz"])
     scale = spec["gnss"]["sigma_scale"]
     fixes = FixTable(fixes.t, fixes.p_enu_m, fixes.sigma_enu_m * (1.0 if isinstance(scale, str) else scale),
                      fixes.v_en_mps)
-    inputs = assemble(table, params, prior, fixes=fixes, nav=nav, notes=list(ds.notes), origin=ds.origin,
+    inputs = assemble(table, params, prior, fixes=fixes, nav=nav, notes=notes, origin=ds.origin,
                       local=ds.local_on_axis(offset))
     streams = constraints.records_for(imu, still, prior.t_start_s, float(imu.t[-1]), con, nav)
     report["standstill"] = {"seconds": float(np.sum(np.diff(imu.t)[still[1:]])), "initial_s": rest.seconds}
@@ -214,12 +249,33 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
                           "long_seconds": float(dt[long].sum()), "max_gap_s": spec["imu"]["max_gap_s"],
                           "long_handling": "constant-velocity predict, covariance inflated (dataset/resets.py)"}
     streams |= {token: inputs.records[token] for token in inputs.local}
-    prep = Prepared(inputs, {"fix": inputs.records["fix"]} | streams, imu, ds.fixes, nav,
+    prep = Prepared(inputs, {"fix": inputs.records["fix"]} | streams, imu, all_fixes, nav,
                     spec["filter"]["gate_nis"], report, spec["imu"]["max_gap_s"], spec["filter"]["lockout_fixes"])
     if isinstance(scale, str):
         auto_scale(prep, spec["filter"]["modes"][-1])
     report["fix_sigma_scale"] = prep.report.get("fix_sigma_scale", {"value": scale, "source": "given"})
     return prep
+
+
+def fix_latency(spec, report: dict) -> dict[str, float]:
+    """The fix latency parameters ({"dt_fix_rw": s/sqrt(s)}: the state moves only when estimated),
+    and the report item: a known latency shifts the tags (`shift_fixes`), 'estimate' makes it a state."""
+    g = spec["gnss"]
+    if g["time_offset_s"] == "estimate":
+        report["fix_latency"] = {"source": "estimated (state dt_fix)", "prior_s": g["time_offset_prior_s"],
+                                 "prior_sigma_s": g["time_offset_sigma_s"], "random_walk_s_per_sqrts": g["time_offset_rw"]}
+        return {"dt_fix_rw": g["time_offset_rw"]}
+    report["fix_latency"] = {"source": "given ([gnss] time_offset_s): the fix tags are shifted by it",
+                             "value_s": g["time_offset_s"]}
+    return {"dt_fix_rw": 0.0}
+
+
+def shift_fixes(fixes: FixTable, latency: float | str) -> FixTable:
+    """Fixes with a known latency (s) taken off their tags (a fix tagged t is the antenna at t - latency);
+    unchanged when the latency is estimated."""
+    if isinstance(latency, str) or latency == 0.0:
+        return fixes
+    return FixTable(fixes.t - latency, fixes.p_enu_m, fixes.sigma_enu_m, fixes.v_en_mps)
 
 
 def sensor_params(spec) -> dict[str, float]:

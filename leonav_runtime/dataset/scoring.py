@@ -3,7 +3,9 @@
 Every line is scored the same way, at the reference epochs (the CPET run: its 800
 ground-truth poses): the estimate is the filter state after the last record at or before the
 epoch (position of the IMU point, which the reference is taken to be), errors in ENU at the
-run's origin. GPS alone holds the last fix (the antenna's position as the receiver gave it).
+run's origin. GPS alone, two ways: holding the last fix (the antenna's position as the receiver
+gave it), and interpolating linearly between the fixes around the epoch (no lag; a late time tag
+shows as an error along the track rather than being cancelled by the hold's lag).
 Outages: fixes removed over [start, start + length); the horizontal error at the end
 (state just before the first fix after it; reference interpolated linearly) against holding
 the last fix before the outage. Yaw: wrapped difference to the reference yaw from
@@ -83,3 +85,37 @@ def fix_nis_stats(nis_by_kind: dict[str, np.ndarray]) -> dict:
     return out
 
 
+
+
+def interpolated_fix(fixes: FixTable, t: np.ndarray) -> np.ndarray:
+    """(n, 3) fixes interpolated linearly at each t (m, ENU; NaN outside the fixes' span)."""
+    out = np.column_stack([np.interp(t, fixes.t, fixes.p_enu_m[:, j]) for j in range(3)])
+    out[(t < fixes.t[0]) | (t > fixes.t[-1])] = np.nan
+    return out
+
+
+def latency_estimate(res: lfilter.RunResult, layout) -> dict:
+    """The estimated fix latency at the end of a run: value and 1-sigma (s)."""
+    return {"value": float(res.x[-1, layout.X_DT_FIX]), "sigma": float(np.sqrt(res.P_diag[-1, layout.DX_DDT_FIX]))}
+
+
+AUTO_OUTAGE_FRACTIONS = (0.2, 0.35, 0.5, 0.65, 0.8)
+"""Where 'auto' outages start, as fractions of the IMU/GNSS overlap."""
+
+
+def settings(sc: dict, imu_t: np.ndarray, fix_t: np.ndarray) -> dict:
+    """The `[scoring]` values with 'auto' resolved on the IMU/GNSS overlap (s on the run axis):
+    outages at AUTO_OUTAGE_FRACTIONS of it, 30 s long or 10 % of it; the yaw skip 60 s or 15 % of it."""
+    lo, hi = max(float(imu_t[0]), float(fix_t[0])), min(float(imu_t[-1]), float(fix_t[-1]))
+    span = max(hi - lo, 0.0)
+    out = {"overlap_s": [lo, hi]}
+    length = sc["outage_length_s"]
+    out["outage_length_s"] = float(min(30.0, 0.1 * span)) if length == "auto" else float(length)
+    starts = sc["outage_starts_s"]
+    out["outage_starts_s"] = ([round(lo + f * span, 3) for f in AUTO_OUTAGE_FRACTIONS] if starts == "auto"
+                              else [float(v) for v in starts])
+    skip = sc["yaw_skip_s"]
+    out["yaw_skip_s"] = float(min(60.0, 0.15 * span)) if skip == "auto" else float(skip)
+    out["source"] = {k: ("auto" if sc[k] == "auto" else "given") for k in ("outage_starts_s", "outage_length_s",
+                                                                          "yaw_skip_s")}
+    return out

@@ -20,6 +20,8 @@ from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.core import model
 from leonav_runtime.scenarios.load import Field, check_numbers, check_tables, show_value, where_key
 from leonav_runtime.common.toml_file import read_toml_file
+from leonav_runtime.dataset.spec_sources import check_columns as _columns, finish_sources
+from leonav_runtime.dataset.timebase import IMU_BASES, UNIX_BASES
 
 REQ = ...
 MAX_FILE_BYTES = 1_000_000
@@ -28,6 +30,8 @@ GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180}
 ACCEL_UNITS = {"m/s^2": 1.0, "g": 9.80665}
 BODY_FRAMES = ("FRD", "FLU")
 MODES = ("fix+imu", "fix+imu+nhc", "fix+imu+nhc+zupt")
+FORMATS = ("csv", "npy", "npz")
+ATTITUDES = ("quat_enu", "quat_ned", "quat_ecef", "euler_deg")
 
 
 def dataset_observable(o) -> bool:
@@ -41,6 +45,10 @@ def dataset_mode(name: str, where: str = "[filter] modes:") -> model.Mode:
     return model.parse_mode(name, dataset_observable, where)
 AXES = re.compile(r"^\s*[-+]?[xyz]\s*,\s*[-+]?[xyz]\s*,\s*[-+]?[xyz]\s*$")
 Column = (str, int)   # a header name, or a 0-based column index
+WEEK_KEYS = {"week_column": Field(Column, "-", default="", doc="gps_week_tow: column of full GPS week numbers "
+                                  "(empty: gps_week)"),
+             "gps_week": Field(int, "week", 0, 9999, default=0, doc="gps_week_tow without week_column: the GPS "
+                               "week of the first row (0: none)")}
 
 SCHEMA: dict[str, dict[str, Field]] = {
     "": {"name": Field(str, "-", default="dataset", doc="short name (results folder)"),
@@ -48,9 +56,14 @@ SCHEMA: dict[str, dict[str, Field]] = {
     "data": {"dir": Field(str, "-", default=".", doc="folder of the files; relative to this file; {shared} = "
                           "$LEONAV_SHARED_DATA or ../shared/data beside the repository")},
     "imu": {
-        "file": Field(str, "-", default=REQ, doc="IMU samples (CSV, or MATLAB .mat with format = 'mat')"),
-        "format": Field(str, "-", default="csv", choices=("csv", "mat"), doc="csv or mat (scipy.io)"),
+        "file": Field(str, "-", default=REQ, doc="IMU samples (gyro and, without accel_file, accelerometer)"),
+        "format": Field(str, "-", default="csv", choices=FORMATS + ("mat",), doc="csv, npy, npz or mat (scipy.io)"),
         "mat_struct": Field(str, "-", default="", doc="mat: struct holding the fields (empty: top level)"),
+        "array": Field(str, "-", default="", doc="npz: the array (n, k) inside (empty: the only one)"),
+        "accel_file": Field(str, "-", default="", doc="accelerometer samples in their own file (same format), "
+                            "interpolated onto the gyro times; empty: in `file`"),
+        "accel_time_column": Field(Column, "-", default=0, doc="time column of accel_file"),
+        "accel_array": Field(str, "-", default="", doc="npz: the accelerometer's array (empty: `array`)"),
         "delimiter": Field(str, "-", default=",", doc="csv field separator"),
         "time_column": Field(Column, "-", default=0, doc="header name or 0-based index (mat: field name)"),
         "gyro_columns": Field(list, "-", default=REQ, doc="3 names or indices, sensor x y z (mat: one (n, 3) field)"),
@@ -60,11 +73,14 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "accel_unit": Field(str, "-", default="m/s^2", choices=tuple(ACCEL_UNITS)),
         "axes": Field(str, "-", default="x,y,z", doc="vehicle axes as signed sensor axes, e.g. '-y,x,z'"),
         "frame": Field(str, "-", default="FRD", choices=BODY_FRAMES, doc="vehicle frame `axes` gives"),
-        "time_base": Field(str, "-", default="unix", choices=("unix", "first_fix"),
-                           doc="IMU time is unix time, or seconds from the first GNSS fix"),
+        "time_base": Field(str, "-", default="unix", choices=IMU_BASES, doc="unix, gps_week_tow, gps_seconds, "
+                           "first_fix (s from the first GNSS fix) or boot (a monotonic clock: clock_pair or time_offset_s)"),
+        **WEEK_KEYS,
+        "clock_pair": Field(list, "s", default=[], doc="boot: [boot_s, unix_s], one pair of simultaneous readings"),
         "time_offset_s": Field((float, str), "s", default=0.0,
-                               doc="added to the IMU time; 'calibrate': estimated from the gyro vs the GNSS course "
-                               "rate; 'calibrate_reference': vs the reference yaw (opt-in, marked in the results)"),
+                               doc="added to the IMU time (+-3600 s; any size with boot); 'calibrate': estimated "
+                               "from the gyro vs the GNSS course rate; 'calibrate_reference': vs the reference yaw "
+                               "(opt-in, marked in the results)"),
         "accel_range_mps2": Field(float, "m/s^2", 0, 1e4, default=0.0, doc="full scale; samples at it are "
                                   "clipped and skipped (0: unknown)"),
         "gyro_range_radps": Field(float, "rad/s", 0, 1e3, default=0.0, doc="full scale (0: unknown)"),
@@ -72,10 +88,13 @@ SCHEMA: dict[str, dict[str, Field]] = {
                            "velocity and heading covariance (fixes inside them dropped); shorter ones are bridged"),
     },
     "gnss": {
-        "file": Field(str, "-", default=REQ, doc="fixes: CSV, NMEA or UBX log"),
-        "format": Field(str, "-", default="csv", choices=("csv", "nmea", "ubx")),
+        "file": Field(str, "-", default=REQ, doc="fixes: CSV, npy/npz array, NMEA or UBX log"),
+        "format": Field(str, "-", default="csv", choices=FORMATS + ("nmea", "ubx")),
+        "array": Field(str, "-", default="", doc="npz: the array inside (empty: the only one)"),
         "delimiter": Field(str, "-", default=","),
-        "time_column": Field(Column, "-", default=0, doc="unix time"),
+        "time_column": Field(Column, "-", default=0, doc="time in `time_base`"),
+        "time_base": Field(str, "-", default="unix", choices=UNIX_BASES, doc="unix, gps_week_tow or gps_seconds"),
+        **WEEK_KEYS,
         "time_unit": Field(str, "-", default="s", choices=tuple(TIME_UNITS)),
         "lat_column": Field(Column, "-", default=1, doc="deg"),
         "lon_column": Field(Column, "-", default=2, doc="deg"),
@@ -109,17 +128,24 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "lever_arm_frame": Field(str, "-", default="FRD", choices=BODY_FRAMES),
     },
     "reference": {
-        "file": Field(str, "-", default="", doc="reference trajectory (CSV or RTKLIB .pos); empty: none"),
-        "format": Field(str, "-", default="csv", choices=("csv", "pos")),
+        "file": Field(str, "-", default="", doc="reference trajectory (CSV, npy/npz or RTKLIB .pos); empty: none"),
+        "format": Field(str, "-", default="csv", choices=FORMATS + ("pos",)),
+        "array": Field(str, "-", default="", doc="npz: the array inside (empty: the only one)"),
         "delimiter": Field(str, "-", default=","),
         "crs": Field(str, "-", default="llh", doc="llh (deg, deg, m), ecef (m), or EPSG:code (x, y, h)"),
-        "time_column": Field(Column, "-", default=0, doc="unix time"),
+        "time_column": Field(Column, "-", default=0, doc="time in `time_base`"),
+        "time_base": Field(str, "-", default="unix", choices=UNIX_BASES, doc="unix, gps_week_tow or gps_seconds"),
+        **WEEK_KEYS,
         "time_unit": Field(str, "-", default="s", choices=tuple(TIME_UNITS)),
         "height_datum": Field(str, "-", default="ellipsoid", choices=("ellipsoid", "msl"),
                               doc="heights of an llh or EPSG reference (msl: plus [gnss] geoid_separation_m)"),
         "position_columns": Field(list, "-", default=[1, 2, 3]),
-        "quaternion_columns": Field(list, "-", default=[],
-                                    doc="x y z w of body -> local level ENU (CRS grid); its yaw (body x) is scored"),
+        "quaternion_columns": Field(list, "-", default=[], doc="4 columns of a body -> `attitude` frame quaternion "
+                                    "in `quaternion_order`; its yaw (body x) is scored"),
+        "attitude": Field(str, "-", default="quat_enu", choices=ATTITUDES, doc="quat_enu / quat_ned (local level, "
+                          "CRS grid), quat_ecef, or euler_deg (euler_columns: roll pitch yaw, yaw from North clockwise)"),
+        "quaternion_order": Field(str, "-", default="xyzw", choices=("xyzw", "wxyz")),
+        "euler_columns": Field(list, "-", default=[], doc="attitude = euler_deg: roll, pitch, yaw columns (deg)"),
     },
     "filter": {
         "modes": Field(list, "-", default=list(MODES), doc=", ".join(MODES)),
@@ -153,10 +179,13 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "standstill_gyro_std_radps": Field(float, "rad/s", 0, 10, default=0.02),
     },
     "scoring": {
-        "outage_starts_s": Field(list, "s", default=[60.0, 120.0, 180.0, 240.0, 300.0],
-                                 doc="seconds from the first GNSS fix"),
-        "outage_length_s": Field(float, "s", 0.1, 3600, default=30.0),
-        "yaw_skip_s": Field(float, "s", 0, 3600, default=60.0, doc="yaw RMSE from this time on"),
+        "outage_starts_s": Field((list, str), "s", default="auto",
+                                 doc="seconds from the first GNSS fix; 'auto': 5 outages at 20, 35, 50, 65 and 80 % of "
+                                 "the IMU/GNSS overlap; [] none"),
+        "outage_length_s": Field((float, str), "s", default="auto",
+                                 doc="'auto': 30 s, or 10 % of the overlap when that is shorter"),
+        "yaw_skip_s": Field((float, str), "s", default="auto", doc="yaw RMSE from this time on; 'auto': 60 s, or "
+                            "15 % of the overlap when that is shorter"),
     },
 }
 
@@ -349,7 +378,20 @@ def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
     if min(con["nhc_sigma_mps"]) <= 0:
         raise UserInputError(f"{where_key(source, 'constraints', 'nhc_sigma_mps')}: expected 2 numbers > 0 (m/s)")
     sc = v["scoring"]
-    sc["outage_starts_s"] = check_numbers(source, "scoring", "outage_starts_s", sc["outage_starts_s"], None, "s", 1e6)
+    for key, limit in (("outage_length_s", 3600.0), ("yaw_skip_s", 3600.0)):
+        val = sc[key]
+        if isinstance(val, str) and val != "auto" or not isinstance(val, str) and not 0 <= val <= limit:
+            raise UserInputError(f"{where_key(source, 'scoring', key)} = {show_value(val)}: expected 'auto' or "
+                                 f"seconds in [0, {limit:g}]")
+    if sc["outage_length_s"] == 0:
+        raise UserInputError(f"{where_key(source, 'scoring', 'outage_length_s')}: expected a length > 0 s or 'auto'")
+    if isinstance(sc["outage_starts_s"], str):
+        if sc["outage_starts_s"] != "auto":
+            raise UserInputError(f"{where_key(source, 'scoring', 'outage_starts_s')} = "
+                                 f"{show_value(sc['outage_starts_s'])}: expected a list of seconds or 'auto'")
+    else:
+        sc["outage_starts_s"] = check_numbers(source, "scoring", "outage_starts_s", sc["outage_starts_s"], None, "s",
+                                              1e6)
 
 
 def load_spec(path: str | Path) -> DatasetSpec:
