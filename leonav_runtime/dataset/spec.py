@@ -257,15 +257,6 @@ def shared_data_dir() -> Path:
     return next((c for c in candidates if c.is_dir()), candidates[0])
 
 
-def _columns(source: str, section: str, key: str, value: Any, n: int | None) -> list:
-    ok = isinstance(value, list) and all(isinstance(v, str) or (isinstance(v, int) and not isinstance(v, bool)
-                                                                and v >= 0) for v in value)
-    if not ok or (n is not None and len(value) != n):
-        raise UserInputError(f"{where_key(source, section, key)} = {show_value(value)}: expected "
-                             f"{n if n is not None else 'a list of'} column names or 0-based indices")
-    return list(value)
-
-
 def parse_axes(text: str, where: str) -> list[tuple[int, float]]:
     """'-y,x,z' -> [(sensor axis index, sign)] per vehicle axis; a UserInputError unless each
     sensor axis appears once."""
@@ -293,13 +284,7 @@ def spec_from_dict(data: dict[str, Any], source: str = "<dict>", base_dir: Path 
 
 def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
     """Lists, choices and conversions the per-key check cannot do."""
-    imu, gnss, ref = v["imu"], v["gnss"], v["reference"]
-    for key in ("gyro_columns", "accel_columns"):
-        imu[key] = _columns(source, "imu", key, imu[key], None)
-        if len(imu[key]) != 3 and not (imu["format"] == "mat" and len(imu[key]) == 1):
-            raise UserInputError(f"{where_key(source, 'imu', key)} = {show_value(imu[key])}: "
-                                 "expected 3 column names or "
-                                 "indices (x y z; mat: also one (n, 3) field)")
+    imu, gnss = v["imu"], v["gnss"]
     imu["axis_map"] = parse_axes(imu["axes"], where_key(source, "imu", "axes"))
     for sec, key in (("imu", "time_offset_s"), ("gnss", "time_offset_s"), ("gnss", "sigma_scale"),
                      ("alignment", "yaw_deg")):
@@ -309,8 +294,6 @@ def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
         if isinstance(val, str) and val not in words:
             raise UserInputError(f"{where_key(source, sec, key)} = {show_value(val)}: expected a number or "
                                  f"{' or '.join(repr(w) for w in words)}")
-    if not isinstance(imu["time_offset_s"], str) and abs(imu["time_offset_s"]) > 3600:
-        raise UserInputError(f"{where_key(source, 'imu', 'time_offset_s')}: expected seconds within +-3600")
     if isinstance(gnss["sigma_scale"], float) and not 0.01 <= gnss["sigma_scale"] <= 100:
         raise UserInputError(f"{where_key(source, 'gnss', 'sigma_scale')}: expected 0.01..100 or 'auto'")
     gnss["sigma_columns"] = _columns(source, "gnss", "sigma_columns", gnss["sigma_columns"], None)
@@ -335,23 +318,7 @@ def _finish(v: dict[str, dict[str, Any]], source: str) -> None:
         raise UserInputError(f"{where_key(source, 'gnss', 'sigma_m')}: expected 3 numbers > 0 (m)")
     arm = check_numbers(source, "gnss", "lever_arm_m", gnss["lever_arm_m"], 3, "m", limit=100.0)
     gnss["lever_arm_flu_m"] = arm if gnss["lever_arm_frame"] == "FLU" else [arm[0], -arm[1], -arm[2]]
-    ref["position_columns"] = _columns(source, "reference", "position_columns", ref["position_columns"], 3)
-    ref["quaternion_columns"] = _columns(source, "reference", "quaternion_columns", ref["quaternion_columns"], None)
-    if len(ref["quaternion_columns"]) not in (0, 4):
-        raise UserInputError(f"{where_key(source, 'reference', 'quaternion_columns')}: expected 4 columns (x y z w) "
-                             "or none")
-    crs = ref["crs"]
-    if (gnss["height_datum"] == "msl" or ref["height_datum"] == "msl") and gnss["geoid_separation_m"] == 0.0:
-        raise UserInputError(f"{where_key(source, 'gnss', 'geoid_separation_m')}: heights declared msl "
-                             "(height_datum): expected the site's geoid height N in m (ellipsoidal = msl + N)")
-    if ref["height_datum"] == "msl" and crs == "ecef":
-        raise UserInputError(f"{where_key(source, 'reference', 'height_datum')} = 'msl' with crs = 'ecef': ECEF has no "
-                             "height datum; expected 'ellipsoid'")
-    if gnss["height_datum"] == "msl" and gnss["format"] != "csv":
-        raise UserInputError(f"{where_key(source, 'gnss', 'height_datum')} = 'msl' with format = {gnss['format']!r}: "
-                             "NMEA/UBX fixes are decoded to ellipsoidal heights; expected 'ellipsoid'")
-    if crs not in ("llh", "ecef") and not re.fullmatch(r"EPSG:\d{4,6}", crs):
-        raise UserInputError(f"{where_key(source, 'reference', 'crs')} = {crs!r}: expected llh, ecef or EPSG:<code>")
+    finish_sources(v, source)   # columns, formats, time bases, attitude of [imu] [gnss] [reference]
     modes = v["filter"]["modes"]
     if not modes or not all(isinstance(m, str) for m in modes):
         raise UserInputError(f"{where_key(source, 'filter', 'modes')} = {show_value(modes)}: expected a non-empty "
