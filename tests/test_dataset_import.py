@@ -221,7 +221,7 @@ def test_reference_yaw_is_true_not_grid(cpet):
 @pytest.mark.parametrize("section, key, value, needle", [
     ("imu", "accel_unit", "g", "[imu] accel_unit = 'g': the median specific force"),
     ("imu", "time_unit", "ms", "[imu] time_unit = 'ms': "),
-    ("imu", "gyro_unit", "deg/s", None),                  # rad/s read as deg/s: small, not caught, runs
+    ("imu", "gyro_unit", "deg/s", "[imu] gyro_unit = 'deg/s': over the turns the gyro integrates 0.01"),
     ("imu", "time_base", "unix", "[imu] time_base = 'unix', time_offset_s = 0.36: the IMU spans"),
     ("reference", "position_columns", [2, 1, 3], "[reference] crs / position_columns / time_column: the reference is"),
     ("reference", "time_unit", "ms", "no overlap"),

@@ -1,10 +1,15 @@
-"""A dataset description -> IMU samples, GNSS fixes and a reference on one time axis.
+"""A dataset description -> IMU samples, GNSS fixes (and velocity) and a reference on one time axis.
 
 Time axis: seconds since the first usable GNSS fix (`Dataset.t0_unix`, unix s). ENU origin:
-that fix (lat, lon rad; h m). IMU samples are rotated from the sensor axes to the vehicle
-frame (`[imu] axes`, `frame`) and then to body FLU, the filter's body frame; converted to
-rad/s and m/s^2. Rows that are short, not finite, clipped, repeated or out of time order
-are counted (`Dataset.counts`) and skipped.
+that fix (lat, lon rad; h m). Every time column is first put in its section's time base
+(`timebase`: unix, GPS week + time of week, GPS seconds; the IMU also first_fix or a boot
+clock). IMU samples (`imu_read`: one file, or gyro and accelerometer files) are rotated from
+the sensor axes to the vehicle frame (`[imu] axes`, `frame`) and then to body FLU, the
+filter's body frame; converted to rad/s and m/s^2. The reference's attitude becomes the yaw
+of body x from East towards North (`attitude`). Rows that are short, not finite, clipped,
+repeated, out of time order or with a bad quaternion are counted (`Dataset.counts`) and
+skipped. Physics checks (`checks`): IMU units, a boot clock that misses the fixes, the gyro
+unit against the GNSS course.
 """
 from __future__ import annotations
 
@@ -13,8 +18,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from leonav_runtime.orbits import geometry
-from leonav_runtime.dataset import checks, readers
-from leonav_runtime.dataset.spec import ACCEL_UNITS, GYRO_UNITS, TIME_UNITS, DatasetSpec
+from leonav_runtime.dataset import attitude, checks, readers, timebase
+from leonav_runtime.dataset.gnss_read import read_fixes
+from leonav_runtime.dataset.imu_read import read_imu
+from leonav_runtime.dataset.spec import TIME_UNITS, DatasetSpec
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.core import model
 from leonav_runtime.inputs import FixTable, LocalSensorTable
@@ -41,17 +48,28 @@ class Reference:
 
 
 @dataclass
+class GnssVelocity:
+    """GNSS velocity on the fixes' axis: t (n,) s, v_enu_mps (n, 3) at the run's ENU axes,
+    sigma_mps (n, 3) 1-sigma E N U."""
+
+    t: np.ndarray
+    v_enu_mps: np.ndarray
+    sigma_mps: np.ndarray
+
+
+@dataclass
 class Dataset:
     spec: DatasetSpec
     t0_unix: float
     origin: tuple[float, float, float]
-    imu_raw_t: np.ndarray           # IMU time stamps as in the file, converted to s (before the offset)
+    imu_raw_t: np.ndarray           # IMU times in s of its time base (unix, first_fix or boot s), before the offset
     imu: ImuSamples
     fixes: FixTable
     reference: Reference | None
     counts: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
-    local_raw: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)   # sensor -> (t as in file, z)
+    local_raw: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)   # sensor -> (t IMU base, z)
+    velocity: GnssVelocity | None = None    # GNSS velocity, if the fix file or log has one
 
     def _axis(self, offset_s: float) -> float:
         return (0.0 if self.spec["imu"]["time_base"] == "first_fix" else -self.t0_unix) + offset_s
@@ -66,109 +84,9 @@ class Dataset:
                 for token, (t, z) in self.local_raw.items()]
 
 
-def _vehicle_flu(raw: np.ndarray, axis_map, frame: str) -> np.ndarray:
-    """Sensor columns (n, 3) -> vehicle frame by the axis map -> body FLU."""
-    out = np.column_stack([sign * raw[:, axis] for axis, sign in axis_map])
-    if frame == "FRD":
-        out[:, 1:] *= -1.0
-    return out
-
-
-def read_imu(spec: DatasetSpec, counts: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(t s as in the file, w rad/s FLU, f m/s^2 FLU) of the good IMU rows."""
-    s = spec["imu"]
-    path = readers.resolve(spec.data_dir / s["file"], "IMU", spec.where("imu", "file"), spec.shared)
-    cols = ([("time_column", s["time_column"])] + [("gyro_columns", c) for c in s["gyro_columns"]]
-            + [("accel_columns", c) for c in s["accel_columns"]])
-    if s["format"] == "mat":
-        data = readers.read_mat_columns(path, s["mat_struct"], [("time_column", s["time_column"])]
-                                        + [("gyro_columns", c) for c in s["gyro_columns"]]
-                                        + [("accel_columns", c) for c in s["accel_columns"]])
-    else:
-        data = readers.read_columns(path, cols, s["delimiter"])
-    if data.values.shape[1] != 7:
-        raise UserInputError(f"{path}: expected a time column and 3 + 3 gyro/accel columns, got "
-                             f"{data.values.shape[1]} columns")
-    v = data.values
-    t = v[:, 0] * TIME_UNITS[s["time_unit"]]
-    w = v[:, 1:4] * GYRO_UNITS[s["gyro_unit"]]
-    f = v[:, 4:7] * ACCEL_UNITS[s["accel_unit"]]
-    clipped = np.zeros(t.size, bool)
-    if s["accel_range_mps2"] > 0:
-        clipped |= (np.abs(f) >= 0.999 * s["accel_range_mps2"]).any(axis=1)
-    if s["gyro_range_radps"] > 0:
-        clipped |= (np.abs(w) >= 0.999 * s["gyro_range_radps"]).any(axis=1)
-    keep, order = readers.monotonic_rows(np.where(clipped, np.nan, t))
-    keep &= ~clipped
-    counts["imu"] = data.counts | order | {"rows_clipped": int(clipped.sum()), "rows_used": int(keep.sum())}
-    if keep.sum() < 2:
-        raise UserInputError(f"{path}: fewer than 2 usable IMU rows: expected samples with increasing time")
-    t, w, f = t[keep], w[keep], f[keep]
-    checks.imu_units(spec, t, w, f, path)
-    dt = np.diff(t)
-    med = float(np.median(dt))
-    gaps = dt > 2.5 * med
-    counts["imu"] |= {"rate_hz": 1.0 / med, "gaps": int(gaps.sum()), "gap_seconds": float(dt[gaps].sum())}
-    return t, _vehicle_flu(w, s["axis_map"], s["frame"]), _vehicle_flu(f, s["axis_map"], s["frame"])
-
-
 def _enu(lat_rad, lon_rad, h_m, origin) -> np.ndarray:
     r0 = geometry.geodetic_to_ecef(*origin)
     return geometry.ecef_to_enu(geometry.geodetic_to_ecef(lat_rad, lon_rad, h_m), r0, origin[0], origin[1])
-
-
-def read_fixes(spec: DatasetSpec, counts: dict, notes: list[str]):
-    """(t unix s, lat rad, lon rad, h m, sigma (n, 3) m E N U or None) of the good fixes."""
-    g = spec["gnss"]
-    path = readers.resolve(spec.data_dir / g["file"], "GNSS", spec.where("gnss", "file"), spec.shared)
-    if g["format"] in ("nmea", "ubx"):
-        return _decoded_fixes(path, counts, notes)
-    cols = [("time_column", g["time_column"]), ("lat_column", g["lat_column"]), ("lon_column", g["lon_column"]),
-            ("height_column", g["height_column"])] + [("sigma_columns", c) for c in g["sigma_columns"]]
-    data = readers.read_columns(path, cols, g["delimiter"])
-    v = data.values
-    t = v[:, 0] * TIME_UNITS[g["time_unit"]]
-    bad = (np.abs(v[:, 1]) > 90) | (np.abs(v[:, 2]) > 360)
-    if g["sigma_columns"]:
-        bad |= (v[:, 4:7] <= 0).any(axis=1)
-    keep, order = readers.monotonic_rows(np.where(bad, np.nan, t))
-    keep &= ~bad
-    counts["gnss"] = data.counts | order | {"rows_out_of_range": int(bad.sum()), "rows_used": int(keep.sum())}
-    if not keep.any():
-        raise UserInputError(f"{path}: no usable fix: expected latitude in [-90, 90] deg and longitude in deg")
-    dt = np.diff(t[keep])
-    if dt.size:
-        gaps = dt > 5 * np.median(dt)
-        counts["gnss"] |= {"gaps": int(gaps.sum()), "gap_seconds": float(dt[gaps].sum())}
-    v = v[keep]
-    sigma = v[:, 4:7] if g["sigma_columns"] else None
-    h = v[:, 3] + (g["geoid_separation_m"] if g["height_datum"] == "msl" else 0.0)   # WGS84 ellipsoidal
-    return t[keep], np.radians(v[:, 1]), np.radians(v[:, 2]), h, sigma
-
-
-def _decoded_fixes(path, counts: dict, notes: list[str]):
-    """Fixes of an NMEA or UBX log through the device layer's decoder (GGA + RMC date, NAV-PVT);
-    per-fix sigma as a recorded session's replay takes it (GST, NAV-PVT accuracy, else HDOP)."""
-    from leonav.hardware.gnss.reader import GnssDecoder
-    from leonav.hardware.records import GnssFix
-    from leonav_runtime.replay.gnss_table import fix_height_m, fix_table, usable_fix
-
-    dec = GnssDecoder()
-    recs = dec.decode(path.read_bytes(), 0.0) + dec.close()
-    all_fixes = [r for r in recs if isinstance(r, GnssFix)]
-    fixes = [f for f in all_fixes if usable_fix(f) and f.utc is not None]
-    if not fixes:
-        raise UserInputError(f"{path}: no GNSS fix with a position and a date (GGA + RMC, or NAV-PVT) in the log")
-    t = np.array([f.utc.timestamp() for f in fixes])
-    keep, order = readers.monotonic_rows(t)
-    fixes = [f for f, k in zip(fixes, keep) if k]
-    origin = (fixes[0].lat_rad, fixes[0].lon_rad, fix_height_m(fixes[0]))
-    table, fc = fix_table([r for r in recs if not isinstance(r, GnssFix)] + fixes, None, 0.0, origin, notes)
-    counts["gnss"] = order | {"rows_used": len(fixes), "rows_without_date_or_position": len(all_fixes) - int(
-        keep.size), "decoder_rejected": dict(dec.rejected), "fix_sigma_source": fc["fix_sigma_source"]}
-    notes.append(f"GNSS: {len(fixes)} fixes decoded from {path.name}")
-    return (t[keep], np.array([f.lat_rad for f in fixes]), np.array([f.lon_rad for f in fixes]),
-            np.array([fix_height_m(f) for f in fixes]), table.sigma_enu_m)
 
 
 def read_reference(spec: DatasetSpec, t0_unix: float, origin, counts: dict) -> Reference | None:
@@ -181,9 +99,12 @@ def read_reference(spec: DatasetSpec, t0_unix: float, origin, counts: dict) -> R
 
 
 def reference_from_file(path, r: dict, t0_unix: float, origin, counts: dict, geoid_m: float = 0.0) -> Reference:
-    """Reference from a CSV (columns and CRS of the `[reference]` options `r`) or an RTKLIB .pos (ellipsoidal
-    heights); `r["height_datum"]` "msl" adds the geoid height geoid_m (m) to CSV heights."""
+    """Reference from a CSV or npy/npz (columns, CRS, time base and attitude of the `[reference]`
+    options `r`; keys it lacks take the SCHEMA defaults) or an RTKLIB .pos (ellipsoidal heights);
+    `r["height_datum"]` "msl" adds the geoid height geoid_m (m) to CSV heights. Rows whose
+    quaternion is not of unit norm are counted (`rows_bad_quaternion`) and skipped."""
     yaw = None
+    n_quat = 0
     if r["format"] == "pos" or str(path).endswith(".pos"):
         from leonav_runtime.gnss import solution_io
         from leonav_runtime.gnss import time as gtime
@@ -197,20 +118,31 @@ def reference_from_file(path, r: dict, t0_unix: float, origin, counts: dict, geo
         h = np.array([p.height_m for p in rows])
         n_bad = 0
     else:
-        cols = [("time_column", r["time_column"])] + [("position_columns", c) for c in r["position_columns"]]
-        cols += [("quaternion_columns", c) for c in r["quaternion_columns"]]
-        data = readers.read_columns(path, cols, r["delimiter"])
+        wk = timebase.week_key(r)
+        att_key = "euler_columns" if r.get("attitude") == "euler_deg" else "quaternion_columns"
+        att_cols = r.get(att_key, [])
+        cols = [("time_column", r["time_column"])] + wk + [("position_columns", c) for c in r["position_columns"]]
+        cols += [(att_key, c) for c in att_cols]
+        data = readers.read_source(path, r, cols)
         v = data.values
-        t = v[:, 0] * TIME_UNITS[r["time_unit"]]
+        t, n_tow = timebase.to_base(v[:, 0] * TIME_UNITS[r["time_unit"]], r, v[:, 1] if wk else None,
+                                    f"[reference] of {path}:")
+        v = v[:, len(wk):]
         lat, lon, h, conv = _to_geodetic(v[:, 1:4], r["crs"], path)
         if r.get("height_datum") == "msl":
             h = h + geoid_m
-        if r["quaternion_columns"]:
-            qx, qy, qz, qw = v[:, 4].copy(), v[:, 5], v[:, 6], v[:, 7]
-            yaw = np.arctan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy**2 + qz**2)) + conv
-        n_bad = data.counts["rows_nan"] + data.counts["rows_short"]
+        if att_cols:
+            yaw, bad_q = attitude.reference_yaw(v[:, 4:], r.get("attitude", "quat_enu"),
+                                                r.get("quaternion_order", "xyzw"), lat, lon, conv)
+            n_quat = int(bad_q.sum())
+            t = np.where(bad_q, np.nan, t)       # not scored: neither yaw nor position of that row
+        n_bad = data.counts["rows_nan"] + data.counts["rows_short"] + n_tow
     keep, order = readers.monotonic_rows(t)
     counts["reference"] = order | {"rows_bad": n_bad, "rows_used": int(keep.sum())}
+    if n_quat:
+        counts["reference"]["rows_bad_quaternion"] = n_quat
+    if not keep.any():
+        raise UserInputError(f"{path}: no usable reference row ({n_quat} with a quaternion of norm not 1, {n_bad} bad)")
     p = _enu(lat[keep], lon[keep], h[keep], origin)
     return Reference(t[keep] - t0_unix, np.atleast_2d(p), None if yaw is None else np.unwrap(yaw[keep]), str(path))
 
@@ -239,13 +171,16 @@ def _to_geodetic(xyz: np.ndarray, crs: str, path) -> tuple[np.ndarray, np.ndarra
     return np.radians(lat), np.radians(lon), xyz[:, 2], conv
 
 
-def read_local(spec: DatasetSpec, token: str, counts: dict) -> tuple[np.ndarray, np.ndarray]:
-    """(t s as in the file, z (n, k) in the observables' units) of a local sensor's good rows."""
+def read_local(spec: DatasetSpec, token: str, counts: dict, imu_week: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(t s in the IMU's time base, z (n, k) in the observables' units) of a local sensor's good rows;
+    with gps_week_tow the week is [imu] gps_week, else the IMU file's first week (`imu_week`)."""
     s = spec[token]
     path = readers.resolve(spec.data_dir / s["file"], token, spec.where(token, "file"), spec.shared)
     data = readers.read_columns(path, [("time_column", s["time_column"])] + [("columns", c) for c in s["columns"]],
                                 s["delimiter"])
-    t = data.values[:, 0] * TIME_UNITS[s["time_unit"]]
+    imu = dict(spec["imu"], gps_week=spec["imu"]["gps_week"] or imu_week)
+    t, _ = timebase.to_base(data.values[:, 0] * TIME_UNITS[s["time_unit"]], imu, None,
+                            spec.where(token, "time_column") + " (the IMU's time base):")
     keep, order = readers.monotonic_rows(t)
     counts[token] = data.counts | order | {"rows_used": int(keep.sum())}
     if not keep.any():
@@ -257,7 +192,8 @@ def load(spec: DatasetSpec) -> Dataset:
     """Read every file the description names (module doc)."""
     counts: dict = {}
     notes: list[str] = []
-    t_fix, lat, lon, h, sig = read_fixes(spec, counts, notes)
+    vel: dict = {}
+    t_fix, lat, lon, h, sig = read_fixes(spec, counts, notes, vel)
     t0 = float(t_fix[0])
     origin = (float(lat[0]), float(lon[0]), float(h[0]))
     g = spec["gnss"]
@@ -268,7 +204,24 @@ def load(spec: DatasetSpec) -> Dataset:
     else:
         counts["gnss"]["sigma_source"] = counts["gnss"].pop("fix_sigma_source", "per-fix sigma columns")
     fixes = FixTable(t_fix - t0, p, np.asarray(sig, float), np.full((t_fix.size, 2), np.nan))
+    velocity = GnssVelocity(vel["t"] - t0, vel["v_enu_mps"], vel["sigma_mps"]) if vel else None
     t_imu, w, f = read_imu(spec, counts)
-    ref = read_reference(spec, t0, origin, counts)
-    local = {token: read_local(spec, token, counts) for token in model.LOCAL_SENSORS if spec[token]["file"]}
-    return Dataset(spec, t0, origin, t_imu, ImuSamples(t_imu, w, f), fixes, ref, counts, notes, local)
+    ds = Dataset(spec, t0, origin, t_imu, ImuSamples(t_imu, w, f), fixes, None, counts, notes, velocity=velocity)
+    _check_imu_on_fixes(ds)
+    ds.reference = read_reference(spec, t0, origin, counts)
+    week = int(np.floor(timebase.gps_week_of_unix(t_imu[0]))) if spec["imu"]["time_base"] == "gps_week_tow" else 0
+    ds.local_raw = {token: read_local(spec, token, counts, week) for token in model.LOCAL_SENSORS
+                    if spec[token]["file"]}
+    return ds
+
+
+def _check_imu_on_fixes(ds: Dataset) -> None:
+    """A boot clock mapped past the fixes is one line naming its key; the gyro unit against the
+    GNSS course (or the Earth rate at rest) once the IMU is on the fixes' axis (`checks`)."""
+    s = ds.spec["imu"]
+    offset = 0.0 if isinstance(s["time_offset_s"], str) else float(s["time_offset_s"])
+    imu = ds.imu_on_axis(offset)
+    if s["time_base"] == "boot":
+        key = "clock_pair" if s["clock_pair"] else "time_offset_s"
+        checks.clock_mapping(ds.spec, key, imu.t + ds.t0_unix, ds.fixes.t + ds.t0_unix)
+    checks.gyro_unit(ds.spec, imu, ds.fixes, ds.counts)

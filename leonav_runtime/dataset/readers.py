@@ -1,4 +1,4 @@
-"""Read the columns a dataset description names from CSV (or MATLAB .mat) files.
+"""Read the columns a dataset description names from CSV, numpy .npy/.npz or MATLAB .mat files.
 
 `read_columns` returns float columns and the file line of each row. Header: the first line
 that is not a comment ('#', '%') when any column is named; indices need no header. Bad
@@ -18,6 +18,8 @@ import numpy as np
 from leonav_runtime.common.errors import UserInputError
 
 COMMENTS = ("#", "%")
+JUMP_INTERVALS = 1000.0
+"""A forward time step longer than this many median sample intervals is a time jump."""
 
 
 @dataclass
@@ -147,3 +149,59 @@ def monotonic_rows(t: np.ndarray) -> tuple[np.ndarray, dict]:
         else:
             last = v
     return keep, {"rows_duplicate_time": dup, "rows_non_monotonic": back}
+
+
+def read_array_columns(path: Path, columns: list[tuple[str, str | int]], array: str = "") -> Columns:
+    """Columns (0-based indices) of a 2-D numpy array (n samples, k columns) in a .npy file, or the
+    array `array` of a .npz (empty: its only array), loaded by numpy without pickles; rows with a
+    value that is not finite are counted (`rows_nan`) and skipped."""
+    try:
+        data = np.load(path, allow_pickle=False)
+    except (ValueError, OSError, EOFError) as exc:
+        raise UserInputError(f"{path}: not a .npy/.npz file numpy can read ({exc})") from None
+    name = path.name
+    if isinstance(data, np.lib.npyio.NpzFile):
+        names = list(data.files)
+        if array and array not in names:
+            raise UserInputError(f"{path}: array {array!r} not in the .npz; expected one of {', '.join(names)}")
+        if not array and len(names) != 1:
+            raise UserInputError(f"{path}: the .npz holds {len(names)} arrays ({', '.join(names)}): expected "
+                                 "`array` naming one")
+        name = f"{name}[{array or names[0]}]"
+        data = data[array or names[0]]
+    idx = [c for _, c in columns]
+    if any(not isinstance(c, int) for c in idx):
+        raise UserInputError(f"{path}: columns {idx}: expected 0-based indices (an array has no header)")
+    need = max(idx) + 1
+    if data.ndim != 2 or data.shape[1] < need or not np.issubdtype(data.dtype, np.number):
+        raise UserInputError(f"{name}: array of shape {data.shape} ({data.dtype}): expected a numeric (n, >= {need}) "
+                             f"array, one row per sample, columns {', '.join(f'{k}={c}' for k, c in columns)}")
+    values = np.asarray(data[:, idx], float)
+    finite = np.isfinite(values).all(axis=1)
+    if not finite.any():
+        raise UserInputError(f"{name}: no row with finite numbers in columns {idx}: expected numeric rows")
+    return Columns(path, values[finite], np.flatnonzero(finite), {"rows_short": 0, "rows_nan": int((~finite).sum())})
+
+
+def read_source(path: Path, sec: dict, columns: list[tuple[str, str | int]], array_key: str = "array") -> Columns:
+    """The columns of a section's file in its `format`: csv (`delimiter`), npy/npz (`array_key`:
+    the key naming the .npz array), mat (`mat_struct`)."""
+    fmt = sec.get("format", "csv")
+    if fmt in ("npy", "npz"):
+        return read_array_columns(path, columns, sec.get(array_key) or sec.get("array", ""))
+    if fmt == "mat":
+        return read_mat_columns(path, sec.get("mat_struct", ""), columns)
+    return read_columns(path, columns, sec.get("delimiter", ","))
+
+
+def time_jumps(t: np.ndarray) -> dict:
+    """Jumps of a time column in file order (rows with NaN time left out): a forward step longer
+    than JUMP_INTERVALS median steps, or any step back (a clock reset or a row out of order).
+    They are treated as gaps: rows after a step back are skipped until time passes the last kept
+    row (`monotonic_rows`), and a forward jump is a gap of the samples kept."""
+    d = np.diff(np.asarray(t, float)[np.isfinite(t)])
+    pos = d[d > 0]
+    if pos.size == 0:
+        return {"time_jumps": 0, "time_jump_forward_s": 0.0}
+    fwd = d > JUMP_INTERVALS * float(np.median(pos))
+    return {"time_jumps": int(fwd.sum() + (d < 0).sum()), "time_jump_forward_s": float(d[fwd].sum())}

@@ -14,6 +14,7 @@
 """
 from __future__ import annotations
 
+import datetime as _dt
 import math
 
 import numpy as np
@@ -93,3 +94,9 @@ def week_key(sec: dict) -> list[tuple[str, object]]:
     if sec.get("time_base") == "gps_week_tow" and sec.get("week_column", "") != "":
         return [("week_column", sec["week_column"])]
     return []
+
+
+def gps_week_of_unix(t_unix_s: float) -> float:
+    """GPS week (with its fraction) of a unix time (UTC), through the leap-second table."""
+    utc = _dt.datetime.fromtimestamp(float(t_unix_s), _dt.timezone.utc)
+    return gtime.utc_to_gps_seconds(utc) / GPS_WEEK_S
