@@ -30,7 +30,7 @@ RMC_UP_SIGMA_MPS = 10.0
 def _times(spec: DatasetSpec, v: np.ndarray, week: bool) -> tuple[np.ndarray, int]:
     g = spec["gnss"]
     return timebase.to_base(v[:, 0] * TIME_UNITS[g["time_unit"]], g, v[:, 1] if week else None,
-                            spec.where("gnss", "time_base") + ":")
+                            spec.where("gnss", "time_base"))
 
 
 def read_fixes(spec: DatasetSpec, counts: dict, notes: list[str], velocity: dict | None = None):

@@ -51,7 +51,7 @@ def _stream(spec: DatasetSpec, path, time_key: str, data_key: str, scale: float,
                              f"{data.values.shape[1] - 1 - len(wk)}")
     v = data.values
     t, n_bad = timebase.to_base(v[:, 0] * TIME_UNITS[s["time_unit"]], s, v[:, 1] if wk else None,
-                                spec.where("imu", "time_base") + ":")
+                                spec.where("imu", "time_base"))
     vals = v[:, 1 + len(wk):]
     if data_key == "both":
         vals = np.hstack([vals[:, :3] * GYRO_UNITS[s["gyro_unit"]], vals[:, 3:] * ACCEL_UNITS[s["accel_unit"]]])

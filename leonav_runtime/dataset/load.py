@@ -126,7 +126,7 @@ def reference_from_file(path, r: dict, t0_unix: float, origin, counts: dict, geo
         data = readers.read_source(path, r, cols)
         v = data.values
         t, n_tow = timebase.to_base(v[:, 0] * TIME_UNITS[r["time_unit"]], r, v[:, 1] if wk else None,
-                                    f"[reference] of {path}:")
+                                    f"{path}: [reference] time_base")
         v = v[:, len(wk):]
         lat, lon, h, conv = _to_geodetic(v[:, 1:4], r["crs"], path)
         if r.get("height_datum") == "msl":
@@ -180,7 +180,7 @@ def read_local(spec: DatasetSpec, token: str, counts: dict, imu_week: int = 0) -
                                 s["delimiter"])
     imu = dict(spec["imu"], gps_week=spec["imu"]["gps_week"] or imu_week)
     t, _ = timebase.to_base(data.values[:, 0] * TIME_UNITS[s["time_unit"]], imu, None,
-                            spec.where(token, "time_column") + " (the IMU's time base):")
+                            spec.where("imu", "time_base") + f" (of [{token}])")
     keep, order = readers.monotonic_rows(t)
     counts[token] = data.counts | order | {"rows_used": int(keep.sum())}
     if not keep.any():

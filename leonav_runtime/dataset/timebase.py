@@ -64,7 +64,7 @@ def to_base(t_s: np.ndarray, sec: dict, week: np.ndarray | None, where: str) -> 
     """A section's time column (s, after time_unit) in its time base (module doc): unix s for
     the unix bases and for `boot` with a clock pair, else unchanged. `week`: the week column's
     values (gps_week_tow with `week_column`). Returns (t, rows whose time of week or week is
-    impossible: NaN, for the caller to count and skip); `where` names the section's keys."""
+    impossible: NaN, for the caller to count and skip); `where` names the time_base key."""
     base = sec.get("time_base", "unix")
     t = np.asarray(t_s, float)
     if base == "unix" or base == "first_fix":
@@ -76,7 +76,7 @@ def to_base(t_s: np.ndarray, sec: dict, week: np.ndarray | None, where: str) -> 
         return gps_to_unix(t), 0
     fin = t[np.isfinite(t)]
     if fin.size and np.median(fin) > GPS_WEEK_S:
-        raise UserInputError(f"{where} time_base = 'gps_week_tow': the time column's median is {np.median(fin):.6g} s, "
+        raise UserInputError(f"{where} = 'gps_week_tow': the time column's median is {np.median(fin):.6g} s, "
                              f"expected seconds of the GPS week (0..{GPS_WEEK_S:g}): check time_base and time_unit")
     bad = ~((t >= 0) & (t < GPS_WEEK_S + 1.0))
     if week is not None:
