@@ -106,6 +106,9 @@ AUX_BLOCKS = _blocks([
      "GPS broadcast ionosphere alpha0..3, beta0..3 (IS-GPS-200 20.3.3.5.1.7)"),
     # GNSS velocity: the antenna's rotation about the IMU (lever arm); zeros for every other observable
     ("w_b", 3, "rad/s", "latest angular rate, body (the gyro averaged like f_b)"),
+    # GNSS fix and velocity: the measurement's tag is this long after the state's time (the latest
+    # IMU sample); zero for every other observable
+    ("dt_tag", 1, "s", "time from the state (latest IMU sample) to the measurement's tag, >= 0"),
 ])
 # IMU input u
 U_BLOCKS = _blocks([

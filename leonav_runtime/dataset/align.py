@@ -49,12 +49,15 @@ def standstill(imu: ImuSamples, window_s: float, accel_std_mps2: float, gyro_rad
 def veto_moving(still: np.ndarray, imu_t_s: np.ndarray, fixes: FixTable, window_s: float,
                 speed_mps: float) -> tuple[np.ndarray, float]:
     """(still, seconds vetoed): IMU samples flagged at rest are not where the GNSS speed (fixes
-    differenced over `window_s`) exceeds `speed_mps`; outside the fixes' span the IMU decides."""
+    differenced over `window_s`) exceeds `speed_mps`; more than 2 window_s outside the fixes'
+    velocity grid the IMU decides."""
     t_v, v = gnss_velocity(fixes, window_s)
     if t_v.size < 2:
         return still, 0.0
     speed = np.hypot(np.interp(imu_t_s, t_v, v[:, 0]), np.interp(imu_t_s, t_v, v[:, 1]))
-    inside = (imu_t_s >= t_v[0] - window_s / 2) & (imu_t_s <= t_v[-1] + window_s / 2)
+    # the grid starts half a window after the first fix: its first speed holds back to the fix
+    # and a little before it (an IMU that starts before the receiver's first fix)
+    inside = (imu_t_s >= t_v[0] - 2 * window_s) & (imu_t_s <= t_v[-1] + 2 * window_s)
     moving = inside & (speed > speed_mps)
     veto = still & moving
     dt = np.diff(imu_t_s, prepend=imu_t_s[0])
@@ -176,7 +179,7 @@ def level_in_motion(imu: ImuSamples, fixes: FixTable, t_v: np.ndarray, v_enu: np
 
     f_b: the mean specific force (m/s^2, body FLU) over `window_s` centred on t_s. The vehicle's
     acceleration: centripetal from the gyro's mean up rate times the GNSS horizontal velocity
-    (a turn), along the heading from `along_track_accel` over 2 window_s, kept only where it
+    (a turn), along the heading from `along_track_accel` over 3 window_s, kept only where it
     exceeds twice its sigma (else the fix noise would tilt the level more than it corrects);
     no vertical acceleration (a road vehicle). The generated `leonav_level` is applied to
     f_b - C_n_b a_enu, C_n_b from the current roll, pitch and the course yaw, a few fixed-point
@@ -189,7 +192,7 @@ def level_in_motion(imu: ImuSamples, fixes: FixTable, t_v: np.ndarray, v_enu: np
     w_up = float(imu.w_b_radps[sel, 2].mean()) if sel.any() else float(imu.w_b_radps[k, 2])
     v = np.array([np.interp(t_s, t_v, v_enu[:, j]) for j in range(2)])
     a_c = w_up * np.array([-v[1], v[0], 0.0])
-    a_t, a_t_sigma = along_track_accel(fixes, t_s, yaw_rad, 2 * window_s)
+    a_t, a_t_sigma = along_track_accel(fixes, t_s, yaw_rad, 3 * window_s)
     a_t_used = a_t if abs(a_t) > 2 * a_t_sigma else 0.0
     a_enu = a_c + a_t_used * np.array([math.cos(yaw_rad), math.sin(yaw_rad), 0.0])
     naive = nav.level(f_b)

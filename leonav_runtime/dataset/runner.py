@@ -8,8 +8,17 @@
   bias = the mean rate at that standstill minus the Earth rate in body axes; heading = the
   course of the GNSS velocity at the first time the vehicle moves (`[alignment] speed_mps`
   held for 1 s), where the filter starts, or a given yaw. Position = the antenna fix there minus the rotated lever arm.
-- Records: IMU and fixes through `inputs.assemble` (the one road into the filter), plus the
-  motion constraints (`constraints.py`); each mode merges the streams it names.
+- Records: IMU, fixes and the GNSS velocity (when the data has it; the `vel` stream) through
+  `inputs.assemble` (the one road into the filter), plus the motion constraints
+  (`constraints.py`); each mode merges the streams it names.
+- Fix latency (`[gnss] time_offset_s`): a number is a known latency taken off the fix and
+  velocity tags; "estimate" makes it the state `dt_fix` (prior `time_offset_prior_s` +-
+  `time_offset_sigma_s`, random walk `time_offset_rw`), reported per mode with its sigma.
+- No standstill at the start (the GNSS speed vetoes a quiet IMU): alignment in motion
+  (`align.level_in_motion`: the specific force less the centripetal and along-track
+  acceleration), heading from the GNSS course, the gyro bias from 0 with a wide prior
+  (`MOVING_GYRO_BIAS_SIGMA_RADPS`); the report says which alignment was used and a note warns
+  when levelling on the moving specific force would have been off by more than LEVEL_WARN_DEG.
 - Time-correlated fix errors: `[gnss] rate_hz` thins the fixes; `sigma_scale = "auto"`
   runs the last mode once and rescales each fix axis's sigma once by sqrt(mean fix NIS of
   that axis), clamped, and not at all when that first run diverged (`auto_scale`; reported).
@@ -33,7 +42,7 @@ from leonav_runtime.core import model
 from leonav_runtime.dataset.spec import dataset_mode
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.profiles import IMU_PROFILES
-from leonav_runtime.inputs import FilterInputs, FixTable, ImuTable, Prior, assemble, prior_sigmas
+from leonav_runtime.inputs import FilterInputs, FixTable, ImuTable, Prior, VelocityTable, assemble, prior_sigmas
 from leonav_runtime.core.params import ImuProfile, build_params
 
 FIX_KINDS = ("POS_E", "POS_N", "POS_U")
@@ -238,8 +247,9 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
     scale = spec["gnss"]["sigma_scale"]
     fixes = FixTable(fixes.t, fixes.p_enu_m, fixes.sigma_enu_m * (1.0 if isinstance(scale, str) else scale),
                      fixes.v_en_mps)
+    velocity = velocity_table(ds, spec)
     inputs = assemble(table, params, prior, fixes=fixes, nav=nav, notes=notes, origin=ds.origin,
-                      local=ds.local_on_axis(offset))
+                      local=ds.local_on_axis(offset), velocity=velocity)
     streams = constraints.records_for(imu, still, prior.t_start_s, float(imu.t[-1]), con, nav)
     report["standstill"] = {"seconds": float(np.sum(np.diff(imu.t)[still[1:]])), "initial_s": rest.seconds}
     dt = np.diff(imu.t[imu.t >= prior.t_start_s])
@@ -249,6 +259,12 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
                           "long_seconds": float(dt[long].sum()), "max_gap_s": spec["imu"]["max_gap_s"],
                           "long_handling": "constant-velocity predict, covariance inflated (dataset/resets.py)"}
     streams |= {token: inputs.records[token] for token in inputs.local}
+    if velocity is not None:
+        streams["vel"] = inputs.records["vel"]
+    wants_vel = [m for m in spec["filter"]["modes"] if "vel" in dataset_mode(m).streams]
+    if wants_vel and velocity is None:
+        raise UserInputError(f"{spec.where('filter', 'modes')}: {', '.join(wants_vel)} use the GNSS velocity (vel): "
+                             f"expected {spec.where('gnss', 'velocity_columns')} (or an NMEA/UBX log with velocity)")
     prep = Prepared(inputs, {"fix": inputs.records["fix"]} | streams, imu, all_fixes, nav,
                     spec["filter"]["gate_nis"], report, spec["imu"]["max_gap_s"], spec["filter"]["lockout_fixes"])
     if isinstance(scale, str):
@@ -276,6 +292,17 @@ def shift_fixes(fixes: FixTable, latency: float | str) -> FixTable:
     if isinstance(latency, str) or latency == 0.0:
         return fixes
     return FixTable(fixes.t - latency, fixes.p_enu_m, fixes.sigma_enu_m, fixes.v_en_mps)
+
+
+def velocity_table(ds: Dataset, spec) -> VelocityTable | None:
+    """The dataset's GNSS velocity (`Dataset.velocity`) as the filter's table, a known latency taken
+    off its tags like the fixes'; None when the data has none."""
+    vel = getattr(ds, "velocity", None)
+    if vel is None or not np.size(vel.t):
+        return None
+    latency = spec["gnss"]["time_offset_s"]
+    t = np.asarray(vel.t, float) - (0.0 if isinstance(latency, str) else latency)
+    return VelocityTable(t, np.asarray(vel.v_enu_mps, float), np.asarray(vel.sigma_mps, float))
 
 
 def sensor_params(spec) -> dict[str, float]:

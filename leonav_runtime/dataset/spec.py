@@ -35,9 +35,9 @@ ATTITUDES = ("quat_enu", "quat_ned", "quat_ecef", "euler_deg")
 
 
 def dataset_observable(o) -> bool:
-    """What a dataset description gives the filter: GNSS fixes, motion constraints and the local
-    sensors it names a section for."""
-    return o.stream == "fix" or o.table in ("constraint", "local")
+    """What a dataset description gives the filter: GNSS fixes and velocity, motion constraints and
+    the local sensors it names a section for."""
+    return o.stream in ("fix", "vel") or o.table in ("constraint", "local")
 
 
 def dataset_mode(name: str, where: str = "[filter] modes:") -> model.Mode:

@@ -111,8 +111,9 @@ def write_drive(folder: str | Path, cfg: DriveConfig | None = None) -> Drive:
     x_true[:, L.X_B_A_SLICE], x_true[:, L.X_B_G_SLICE] = b_a, b_g
     u = sensor_errors.measured_increments(rng, profile, u_true, b_a, b_g, dt)
     w_b, f_b = u[:, L.U_DTHETA_B_SLICE] / dt, u[:, L.U_DVEL_B_SLICE] / dt
-    # a rate sample at the end of each interval is that interval's mean rate
-    imu_rows = np.column_stack([EPOCH_UNIX_S + t[1:], w_b, f_b])
+    # an interval's mean rate is the instantaneous rate at its midpoint (to second order): a rate
+    # sensor's sample, which the loader integrates by the trapezoid between samples
+    imu_rows = np.column_stack([EPOCH_UNIX_S + t[1:] - dt / 2, w_b, f_b])
     np.savetxt(folder / "imu.csv", imu_rows, delimiter=",", fmt="%.6f,%.9e,%.9e,%.9e,%.9e,%.9e,%.9e",
                header="t_unix_s,wx_radps,wy_radps,wz_radps,fx_mps2,fy_mps2,fz_mps2", comments="")
 

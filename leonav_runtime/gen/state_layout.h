@@ -6,7 +6,7 @@
 #define LEONAV_NX 23
 #define LEONAV_NDX 22
 #define LEONAV_NP 18
-#define LEONAV_NAUX 39
+#define LEONAV_NAUX 40
 #define LEONAV_NU 6
 #define LEONAV_NNAV 9  /* the 9D navigation error (dp, dv, dtheta) = dx[0:NNAV] */
 
@@ -84,6 +84,8 @@
 #define LEONAV_AUX_KLOBUCHAR_SIZE 8
 #define LEONAV_AUX_W_B 36  /* rad/s: latest angular rate, body (the gyro averaged like f_b) */
 #define LEONAV_AUX_W_B_SIZE 3
+#define LEONAV_AUX_DT_TAG 39  /* s: time from the state (latest IMU sample) to the measurement's tag, >= 0 */
+#define LEONAV_AUX_DT_TAG_SIZE 1
 
 #define LEONAV_U_DTHETA_B 0  /* rad: gyro angle increment over dt, body FLU */
 #define LEONAV_U_DTHETA_B_SIZE 3

@@ -6,7 +6,7 @@ from collections import namedtuple
 NX = 23
 NDX = 22
 NP = 18
-NAUX = 39
+NAUX = 40
 NU = 6
 NNAV = 9  # the 9D navigation error (dp, dv, dtheta) = dx[DX_NAV9_SLICE]
 
@@ -120,6 +120,9 @@ AUX_KLOBUCHAR_SLICE = slice(28, 36)
 AUX_W_B = 36  # rad/s: latest angular rate, body (the gyro averaged like f_b)
 AUX_W_B_SIZE = 3
 AUX_W_B_SLICE = slice(36, 39)
+AUX_DT_TAG = 39  # s: time from the state (latest IMU sample) to the measurement's tag, >= 0
+AUX_DT_TAG_SIZE = 1
+AUX_DT_TAG_SLICE = slice(39, 40)
 
 U_DTHETA_B = 0  # rad: gyro angle increment over dt, body FLU
 U_DTHETA_B_SIZE = 3

@@ -25,9 +25,9 @@ from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.inputs.consider import OrbitConsider
 from leonav_runtime.inputs.gnss_obs import GnssObservationTable, apply_clock_start, gnss_records
 from leonav_runtime.inputs.imu import averaged_specific_force, imu_records
-from leonav_runtime.inputs.measurements import fix_records, local_records, satellite_records
+from leonav_runtime.inputs.measurements import fix_records, local_records, satellite_records, velocity_records
 from leonav_runtime.inputs.prior import FirstFixPrior, Prior, first_fix_prior
-from leonav_runtime.inputs.tables import FixTable, ImuTable, LocalSensorTable, SatelliteTable
+from leonav_runtime.inputs.tables import FixTable, ImuTable, LocalSensorTable, SatelliteTable, VelocityTable
 
 STREAMS = model.STREAMS
 """Record streams, in merge order: the IMU, then each observable's stream in kind-id order (registry)."""
@@ -84,17 +84,20 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
              notes: list[str] | None = None, epoch_utc: _dt.datetime | None = None,
              origin: tuple[float, float, float] | None = None,
              gnss: GnssObservationTable | None = None, orbit_consider: OrbitConsider | None = None,
-             local: Sequence[LocalSensorTable] = ()) -> FilterInputs:
+             local: Sequence[LocalSensorTable] = (), velocity: VelocityTable | None = None) -> FilterInputs:
     """Records, x0, P0 and p from sensor tables (module doc). params: (NP,) (`filter_params`);
     prior: x0/P0 given (`Prior`) or made from the data (`FirstFixPrior`); satellites: at
     most one table per observable kind; gnss: code / Doppler observations of a GNSS receiver;
     orbit_consider: satellite orbit errors added to the satellite records' R (consider term,
-    Jacobian at the prior's state); local: at most one table per local sensor (barometer, ...)."""
+    Jacobian at the prior's state); local: at most one table per local sensor (barometer, ...);
+    velocity: GNSS velocity of the antenna (the VEL stream)."""
     nav = nav or navfuncs.NavFunctions(params=params)
     notes = list(notes or [])
     imu.check()
     if fixes is not None:
         fixes.check()
+    if velocity is not None:
+        velocity.check()
     kinds = [tab.KIND for tab in satellites]
     if len(set(kinds)) < len(kinds) or not all(kinds):
         raise UserInputError(f"satellite tables: {kinds}: expected at most one table per observable kind")
@@ -127,10 +130,16 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
             inside[init_fix] = False
         counts["fixes_outside_imu_span"] = int((~inside).sum()) - (init_fix >= 0)
         used_fixes = fixes if inside.all() else fixes.select(inside)
-    out["fix"] = fix_records(used_fixes, nav)
+    out["fix"] = fix_records(used_fixes, nav, imu)
+    f_b_avg = f_b_span_s = None
+    if velocity is not None:
+        inside = _inside(velocity.t, t_start, t_end)
+        counts["velocity_outside_imu_span"] = int((~inside).sum())
+        f_b_avg, f_b_span_s = averaged_specific_force(imu.dvel_b, imu.dt)
+        out["vel"] = velocity_records(velocity.select(inside), imu, f_b_avg, nav)
+        counts["vel_records"] = int(out["vel"].size)
 
     used_sats: dict[str, SatelliteTable] = {}
-    f_b_avg = f_b_span_s = None
     for tab in satellites:
         inside = _inside(tab.t, t_start, t_end)
         counts[f"{tab.KIND}_outside_imu_span"] = int((~inside).sum())

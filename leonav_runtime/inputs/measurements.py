@@ -2,6 +2,8 @@
 
 - GNSS fixes: three records per epoch, POS_E, POS_N, POS_U (m, ENU at the origin),
   R = sigma^2 per axis.
+- GNSS velocity: three records per epoch, VEL_E, VEL_N, VEL_U (m/s, the antenna's), R =
+  sigma^2; aux: the averaged specific force and the latest body rate (`velocity_records`).
 - Satellite observables: aux = the satellite's ECEF state r, v, a (and the reference
   satellite's for a differenced observable) plus the receiver's specific force f_b
   (m/s^2, body) averaged over `imu.F_B_AVERAGE_S` up to the latest IMU sample at or
@@ -18,17 +20,52 @@ from leonav_runtime.core import model, navfuncs, records
 from leonav_runtime.inputs.consider import OrbitConsider
 from leonav_runtime.inputs.imu import latest_sample
 from leonav_runtime.inputs.tables import (SAT_A_MPS2, SAT_R_M, SAT_V_MPS, FixTable, ImuTable, LocalSensorTable,
-                                          SatelliteTable)
+                                          SatelliteTable, VelocityTable)
 
 FIX_KINDS = tuple(o.suffix for o in model.stream_observables("fix"))
+VEL_KINDS = tuple(o.suffix for o in model.stream_observables("vel"))
 
 
-def fix_records(fixes: FixTable, nav: navfuncs.NavFunctions) -> np.ndarray:
-    """POS_E, POS_N, POS_U records of every fix (in that order at each epoch)."""
+def tag_lead(imu: ImuTable | None, t_s: np.ndarray) -> np.ndarray:
+    """Time (s, >= 0) from the latest IMU sample at or before each tag to the tag: the aux `dt_tag`
+    with which a fix or velocity is placed at its tag, not at the IMU sample it is applied at
+    (zeros without an IMU table: a live stream applies a fix when it arrives)."""
+    t_s = np.asarray(t_s, float)
+    if imu is None or not imu.t.size:
+        return np.zeros(t_s.size)
+    samples = np.r_[imu.t[0] - imu.dt[0], imu.t]
+    k = latest_sample(imu, t_s)
+    return np.clip(t_s - samples[np.clip(k, 0, samples.size - 1)], 0.0, None)
+
+
+def fix_records(fixes: FixTable, nav: navfuncs.NavFunctions, imu: ImuTable | None = None) -> np.ndarray:
+    """POS_E, POS_N, POS_U records of every fix (in that order at each epoch); aux `dt_tag` from
+    the IMU table when given (`tag_lead`)."""
     if not fixes.t.size:
         return np.zeros(0, records.RECORD_DTYPE)
-    parts = [records.measurement_records(fixes.t, nav.kind_id(k), fixes.p_enu_m[:, i], fixes.sigma_enu_m[:, i] ** 2)
-             for i, k in enumerate(FIX_KINDS)]
+    aux = np.zeros((fixes.t.size, nav.layout.NAUX))
+    aux[:, nav.layout.AUX_DT_TAG] = tag_lead(imu, fixes.t)
+    parts = [records.measurement_records(fixes.t, nav.kind_id(k), fixes.p_enu_m[:, i], fixes.sigma_enu_m[:, i] ** 2,
+                                         aux) for i, k in enumerate(FIX_KINDS)]
+    return records.merge_records(*parts)
+
+
+def velocity_records(table: VelocityTable, imu: ImuTable, f_b_avg: np.ndarray, nav: navfuncs.NavFunctions,
+                     ) -> np.ndarray:
+    """VEL_E, VEL_N, VEL_U records of every velocity epoch, R = sigma^2; aux carries the averaged
+    specific force f_b (the latency term's acceleration) and the latest body rate w_b (the lever
+    arm's rotation), both at the latest IMU sample at or before the epoch."""
+    if not table.t.size:
+        return np.zeros(0, records.RECORD_DTYPE)
+    L = nav.layout
+    k = latest_sample(imu, table.t)
+    aux = np.zeros((table.t.size, L.NAUX))
+    aux[:, L.AUX_F_B_SLICE] = f_b_avg[k]
+    w_b = imu.w_b_radps
+    aux[:, L.AUX_W_B_SLICE] = w_b[np.clip(k - 1, 0, w_b.shape[0] - 1)]
+    aux[:, L.AUX_DT_TAG] = tag_lead(imu, table.t)
+    parts = [records.measurement_records(table.t, nav.kind_id(kind), table.v_enu_mps[:, i], table.sigma_mps[:, i] ** 2,
+                                         aux) for i, kind in enumerate(VEL_KINDS)]
     return records.merge_records(*parts)
 
 

@@ -165,6 +165,29 @@ class FixTable:
         return self
 
 
+@dataclasses.dataclass
+class VelocityTable:
+    """GNSS velocity of the antenna in the ENU frame at the run's origin: t (m,) s; v_enu_mps
+    (m, 3); sigma_mps (m, 3) 1-sigma per axis, m/s, > 0 (NAV-PVT velocity, RMC course and
+    speed, or a dataset's columns)."""
+
+    t: np.ndarray
+    v_enu_mps: np.ndarray
+    sigma_mps: np.ndarray
+
+    NAME: ClassVar[str] = "GNSS velocity table"
+
+    def select(self, mask) -> "VelocityTable":
+        return VelocityTable(self.t[mask], self.v_enu_mps[mask], self.sigma_mps[mask])
+
+    def check(self) -> "VelocityTable":
+        n = np.shape(self.t)[0] if np.ndim(self.t) == 1 else -1
+        check_column(self.NAME, "t", self.t, (max(n, 0),), unit="s")
+        check_column(self.NAME, "v_enu_mps", self.v_enu_mps, (n, 3), unit="m/s")
+        check_column(self.NAME, "sigma_mps", self.sigma_mps, (n, 3), positive=True, unit="m/s")
+        return self
+
+
 SAT_R_M, SAT_V_MPS, SAT_A_MPS2 = slice(0, 3), slice(3, 6), slice(6, 9)
 """Columns of a satellite state block (n, 9): ECEF position m, velocity m/s, acceleration m/s^2."""
 

@@ -5,9 +5,11 @@ antenna's position, p_enu + C_b_n l_b with the lever arm l_b (parameters `lever_
 from the IMU to the antenna; zeros = co-located), its velocity v_enu + C_b_n (w x l_b) with w the
 body rate (aux `w_b`, bias-corrected here).
 
-Fix latency: a fix tagged t on the IMU's time axis is the antenna at t - dt_fix, so the models
-are evaluated back by the state `dt_fix` (s) to first order: position - v dt_fix, velocity - a dt_fix
-(a the Earth-relative acceleration from the specific force in aux `f_b`). `dt_fix` is estimated
+Fix latency: a fix tagged t on the IMU's time axis is the antenna at t - dt_fix. It is applied at
+the state of the latest IMU sample, aux `dt_tag` before t, so the models look back by
+dt_fix - dt_tag (s) to first order: position - v (dt_fix - dt_tag), velocity - a (dt_fix - dt_tag)
+(a the Earth-relative acceleration from the specific force in aux `f_b`). With dt_tag the fix is
+placed at its tag even between IMU samples (up to one IMU interval, 10 ms at 100 Hz, otherwise). `dt_fix` is estimated
 when a run asks for it (`[gnss] time_offset_s = "estimate"`: a prior sigma); a known latency
 shifts the time tags instead and the state stays at zero with a zero prior, so the models are
 those without it. It is observable from the IMU's motion: a latency looks like a position error
@@ -49,32 +51,38 @@ def antenna_enu(x, p):
     return x[X["p_enu"].slice] + frames.rot_from_quat(x[X["q_nb"].slice]) @ _lever(p)
 
 
-def antenna_at_fix_time(x, p):
-    """The antenna position dt_fix before the state's time (m, ENU): what a late fix measured."""
-    return antenna_enu(x, p) - x[X["v_enu"].slice] * x[X["dt_fix"].offset]
+def _look_back(x, aux):
+    """How long before the state's time the measured antenna was (s): the latency less the tag's
+    lead over the state (aux dt_tag: a fix between IMU samples is applied at the latest one)."""
+    return x[X["dt_fix"].offset] - aux[AUX["dt_tag"].offset]
+
+
+def antenna_at_fix_time(x, aux, p):
+    """The antenna position where a late fix measured it (m, ENU), to first order in the look-back."""
+    return antenna_enu(x, p) - x[X["v_enu"].slice] * _look_back(x, aux)
 
 
 def antenna_velocity(x, aux, p):
-    """Antenna velocity (m/s, ENU) dt_fix before the state's time: v + C_b_n ((w_b - b_g) x l_b) - a dt_fix."""
+    """Antenna velocity (m/s, ENU) at the fix time: v + C_b_n ((w_b - b_g) x l_b) - a * look-back."""
     C = frames.rot_from_quat(x[X["q_nb"].slice])
     w = aux[AUX["w_b"].slice] - x[X["b_g"].slice]
     a = kinematics.accel_enu(x, aux[AUX["f_b"].slice], p)
-    return x[X["v_enu"].slice] + C @ ca.cross(w, _lever(p)) - a * x[X["dt_fix"].offset]
+    return x[X["v_enu"].slice] + C @ ca.cross(w, _lever(p)) - a * _look_back(x, aux)
 
 
 def h_pos_e(x, aux, p):
     """East antenna position (m)."""
-    return antenna_at_fix_time(x, p)[0]
+    return antenna_at_fix_time(x, aux, p)[0]
 
 
 def h_pos_n(x, aux, p):
     """North antenna position (m)."""
-    return antenna_at_fix_time(x, p)[1]
+    return antenna_at_fix_time(x, aux, p)[1]
 
 
 def h_pos_u(x, aux, p):
     """Up antenna position (m)."""
-    return antenna_at_fix_time(x, p)[2]
+    return antenna_at_fix_time(x, aux, p)[2]
 
 
 def h_vel_e(x, aux, p):

@@ -63,12 +63,12 @@ CASADI_SYMBOL_EXPORT int leonav_h_zupt_u_casadi_int_size(void) { return (int) si
 CASADI_SYMBOL_EXPORT int leonav_h_zupt_u_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {23, 1, 1};
-static const casadi_int casadi_s1[3] = {39, 1, 1};
+static const casadi_int casadi_s1[3] = {40, 1, 1};
 static const casadi_int casadi_s2[3] = {18, 1, 1};
 static const casadi_int casadi_s3[3] = {1, 1, 1};
 static const casadi_int casadi_s4[3] = {1, 22, 1};
 
-/* leonav_h_zupt_u:(x[23],aux[39],p[18])->(h,H[1x22]) */
+/* leonav_h_zupt_u:(x[23],aux[40],p[18])->(h,H[1x22]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1;
   a0=arg[0]? arg[0][5] : 0;
