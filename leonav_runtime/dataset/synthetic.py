@@ -139,6 +139,7 @@ def write_drive(folder: str | Path, cfg: DriveConfig | None = None) -> Drive:
     offset = '"estimate"' if cfg.time_offset == "estimate" else f"{float(cfg.time_offset):g}"
     modes = ", ".join(f'"{m}"' for m in cfg.modes)
     sig = ", ".join(f"{s:g}" for s in cfg.fix_sigma_m)
+    vsig = ", ".join(f"{s:g}" for s in cfg.velocity_sigma_mps)
     (folder / "drive.toml").write_text(f'''# A synthetic drive (leonav_runtime/dataset/synthetic.py): {cfg.seconds:g} s, {cfg.speed_mps:g} m/s at the
 # start, turns and speed changes; {cfg.imu_profile} IMU at {cfg.imu_rate_hz:g} Hz; fixes at {cfg.gnss_rate_hz:g} Hz
 # tagged {cfg.fix_latency_s:g} s late.
@@ -160,6 +161,8 @@ lat_column = "lat_deg"
 lon_column = "lon_deg"
 height_column = "h_m"
 sigma_m = [{sig}]
+velocity_columns = ["ve_mps", "vn_mps", "vu_mps"]
+velocity_sigma_mps = [{vsig}]
 time_offset_s = {offset}
 
 [reference]
