@@ -77,7 +77,11 @@ def test_live_path_with_the_capture_agrees_with_the_replay(session):
     assert res["exit_code"] == 0, res["events"]
     b = res["beacons"]
     assert not b["error"] and b["counts"]["measurements"] >= 15 and b["max_lag_s"] <= 2.0
-    assert res["road"].get("doppler_rate_released", 0) == b["counts"]["measurements"]
+    # every measurement is released, or still waiting for the IMU when the run stopped (a loaded
+    # machine lags the live beacon path at the end), or counted as dropped: none is lost silently
+    released, made = res["road"].get("doppler_rate_released", 0), b["counts"]["measurements"]
+    left = res["pending_measurements_at_end"] + res["road"].get("waiting_for_imu_dropped", 0)
+    assert released >= 10 and released <= made <= released + left, (released, made, left)
     rms, n, sigma = difference_rms(out, session / "replay", "fix+leo-alpha+imu")
     assert n > 80 and rms < sigma, (rms, sigma)
     assert (out / "session" / "sdr.cu8").stat().st_size == (session / "s" / "sdr.cu8").stat().st_size
