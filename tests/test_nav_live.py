@@ -176,3 +176,18 @@ def test_nav_and_export_records_run_with_casadi_unimportable(session):
     r = _run_blocked(["export-records", str(session / "s"), "--out", str(session / "export")], session)
     assert r.returncode == 0, r.stderr[-3000:]
     assert (session / "export" / "records.bin").stat().st_size > 0
+
+
+def test_fast_playback_reports_an_estimated_fix_latency(session):
+    """`--gnss-latency estimate` on the live road: the latency is a state, reported at the end with its
+    sigma (static session: near its 0.3 s prior, the run otherwise as with 0)."""
+    from leonav_runtime.nav.navigator import NavConfig
+    from leonav_runtime.nav.road import RoadConfig
+    from leonav_runtime.nav.run import NavOptions, run_nav
+
+    opts = NavOptions(out_dir=session / "latency", nav=NavConfig(mode="fix+imu", road=RoadConfig(
+        gnss_latency_s="estimate")), tcp=None, status=False, session=session / "s")
+    res = run_nav(opts)
+    assert res["exit_code"] == 0
+    lat = res["fix_latency_s"]
+    assert lat["sigma"] > 0.8 * 0.3 and abs(lat["value"]) < lat["sigma"], lat

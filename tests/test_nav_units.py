@@ -186,3 +186,17 @@ def test_push_stft_gives_the_batch_slices():
     for a, b in zip(got, batch):
         np.testing.assert_array_equal(a.t_s, b.t_s)
         np.testing.assert_array_equal(a.power, b.power)
+
+
+def test_gnss_latency_estimate_reaches_the_road_and_bad_values_are_named():
+    from leonav_runtime.common.errors import UserInputError
+    from leonav_runtime.nav.road import RoadConfig, StreamingRoad
+    from leonav_runtime.replay.options import latency_values, parse_latency
+
+    assert parse_latency("0.035") == 0.035 and parse_latency("estimate") == "estimate"
+    for bad in ("1.5", "-0.1", "nan", "soon"):
+        with pytest.raises(UserInputError, match=r"--gnss-latency: .*expected seconds in \[0, 1\) or 'estimate'"):
+            parse_latency(bad)
+    road = StreamingRoad(RoadConfig(gnss_latency_s="estimate"))
+    assert road.tmap.gnss_latency_s == 0.0      # not removed from the time map: the filter estimates it
+    assert latency_values("estimate")["dt_fix_rw"] > 0 and latency_values(0.035)["dt_fix_rw"] == 0.0

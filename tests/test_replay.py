@@ -435,3 +435,22 @@ def test_replay_reference_file_scores_like_the_truth(synth, tmp_path, capsys):
     assert m["reference_file"]["epochs"] > 100
     assert ref["rmse_3d_m"] == pytest.approx(own["rmse_position_m"], rel=0.25)
     assert (out / "errors_reference.csv").is_file() and (out / "error_cdf_reference.png").stat().st_size > 1000
+
+
+def test_replay_estimates_the_fix_latency_on_request(synth, tmp_path):
+    """`--gnss-latency estimate`: the latency is a filter state reported with its sigma. This session
+    is static: a latency moves nothing at rest, so it stays near its prior (0 +- 0.3 s; the estimated
+    velocity's noise informs it a little) and the run is as with the latency held at 0; a bad value is
+    one line naming the option."""
+    folder = _copy(synth, tmp_path, drop=("sdr.cu8", "sdr.sigmf-meta"))
+    out = {}
+    for latency in ("0", "estimate"):
+        assert leonav_main(["replay", str(folder), "--modes", "fix+imu", "--gnss-latency", latency,
+                            "--out", str(tmp_path / latency)]) == 0
+        out[latency] = json.loads((tmp_path / latency / "metrics.json").read_text())
+    est = out["estimate"]["modes"]["fix+imu"]["fix_latency_s"]
+    assert est["sigma"] > 0.8 * 0.3 and abs(est["value"]) < est["sigma"], est   # barely informed
+    assert "fix_latency_s" not in out["0"]["modes"]["fix+imu"]
+    assert out["estimate"]["modes"]["fix+imu"]["rmse_position_m"] == pytest.approx(
+        out["0"]["modes"]["fix+imu"]["rmse_position_m"], rel=0.05)
+    assert leonav_main(["replay", str(folder), "--gnss-latency", "later", "--out", str(tmp_path / "bad")]) == 2

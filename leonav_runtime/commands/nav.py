@@ -8,6 +8,7 @@ from pathlib import Path
 
 from leonav_runtime.common import output
 from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.replay.options import parse_latency
 
 EPILOG = """exit status:
   0    ended as asked (--seconds elapsed or the played-back session ended) and navigated
@@ -56,7 +57,8 @@ def register(subparsers) -> None:
     f.add_argument("--origin", nargs=3, type=float, default=None, metavar=("LAT", "LON", "H"),
                    help="ENU origin, deg deg m (default: the first GNSS fix)")
     f.add_argument("--yaw-deg", type=float, default=None, help="initial heading, deg from East towards North")
-    f.add_argument("--gnss-latency", type=float, default=0.0, metavar="S", help="receiver output latency, s")
+    f.add_argument("--gnss-latency", default="0", metavar="S|estimate",
+                   help="receiver output latency, s, or 'estimate' (a filter state, prior 0 +- 0.3 s)")
     f.add_argument("--lag", type=float, default=3.5, metavar="S",
                    help="how late a measurement may arrive and still be put in its place (default 3.5 s: a Doppler-rate epoch comes up to ~2.7 s after its time)")
     f.add_argument("--tle", action="append", default=[], metavar="FILE", help="Starlink element sets (beacons)")
@@ -104,14 +106,12 @@ def options_from_args(args: argparse.Namespace):
             raise UserInputError(f"--{name.replace('_', '-')}: {v!r}: expected a positive number")
     if args.seconds is not None and not (math.isfinite(args.seconds) and args.seconds > 0):
         raise UserInputError(f"--seconds: {args.seconds!r}: expected a positive duration")
-    if not (math.isfinite(args.gnss_latency) and 0 <= args.gnss_latency < 1):
-        raise UserInputError(f"--gnss-latency: {args.gnss_latency!r}: expected seconds in [0, 1)")
     if not 0 <= args.nmea_port <= 65535:
         raise UserInputError(f"--nmea-port: {args.nmea_port}: expected 0..65535")
     has_sdr = args.sdr is not None or (args.session is not None and (Path(args.session) / "sdr.cu8").exists())
     mode = args.mode or ("fix+leo-alpha+imu" if has_sdr else "fix+imu")
     road = RoadConfig(origin_deg=tuple(args.origin) if args.origin else None, yaw_deg=args.yaw_deg,
-                      gnss_latency_s=args.gnss_latency)
+                      gnss_latency_s=parse_latency(str(args.gnss_latency)))
     cfg = NavConfig(mode=mode, road=road, lag_s=args.lag, output_rate_hz=args.rate,
                     trajectory_rate_hz=args.trajectory_rate)
     return NavOptions(

@@ -7,6 +7,7 @@ import math
 
 from leonav_runtime.common import output
 from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.replay.options import parse_latency
 
 
 def register(subparsers) -> None:
@@ -40,8 +41,9 @@ def register(subparsers) -> None:
                    help="ENU origin and site: deg, deg, m above the ellipsoid (default: the first GNSS fix)")
     p.add_argument("--yaw-deg", type=float, default=None, metavar="DEG",
                    help="initial heading, deg from East towards North (default: the WitMotion yaw output)")
-    p.add_argument("--gnss-latency", type=float, default=0.0, metavar="S",
-                   help="receiver output latency to remove from the time map, s (measure it with a PPS; default 0)")
+    p.add_argument("--gnss-latency", default="0", metavar="S|estimate",
+                   help="receiver output latency to remove from the time map, s (measure it with a PPS; default 0), "
+                   "or 'estimate': a filter state (fix latency dt_fix, prior 0 +- 0.3 s), reported per mode")
     p.add_argument("--doppler-rate-sigma-floor", "--alpha-sigma-floor", dest="doppler_rate_sigma_floor", type=float,
                    default=0.5, metavar="HZ/S", help="lower bound of the Doppler-rate 1-sigma (default %(default)g)")
     from leonav_runtime.commands.run import add_reference_arguments
@@ -69,8 +71,6 @@ def run(args: argparse.Namespace) -> int:
     from leonav_runtime.commands.run import reference_options
 
     modes = tuple(m.strip() for m in args.modes.split(",") if m.strip())   # old names: a note in the metrics
-    if not (math.isfinite(args.gnss_latency) and 0 <= args.gnss_latency < 1):
-        raise UserInputError(f"--gnss-latency: {args.gnss_latency!r}: expected seconds in [0, 1)")
     if not (math.isfinite(args.doppler_rate_sigma_floor) and args.doppler_rate_sigma_floor >= 0):
         raise UserInputError(f"--doppler-rate-sigma-floor: {args.doppler_rate_sigma_floor!r}: expected a number "
                              ">= 0 (Hz/s)")
@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError("--yaw-deg: expected a finite angle in degrees")
     options = replay.ReplayOptions(modes=modes, origin_deg=tuple(args.origin) if args.origin else None,
                                    yaw_deg=args.yaw_deg, doppler_rate_sigma_floor_hz_s=args.doppler_rate_sigma_floor,
-                                   use_truth=not args.no_truth, gnss_latency_s=args.gnss_latency,
+                                   use_truth=not args.no_truth, gnss_latency_s=parse_latency(str(args.gnss_latency)),
                                    nav_paths=tuple(args.nav), elevation_mask_deg=args.elevation_mask,
                                    reference_file=reference_options(args))
     if args.origin:

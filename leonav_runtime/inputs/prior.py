@@ -79,6 +79,7 @@ class FirstFixPrior:
     attitude_source: str = "the IMU's angle output"
     yaw_given_source: str = "given"
     velocity_source: str = "the initializing fix's horizontal velocity"
+    fix_latency_sigma_s: float = 0.0   # > 0: the fix latency state dt_fix is estimated from 0 with this sigma
 
 
 def _circular_mean(a: np.ndarray) -> float:
@@ -146,7 +147,10 @@ def first_fix_prior(spec: FirstFixPrior, imu: ImuTable, fixes: FixTable | None, 
         yaw_src = f"{spec.attitude_source} (the sensor's own yaw reference)"
     x0[L.X_Q_NB_SLICE] = nav.quat_from_euler(np.array([roll, pitch, yaw]))[0]
     rp = spec.roll_pitch_sigma_rad
-    sig0 = prior_sigmas(L, spec.profile, pos_sigma, spec.velocity_sigma_mps, [rp, rp, yaw_sig])
+    overrides = {"ddt_fix": spec.fix_latency_sigma_s} if spec.fix_latency_sigma_s > 0 else None
+    sig0 = prior_sigmas(L, spec.profile, pos_sigma, spec.velocity_sigma_mps, [rp, rp, yaw_sig], overrides)
+    if overrides:
+        init["fix_latency"] = f"estimated (state dt_fix): prior 0 +- {spec.fix_latency_sigma_s:g} s"
     init |= {"roll_pitch": f"{spec.attitude_source} averaged over the first {spec.attitude_window_s:g} s",
              "yaw": yaw_src, "rpy_deg": np.degrees([roll, pitch, yaw]),
              "accelerometer_leveling_roll_pitch_deg": np.degrees(level),

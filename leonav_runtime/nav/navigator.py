@@ -251,6 +251,10 @@ class Navigator:
             "notes": sorted(r.notes) + ([] if r.inputs is None else list(r.inputs.notes)),
             "initialization": None if r.inputs is None else r.inputs.init,
         }
+        if self.stepper is not None and r.cfg.gnss_latency_s == "estimate":
+            x, P = self.stepper.head()
+            L = self.nav.layout
+            out["fix_latency_s"] = {"value": float(x[L.X_DT_FIX]), "sigma": float(math.sqrt(P[L.DX_DDT_FIX, L.DX_DDT_FIX]))}
         if self.last_solution is not None:
             out["last_solution"] = {"utc": self.last_solution.utc, "lat_deg": self.last_solution.lat_deg,
                                     "lon_deg": self.last_solution.lon_deg, "h_m": self.last_solution.h_m,

@@ -32,7 +32,7 @@ from leonav_runtime.nav.gnss_stream import FixAssembler, epoch_fixes
 from leonav_runtime.nav.imu_timing import OnlineImuTiming
 from leonav_runtime.nav.timemap import StreamingTimeMap
 from leonav_runtime.replay.gnss_table import fix_height_m, usable_fix
-from leonav_runtime.replay.options import ReplayOptions
+from leonav_runtime.replay.options import ReplayOptions, latency_given_s, latency_values
 from leonav_runtime.replay.run import replay_prior
 from leonav_runtime.replay.timebase import filter_profile, utc_of
 
@@ -48,7 +48,7 @@ class RoadConfig:
     yaw_deg: float | None = None
     gnss_baud: int | None = None
     imu_baud: int | None = None
-    gnss_latency_s: float = 0.0
+    gnss_latency_s: float | str = 0.0   # or "estimate": the fix latency state (replay.options)
     f_c_hz: float = math.nan
     doppler_rate_sigma_floor_hz_s: float = 0.5
 
@@ -59,7 +59,7 @@ class StreamingRoad:
     def __init__(self, cfg: RoadConfig, nav: navfuncs.NavFunctions | None = None) -> None:
         self.cfg = cfg
         self.nav = nav or navfuncs.NavFunctions()
-        self.tmap = StreamingTimeMap(cfg.gnss_baud, cfg.gnss_latency_s)
+        self.tmap = StreamingTimeMap(cfg.gnss_baud, latency_given_s(cfg.gnss_latency_s))
         self.timing = OnlineImuTiming(cfg.imu_baud)
         self.assembler = FixAssembler()
         self.notes: set[str] = set()
@@ -272,11 +272,11 @@ class StreamingRoad:
                 self.counts["imu_time_not_increasing"] += 1
         imu = ImuTable.from_rates(t[1:], np.diff(t), w[1:], f[1:], rpy[1:])
         profile = filter_profile(float(np.median(np.diff(t))), quantized=True)
-        self.params = filter_params(origin, profile, self.cfg.f_c_hz)
+        self.params = filter_params(origin, profile, self.cfg.f_c_hz, latency_values(self.cfg.gnss_latency_s))
         self.nav.params = self.params
         inside = fixes.t <= imu.t[-1]
         notes: list[str] = []
-        prior = replay_prior(ReplayOptions(yaw_deg=self.cfg.yaw_deg), profile)
+        prior = replay_prior(ReplayOptions(yaw_deg=self.cfg.yaw_deg, gnss_latency_s=self.cfg.gnss_latency_s), profile)
         inputs = assemble(imu, self.params, prior, fixes=fixes.select(inside), nav=self.nav, notes=notes,
                           epoch_utc=self.epoch_utc, origin=origin)
         self.notes.update(notes)

@@ -39,6 +39,35 @@ def replay_mode(name: str, where: str = "--modes:") -> model.Mode:
 def uses_raw_gnss(mode: str) -> bool:
     """Whether the mode fuses a receiver's raw pseudoranges (tightly coupled)."""
     return any(o.table == "gnss_obs" for o in replay_mode(mode).observables)
+LATENCY_PRIOR_SIGMA_S = 0.3
+"""Prior sigma (s) of the fix latency when it is estimated (`gnss_latency_s = "estimate"`)."""
+LATENCY_RANDOM_WALK = 1e-4
+"""Random walk (s/sqrt(s)) of an estimated fix latency."""
+
+
+def latency_given_s(latency: float | str) -> float:
+    """The latency the time map removes: the given one, 0 when the filter estimates it."""
+    return 0.0 if latency == "estimate" else float(latency)
+
+
+def latency_values(latency: float | str) -> dict[str, float]:
+    """Registry parameters for the fix latency: the state moves only when it is estimated."""
+    return {"dt_fix_rw": LATENCY_RANDOM_WALK if latency == "estimate" else 0.0}
+
+
+def parse_latency(text: str, option: str = "--gnss-latency") -> float | str:
+    """A command-line latency: seconds in [0, 1) or the word 'estimate'."""
+    if text == "estimate":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and 0 <= value < 1):
+        raise UserInputError(f"{option}: {text!r}: expected seconds in [0, 1) or 'estimate'")
+    return value
+
+
 MODE_ALIASES = {"gps+imu": "fix+imu", "gps+leo-alpha+imu": "fix+leo-alpha+imu"}
 """Old replay mode names (they meant position fixes) -> the current ones."""
 DOPPLER_RATE_SIGMA_FLOOR_HZ_S = 0.5   # the fit sigma can be optimistic for short ridges
@@ -52,7 +81,8 @@ class ReplayOptions:
     doppler_rate_sigma_floor_hz_s: float = DOPPLER_RATE_SIGMA_FLOOR_HZ_S
     gate_nis: float = lfilter.CHI2_1DOF_999
     use_truth: bool = True
-    gnss_latency_s: float = 0.0     # receiver output latency (epoch -> first byte), if measured (PPS)
+    gnss_latency_s: float | str = 0.0   # receiver output latency (epoch -> first byte), if measured (PPS);
+                                         # "estimate": the filter's fix latency state (LATENCY_PRIOR_SIGMA_S)
     nav_paths: tuple[str, ...] = ()  # RINEX navigation files for the pseudorange modes (besides RXM-SFRBX)
     elevation_mask_deg: float = GNSS_MASK_DEG   # pseudorange modes: satellites below are not used
     reference_file: dict | None = None   # --reference: path and how to read it (commands/run.reference_options)

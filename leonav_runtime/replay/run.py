@@ -21,8 +21,8 @@ from leonav_runtime.replay.beacon_table import (BeaconMeasurements, beacon_measu
                                                 doppler_rate_table)
 from leonav_runtime.replay.gnss_raw import RawGnss, raw_gnss
 from leonav_runtime.replay.gnss_table import fix_height_m, fix_table, usable_fix
-from leonav_runtime.replay.options import (ReplayOptions, canonical_modes, replay_mode, uses_raw_gnss,
-                                           check_options)
+from leonav_runtime.replay.options import (LATENCY_PRIOR_SIGMA_S, ReplayOptions, canonical_modes, check_options,
+                                           latency_given_s, latency_values, replay_mode, uses_raw_gnss)
 from leonav_runtime.replay.timebase import device_baud, filter_profile, imu_table, mono_to_utc_function, utc_of
 
 WITMOTION_ATTITUDE = "WitMotion angle output"
@@ -53,7 +53,8 @@ def replay_prior(options: ReplayOptions, profile) -> FirstFixPrior:
     """The replay's start rule: the first usable fix, the WitMotion angles, `--yaw-deg`."""
     return FirstFixPrior(profile, yaw_rad=None if options.yaw_deg is None else math.radians(options.yaw_deg),
                          attitude_source=WITMOTION_ATTITUDE, yaw_given_source="--yaw-deg",
-                         velocity_source=RMC_VELOCITY)
+                         velocity_source=RMC_VELOCITY,
+                         fix_latency_sigma_s=LATENCY_PRIOR_SIGMA_S if options.gnss_latency_s == "estimate" else 0.0)
 
 
 def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurements, elements, options,
@@ -67,7 +68,8 @@ def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurem
         from leonav_runtime.gnss.coupled import observation_table
 
         gnss = observation_table(spp, epoch_utc)
-    inputs = assemble(imu, filter_params(origin, profile, f_c_hz), replay_prior(options, profile),
+    inputs = assemble(imu, filter_params(origin, profile, f_c_hz, latency_values(options.gnss_latency_s)),
+                      replay_prior(options, profile),
                       fixes=fixes, satellites=[doppler_rate], nav=nav, notes=notes, epoch_utc=epoch_utc,
                       origin=origin, gnss=gnss)
     out = SessionInputs.of(inputs, beacon_measurements=meas)
@@ -98,7 +100,7 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
     raw = RawGnss(None, {}, "")
     if any(uses_raw_gnss(m) for m in options.modes):
         raw = raw_gnss(dec.gnss_records, options, nav, str(folder / "gnss.raw"))
-    to_utc, time_src = mono_to_utc_function(dec, options.gnss_latency_s)
+    to_utc, time_src = mono_to_utc_function(dec, latency_given_s(options.gnss_latency_s))
     if not dec.time_map.valid:
         notes.append(f"time: {time_src}")
     imu, epoch, counts = imu_table(dec.imu_samples, to_utc, notes, device_baud(dec, "imu"))
@@ -265,6 +267,12 @@ def replay_session(folder: str | Path, out_dir: str | Path, options: ReplayOptio
         "f_c_hz": inputs.f_c_hz, "f_c_source": inputs.beacons.get("f_c_source"),
         "doppler_rate_sigma_floor_hz_s": options.doppler_rate_sigma_floor_hz_s, "gate_nis": options.gate_nis,
     }
+    if options.gnss_latency_s == "estimate":
+        L = nav.layout
+        for mode, (_, res, _) in runs.items():
+            if mode in metrics["modes"] and res.x.shape[0]:
+                metrics["modes"][mode]["fix_latency_s"] = {"value": float(res.x[-1, L.X_DT_FIX]),
+                                                           "sigma": float(np.sqrt(res.P_diag[-1, L.DX_DDT_FIX]))}
     metrics["trajectory_files"] = report.write_geodetic_trajectories(out_dir, inputs, runs, nav.layout,
                                                                       source=str(folder))
     if options.reference_file is not None:
