@@ -195,3 +195,24 @@ def test_cpet_with_fixes_shifted_by_a_known_latency_is_undone_by_the_key():
     assert base <= 0.62
     assert _cpet(1.0, 1.0) == pytest.approx(base, abs=0.01)
     assert _cpet(1.0, 0.0) > base + 0.03
+
+
+def test_a_latency_beyond_a_second_is_warned_about(tmp_path):
+    """An estimate beyond 1 s is more likely a wrong time base than a receiver: the run warns. The state
+    is a first-order look-back (p - v dt): at 1.5 s in a 2.6 m/s^2 turn its 1/2 a dt^2 is 3 m, so such
+    a latency is not estimable (measured: from a prior 1.5 +- 0.05 s it ends at 1.01 +- 0.004 s); a
+    known large offset is given as a number (the tags are shifted exactly). Here the prior pins it."""
+    from leonav_runtime.dataset.evaluate import run_dataset
+    d = synthetic.write_drive(tmp_path / "d", synthetic.DriveConfig(fix_latency_s=1.5, modes=("fix+vel+imu+nhc",)))
+    raw = tomllib.loads(d.toml.read_text())
+    raw["gnss"] |= {"time_offset_prior_s": 1.5, "time_offset_sigma_s": 1e-4, "time_offset_rw": 0.0}
+    raw["scoring"] = {"outage_starts_s": []}
+    m = run_dataset(spec_from_dict(raw, str(d.toml), d.toml.parent), tmp_path / "out", files=False)
+    lat = m["modes"]["fix+vel+imu+nhc"]["fix_latency_s"]
+    assert abs(lat["value"] - 1.5) < 1e-3, lat
+    assert any(n.startswith("WARNING: fix+vel+imu+nhc: estimated fix latency +1.50") for n in m["notes"])
+    # the same offset given as a number: no state, no warning, the tags shifted
+    raw["gnss"] = {k: v for k, v in raw["gnss"].items() if not k.startswith("time_offset")} | {"time_offset_s": 1.5}
+    m = run_dataset(spec_from_dict(raw, str(d.toml), d.toml.parent), tmp_path / "out2", files=False)
+    assert "fix_latency_s" not in m["modes"]["fix+vel+imu+nhc"] and not any("latency" in n for n in m["notes"])
+    assert m["modes"]["fix+vel+imu+nhc"]["rmse_horizontal_m"] < 0.5

@@ -23,6 +23,8 @@ from leonav_runtime.common.errors import UserInputError
 GOALS = {"kf_gins_horizontal_rmse_m": 0.947, "yaw_rmse_deg": 5.0, "outage_median_ratio": 0.5,
          "kf_gins_us_per_imu_step": 14.6, "nis_band": [0.5, 2.0]}
 """Issue 11's Done-when figures (KF-GINS on the CPET run, as quoted there)."""
+LATENCY_WARN_S = 1.0
+"""An estimated fix latency beyond this (s) is more likely a wrong time base or IMU clock offset."""
 
 
 def _slug(mode: str) -> str:
@@ -75,7 +77,12 @@ def run_dataset(spec: DatasetSpec, out_dir: Path, reference: dict | None = None,
         nis = {k: runner.fix_nis(prep, res, (k,)) for k in runner.FIX_KINDS}
         scores["fix_nis_mean"] = scoring.fix_nis_stats(nis)
         if spec["gnss"]["time_offset_s"] == "estimate":
-            scores["fix_latency_s"] = scoring.latency_estimate(res, L)
+            scores["fix_latency_s"] = lat = scoring.latency_estimate(res, L)
+            if abs(lat["value"]) > LATENCY_WARN_S:
+                prep.inputs.notes.append(
+                    f"WARNING: {mode}: estimated fix latency {lat['value']:+.2f} +- {lat['sigma']:.2f} s is beyond "
+                    f"+-{LATENCY_WARN_S:g} s: a receiver's latency is tens of ms; check the time bases and "
+                    f"{spec.where('imu', 'time_offset_s')} (a clock offset is not a latency)")
         scores["records"] = {"total": int(recs.size), "imu": res.n_imu, "applied": res.n_applied,
                              "gated": res.n_gated, "failed": res.n_failed} | run_report
         scores["filter_seconds"] = seconds
@@ -209,6 +216,7 @@ def score_reference_file(reference: dict, results: dict, fixes, epoch_unix: floa
     if fixes.t.size:
         gps_err = scoring.hold_last_fix(fixes, ref.t) - ref.p_enu_m
         out["gps_alone"] = scoring.error_stats(gps_err)
+        out["gps_alone_interpolated"] = scoring.error_stats(scoring.interpolated_fix(fixes, ref.t) - ref.p_enu_m)
         plots.error_cdf(out_dir / "error_cdf_reference.png", series, {"err_enu": gps_err},
                         f"horizontal error CDF against {path.name} ({ref.t.size} epochs)")
     return out
