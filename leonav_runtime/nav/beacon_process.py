@@ -87,6 +87,9 @@ def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigm
             capture.close()
         outbox.put(("summary", stream_summary(stream, counts, error, notes, start_unix)))
 
+STOP_WAIT_S = 10.0
+"""Longest wait (s) at stop for the beacon process's summary before it is terminated."""
+
 
 class BeaconProcess:
     """The parent side (module doc)."""
@@ -153,7 +156,8 @@ class BeaconProcess:
     def stop(self) -> None:
         self._stop.set()
         self._recording_done.set()
-        deadline = time.monotonic() + 5.0
+        # the process drains what it has read first: on a loaded machine (or a Pi) that takes seconds
+        deadline = time.monotonic() + STOP_WAIT_S
         while not self._summary and time.monotonic() < deadline and self._proc is not None:
             try:
                 self._handle(self._outbox.get(timeout=0.2), None)
