@@ -143,16 +143,16 @@ def register(subparsers) -> None:
 
 
 class _LazyBar:
-    """A tqdm bar created at the first tick: an error before any sample leaves no bar behind."""
+    """A progress bar (common.progress) created at the first tick: an error before any sample leaves no bar behind."""
 
     def __init__(self, total: int, desc: str):
         self.total, self.desc, self.bar = total, desc, None
 
     def update(self, n: int) -> None:
         if self.bar is None:
-            from tqdm import tqdm
+            from leonav_runtime.common.progress import progress as make_progress
 
-            self.bar = tqdm(total=self.total, unit="S", unit_scale=True, desc=self.desc, leave=False)
+            self.bar = make_progress(self.total, self.desc, "S", unit_scale=True, leave=False)
         self.bar.update(n)
 
     def close(self) -> None:

@@ -64,9 +64,9 @@ def run(args: argparse.Namespace) -> int:
     site = Site.from_degrees(43.0848638, -77.6786127, 170.0)   # the paper's site (RIT)
     bar = None
     if not args.no_progress:
-        from tqdm import tqdm
+        from leonav_runtime.common.progress import progress as make_progress
 
-        bar = tqdm(total=len(names) * len(cn0s) * args.trials, unit="capture", desc="impairments")
+        bar = make_progress(len(names) * len(cn0s) * args.trials, "impairments", "capture")
     rows = st.run(elements, site, start, names, cn0s, args.trials, progress=bar.update if bar else None)
     if bar:
         bar.close()

@@ -65,7 +65,7 @@ def _fmt(v, scale=1.0, digits=2) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
+    from leonav_runtime.common.progress import progress as make_progress
 
     from leonav_runtime import replay
     from leonav_runtime.commands.run import reference_options
@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
 
     elements = load_element_files(args.tle)
     out = output.results_dir(args.out, "replay")
-    with tqdm(unit="S", unit_scale=True, desc="beacon capture", leave=False, disable=None) as bar:
+    with make_progress(None, "beacon capture", "S", unit_scale=True, leave=False) as bar:
         metrics = replay.replay_session(args.session, out, options, elements=elements, progress=bar.update)
     print(f"replay {args.session} -> {out}  (reference: {metrics['reference'] or 'none'})")
     b = metrics["beacons"].get("counts")

@@ -66,7 +66,7 @@ def reference_options(args) -> dict | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
+    from leonav_runtime.common.progress import progress as make_progress
 
     from leonav_runtime.dataset import load_spec
     from leonav_runtime.dataset.evaluate import run_dataset
@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     spec = load_spec(args.dataset)
     ref = reference_options(args)
     out = output.results_dir(args.out, f"run-{spec.name}")
-    with tqdm(total=None, desc="leonav run", leave=False, disable=None, bar_format="{desc}: {elapsed}") as bar:
+    with make_progress(None, "leonav run", leave=False, bar_format="{desc}: {elapsed}") as bar:
         def say(msg: str) -> None:
             bar.set_description_str(msg)
         m = run_dataset(spec, out, reference=ref, t_end_s=args.until, outages=not args.no_outages, progress=say)

@@ -42,7 +42,7 @@ def register(subparsers) -> None:
 
 
 def run_synth(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
+    from leonav_runtime.common.progress import progress as make_progress
 
     from leonav_runtime import replay
     from leonav_runtime.simulation import session_synth as ss
@@ -61,7 +61,7 @@ def run_synth(args: argparse.Namespace) -> int:
         cfg.epoch_utc = parse_utc(args.epoch, "--epoch", require_zone=True)
     elements = load_element_files(args.tle)
     total = int((cfg.seconds - cfg.sdr_start_s - 0.05) * cfg.sdr_rate_hz) if cfg.sdr else 0
-    with tqdm(total=total, unit="S", unit_scale=True, desc="synthesizing IQ", leave=False, disable=None) as bar:
+    with make_progress(total, "synthesizing IQ", "S", unit_scale=True, leave=False) as bar:
         synth = ss.write_synthetic_session(args.outdir, cfg, elements, overwrite=args.overwrite, progress=bar.update)
     files = sorted(p.name for p in Path(args.outdir).iterdir())
     print(f"synthetic session {args.outdir}: {len(synth.fix_t)} GNSS epochs, {synth.u_meas.shape[0]} IMU samples"

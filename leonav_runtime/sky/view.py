@@ -209,9 +209,9 @@ def sky_view(
     total = sum(len(es) for es in elements_by_constellation.values())
     progress = None
     if show_progress:
-        from tqdm import tqdm
+        from leonav_runtime.common.progress import progress as make_progress
 
-        progress = tqdm(total=total, unit="sat", desc="propagating", leave=False)
+        progress = make_progress(total, "propagating", "sat", leave=False)
     try:
         views = {
             name: _view_one(name, es, site, epoch_utc, t_s, all_masks[name], propagate, progress)

@@ -88,9 +88,9 @@ def run_study(study: Study, out_dir: Path, *, workers: int | None = None, dask_a
     tasks = _tasks(study)
     bar = None
     if progress:
-        from tqdm import tqdm
+        from leonav_runtime.common.progress import progress as make_progress
 
-        bar = tqdm(total=len(tasks), unit="task", desc=f"study {study.name}", smoothing=0.05)
+        bar = make_progress(len(tasks), f"study {study.name}", "task", smoothing=0.05)
     with make_executor(workers, dask_address) as ex:
         blocks = map_in_order(ex, mc.run_block, [t for _, t in tasks], on_done=(bar.update if bar else None))
     if bar:

@@ -154,9 +154,9 @@ def run_sweep(scn: Scenario, out_dir: Path | None = None, *, trials: int | None 
              len(scn.starlink["counts"]), trials, len(tasks), t_setup)
     bar = None
     if progress:
-        from tqdm import tqdm
+        from leonav_runtime.common.progress import progress as make_progress
 
-        bar = tqdm(total=len(tasks), unit="task", desc=f"sweep {scn.name}", smoothing=0.05)
+        bar = make_progress(len(tasks), f"sweep {scn.name}", "task", smoothing=0.05)
     t0 = time.perf_counter()
     with make_executor(workers, dask_address) as ex:
         blocks = map_in_order(ex, mc.run_block, tasks, on_done=(bar.update if bar else None))

@@ -1,0 +1,54 @@
+"""Progress off a terminal is a line per tenth (no carriage-return bar in a log), nothing with -q."""
+from __future__ import annotations
+
+import io
+import logging
+
+from leonav_runtime.common import progress as pg
+
+
+class _Tty(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_lines_per_tenth_off_a_terminal():
+    out = io.StringIO()
+    bar = pg.progress(50, "sweep paper", "task", stream=out, smoothing=0.05)
+    assert isinstance(bar, pg.LineProgress)
+    for _ in range(50):
+        bar.update()
+    bar.close()
+    lines = out.getvalue().splitlines()
+    assert "\r" not in out.getvalue() and len(lines) == 10
+    assert lines[0].startswith("sweep paper: 10 % (5/50 task)") and lines[-1].startswith("sweep paper: 100 % (50/50")
+
+
+def test_unknown_total_and_description_changes_are_lines():
+    out = io.StringIO()
+    with pg.progress(None, "leonav run", stream=out) as bar:
+        bar.set_description_str("run fix+imu")
+        bar.set_description_str("run fix+imu")      # unchanged: no new line
+        bar.update(3)                                 # no total: a line only every LINE_EVERY_S
+    assert out.getvalue().splitlines()[0].startswith("run fix+imu  [")
+    assert len(out.getvalue().splitlines()) == 1
+
+
+def test_a_terminal_gets_the_live_bar_and_quiet_gets_nothing():
+    from tqdm import tqdm
+
+    bar = pg.progress(10, "x", stream=_Tty())
+    assert isinstance(bar, tqdm)
+    bar.close()
+    log = logging.getLogger("leonav")
+    old = log.level
+    log.setLevel(logging.ERROR)                       # what -q sets
+    try:
+        out = _Tty()
+        bar = pg.progress(10, "x", stream=out)
+        for _ in range(10):
+            bar.update()
+        bar.close()
+        assert out.getvalue() == "" and isinstance(bar, pg.NoProgress)
+    finally:
+        log.setLevel(old)
