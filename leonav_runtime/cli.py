@@ -250,8 +250,21 @@ def main(argv: list[str] | None = None) -> int:
     with log_setup.cli_logging(_command_name(args), verbosity):
         try:
             return int(args.func(args) or 0)
+        except BrokenPipeError:
+            # the reader closed the pipe (`leonav completion bash | head`): what it wanted was written
+            _silence_stdout()
+            return 0
         except (KeyboardInterrupt, Exception) as exc:  # noqa: BLE001 (one place turns every error into one line)
             return report_error(_command_name(args), exc, debug)
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so the interpreter's final flush does not raise again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
 
 
 if __name__ == "__main__":

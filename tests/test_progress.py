@@ -52,3 +52,17 @@ def test_a_terminal_gets_the_live_bar_and_quiet_gets_nothing():
         assert out.getvalue() == "" and isinstance(bar, pg.NoProgress)
     finally:
         log.setLevel(old)
+
+
+def test_a_closed_pipe_ends_quietly():
+    """`leonav completion bash | head -1`: the reader stops early; no 'Broken pipe' error, exit 0."""
+    import shutil
+    import subprocess
+
+    exe = shutil.which("leonav")
+    if exe is None:
+        import pytest
+        pytest.skip("the leonav console script is not on PATH")
+    proc = subprocess.run(f"'{exe}' completion bash | head -c 10 >/dev/null; exit ${{PIPESTATUS[0]}}", shell=True,
+                          executable="/bin/bash", capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and "Broken pipe" not in proc.stderr and "error" not in proc.stderr, proc.stderr
