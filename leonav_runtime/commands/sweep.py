@@ -36,6 +36,9 @@ def register(subparsers) -> None:
                    help="Starlink satellite counts, e.g. 5,10,45 or 5:45:5 (default: the scenario's [starlink] counts)")
     p.add_argument("--seed", type=int, default=None, metavar="N",
                    help="master random seed (default: the scenario's [monte_carlo] seed)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scenario field, e.g. --set time.epoch=2026-02-24T00:00:00Z --set "
+                        "site.lat_deg=-33.87 (repeatable; value in the scenario file's unit, read by the key's type)")
     add_executor_arguments(p)
     output.add_out_argument(p)
     p.set_defaults(func=run)
@@ -51,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
     from leonav_runtime.scenarios.overrides import apply_overrides, parse_counts, split_list
 
     scn, _changes = apply_overrides(load_scenario(args.scenario), modes=split_list(args.modes),
-                                    counts=parse_counts(args.counts), seed=args.seed, trials=args.trials)
+                                    counts=parse_counts(args.counts), seed=args.seed, trials=args.trials,
+                                    sets=args.set)
     check_run_size(scn, trials=args.trials, workers=1 if args.dask else args.workers)  # before any work
     out_dir = output.results_dir(args.out, f"sweep-{scn.name}")
     res = run_sweep(scn, out_dir, trials=args.trials, workers=args.workers, dask_address=args.dask,

@@ -55,10 +55,19 @@ def parse_counts(values: Iterable[str] | None) -> list[int] | None:
 
 
 def apply_overrides(scn: Scenario, *, modes: Sequence[str] | None = None, counts: Sequence[int] | None = None,
-                    seed: int | None = None, trials: int | None = None) -> tuple[Scenario, dict]:
-    """(the scenario with the given values replaced, {option: value} of what changed)."""
+                    seed: int | None = None, trials: int | None = None,
+                    sets: Sequence[str] = ()) -> tuple[Scenario, dict]:
+    """(the scenario with the given values replaced, {option: value} of what changed); sets: --set
+    `section.key=value` texts, each value read by the key's declared type (`study.spec.parse_set`)."""
     changes: dict = {}
     raw = copy.deepcopy(scn.raw)
+    if sets:
+        from leonav_runtime.study.spec import apply_setting, parse_set
+
+        for text in sets:
+            key, value = parse_set(text)
+            apply_setting(raw, key, value)
+            changes.setdefault("set", []).append(f"{key}={value}")
     if modes is not None:
         if not modes:
             raise UserInputError(f"--modes: (none): expected one or more modes, e.g. {', '.join(MODES)}")

@@ -93,17 +93,43 @@ def apply_setting(raw: dict[str, Any], key: str, value: Any) -> None:
 
 
 def parse_set(text: str) -> tuple[str, Any]:
-    """`key=value` of --set: value read as a TOML value (number, string, list), else as text."""
+    """`key=value` of --set, the value read by the key's declared type: text for a text key (a date
+    such as 2026-02-24T00:00:00Z as typed; quotes optional), a number for a number, true/false
+    for a flag, a TOML list (or comma-separated numbers) for a list; else one line naming the key,
+    what was given and what was expected."""
     key, sep, value = text.partition("=")
     key, value = key.strip(), value.strip()
     if not sep or not key or not value:
         raise UserInputError(f"--set {text!r}: expected key=value, e.g. starlink.doppler_rate_sigma_hz_s=0.3")
+    spec = _field_of(f"--set {text!r}", key)
+    return key, typed_value(key, value, spec.kind)
+
+
+def typed_value(key: str, value: str, kind) -> Any:
+    """A command-line text `value` as the schema type `kind` (`parse_set`)."""
+    kinds = kind if isinstance(kind, tuple) else (kind,)
     try:
-        parsed = tomllib.loads(f"v = {value}")["v"]
+        toml_value = tomllib.loads(f"v = {value}")["v"]
     except tomllib.TOMLDecodeError:
-        parsed = value
-    _field_of(f"--set {text!r}", key)
-    return key, parsed
+        toml_value = None
+    if isinstance(toml_value, bool) and bool in kinds:
+        return toml_value
+    if (float in kinds or int in kinds) and not isinstance(toml_value, bool):
+        if isinstance(toml_value, (int, float)):
+            return int(toml_value) if int in kinds and float not in kinds else toml_value
+    if list in kinds:
+        if isinstance(toml_value, list):
+            return toml_value
+        items = [v.strip() for v in value.split(",")]
+        try:
+            return [float(v) if any(c in v for c in ".eE") else int(v) for v in items]
+        except ValueError:
+            pass
+    if str in kinds:
+        return toml_value if isinstance(toml_value, str) else value
+    names = {bool: "true or false", int: "an integer", float: "a number", list: "a list such as [1, 2]",
+             str: "text"}
+    raise UserInputError(f"--set {key}={value}: expected {' or '.join(names.get(k, k.__name__) for k in kinds)}")
 
 
 def _value_key(v: Any) -> tuple:
