@@ -249,13 +249,26 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     with log_setup.cli_logging(_command_name(args), verbosity):
         try:
-            return int(args.func(args) or 0)
+            rc = int(args.func(args) or 0)
+            _finish_results(failed=rc != 0, why=f"exit code {rc}")
+            return rc
         except BrokenPipeError:
             # the reader closed the pipe (`leonav completion bash | head`): what it wanted was written
             _silence_stdout()
+            _finish_results(failed=False)
             return 0
         except (KeyboardInterrupt, Exception) as exc:  # noqa: BLE001 (one place turns every error into one line)
-            return report_error(_command_name(args), exc, debug)
+            rc = report_error(_command_name(args), exc, debug)
+            _finish_results(failed=True, why=f"{type(exc).__name__}: {exc}")
+            return rc
+
+
+def _finish_results(failed: bool, why: str = "") -> None:
+    """A failed command removes the empty results folders it created (`output.finish_results`);
+    a command that never imported the output module created none."""
+    out = sys.modules.get("leonav_runtime.common.output")
+    if out is not None:
+        out.finish_results(failed, why)
 
 
 def _silence_stdout() -> None:

@@ -104,6 +104,10 @@ def _run(args: argparse.Namespace) -> int:
     from leonav.hardware.session import RecordSession
 
     check_options(args)
+    from leonav_runtime.common import output
+
+    # created here so that a recording that fails before any byte leaves no empty folder behind
+    output.results_dir(args.outdir, "record")
     settings = SdrSettings(rf_center_hz=args.rf_hz, lnb_lo_hz=args.lnb_lo_hz,
                            sample_rate_hz=args.sdr_rate, gain_db=args.sdr_gain, ppm=args.sdr_ppm)
     session = RecordSession(args.outdir, gnss=args.gnss, imu=args.imu, sdr_index=args.sdr,

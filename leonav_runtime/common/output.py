@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import shutil
 import datetime as _dt
 import re
 from pathlib import Path
@@ -39,14 +40,40 @@ def add_out_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
+_CREATED: list[Path] = []
+"""Results folders this process created (outermost new folder first), for `finish_results`."""
+
+
 def results_dir(out: str | Path | None, command: str) -> Path:
-    """Create and return the results folder for `command`."""
+    """Create and return the results folder for `command` (remembered: a failed command removes
+    it again when nothing was written into it, `finish_results`)."""
     if out is None:
         stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
         out = DEFAULT_ROOT / f"{_UNSAFE.sub('_', command).lstrip('.') or 'results'}-{stamp}"
     path = Path(out)
+    new = next((p for p in reversed([path, *path.parents]) if not p.exists()), None)
     path.mkdir(parents=True, exist_ok=True)
+    if new is not None:
+        _CREATED.append(new)
     return path
+
+
+def finish_results(failed: bool, why: str = "") -> list[Path]:
+    """At the end of a command: when it failed, remove the results folders it created that hold
+    no file, and leave a FAILED.txt (with `why`) in those that hold a partial result. Returns the
+    folders removed."""
+    removed = []
+    while _CREATED:
+        top = _CREATED.pop()
+        if not failed or not top.exists():
+            continue
+        if not any(p.is_file() for p in top.rglob("*")):
+            shutil.rmtree(top, ignore_errors=True)
+            removed.append(top)
+        else:
+            (top if top.is_dir() else top.parent).joinpath("FAILED.txt").write_text(
+                f"this command failed before it finished; the files here are partial\n{why}\n")
+    return removed
 
 
 def write_csv(path: str | Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Path:
