@@ -13,7 +13,7 @@ from leonav_runtime.replay.options import parse_latency
 EPILOG = """exit status:
   0    ended as asked (--seconds elapsed or the played-back session ended) and navigated
   1    never navigated (no GNSS time tag, usable fix or IMU data); outputs still written
-  2    bad arguments or input
+  2    bad arguments or input; OUT in use by another run (one writer per folder); --nmea-pty PATH not free
   3    a device disappeared during the run (the filter went on with the rest; nav.json says which)
   130  interrupted (SIGINT, Ctrl-C)      143  stopped (SIGTERM, e.g. systemctl stop)
 SIGINT/SIGTERM flush and close every output (trajectory.csv, solutions.jsonl, session/, nav.json)."""
@@ -65,7 +65,9 @@ def register(subparsers) -> None:
     o = p.add_argument_group("outputs")
     o.add_argument("--nmea-port", type=int, default=10110, help="NMEA TCP server port (default 10110; 0: off)")
     o.add_argument("--nmea-host", default="127.0.0.1", help="address the NMEA server listens on (default 127.0.0.1)")
-    o.add_argument("--nmea-pty", metavar="PATH", default=None, help="also write NMEA to a pty linked at PATH")
+    o.add_argument("--nmea-pty", metavar="PATH", default=None,
+                   help="also write NMEA to a pty linked at PATH (a free path, or the pty link an earlier run "
+                        "left: nothing else there is replaced)")
     o.add_argument("--mavlink", metavar="URL", default=None, help="MAVLink GPS_INPUT, e.g. udpout:127.0.0.1:14550")
     o.add_argument("--rate", type=float, default=10.0, help="live solutions per second (default 10)")
     o.add_argument("--trajectory-rate", type=float, default=10.0, help="trajectory.csv rows per second (default 10)")

@@ -11,6 +11,7 @@ trajectory file, flushed as it goes so a stopped or killed run leaves readable f
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import datetime as _dt
 import math
@@ -18,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.core import navfuncs, records
 from leonav_runtime.orbits import geometry
 from leonav_runtime.nav.sinks.solution import NavSolution
@@ -59,6 +61,15 @@ def solution_of(x: np.ndarray, P_diag: np.ndarray, utc: _dt.datetime, origin, na
         fix_quality=fix_quality, latency_s=latency_s)
 
 
+@contextlib.contextmanager
+def _named(what: str, hint: str = ""):
+    """An OSError opening an output -> a one-line UserInputError naming that output."""
+    try:
+        yield
+    except OSError as exc:
+        raise UserInputError(f"{what} ({exc.strerror or exc}){hint}") from None
+
+
 class LiveOutputs:
     """NMEA (TCP server and/or pty), MAVLink and JSON lines for each solution."""
 
@@ -71,15 +82,20 @@ class LiveOutputs:
         self.counts = {"solutions": 0}
         try:
             if tcp is not None:
-                self.sinks["tcp"] = TcpBroadcastServer(tcp[0], tcp[1])
+                with _named(f"--nmea-port {tcp[1]} on {tcp[0]}: cannot listen",
+                            "; another program may use the port (--nmea-port 0: off)"):
+                    self.sinks["tcp"] = TcpBroadcastServer(tcp[0], tcp[1])
             if pty_link:
-                self.sinks["pty"] = PtyOutput(pty_link)
+                with _named(f"--nmea-pty {pty_link}: cannot open a pty"):   # PtyOutput names what is at the path
+                    self.sinks["pty"] = PtyOutput(pty_link)
             if mavlink:
                 from leonav_runtime.nav.sinks.mavlink_out import MavlinkOutput
 
-                self.sinks["mavlink"] = MavlinkOutput(mavlink)
+                with _named(f"--mavlink {mavlink}: cannot open"):
+                    self.sinks["mavlink"] = MavlinkOutput(mavlink)
             if json_path is not None:
-                self.sinks["json"] = open(json_path, "w", buffering=1)
+                with _named(f"{json_path}: cannot write"):
+                    self.sinks["json"] = open(json_path, "w", buffering=1)
         except Exception:
             self.close()
             raise

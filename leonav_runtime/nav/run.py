@@ -3,7 +3,8 @@
 Exit codes (also in nav.json `exit_code` and `leonav nav --help`):
   0    the run ended as asked (--seconds elapsed, or the played-back session ended) and navigated
   1    it never navigated: no GNSS time tag, no usable fix or no IMU data (outputs still written)
-  2    bad arguments or input files (the CLI's convention for every command)
+  2    bad arguments or input files (the CLI's convention for every command), OUT locked by another
+       run (`out_lock`: one writer per folder), --nmea-pty PATH holding something not ours
   3    a device disappeared during the run (the filter went on with the rest; see nav.json)
   130  interrupted by SIGINT (Ctrl-C)
   143  stopped by SIGTERM (systemd stop): every output flushed, as for 0
@@ -22,6 +23,7 @@ from typing import Callable
 from leonav_runtime.core import navfuncs
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.nav.navigator import Navigator, NavConfig
+from leonav_runtime.nav.out_lock import lock_out_dir
 from leonav_runtime.nav.outputs import LiveOutputs
 from leonav_runtime.nav.status import StatusLine
 from leonav_runtime.common.output import write_json
@@ -150,9 +152,15 @@ def session_bauds(opts: NavOptions) -> tuple[int | None, int | None]:
 
 def run_nav(opts: NavOptions, on_started: Callable[[], None] | None = None,
             signals: _Signals | None = None, nav: navfuncs.NavFunctions | None = None) -> dict:
-    """Run to the end; returns nav.json's content (with `exit_code`)."""
+    """Run to the end; returns nav.json's content (with `exit_code`). OUT is locked for the whole
+    run (`out_lock`): a second run on the same OUT is refused before it writes anything."""
     out = Path(opts.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    with lock_out_dir(out):
+        return _run_locked(opts, out, on_started, signals, nav)
+
+
+def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | None,
+                signals: _Signals | None, nav: navfuncs.NavFunctions | None) -> dict:
     record_dir = out / "session" if opts.record or (opts.session is None or opts.realtime) else None
     cfg = opts.nav
     cfg.road.gnss_baud, cfg.road.imu_baud = session_bauds(opts)
@@ -160,13 +168,8 @@ def run_nav(opts: NavOptions, on_started: Callable[[], None] | None = None,
     status = StatusLine(enabled=True if opts.status is None else opts.status)
     if opts.status is None and not status.tty:
         status.refresh_s = 10.0
-    try:
-        outputs = LiveOutputs(opts.tcp, opts.pty_link, opts.mavlink,
-                              out / "solutions.jsonl" if opts.json_lines else None)
-    except OSError as exc:
-        where = f"--nmea-port {opts.tcp[1]} on {opts.tcp[0]}" if opts.tcp else "outputs"
-        raise UserInputError(f"{where}: cannot open ({exc}); another program may use the port (--nmea-port 0: off)") \
-            from None
+    outputs = LiveOutputs(opts.tcp, opts.pty_link, opts.mavlink,      # each failure names its option
+                          out / "solutions.jsonl" if opts.json_lines else None)
     navigator = source = None
     reason, session_info, beacons, f_c_source = "error", {}, None, ""
     started_utc = _dt.datetime.now(_dt.timezone.utc)

@@ -4,15 +4,21 @@
 every line to each; it listens on 127.0.0.1 unless another host is named. A client that
 stops reading is dropped once its backlog passes `max_backlog_bytes` (counted), so a slow
 client never blocks the navigator. `PtyOutput` opens a pseudo-terminal and links its
-device to a path (`/tmp/leonav-nmea`), for programs that only read serial ports.
+device to a path (`/tmp/leonav-nmea`), for programs that only read serial ports; what is
+already at that path is replaced only when it is a link to a pty device (an earlier run's),
+anything else is refused with a `UserInputError` and left as it is.
 """
 from __future__ import annotations
 
 import os
+import re
 import select
 import socket
+import stat
 import threading
 from pathlib import Path
+
+from leonav_runtime.common.errors import UserInputError
 
 
 class TcpBroadcastServer:
@@ -105,9 +111,11 @@ class PtyOutput:
         self._slave = slave
         os.set_blocking(self._master, False)
         self.link = Path(link)
-        if self.link.is_symlink() or self.link.exists():
-            self.link.unlink()
-        self.link.symlink_to(self.device)
+        try:
+            _make_link(self.link, self.device)
+        except BaseException:
+            self._close_fds()
+            raise
         self.counts = {"bytes_written": 0, "bytes_dropped": 0}
 
     def send(self, data: bytes) -> None:
@@ -119,11 +127,61 @@ class PtyOutput:
         self.counts["bytes_written"] += n
         self.counts["bytes_dropped"] += len(data) - n
 
-    def close(self) -> None:
+    def _close_fds(self) -> None:
         for fd in (self._master, self._slave):
             try:
                 os.close(fd)
             except OSError:
                 pass
-        if self.link.is_symlink():
+
+    def close(self) -> None:
+        self._close_fds()
+        # Only our own link: someone may have put something else at the path meanwhile.
+        if _link_target(self.link) == self.device:
             self.link.unlink()
+
+
+# pty devices: Linux (/dev/pts/N) and BSD/macOS (/dev/ttysNNN, /dev/ttypN)
+_PTY_DEVICE = re.compile(r"/dev/(pts/\d+|ttys\d+|ttyp[0-9a-f])")
+
+
+def _link_target(path: Path) -> str | None:
+    """Where the symbolic link `path` points, or None when `path` is not a symbolic link."""
+    try:
+        return os.readlink(path)
+    except OSError:
+        return None
+
+
+def _make_link(link: Path, device: str) -> None:
+    """Link `device` at `link`. Only a link to a pty device (one a killed run left; its pty may be
+    gone) is replaced: anything else there is somebody's file and is refused, untouched."""
+    target = _link_target(link)
+    if target is not None:
+        if not _PTY_DEVICE.fullmatch(target):
+            raise UserInputError(f"--nmea-pty {link}: is a symbolic link to {target}, not to a pty device; "
+                                 "expected a free path or a link an earlier `leonav nav` left (remove it or "
+                                 "give another path)")
+        link.unlink(missing_ok=True)
+    elif os.path.lexists(link):
+        raise UserInputError(f"--nmea-pty {link}: is {_what_is(link)}; expected a free path or a link an "
+                             "earlier `leonav nav` left (nothing there is removed: give another path)")
+    try:
+        link.symlink_to(device)
+    except FileExistsError:     # created by someone else since the check above: theirs, left alone
+        raise UserInputError(f"--nmea-pty {link}: something appeared there while linking; expected a free "
+                             "path") from None
+    except OSError as exc:
+        raise UserInputError(f"--nmea-pty {link}: cannot create the link ({exc.strerror}); expected a "
+                             "writable folder") from None
+
+
+def _what_is(path: Path) -> str:
+    """'a regular file', 'a directory', ... for a message."""
+    mode = os.lstat(path).st_mode
+    for test, name in ((stat.S_ISREG, "a regular file"), (stat.S_ISDIR, "a directory"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISFIFO, "a named pipe"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return name
+    return "an existing file"
