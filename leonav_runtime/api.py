@@ -49,7 +49,8 @@ def load_scenario(name_or_path: str | Path = "paper", *, modes: Sequence[str] | 
     seed, trials)."""
     from leonav_runtime.scenarios.overrides import apply_overrides
 
-    scn, _ = apply_overrides(_load_scenario(name_or_path), modes=modes, counts=counts, seed=seed, trials=trials)
+    scn, _ = apply_overrides(_load_scenario(name_or_path), modes=modes, counts=counts, seed=seed, trials=trials,
+                             api=True)
     return scn
 
 

@@ -73,8 +73,11 @@ def test_arrays_match_the_summaries_and_the_csv(tmp_path):
 def test_bad_changes_are_user_errors():
     from leonav_runtime.common.errors import UserInputError
 
-    with pytest.raises(UserInputError, match="--modes"):
+    # named as the Python arguments they are, not as command-line options
+    with pytest.raises(UserInputError, match=r"^modes: 'warp': unknown word"):
         leonav.load_scenario("paper", modes=["warp"])
+    with pytest.raises(UserInputError, match=r"^seed=-1: expected"):
+        leonav.load_scenario("paper", seed=-1)
     assert leonav.__version__ and "run_replay" in leonav.__all__
 
 

@@ -56,9 +56,16 @@ def parse_counts(values: Iterable[str] | None) -> list[int] | None:
 
 def apply_overrides(scn: Scenario, *, modes: Sequence[str] | None = None, counts: Sequence[int] | None = None,
                     seed: int | None = None, trials: int | None = None,
-                    sets: Sequence[str] = ()) -> tuple[Scenario, dict]:
+                    sets: Sequence[str] = (), api: bool = False) -> tuple[Scenario, dict]:
     """(the scenario with the given values replaced, {option: value} of what changed); sets: --set
-    `section.key=value` texts, each value read by the key's declared type (`study.spec.parse_set`)."""
+    `section.key=value` texts, each value read by the key's declared type (`study.spec.parse_set`).
+    api: errors name the Python arguments (`modes=`) rather than the command-line options."""
+    def opt(name: str) -> str:
+        return f"{name}=" if api else f"--{name} "
+
+    def named(name: str) -> str:
+        return name if api else f"--{name}"
+
     changes: dict = {}
     raw = copy.deepcopy(scn.raw)
     if sets:
@@ -70,9 +77,9 @@ def apply_overrides(scn: Scenario, *, modes: Sequence[str] | None = None, counts
             changes.setdefault("set", []).append(f"{key}={value}")
     if modes is not None:
         if not modes:
-            raise UserInputError(f"--modes: (none): expected one or more modes, e.g. {', '.join(MODES)}")
+            raise UserInputError(f"{named('modes')}: (none): expected one or more modes, e.g. {', '.join(MODES)}")
         for m in modes:
-            mode_of(m, "--modes:")
+            mode_of(m, f"{named('modes')}:")
         raw.setdefault("monte_carlo", {})["modes"] = list(dict.fromkeys(modes))
         changes["modes"] = list(dict.fromkeys(modes))
     if counts is not None:
@@ -80,17 +87,17 @@ def apply_overrides(scn: Scenario, *, modes: Sequence[str] | None = None, counts
         changes["counts"] = sorted(set(counts))
     if seed is not None:
         if not 0 <= seed < 2**63:
-            raise UserInputError(f"--seed {seed}: expected an integer in [0, 2^63)")
+            raise UserInputError(f"{opt('seed')}{seed}: expected an integer in [0, 2^63)")
         raw.setdefault("monte_carlo", {})["seed"] = int(seed)
         changes["seed"] = int(seed)
     if trials is not None:
         bounds = SCHEMA["monte_carlo"]["trials"]
         if not bounds.lo <= trials <= bounds.hi:
-            raise UserInputError(f"--trials {trials}: expected {bounds.lo:g}..{bounds.hi:g}")
+            raise UserInputError(f"{opt('trials')}{trials}: expected {bounds.lo:g}..{bounds.hi:g}")
         raw.setdefault("monte_carlo", {})["trials"] = int(trials)
         changes["trials"] = int(trials)
     if not changes:
         return scn, changes
-    where = f"{scn.source} with {' '.join(f'--{k} {v}' for k, v in changes.items())}"
+    where = f"{scn.source} with {' '.join(f'{opt(k)}{v}' for k, v in changes.items())}"
     base = Path(scn.source).parent if Path(scn.source).exists() else None
     return scenario_from_dict(raw, source=where if base is None else scn.source, base_dir=base), changes
