@@ -10,6 +10,7 @@ FAILING = {
     "sweep counts beyond the sky": ["sweep", "--counts", "5,100"],
     "beacons on a missing file": ["beacons", "missing.cu8", "--tle", "missing.tle"],
     "replay of no session": ["replay", "nosuchdir"],
+    "nav on a missing device": ["nav", "--gnss", "/dev/nonexistent", "--seconds", "1", "--nmea-port", "0"],
     "study with a bad --set": ["study", "where-is-6-9m", "--set", "site.lat_deg=north"],
     "record on a missing device": ["record", "leonav-out/rec", "--seconds", "1", "--gnss", "/dev/nonexistent"],
 }

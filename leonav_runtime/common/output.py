@@ -60,14 +60,14 @@ def results_dir(out: str | Path | None, command: str) -> Path:
 
 def finish_results(failed: bool, why: str = "") -> list[Path]:
     """At the end of a command: when it failed, remove the results folders it created that hold
-    no file, and leave a FAILED.txt (with `why`) in those that hold a partial result. Returns the
+    no file with content, and leave a FAILED.txt (with `why`) in those that hold a partial result. Returns the
     folders removed."""
     removed = []
     while _CREATED:
         top = _CREATED.pop()
         if not failed or not top.exists():
             continue
-        if not any(p.is_file() for p in top.rglob("*")):
+        if not any(p.is_file() and p.stat().st_size > 0 for p in top.rglob("*")):   # empty files hold nothing
             shutil.rmtree(top, ignore_errors=True)
             removed.append(top)
         else:

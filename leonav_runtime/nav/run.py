@@ -175,8 +175,9 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
     started_utc = _dt.datetime.now(_dt.timezone.utc)
     try:
         beacons, cfg.road.f_c_hz, f_c_source = _beacons(opts, record_dir)
-        navigator = Navigator(cfg, out, outputs, status, nav)
+        # the devices first: one that cannot be opened stops the run before any output file is written
         source = _source(opts, record_dir, beacons)
+        navigator = Navigator(cfg, out, outputs, status, nav)
         where = [f"NMEA tcp://{outputs.tcp_address[0]}:{outputs.tcp_address[1]}" if outputs.tcp_address else "",
                  f"NMEA pty {opts.pty_link} -> {outputs.pty_device}" if outputs.pty_device else "",
                  f"MAVLink {opts.mavlink}" if opts.mavlink else ""]
