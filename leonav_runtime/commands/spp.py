@@ -134,6 +134,9 @@ def process(obs_path: Path, nav_paths: list[str], args, nav_funcs, out: Path, re
         "times_s": {"read": t_read - t_start, "solve": t_solve - t_read},
     }
     if args.ekf:
+        if not ok.any():   # the EKF starts from a single-point solution; say why there is none
+            raise UserInputError(f"{obs_path}: --ekf: no epoch has a single-point solution to start the "
+                                 f"GNSS-only EKF from ({_why_unsolved(summary)})")
         sol = gnss_ekf.run(res, q_acc_m2ps3=args.q_acc, nav=nav_funcs)
         have = np.all(np.isfinite(sol.r_ecef_m), axis=1)
         solution_io.write_pos(out / f"{stem}_ekf.pos", sol.t_gps_s[have], sol.r_ecef_m[have], _enu_cov(sol, have),
@@ -149,6 +152,26 @@ def process(obs_path: Path, nav_paths: list[str], args, nav_funcs, out: Path, re
                                                                        solution_io.read_pos(reference))}
     summary["times_s"]["total"] = time.perf_counter() - t_start
     return summary
+
+
+def _why_unsolved(summary: dict) -> str:
+    """'epochs by status: ...; rows not used: ...' of a file summary (non-zero counts only)."""
+    epochs = ", ".join(f"{k} {v}" for k, v in summary["epochs_by_status"].items() if v)
+    rows = ", ".join(f"{k} {v}" for k, v in summary["rows_by_reason"].items()
+                     if k not in ("usable", "used", "other_signal", "system_not_used") and v)
+    return f"epochs by status: {epochs or 'none'}; rows not used: {rows or 'none'}"
+
+
+def _reader_note(counts: dict) -> str:
+    """The epoch-order repairs of the RINEX reader, for the printed summary ('' when none)."""
+    parts = []
+    if counts.get("epochs_out_of_order"):
+        n = counts["epochs_out_of_order"]
+        parts.append(f"{n} epoch{'s' if n > 1 else ''} out of time order (sorted)")
+    if counts.get("duplicate_epochs"):
+        n = counts["duplicate_epochs"]
+        parts.append(f"{n} repeated epoch{'s' if n > 1 else ''} (dropped)")
+    return ", ".join(parts)
 
 
 def _enu_cov(sol, have):
@@ -240,6 +263,8 @@ def _run(args: argparse.Namespace) -> int:
             line += f"; EKF scatter {s['ekf']['scatter_rms_3d_m']:.2f} m"
         print(line)
         print(f"  rows not used: {reasons or 'none'}")
+        if _reader_note(s["reader_counts"]):
+            print(f"  reader: {_reader_note(s['reader_counts'])}")
         for ref, c in s.get("compare", {}).items():
             print(f"  vs {ref}: {c['epochs_matched']} epochs, 3-D difference median {c['median_3d_m']:.4f} m, "
                   f"max {c['max_3d_m']:.4f} m, same satellite count {c['same_ns']}/{c['epochs_matched']}")

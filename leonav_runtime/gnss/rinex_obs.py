@@ -9,8 +9,14 @@ records) is counted and skipped.
 Bad input: an unreadable epoch line, a field that is not a number, a satellite block cut
 short by the next epoch or the end of the file, each becomes a `Rejection` (file, line,
 field) and the reader resynchronizes at the next epoch line; blank or zero observations
-are missing values (zeros counted). Unknown versions and non-observation files raise
-`UserInputError` naming file, line 1 and the field.
+are missing values (zeros counted). In RINEX 3, an epoch line shorter than its 35 columns
+(flag in column 32, satellite count in 33-35) is rejected and its satellites skipped; a blank
+line among the satellite lines is rejected and ignored. Unknown versions and non-observation
+files raise `UserInputError` naming file, line 1 and the field.
+
+Epoch order: epochs earlier than one before them are counted (`epochs_out_of_order`) and the
+rows sorted by time (stable); an epoch whose time repeats an earlier one is rejected by line
+and counted (`duplicate_epochs`), the first copy kept.
 
 Time systems: GPS, GAL, QZS, IRN epochs are GPS seconds; BDT + 14 s; GLO (UTC) + the
 GPS-UTC leap seconds of the date.
@@ -62,10 +68,29 @@ class _Reader:
         self.types_v3: dict[str, list[str]] = {}
         self.approx = None
         self.glo_slots: dict[int, int] = {}
+        self.epoch_lines: dict[float, int] = {}   # GPS time (s) of each observation epoch -> its line index
+        self.last_epoch_t = -math.inf
 
     def reject(self, line_index: int, field_name: str, reason: str) -> None:
         self.rejected.append(Rejection(self.source, line_index + 1, field_name, reason))
         self.counts["rejected"] += 1
+
+    def new_epoch(self, t: float, line_index: int) -> bool:
+        """Register the observation epoch at GPS time t (s) of line `line_index` (0-based);
+        False when t repeats an earlier epoch's time (rejected, counted `duplicate_epochs`: its
+        rows are dropped, the first copy is kept, as RTKLIB's sortobs does). An epoch earlier
+        than one before it is counted `epochs_out_of_order`; the table is sorted at the end."""
+        first = self.epoch_lines.setdefault(t, line_index)
+        if first != line_index:
+            self.counts["duplicate_epochs"] += 1
+            when = f"{gtime.gps_seconds_to_datetime(t):%Y-%m-%d %H:%M:%S} GPST"
+            self.reject(line_index, "epoch", f"time {when} repeats the epoch of line {first + 1}; "
+                        "its satellites dropped (the first copy is kept)")
+            return False
+        if t < self.last_epoch_t:
+            self.counts["epochs_out_of_order"] += 1
+        self.last_epoch_t = max(self.last_epoch_t, t)
+        return True
 
     # -------------------------------------------------------------- header
     def header(self) -> int:
@@ -229,6 +254,12 @@ class _Reader:
                 self.reject(i, "epoch", "expected an epoch line starting with '>'; skipped to the next epoch")
                 i = self._next_v3_epoch(i + 1)
                 continue
+            if len(line) < 35:   # the satellite count ends in column 35; a shorter line was cut
+                self.reject(i, "epoch", f"epoch line cut at column {len(line)} (expected "
+                            "'> yyyy mm dd hh mm ss.sssssss  f nnn', the epoch flag in column 32 and the "
+                            "satellite count in columns 33-35); skipped to the next epoch")
+                i = self._next_v3_epoch(i + 1)
+                continue
             if line[31:32] in ("2", "3", "4", "5") and not line[2:29].strip():
                 line = line[:2] + "0001 01 01 00 00  0.0000000" + line[29:]  # blank epoch of an event
             try:
@@ -252,13 +283,22 @@ class _Reader:
                 continue
             if flag == 6:
                 self.counts["cycle_slip_records"] += 1
+            keep = flag == 6 or nsat == 0 or self.new_epoch(t, i)   # an empty epoch holds no time
+            # the satellite lines: up to nsat, stopping at the next epoch; a blank line among them
+            # is rejected and not counted as one (the satellites after it are still read)
+            sat_lines: list[int] = []
             block_end = i + 1
-            while block_end < min(n, i + 1 + nsat) and not lines[block_end].startswith(">"):
+            while len(sat_lines) < nsat and block_end < n and not lines[block_end].startswith(">"):
+                if lines[block_end].strip():
+                    sat_lines.append(block_end)
+                else:
+                    self.reject(block_end, "satellite line", f"blank line inside the {nsat} satellite lines of "
+                                f"the epoch of line {i + 1} (expected 'Snn' and the observations); ignored")
                 block_end += 1
-            if block_end - (i + 1) < nsat:
+            if len(sat_lines) < nsat:
                 self.reject(block_end if block_end < n else i, "satellite lines",
-                            f"{block_end - i - 1} of {nsat} satellite lines before the next epoch/end of file")
-            for k in range(i + 1, block_end):
+                            f"{len(sat_lines)} of {nsat} satellite lines before the next epoch/end of file")
+            for k in sat_lines if keep else ():
                 sline = lines[k]
                 sat = sline[0:3]
                 system = sat[0]
@@ -276,7 +316,8 @@ class _Reader:
                         values.append((code, v, lli, ssi))
                 if flag != 6:
                     self.add_sat(t, sat, values, flag == 1)
-            self.counts["epochs" if flag != 6 else "cycle_slip_epochs"] += 1
+            if keep:
+                self.counts["epochs" if flag != 6 else "cycle_slip_epochs"] += 1
             i = block_end
 
     def _next_v3_epoch(self, i: int) -> int:
@@ -294,6 +335,10 @@ def parse_rinex_obs(text: str, source: str = "<string>") -> ObservationTable:
     else:
         r.body_v3(first)
     table = r.rows.table(source=source, rejected=r.rejected, counts=r.counts, approx_position_ecef_m=r.approx)
+    if r.counts["epochs_out_of_order"]:
+        # consumers group rows by epoch with sorted times (the SPP normal equations per epoch);
+        # stable, so the rows of one epoch keep the file's order
+        table = table.take(np.argsort(table.t_gps_s, kind="stable"))
     table.counts["rows"] = len(table)
     if r.rejected:
         shown = "; ".join(str(x) for x in r.rejected[:3]) + (" ..." if len(r.rejected) > 3 else "")

@@ -89,6 +89,7 @@ def read_body(self, i: int) -> None:
             continue
         if flag == 6:
             self.counts["cycle_slip_records"] += 1
+        keep = flag == 6 or nsat == 0 or self.new_epoch(t, i)   # an empty epoch holds no time: nothing to repeat
         ntypes = len(self.types_v2)
         per_sat = max(1, -(-ntypes // 5))
         i = j
@@ -108,10 +109,11 @@ def read_body(self, i: int) -> None:
                 v, lli, ssi = self.field(i + k // 5, text, f"{code} of {sat.strip()}")
                 if not math.isnan(v):
                     values.append((code, v, lli, ssi))
-            if flag != 6:
+            if flag != 6 and keep:
                 self.add_sat(t, sat, values, flag == 1)
             i += per_sat
-        self.counts["epochs" if flag != 6 else "cycle_slip_epochs"] += 1 if complete or flag != 6 else 0
+        if keep:
+            self.counts["epochs" if flag != 6 else "cycle_slip_epochs"] += 1 if complete or flag != 6 else 0
 
 def next_epoch(lines: list[str], i: int) -> int:
     """Index of the next RINEX 2 epoch or event line at or after i."""

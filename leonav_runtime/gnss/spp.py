@@ -182,7 +182,10 @@ class _Batch:
 
     def __init__(self, rows: GnssRows, nav: NavFunctions, params: np.ndarray, opts: SppOptions):
         self.rows, self.nav, self.p, self.opts = rows, nav, params, opts
-        self.cand = np.flatnonzero(rows.status == 0)
+        cand = np.flatnonzero(rows.status == 0)
+        # epochs are contiguous runs of time-sorted rows (reduceat below); a table out of time
+        # order would mix epochs into singular normal equations
+        self.cand = cand[np.argsort(rows.t_gps_s[cand], kind="stable")]
         t = rows.t_gps_s[self.cand]
         self.epochs, self.starts, self.counts_per_epoch = np.unique(t, return_index=True, return_counts=True)
         self.ep = np.repeat(np.arange(self.epochs.size), self.counts_per_epoch)
