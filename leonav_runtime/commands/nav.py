@@ -64,6 +64,8 @@ def register(subparsers) -> None:
     f.add_argument("--tle", action="append", default=[], metavar="FILE", help="Starlink element sets (beacons)")
     o = p.add_argument_group("outputs")
     o.add_argument("--nmea-port", type=int, default=10110, help="NMEA TCP server port (default 10110; 0: off)")
+    o.add_argument("--nmea-max-clients", type=int, default=32, metavar="N",
+                   help="most NMEA TCP clients at once (default 32); more are closed at once and counted")
     o.add_argument("--nmea-host", default="127.0.0.1", help="address the NMEA server listens on (default 127.0.0.1)")
     o.add_argument("--nmea-pty", metavar="PATH", default=None,
                    help="also write NMEA to a pty linked at PATH (a free path, or the pty link an earlier run "
@@ -110,6 +112,8 @@ def options_from_args(args: argparse.Namespace):
         raise UserInputError(f"--seconds: {args.seconds!r}: expected a positive duration")
     if not 0 <= args.nmea_port <= 65535:
         raise UserInputError(f"--nmea-port: {args.nmea_port}: expected 0..65535")
+    if not 1 <= args.nmea_max_clients <= 1000:
+        raise UserInputError(f"--nmea-max-clients: {args.nmea_max_clients}: expected 1..1000")
     has_sdr = args.sdr is not None or (args.session is not None and (Path(args.session) / "sdr.cu8").exists())
     mode = args.mode or ("fix+leo-alpha+imu" if has_sdr else "fix+imu")
     road = RoadConfig(origin_deg=tuple(args.origin) if args.origin else None, yaw_deg=args.yaw_deg,
@@ -122,6 +126,7 @@ def options_from_args(args: argparse.Namespace):
         gnss_baud=args.gnss_baud, imu_baud=args.imu_baud, configure=args.configure,
         sdr_settings=_sdr_settings(args) if args.sdr is not None else None, seconds=args.seconds,
         record=not args.no_record, tcp=(args.nmea_host, args.nmea_port) if args.nmea_port else None,
+        nmea_max_clients=args.nmea_max_clients,
         pty_link=args.nmea_pty, mavlink=args.mavlink, json_lines=not args.no_json,
         status=False if args.quiet else None, tle_files=tuple(args.tle))
 

@@ -74,7 +74,7 @@ class LiveOutputs:
     """NMEA (TCP server and/or pty), MAVLink and JSON lines for each solution."""
 
     def __init__(self, tcp: tuple[str, int] | None = None, pty_link: str | None = None, mavlink: str | None = None,
-                 json_path: Path | None = None) -> None:
+                 json_path: Path | None = None, max_clients: int | None = None) -> None:
         from leonav_runtime.nav.sinks.servers import PtyOutput, TcpBroadcastServer
 
         self.sinks: dict[str, object] = {}
@@ -84,7 +84,8 @@ class LiveOutputs:
             if tcp is not None:
                 with _named(f"--nmea-port {tcp[1]} on {tcp[0]}: cannot listen",
                             "; another program may use the port (--nmea-port 0: off)"):
-                    self.sinks["tcp"] = TcpBroadcastServer(tcp[0], tcp[1])
+                    self.sinks["tcp"] = TcpBroadcastServer(tcp[0], tcp[1], **(
+                        {} if max_clients is None else {"max_clients": max_clients}))
             if pty_link:
                 with _named(f"--nmea-pty {pty_link}: cannot open a pty"):   # PtyOutput names what is at the path
                     self.sinks["pty"] = PtyOutput(pty_link)

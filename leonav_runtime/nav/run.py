@@ -51,6 +51,7 @@ class NavOptions:
     seconds: float | None = None
     record: bool = True
     tcp: tuple[str, int] | None = ("127.0.0.1", 10110)
+    nmea_max_clients: int | None = None   # None: sinks.servers.MAX_CLIENTS
     pty_link: str | None = None
     mavlink: str | None = None
     json_lines: bool = True
@@ -169,7 +170,7 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
     if opts.status is None and not status.tty:
         status.refresh_s = 10.0
     outputs = LiveOutputs(opts.tcp, opts.pty_link, opts.mavlink,      # each failure names its option
-                          out / "solutions.jsonl" if opts.json_lines else None)
+                          out / "solutions.jsonl" if opts.json_lines else None, opts.nmea_max_clients)
     navigator = source = None
     reason, session_info, beacons, f_c_source = "error", {}, None, ""
     started_utc = _dt.datetime.now(_dt.timezone.utc)

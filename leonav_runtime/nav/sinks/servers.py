@@ -21,18 +21,29 @@ from pathlib import Path
 from leonav_runtime.common.errors import UserInputError
 
 
-class TcpBroadcastServer:
-    """Send bytes to every connected client; accept in a background thread."""
+MAX_CLIENTS = 32
+"""Default limit of simultaneous NMEA TCP clients: each holds a file descriptor, and a process that
+runs out of descriptors can no longer open its own files (the trajectory, a lazy import)."""
+ACCEPT_RETRY_S = 0.1
+"""Pause (s) after a failed accept (descriptors exhausted): the server keeps serving, never dies."""
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 10110, max_backlog_bytes: int = 1 << 20) -> None:
+
+class TcpBroadcastServer:
+    """Send bytes to every connected client (at most `max_clients`; more are closed at once and
+    counted); accept in a background thread that survives accept errors."""
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 10110, max_backlog_bytes: int = 1 << 20,
+                 max_clients: int = MAX_CLIENTS) -> None:
         self._listener = socket.create_server((host, port), reuse_port=False)
         self._listener.settimeout(0.2)
         self.address = self._listener.getsockname()[:2]
         self.max_backlog_bytes = max_backlog_bytes
+        self.max_clients = int(max_clients)
         self._clients: dict[socket.socket, bytearray] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
-        self.counts = {"clients_accepted": 0, "clients_dropped_slow": 0, "clients_closed": 0, "bytes_sent": 0}
+        self.counts = {"clients_accepted": 0, "clients_dropped_slow": 0, "clients_closed": 0, "bytes_sent": 0,
+                       "clients_refused_limit": 0, "accept_errors": 0}
         self._thread = threading.Thread(target=self._accept_loop, name="leonav-tcp-accept", daemon=True)
         self._thread.start()
 
@@ -43,11 +54,24 @@ class TcpBroadcastServer:
             except (TimeoutError, socket.timeout):
                 continue
             except OSError:
-                return
-            conn.setblocking(False)
+                if self._stop.is_set() or self._listener.fileno() < 0:
+                    return
+                self.counts["accept_errors"] += 1      # e.g. EMFILE: wait for descriptors, keep serving
+                self._stop.wait(ACCEPT_RETRY_S)
+                continue
             with self._lock:
-                self._clients[conn] = bytearray()
-                self.counts["clients_accepted"] += 1
+                full = len(self._clients) >= self.max_clients
+                if full:
+                    self.counts["clients_refused_limit"] += 1
+                else:
+                    conn.setblocking(False)
+                    self._clients[conn] = bytearray()
+                    self.counts["clients_accepted"] += 1
+            if full:
+                try:
+                    conn.close()
+                except OSError:
+                    pass
 
     @property
     def n_clients(self) -> int:
