@@ -4,7 +4,14 @@ from __future__ import annotations
 import io
 import logging
 
+import pytest
+
 from leonav_runtime.common import progress as pg
+
+
+@pytest.fixture(autouse=True)
+def _no_quiet_start(monkeypatch):
+    monkeypatch.setattr(pg, "QUIET_START_S", 0.0)
 
 
 class _Tty(io.StringIO):
@@ -61,8 +68,17 @@ def test_a_closed_pipe_ends_quietly():
 
     exe = shutil.which("leonav")
     if exe is None:
-        import pytest
         pytest.skip("the leonav console script is not on PATH")
     proc = subprocess.run(f"'{exe}' completion bash | head -c 10 >/dev/null; exit ${{PIPESTATUS[0]}}", shell=True,
                           executable="/bin/bash", capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "Broken pipe" not in proc.stderr and "error" not in proc.stderr, proc.stderr
+
+
+def test_no_line_in_the_first_seconds(monkeypatch):
+    monkeypatch.setattr(pg, "QUIET_START_S", 60.0)
+    out = io.StringIO()
+    bar = pg.progress(10, "quick", stream=out)
+    for _ in range(10):
+        bar.update()
+    bar.set_description_str("other")
+    assert out.getvalue() == ""

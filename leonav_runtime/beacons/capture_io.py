@@ -182,19 +182,12 @@ def read_json_file(path: Path, what: str):
         raise UserInputError(f"{path}: line {exc.lineno}: not valid JSON ({exc.msg}); expected {what}") from None
 
 
-def _other_names(path: Path) -> str:
-    """'; found X' when a capture of the same stem exists under another name (a simulated capture
-    is written as a SigMF recording, `sim.sigmf-data` for `sim.cu8`)."""
-    stem = path.name.split(".")[0]
-    found = sorted(p.name for p in path.parent.glob(f"{stem}.*") if p != path and p.suffix in
-                   (".cu8", ".cs8", ".cs16", ".cf32", ".sigmf-data", ".sigmf-meta", ".wav", ".npy", ".iq", ".bin"))
-    return f"; found {', '.join(found)} beside it: give that file" if found else ""
-
-
 def _sizes(path: Path, fmt: str, header_bytes: int = 0) -> tuple[int, int]:
     """(complete samples, trailing bytes) of a raw sample file."""
-    if not _is_file(path):
-        raise UserInputError(f"{path}: capture data file not found{_other_names(path)}")
+    if not _is_file(path):   # name files of the same stem: `--simulate` writes sim.sigmf-data for sim.cu8
+        found = sorted(p.name for p in path.parent.glob(f"{path.name.split('.')[0]}.*") if p != path)
+        raise UserInputError(f"{path}: capture data file not found" + (
+            f"; found {', '.join(found)} beside it: give that file" if found else ""))
     size = path.stat().st_size - header_bytes
     if size <= 0:
         raise UserInputError(f"{path}: capture file is empty (0 bytes of samples)")

@@ -2,8 +2,8 @@
 
 A log file or a CI console is not a terminal: tqdm's carriage-return updates would fill it
 with hundreds of partial lines, so there a plain line is written at each tenth of the work
-(or, without a known total, every `LINE_EVERY_S`). `-q` (the "leonav" logger above WARNING)
-silences both.
+(or, without a known total, at each new phase and every `LINE_EVERY_S`), none in the first
+`QUIET_START_S`. `-q` (the "leonav" logger above WARNING) silences both.
 """
 from __future__ import annotations
 
@@ -14,6 +14,8 @@ from typing import TextIO
 
 LINE_EVERY_S = 10.0
 """Without a known total, the shortest interval (s) between two progress lines off a terminal."""
+QUIET_START_S = 2.0
+"""No line in the first seconds: a short command (or one that fails at once) prints only its result."""
 
 
 def quiet() -> bool:
@@ -47,6 +49,8 @@ class LineProgress:
             self._line("", time.monotonic())
 
     def _line(self, what: str, now: float) -> None:
+        if now - self._t0 < QUIET_START_S:
+            return
         self._last = now
         sep = ": " if what else ""
         print(f"{self.desc}{sep}{what}  [{now - self._t0:.0f} s]", file=self.stream, flush=True)
