@@ -55,6 +55,7 @@ def test_cells_carry_the_varied_and_fixed_values_in_si(tmp_path):
     ([{"key": "starlink.rate_hz", "values": [1, 1.0]}], "1.0 repeats"),
     ([{"key": "starlink.doppler_rate_sigma_hz_s", "values": [0.1, 0.3, 0.10]}], "0.1 repeats"),
     ([{"key": "starlink.rate_hz", "values": [1, 2], "label": 5}], "label = 5: expected a string"),
+    ([{"key": "starlink.counts", "values": [[5, 10], [20]]}], "expected single counts"),
 ])
 def test_bad_studies_name_the_key(tmp_path, vary, fragment):
     with pytest.raises(UserInputError) as exc:

@@ -209,6 +209,9 @@ def study_from_dict(data: dict[str, Any], source: str, base_dir: Path,
             raise UserInputError(f"{where} {ax['key']}: label = {ax['label']!r}: expected a string (axis label)")
         if ax["key"] in sets:
             raise UserInputError(f"{where} {ax['key']}: also fixed by [set]/--set; vary it or set it, not both")
+        if ax["key"] == "starlink.counts" and not all(isinstance(v, int) and not isinstance(v, bool) for v in values):
+            raise UserInputError(f"{where} starlink.counts: values = {values!r}: expected single counts "
+                                 "(integers; each cell runs one count), e.g. [5, 10, 20]")
         axes.append(Axis(ax["key"], tuple(values), str(ax.get("label", ax["key"]))))
     if len(axes) == 2 and axes[0].key == axes[1].key:
         raise UserInputError(f"{source}: [[vary]] varies {axes[0].key} twice")
