@@ -183,7 +183,7 @@ def _write_files(out_dir: Path, metrics: dict, series: dict, outage_series: dict
     s = metrics["summary"]
     title = (f"{spec.name}: {best} horizontal RMSE {plots.fmt(s['horizontal_rmse_m']['value'])} m "
              f"(GPS alone {plots.fmt(s['horizontal_rmse_m']['gps_alone'])} m)")
-    plots.error_vs_time(out_dir / "error_vs_time.png", series, gps, {best: outage_series.get(best, {})}, length, title)
+    plots.error_vs_time(out_dir / "error_vs_time.png", series, gps, outage_series, length, title)
     plots.error_cdf(out_dir / "error_cdf.png", series, gps, f"{spec.name}: horizontal error CDF at the "
                     f"{ref.t.size} reference epochs")
     plots.trajectory_on_reference(out_dir / "trajectory.png", ref.p_enu_m, prep.all_fixes.p_enu_m, tracks,

@@ -38,8 +38,9 @@ def _finish(fig, ax, path: Path) -> Path:
 
 
 def error_vs_time(path: Path, series: dict, gps: dict, outage_series: dict, length_s: float, title: str) -> Path:
-    """Top: horizontal error per mode and GPS alone at the reference epochs. Middle: the best mode
-    with each outage run over its own outage (shaded) and hold-last-fix. Bottom: yaw error."""
+    """Top: horizontal error per mode and GPS alone at the reference epochs (all fixes). Middle:
+    every mode's outage runs, each over its own outage (shaded: the only panel where fixes were
+    removed), and hold-last-fix. Bottom: yaw error (all fixes)."""
     plt = _pyplot()
     fig, axes = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
     h = lambda e: np.hypot(e[:, 0], e[:, 1])  # noqa: E731
@@ -48,17 +49,18 @@ def error_vs_time(path: Path, series: dict, gps: dict, outage_series: dict, leng
         axes[0].plot(s["t"], h(s["err_enu"]), **style(mode), label=mode)
     axes[0].set_ylabel("horizontal error [m]")
     axes[0].legend(fontsize=8, loc="upper right")
-    for mode, runs in outage_series.items():
+    for m, (mode, runs) in enumerate(outage_series.items()):
         for k, (start, s) in enumerate(runs.items()):
             sel = (s["t"] >= start - 5) & (s["t"] <= start + length_s + 5)
             axes[1].plot(s["t"][sel], h(s["err_enu"][sel]), **style(mode),
                          label=f"{mode}, fixes removed" if k == 0 else None)
-            hold = gps["hold_outage"][start]
-            axes[1].plot(hold["t"], hold["err_h"], color="0.3", ls="-.", lw=0.9,
-                         label="hold last fix" if k == 0 else None)
+            if m == 0:      # the same for every mode
+                hold = gps["hold_outage"][start]
+                axes[1].plot(hold["t"], hold["err_h"], color="0.3", ls="-.", lw=0.9,
+                             label="hold last fix" if k == 0 else None)
+    for start in next(iter(outage_series.values()), {}):
+        axes[1].axvspan(start, start + length_s, color="C1", alpha=0.15, lw=0)
     for ax in axes:
-        for start in next(iter(outage_series.values()), {}):
-            ax.axvspan(start, start + length_s, color="C1", alpha=0.15, lw=0)
         ax.grid(True, alpha=0.3)
     axes[1].set_ylabel("horizontal error in outages [m]")
     axes[1].legend(fontsize=8, loc="upper left")
@@ -66,7 +68,8 @@ def error_vs_time(path: Path, series: dict, gps: dict, outage_series: dict, leng
         axes[2].plot(s["t"], np.degrees(s["yaw_err_rad"]), **style(mode), label=mode)
     axes[2].set_ylabel("yaw error [deg]")
     axes[2].set_ylim(-30, 30)
-    axes[2].set_xlabel(f"time since the first GNSS fix [s]; shaded: {length_s:g} s GPS outages, one at a time")
+    axes[2].set_xlabel(f"time since the first GNSS fix [s]; middle panel shaded: the {length_s:g} s GPS outages, "
+                       "one run each")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     from leonav_runtime.common import plot_style
