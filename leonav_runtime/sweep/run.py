@@ -185,6 +185,8 @@ def run_sweep(scn: Scenario, out_dir: Path | None = None, *, trials: int | None 
     timing = {
         "wall_s": time.perf_counter() - t_start, "setup_s": t_setup, "trials_wall_s": t_trials,
         "trials_run": n_trials, "trial_cpu_ms": 1e3 * cpu_time / max(n_trials, 1),
+        "trial_wall_ms": 1e3 * sum(b.wall_seconds for b in blocks) / max(n_trials, 1),
+        "clock": "trial_cpu_ms, c_share: the worker thread's CPU clock; *_wall_*: wall time",
         "c_share": c_time / cpu_time if cpu_time > 0 else math.nan,
         "executor": f"dask {dask_address}" if dask_address else f"process pool ({workers or 'all cores'})",
     }
