@@ -52,8 +52,8 @@ def main(argv: list[str] | None = None) -> int:
                               "us_per_imu_step_min": float(np.min(times)),
                               "us_per_imu_step_median": float(np.median(times))}
         print(f"{mode:<20} {recs.size:7d} records, {res.n_imu} IMU steps: {np.min(times):6.2f} us/IMU step (min), "
-              f"{np.median(times):6.2f} (median)  [KF-GINS {KF_GINS_US} us]")
-    print(f"read files {t_read:.2f} s, alignment + records {t_prep:.2f} s")
+              f"{np.median(times):6.2f} (median), CPU time  [KF-GINS {KF_GINS_US} us]")
+    print(f"read files {t_read:.2f} s, alignment + records {t_prep:.2f} s (wall)")
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2))
     return 0
