@@ -3,9 +3,7 @@ the PCRB agreement (see the package docstring)."""
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass
-from pathlib import Path
 from types import ModuleType
 from typing import Mapping, Sequence
 
