@@ -15,7 +15,9 @@ while `run()` records; more signals during the shutdown are ignored), or every d
 files closed and the final session.json written (through a temporary file, so it is never
 half written); nothing recorded is lost. A device thread never ends on the bytes it reads
 (the readers count what they reject); one that ends on an error of its own (a full disk)
-makes the session "failed".
+makes the session "failed". Given `lost_writes` (`leonav nav`), a write that fails (a full
+disk) is counted there instead and recording goes on; session.json then lists `lost_writes` and is
+written best-effort.
 
 Final `status`: "complete" (the duration elapsed), "devices ended" (every device ended
 first), "interrupted" (a stop signal; `stop_signal` names it), "failed" (a device thread
@@ -43,12 +45,13 @@ from leonav.hardware.gnss import ubx_config
 from leonav.hardware.gnss.reader import GnssReader
 from leonav.hardware.imu import witmotion
 from leonav.hardware.imu.witmotion import ImuReader
-from leonav.hardware.jsonfile import write_json
+from leonav.hardware.jsonfile import jsonable, write_json
 from leonav.hardware.records import GnssTimeTag, UbxAck
 from leonav.hardware.sdr import capture as sdr_capture
 from leonav.hardware.session_decode import DecodedSession, decode_session, iter_raw_chunks
 from leonav.hardware.session_files import (GNSS_FIX_COLUMNS, GNSS_RAW_COLUMNS, IMU_COLUMNS, SESSION_VERSION, CsvSink,
-                                    RawLog, RunningTimeMap, gnss_rows, imu_row, session_json)  # noqa: F401
+                                    LostWrites, RawLog, RunningTimeMap, gnss_rows, imu_row,  # noqa: F401
+                                    session_json)
 
 STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")   # end a recording like Ctrl-C
 RECORDING_FILES = ("session.json", "gnss.raw", "imu.raw", "sdr.cu8")
@@ -93,7 +96,8 @@ class RecordSession:
                  sdr_index: int | None = None, gnss_baud: int = 38400, imu_baud: int = 9600,
                  configure: bool = False, sdr_settings: sdr_capture.SdrSettings | None = None,
                  sdr_factory: Callable[[int], Any] = sdr_capture.open_rtlsdr,
-                 progress: bool = True, on_record: Callable[[str, Any], None] | None = None) -> None:
+                 progress: bool = True, on_record: Callable[[str, Any], None] | None = None,
+                 lost_writes: LostWrites | None = None) -> None:
         if not (gnss or imu or sdr_index is not None):
             raise UserInputError("record: give at least one device (--gnss, --imu or --sdr)")
         self.folder = Path(folder)
@@ -105,6 +109,7 @@ class RecordSession:
         self.configure = configure
         self.progress = progress
         self.on_record = on_record
+        self.lost = lost_writes         # given: a failed write is counted, never ends a device thread
         self.stop_event = threading.Event()
         self.stop_signal = ""
         self.time_map = RunningTimeMap()
@@ -121,7 +126,8 @@ class RecordSession:
                 self.devices.append(DeviceRun("sdr", str(sdr_index), reader=sdr_factory(sdr_index)))
             for run in self.devices:
                 if run.kind != "sdr":
-                    run.raw = RawLog(self.folder, run.kind)
+                    run.raw = RawLog(self.folder, run.kind) if self.lost is None else \
+                        RawLog(self.folder, run.kind, self.lost)
                     run.reader.on_bytes = run.raw.write
         except BaseException:
             self._close_devices()
@@ -133,7 +139,7 @@ class RecordSession:
     # -- per-device threads
     def _gnss_thread(self, run: DeviceRun, seconds: float) -> None:
         reader: GnssReader = run.reader
-        fix_csv = CsvSink(self.folder / "gnss_fix.csv", GNSS_FIX_COLUMNS)
+        fix_csv = CsvSink(self.folder / "gnss_fix.csv", GNSS_FIX_COLUMNS, self.lost)
         raw_csv: CsvSink | None = None
         acks: list[dict] = []
         try:
@@ -150,7 +156,7 @@ class RecordSession:
                     self.on_record("gnss", rec)
                 name, rows = gnss_rows(rec, self.time_map.utc)
                 if name == "gnss_raw" and raw_csv is None:
-                    raw_csv = CsvSink(self.folder / "gnss_raw.csv", GNSS_RAW_COLUMNS)
+                    raw_csv = CsvSink(self.folder / "gnss_raw.csv", GNSS_RAW_COLUMNS, self.lost)
                 for row in rows:
                     (fix_csv if name == "gnss_fix" else raw_csv).write(row)
         finally:
@@ -162,7 +168,7 @@ class RecordSession:
 
     def _imu_thread(self, run: DeviceRun, seconds: float) -> None:
         reader: ImuReader = run.reader
-        sink = CsvSink(self.folder / "imu.csv", IMU_COLUMNS)
+        sink = CsvSink(self.folder / "imu.csv", IMU_COLUMNS, self.lost)
         try:
             if self.configure:
                 for cmd in witmotion.configure_sequence(rate_hz=10):
@@ -179,7 +185,7 @@ class RecordSession:
 
     def _sdr_thread(self, run: DeviceRun, seconds: float) -> None:
         result = sdr_capture.capture(run.reader, self.folder / "sdr", self.sdr_settings, seconds,
-                                     self.stop_event)
+                                     self.stop_event, lost=self.lost)
         run.end_reason = result.end_reason
         run.extra.update({"n_samples": result.n_samples, "if_hz": self.sdr_settings.if_hz,
                           "sample_rate_hz": self.sdr_settings.sample_rate_hz,
@@ -308,5 +314,12 @@ class RecordSession:
                             devices, self.sdr_settings if has_sdr else None, stop)
         if self.stop_signal and not partial:
             info["stop_signal"] = self.stop_signal
-        write_json(self.folder / "session.json", info)
-        return json.loads((self.folder / "session.json").read_text())
+        if self.lost is None:
+            write_json(self.folder / "session.json", info)
+            return json.loads((self.folder / "session.json").read_text())
+        info["lost_writes"] = self.lost.under(self.folder)
+        try:                     # best-effort: the caller reports a session.json that did not fit
+            write_json(self.folder / "session.json", info)
+        except OSError as exc:
+            self.lost.add(self.folder / "session.json", exc)
+        return jsonable(info)

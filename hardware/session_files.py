@@ -7,11 +7,13 @@ content (`session_json`). Every column is described in hardware/README.md.
 `hardware.jsonfile.replace_file` writes a whole file through a temporary file renamed over it (session.json,
 and the runtime's results files through `leonav_runtime.common.output`): a reader, a kill or a
 full disk never sees half of it. The flushed logs (raw bytes, chunk index, CSV rows)
-instead grow one flushed piece at a time; a write error there names the file.
+instead grow one whole record at a time (`RecordFile`): a write error there names the file, or,
+given a `LostWrites` (as `leonav nav` does), is counted and the writer goes on.
 """
 from __future__ import annotations
 
 import csv
+import io
 import math
 import threading
 from pathlib import Path
@@ -65,53 +67,141 @@ def _num(value: Any) -> Any:
     return value
 
 
-class CsvSink:
-    """A CSV file written one flushed row at a time (survives an interrupted run)."""
+class LostWrites:
+    """Records a run could not write (disk full, I/O error: any OSError of a write), counted per file
+    (named relative to `root`), with the first error of each. Shared by every writer of a run, thread-safe;
+    a writer given one goes on after a failed write instead of raising (an output must never stop
+    `leonav nav`)."""
 
-    def __init__(self, path: Path, columns: list[str]) -> None:
+    def __init__(self, root: Path | None = None) -> None:
+        self.root = Path(root) if root is not None else None
+        self.counts: dict[str, int] = {}
+        self.first_error: dict[str, str] = {}
+        self._lock = threading.Lock()
+
+    def name(self, path: Path) -> str:
+        path = Path(path)
+        if self.root is not None:
+            try:
+                return path.relative_to(self.root).as_posix()
+            except ValueError:
+                pass
+        return str(path)
+
+    def add(self, path: Path, exc: BaseException, n: int = 1) -> None:
+        """`n` records of `path` were not written because of `exc`."""
+        key = self.name(path)
+        with self._lock:
+            self.counts[key] = self.counts.get(key, 0) + n
+            self.first_error.setdefault(key, f"{type(exc).__name__}: {exc}")
+
+    def total(self) -> int:
+        with self._lock:
+            return sum(self.counts.values())
+
+    def under(self, folder: Path) -> dict[str, int]:
+        """The counts of the files in `folder`, named relative to it."""
+        prefix = self.name(folder).rstrip("/") + "/"
+        with self._lock:
+            return {k[len(prefix):]: v for k, v in self.counts.items() if k.startswith(prefix)}
+
+
+class RecordFile:
+    """A file grown one whole record (bytes) at a time, each written at once (unbuffered). A write that
+    fails is cut back to the end of the previous record, so the file always ends on a whole record; with
+    `lost` the failure is counted there (the caller goes on, a later record may fit again), without it
+    the OSError, naming the file, is raised."""
+
+    def __init__(self, path: Path, lost: LostWrites | None = None) -> None:
+        self.path = Path(path)
+        self.lost = lost
+        self.size = 0                      # bytes of whole records in the file
+        self.last_error: OSError | None = None
+        self._fh = open(self.path, "wb", buffering=0)
+
+    def write(self, data: bytes, n_records: int = 1) -> bool:
+        """Write `data` (`n_records` records) whole; False (counted in `lost`) when it failed."""
+        view = memoryview(data)
+        try:
+            while view:
+                view = view[self._fh.write(view):]
+        except OSError as exc:
+            self.truncate(self.size)
+            self.last_error = exc
+            if self.lost is None:
+                raise _named(exc, self.path) from exc
+            self.lost.add(self.path, exc, n_records)
+            return False
+        self.size += len(data)
+        return True
+
+    def truncate(self, size: int) -> None:
+        """Cut the file back to `size` bytes (freeing space never needs space; failures are ignored)."""
+        try:
+            self._fh.truncate(size)
+            self._fh.seek(size)
+            self.size = size
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        self._fh.close()
+
+
+class CsvSink:
+    """A CSV file written one row at a time, each written at once (survives an interrupted run); with
+    `lost` a row that cannot be written is counted there (`RecordFile`)."""
+
+    def __init__(self, path: Path, columns: list[str], lost: LostWrites | None = None) -> None:
         self.path = path
-        self._fh = open(path, "w", newline="")
-        self._writer = csv.writer(self._fh)
-        self._writer.writerow(columns)
+        self._fh = RecordFile(path, lost)
+        self._buf = io.StringIO()
+        self._writer = csv.writer(self._buf)
+        self._fh.write(self._line(columns))
         self.rows = 0
 
+    def _line(self, cells: list) -> bytes:
+        self._writer.writerow(cells)
+        text = self._buf.getvalue()
+        self._buf.seek(0)
+        self._buf.truncate()
+        return text.encode("utf-8")
+
     def write(self, row: Iterable[Any]) -> None:
-        cells = [_num(v) for v in row]
-        try:
-            self._writer.writerow(cells)
-            self._fh.flush()
-        except OSError as exc:
-            raise _named(exc, self.path) from exc
-        self.rows += 1
+        if self._fh.write(self._line([_num(v) for v in row])):
+            self.rows += 1
 
     def close(self) -> None:
         self._fh.close()
 
 
 class RawLog:
-    """Raw byte log plus its chunk index (`t_mono_s,end_offset`), both flushed per chunk."""
+    """Raw byte log plus its chunk index (`t_mono_s,end_offset`), each chunk written at once. A chunk
+    is one record of both files: when either write fails, neither keeps any of it (with `lost`, counted
+    for both files; without, the OSError naming the file is raised)."""
 
-    def __init__(self, folder: Path, name: str) -> None:
+    def __init__(self, folder: Path, name: str, lost: LostWrites | None = None) -> None:
         self.path = folder / f"{name}.raw"
-        self._fh = open(self.path, "wb")
-        self._idx = open(folder / f"{name}.chunks.csv", "w")
-        self._idx.write("t_mono_s,end_offset\n")
+        self.lost = lost
+        self._fh = RecordFile(self.path, lost)
+        self._idx = RecordFile(folder / f"{name}.chunks.csv", lost)
+        self._idx.write(b"t_mono_s,end_offset\n")
         self.n_bytes = 0
         self._lock = threading.Lock()
 
     def write(self, chunk: bytes, t_mono_s: float) -> None:
         with self._lock:
             try:
-                self._fh.write(chunk)
-                self._fh.flush()
+                if not self._fh.write(chunk):
+                    self.lost.add(self._idx.path, self._fh.last_error)     # its index line is lost with it
+                    return
             except OSError as exc:
                 raise _named(exc, self.path) from exc
+            if not self._idx.write(f"{t_mono_s!r},{self.n_bytes + len(chunk)}\n".encode()):
+                self._fh.truncate(self._fh.size - len(chunk))
+                self.lost.add(self.path, self._idx.last_error)
+                return
             self.n_bytes += len(chunk)
-            try:
-                self._idx.write(f"{t_mono_s!r},{self.n_bytes}\n")
-                self._idx.flush()
-            except OSError as exc:
-                raise _named(exc, Path(self._idx.name)) from exc
 
     def close(self) -> None:
         self._fh.close()

@@ -115,13 +115,26 @@ class CaptureResult:
 
 def capture(sdr: Any, out_stem: Path, settings: SdrSettings, seconds: float,
             stop_event: threading.Event | None = None,
-            on_block: Callable[[int, float], None] | None = None) -> CaptureResult:
+            on_block: Callable[[int, float], None] | None = None, lost=None) -> CaptureResult:
     """Stream `seconds` of IQ from an open RtlSdr to `<out_stem>.cu8` + `.sigmf-meta`.
 
-    Blocks are written and flushed as they arrive; a partial `.sigmf-meta` (no checksum)
+    Blocks are written (unbuffered) as they arrive; a partial `.sigmf-meta` (no checksum)
     is written before the first block so an interrupted capture stays readable.
     `on_block(n_bytes, t_mono_s)` is called after each block (progress, session counts).
+    With `lost` (a `session_files.LostWrites`) a write that fails (a full disk) is counted there
+    and the capture goes on reading without writing: the file keeps the samples up to the
+    failure (a gap would shift every later sample's time), every later block is counted lost.
     """
+    from leonav.hardware.session_files import RecordFile
+
+    def write_meta(meta: dict) -> None:
+        try:
+            meta_path.write_text(json.dumps(meta, indent=2))
+        except OSError as exc:
+            if lost is None:
+                raise
+            lost.add(meta_path, exc)
+
     stop_event = stop_event or threading.Event()
     data_path = Path(str(out_stem) + ".cu8")
     meta_path = Path(str(out_stem) + ".sigmf-meta")
@@ -129,26 +142,33 @@ def capture(sdr: Any, out_stem: Path, settings: SdrSettings, seconds: float,
     rate = float(getattr(sdr, "sample_rate", settings.sample_rate_hz))
     start_utc = _dt.datetime.now(_dt.timezone.utc)
     t0 = time.monotonic()
-    meta_path.write_text(json.dumps(sigmf_metadata(settings, tuned, start_utc, rate,
-                                                   extra={"leonav:t_mono_start_s": t0}), indent=2))
+    write_meta(sigmf_metadata(settings, tuned, start_utc, rate, extra={"leonav:t_mono_start_s": t0}))
     target = int(round(seconds * rate)) * 2
-    written = 0
+    written = taken = 0     # bytes in the file, bytes read from the device
     end_reason = "done"
-    with open(data_path, "wb") as fh:
-        while written < target:
+    fh = RecordFile(data_path, lost)
+    failed = False
+    try:
+        while taken < target:
             if stop_event.is_set():
                 end_reason = "stopped"
                 break
             try:
-                block = sdr.read_bytes(min(READ_BLOCK_BYTES, target - written))
+                block = sdr.read_bytes(min(READ_BLOCK_BYTES, target - taken))
             except Exception as exc:  # device unplugged: keep what we have
                 end_reason = f"device error: {exc}"
                 break
-            fh.write(bytes(block))
-            fh.flush()
-            written += len(block)
+            taken += len(block)
+            if failed:
+                lost.add(data_path, fh.last_error)
+            elif not fh.write(bytes(block)):
+                failed = True
+            if not failed:
+                written += len(block)
             if on_block:
                 on_block(len(block), time.monotonic())
+    finally:
+        fh.close()
     t1 = time.monotonic()
     try:
         sdr.close()
@@ -157,5 +177,5 @@ def capture(sdr: Any, out_stem: Path, settings: SdrSettings, seconds: float,
     meta = sigmf_metadata(settings, tuned, start_utc, rate, data_path,
                           extra={"leonav:t_mono_start_s": t0, "leonav:t_mono_stop_s": t1,
                                  "leonav:end_reason": end_reason})
-    meta_path.write_text(json.dumps(meta, indent=2))
+    write_meta(meta)
     return CaptureResult(data_path, meta_path, written, written // 2, t0, t1, end_reason)

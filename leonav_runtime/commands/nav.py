@@ -11,12 +11,17 @@ from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.replay.options import parse_latency
 
 EPILOG = """exit status:
-  0    ended as asked (--seconds elapsed or the played-back session ended) and navigated
+  0    ended as asked (--seconds elapsed or the played-back session ended) and navigated; also when
+       some output records could not be written (full disk, I/O error): navigation and NMEA/MAVLink
+       went on, nav.json files_complete=false and lost_writes (per file) say what is missing, and
+       the summary says so (no code of its own: a non-zero run is marked FAILED, which it did not)
   1    never navigated (no GNSS time tag, usable fix or IMU data); outputs still written
   2    bad arguments or input; OUT in use by another run (one writer per folder); --nmea-pty PATH not free
   3    a device disappeared during the run (the filter went on with the rest; nav.json says which)
   130  interrupted (SIGINT, Ctrl-C)      143  stopped (SIGTERM, e.g. systemctl stop)
-SIGINT/SIGTERM flush and close every output (trajectory.csv, solutions.jsonl, session/, nav.json)."""
+SIGINT/SIGTERM flush and close every output (trajectory.csv, solutions.jsonl, session/, nav.json).
+A full disk never stops the run: what cannot be written is counted; nav.json and session.json are
+written at the end in room kept for them (if nav.json still does not fit, one stderr line says so)."""
 
 
 def register(subparsers) -> None:
@@ -141,6 +146,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"  {res.get('trajectory_rows', 0)} trajectory rows -> {opts.out_dir}/trajectory.csv; "
           f"{res['outputs'].get('solutions', 0)} live solutions"
           + (f"; latency p50 {lat['p50']:.2f} ms, p99 {lat['p99']:.2f} ms" if lat else ""))
+    if res.get("lost_writes"):
+        from leonav_runtime.nav.run import lost_text
+
+        first = next(iter(res["lost_write_errors"].values()), "")
+        print(f"  OUTPUT FILES INCOMPLETE: {lost_text(res['lost_writes'])} (first: {first})")
     for name, reason in (res.get("devices_lost") or {}).items():
         print(f"  {name} lost: {reason}")
     junk = {k: v.get("junk_bytes", 0) for k, v in (res.get("rejected") or {}).items() if v.get("junk_bytes")}

@@ -14,6 +14,7 @@ with what has arrived so far and nothing later:
   navigator.py    the loop: events in, records to the filter, solutions out, faults
   sources.py      live devices (the recorder's device threads), paced pty playback, fast playback
   outputs.py, status.py   NMEA/MAVLink/JSON lines, trajectory files, the terminal status line
+  session_copy.py the session folder a fast playback writes (the recorder's writers)
   out_lock.py     one writer per output folder (an exclusive flock on OUT/.leonav-nav.lock)
   run.py          one run of `leonav nav`: sources + navigator + signals -> exit code
 """

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from leonav.hardware.session_files import LostWrites
 from leonav_runtime.core import filter as lfilter
 from leonav_runtime.core import navfuncs, records
 from leonav_runtime.nav.outputs import COLUMNS_TEXT, Decimator, LiveOutputs, TrajectoryWriter, solution_of
@@ -51,7 +52,8 @@ class NavConfig:
 
 class Navigator:
     def __init__(self, cfg: NavConfig, out_dir: Path, outputs: LiveOutputs | None = None,
-                 status: StatusLine | None = None, nav: navfuncs.NavFunctions | None = None) -> None:
+                 status: StatusLine | None = None, nav: navfuncs.NavFunctions | None = None,
+                 lost: LostWrites | None = None) -> None:
         self.cfg = cfg
         cfg.road.streams = replay_mode(cfg.mode).streams
         self.nav = nav or navfuncs.NavFunctions()
@@ -59,8 +61,13 @@ class Navigator:
         self.outputs = outputs or LiveOutputs()
         self.status = status or StatusLine(enabled=False)
         self.out_dir = Path(out_dir)
-        self.trajectory = TrajectoryWriter(self.out_dir / "trajectory.csv", self.nav, cfg.trajectory_rate_hz)
-        (self.out_dir / "columns.txt").write_text(COLUMNS_TEXT)
+        self.trajectory = TrajectoryWriter(self.out_dir / "trajectory.csv", self.nav, cfg.trajectory_rate_hz, lost)
+        try:
+            (self.out_dir / "columns.txt").write_text(COLUMNS_TEXT)
+        except OSError as exc:
+            if lost is None:
+                raise
+            lost.add(self.out_dir / "columns.txt", exc)
         self.stepper: LagStepper | None = None
         ids = self.nav.library.meas_ids
         self.fix_kinds = {int(ids[k]) for k in ("pos_e", "pos_n", "pos_u")}

@@ -71,8 +71,11 @@ def lock_out_dir(folder: str | Path) -> OutDirLock:
         if same:
             break
         os.close(fd)
-    os.ftruncate(fd, 0)
-    os.write(fd, f"{os.getpid()}\n".encode())
+    try:        # the pid is for the message of a refused second run: a full disk must not stop this one
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+    except OSError:
+        pass
     return OutDirLock(folder, fd)
 
 

@@ -4,21 +4,25 @@ trajectory file, flushed as it goes so a stopped or killed run leaves readable f
 - `solution_of`: the filter state -> `live.NavSolution` (geodetic position, ENU velocity, Euler
   angles from the generated `leonav_euler_from_q`, 1-sigma from the covariance diagonal).
 - `LiveOutputs`: the sinks of `leonav_runtime.nav.sinks` (`TcpBroadcastServer`, `PtyOutput`,
-  `MavlinkOutput`) plus a JSON-lines file; a sink that fails is closed and counted, never fatal.
+  `MavlinkOutput`) plus a JSON-lines file; a sink that fails is closed and counted, never fatal
+  (a JSON line that cannot be written, e.g. on a full disk, is counted in `lost` and the file kept).
 - `TrajectoryWriter`: `trajectory.csv` (columns in `TRAJECTORY_COLUMNS`, described in
   `COLUMNS_TEXT`) from the records as they leave the filter's lag window, i.e. after every
-  measurement of that time was applied: the rows a replay of the same records gives.
+  measurement of that time was applied: the rows a replay of the same records gives. Rows that
+  cannot be written (a full disk) are counted in `lost` (`LostWrites`); the file ends on a whole row.
 """
 from __future__ import annotations
 
 import contextlib
 import csv
 import datetime as _dt
+import io
 import math
 from pathlib import Path
 
 import numpy as np
 
+from leonav.hardware.session_files import LostWrites, RecordFile
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.core import navfuncs, records
 from leonav_runtime.orbits import geometry
@@ -74,7 +78,8 @@ class LiveOutputs:
     """NMEA (TCP server and/or pty), MAVLink and JSON lines for each solution."""
 
     def __init__(self, tcp: tuple[str, int] | None = None, pty_link: str | None = None, mavlink: str | None = None,
-                 json_path: Path | None = None, max_clients: int | None = None) -> None:
+                 json_path: Path | None = None, max_clients: int | None = None,
+                 lost: LostWrites | None = None) -> None:
         from leonav_runtime.nav.sinks.servers import PtyOutput, TcpBroadcastServer
 
         self.sinks: dict[str, object] = {}
@@ -96,7 +101,7 @@ class LiveOutputs:
                     self.sinks["mavlink"] = MavlinkOutput(mavlink)
             if json_path is not None:
                 with _named(f"{json_path}: cannot write"):
-                    self.sinks["json"] = open(json_path, "w", buffering=1)
+                    self.sinks["json"] = RecordFile(json_path, lost)
         except Exception:
             self.close()
             raise
@@ -124,7 +129,7 @@ class LiveOutputs:
                 elif name == "mavlink":
                     sink.send(sol)
                 else:
-                    sink.write(sol.json_line())
+                    sink.write(sol.json_line().encode())
             except Exception as exc:   # an output must never stop the navigator
                 self.errors[name] = f"{type(exc).__name__}: {exc}"
                 self._close_one(name)
@@ -167,15 +172,16 @@ class Decimator:
 class TrajectoryWriter:
     """trajectory.csv rows from settled records (module doc), at most `rate_hz` per second."""
 
-    def __init__(self, path: Path, nav: navfuncs.NavFunctions, rate_hz: float = 10.0) -> None:
+    def __init__(self, path: Path, nav: navfuncs.NavFunctions, rate_hz: float = 10.0,
+                 lost: LostWrites | None = None) -> None:
         self.path = Path(path)
         self.nav = nav
         self.period = 1.0 / rate_hz if rate_hz > 0 else 0.0
-        self._fh = open(self.path, "w", newline="")
-        self._w = csv.writer(self._fh)
-        self._w.writerow(TRAJECTORY_COLUMNS)
-        self._fh.flush()
-        self.rows = 0
+        self._fh = RecordFile(self.path, lost)
+        self._buf = io.StringIO()
+        self._w = csv.writer(self._buf)
+        self._write([TRAJECTORY_COLUMNS])
+        self.rows = 0                 # rows in the file (those that could not be written are in `lost`)
         self._due = Decimator(self.period)
         self._meas_t: list[tuple[float, int]] = []    # (t, kind) of applied measurements, last second
 
@@ -209,9 +215,16 @@ class TrajectoryWriter:
             row = [repr(float(v)) if v is not None else None for v in nums] + [n_fix, n_dr]
             row[1] = _dt.datetime.fromtimestamp(utc, _dt.timezone.utc).isoformat()
             rows.append(row)
+        if rows and self._write(rows):
+            self.rows += len(rows)
+
+    def _write(self, rows: list) -> bool:
+        """Write `rows` at once (whole, or none of them: `RecordFile`)."""
         self._w.writerows(rows)
-        self._fh.flush()
-        self.rows += len(rows)
+        text = self._buf.getvalue()
+        self._buf.seek(0)
+        self._buf.truncate()
+        return self._fh.write(text.encode("utf-8"), n_records=len(rows))
 
     def close(self) -> None:
         self._fh.close()

@@ -1,7 +1,13 @@
 """One run of `leonav nav`: a source, the navigator, the outputs, signals -> files and an exit code.
 
 Exit codes (also in nav.json `exit_code` and `leonav nav --help`):
-  0    the run ended as asked (--seconds elapsed, or the played-back session ended) and navigated
+  0    the run ended as asked (--seconds elapsed, or the played-back session ended) and navigated;
+       also when output records could not be written (a full disk, an I/O error): navigation and the
+       live outputs went on, nav.json `files_complete` is false and `lost_writes` counts per file what
+       is missing (`lost_write_errors`: the first error of each), and stderr says so. Not a code of
+       its own: the CLI marks a folder of a non-zero run FAILED ("failed before it finished", untrue
+       here), and on a disk still full that marker cannot be written either, which would turn the
+       code into a generic I/O error (3) exactly when it matters
   1    it never navigated: no GNSS time tag, no usable fix or no IMU data (outputs still written)
   2    bad arguments or input files (the CLI's convention for every command), OUT locked by another
        run (`out_lock`: one writer per folder), --nmea-pty PATH holding something not ours
@@ -10,16 +16,25 @@ Exit codes (also in nav.json `exit_code` and `leonav nav --help`):
   143  stopped by SIGTERM (systemd stop): every output flushed, as for 0
 SIGINT and SIGTERM only set a flag: the loop sees it within 50 ms, then every output is flushed
 and closed and session.json, trajectory.csv and nav.json are complete.
+
+A full disk never stops a run: every file writer shares one `LostWrites` that counts what could
+not be written. `RESERVE_BYTES` are set aside in OUT at the start (a preallocated file) and freed
+at the end, half before session.json and the last trajectory rows, the rest before nav.json, so
+those small files still fit on a disk that filled up during the run; if nav.json does not fit,
+one stderr line says so and what was lost.
 """
 from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
+import os
 import signal
+import sys
 import threading
 from pathlib import Path
 from typing import Callable
 
+from leonav.hardware.session_files import LostWrites
 from leonav_runtime.core import navfuncs
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.nav.navigator import Navigator, NavConfig
@@ -30,6 +45,8 @@ from leonav_runtime.common.output import write_json
 
 EXIT_OK, EXIT_NEVER_NAVIGATED, EXIT_USAGE, EXIT_DEVICE_LOST = 0, 1, 2, 3
 EXIT_SIGINT, EXIT_SIGTERM = 130, 143
+RESERVE_NAME = ".leonav-nav.reserve"
+RESERVE_BYTES = 64 * 1024     # room kept for session.json and nav.json (a few KB each, plus temporary copies)
 EXIT_CODES = {EXIT_OK: "ended as asked and navigated", EXIT_NEVER_NAVIGATED: "never navigated (no time tag, fix or IMU)",
               EXIT_USAGE: "bad arguments or input", EXIT_DEVICE_LOST: "a device disappeared during the run",
               EXIT_SIGINT: "interrupted (SIGINT)", EXIT_SIGTERM: "stopped (SIGTERM)"}
@@ -81,20 +98,45 @@ class _Signals:
             signal.signal(s, h)
 
 
-def _source(opts: NavOptions, record_dir: Path | None, beacons):
+class _Reserve:
+    """Disk space set aside for the end of the run (module doc); every step is best-effort."""
+
+    def __init__(self, folder: Path, size: int = RESERVE_BYTES) -> None:
+        self.path = folder / RESERVE_NAME
+        try:
+            fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_CLOEXEC, 0o600)
+            try:
+                os.posix_fallocate(fd, 0, size)
+            finally:
+                os.close(fd)
+        except (OSError, AttributeError):   # a full disk already, or no fallocate here: no reserve
+            self.shrink(0)
+
+    def shrink(self, size: int) -> None:
+        """Free all but `size` bytes (0: remove the file)."""
+        try:
+            if size > 0:
+                os.truncate(self.path, size)
+            else:
+                os.unlink(self.path)
+        except OSError:
+            pass
+
+
+def _source(opts: NavOptions, record_dir: Path | None, beacons, lost: LostWrites):
     from leonav_runtime.nav import sources
 
     if opts.session is not None and not opts.realtime:
-        return sources.FastPlayback(opts.session, record_dir, beacons)
+        return sources.FastPlayback(opts.session, record_dir, beacons, lost)
     if opts.session is not None:
-        return _realtime_playback(opts, record_dir, beacons)
+        return _realtime_playback(opts, record_dir, beacons, lost)
     if not (opts.gnss or opts.imu):
         raise UserInputError("nav: give --gnss PORT and --imu PORT (live devices) or --from SESSION")
     return sources.LiveSource(record_dir, opts.gnss, opts.imu, opts.sdr_index, opts.gnss_baud, opts.imu_baud,
-                              opts.configure, opts.sdr_settings, beacons=beacons)
+                              opts.configure, opts.sdr_settings, beacons=beacons, lost=lost)
 
 
-def _realtime_playback(opts: NavOptions, record_dir: Path, beacons):
+def _realtime_playback(opts: NavOptions, record_dir: Path, beacons, lost: LostWrites):
     from leonav.hardware.sdr.capture import SdrSettings
     from leonav_runtime.nav import sources
     from leonav_runtime.nav.beacon_feed import capture_meta
@@ -111,7 +153,8 @@ def _realtime_playback(opts: NavOptions, record_dir: Path, beacons):
                "sdr_settings": SdrSettings(rf_center_hz=m["rf_center_hz"], lnb_lo_hz=m["lnb_lo_hz"],
                                            sample_rate_hz=m["sample_rate_hz"], gain_db=m["gain_db"])}
     return sources.LiveSource(record_dir, ptys[0].path, ptys[1].path, gnss_baud=sources._baud(info, "gnss") or 38400,
-                              imu_baud=sources._baud(info, "imu") or 9600, playback=ptys, beacons=beacons, **sdr)
+                              imu_baud=sources._baud(info, "imu") or 9600, playback=ptys, beacons=beacons,
+                              lost=lost, **sdr)
 
 
 def _beacons(opts: NavOptions, record_dir: Path | None):
@@ -157,11 +200,15 @@ def run_nav(opts: NavOptions, on_started: Callable[[], None] | None = None,
     run (`out_lock`): a second run on the same OUT is refused before it writes anything."""
     out = Path(opts.out_dir)
     with lock_out_dir(out):
-        return _run_locked(opts, out, on_started, signals, nav)
+        reserve = _Reserve(out)
+        try:
+            return _run_locked(opts, out, on_started, signals, nav, reserve)
+        finally:
+            reserve.shrink(0)
 
 
 def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | None,
-                signals: _Signals | None, nav: navfuncs.NavFunctions | None) -> dict:
+                signals: _Signals | None, nav: navfuncs.NavFunctions | None, reserve: _Reserve) -> dict:
     record_dir = out / "session" if opts.record or (opts.session is None or opts.realtime) else None
     cfg = opts.nav
     cfg.road.gnss_baud, cfg.road.imu_baud = session_bauds(opts)
@@ -169,16 +216,17 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
     status = StatusLine(enabled=True if opts.status is None else opts.status)
     if opts.status is None and not status.tty:
         status.refresh_s = 10.0
+    lost = LostWrites(out)
     outputs = LiveOutputs(opts.tcp, opts.pty_link, opts.mavlink,      # each failure names its option
-                          out / "solutions.jsonl" if opts.json_lines else None, opts.nmea_max_clients)
+                          out / "solutions.jsonl" if opts.json_lines else None, opts.nmea_max_clients, lost)
     navigator = source = None
     reason, session_info, beacons, f_c_source = "error", {}, None, ""
     started_utc = _dt.datetime.now(_dt.timezone.utc)
     try:
         beacons, cfg.road.f_c_hz, f_c_source = _beacons(opts, record_dir)
         # the devices first: one that cannot be opened stops the run before any output file is written
-        source = _source(opts, record_dir, beacons)
-        navigator = Navigator(cfg, out, outputs, status, nav)
+        source = _source(opts, record_dir, beacons, lost)
+        navigator = Navigator(cfg, out, outputs, status, nav, lost)
         where = [f"NMEA tcp://{outputs.tcp_address[0]}:{outputs.tcp_address[1]}" if outputs.tcp_address else "",
                  f"NMEA pty {opts.pty_link} -> {outputs.pty_device}" if outputs.pty_device else "",
                  f"MAVLink {opts.mavlink}" if opts.mavlink else ""]
@@ -193,6 +241,7 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
             state = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated"}.get(signals.received,
                                                                                     "complete" if reason != "error"
                                                                                     else "error")
+            reserve.shrink(RESERVE_BYTES // 2)      # room for session.json and the last trajectory rows
             if source is not None:
                 session_info = source.stop(state)
             summary = navigator.finish() if navigator is not None else {}
@@ -208,10 +257,27 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
               "session_status": session_info.get("status"), "exit_codes": EXIT_CODES,
               "f_c_hz": cfg.road.f_c_hz, "f_c_source": f_c_source,
               "beacons": beacons.summary() if beacons is not None else None} | summary
+    result |= {"files_complete": not lost.total(), "lost_writes": dict(lost.counts),
+               "lost_write_errors": dict(lost.first_error)}
     from leonav_runtime.common.provenance import provenance
 
-    write_json(out / "nav.json", {"provenance": provenance(), **result})
+    reserve.shrink(0)
+    try:
+        write_json(out / "nav.json", {"provenance": provenance(), **result})
+    except OSError as exc:      # even the summary did not fit: say so, and what was lost, in one line
+        lost.add(out / "nav.json", exc)
+        result |= {"files_complete": False, "lost_writes": dict(lost.counts),
+                   "lost_write_errors": dict(lost.first_error)}
+        print(f"leonav nav: warning: nav.json not written ({exc.strerror or exc}); {lost_text(lost.counts)}",
+              file=sys.stderr, flush=True)
     return result
+
+
+def lost_text(counts: dict[str, int]) -> str:
+    """'records not written: trajectory.csv 12, session/imu.raw 40' (or '' when none)."""
+    if not counts:
+        return ""
+    return "records not written: " + ", ".join(f"{name} {n}" for name, n in sorted(counts.items()))
 
 
 def exit_code(signum: int | None, summary: dict, session_info: dict) -> int:

@@ -12,7 +12,10 @@
   merged by their stamps and fed in that order, in this thread, to the same decoders
   (`GnssDecoder`, `WitMotionParser` + `SampleGrouper`) the readers use, as fast as the
   navigator takes them; deterministic. It copies what it reads into a session folder with
-  the recorder's writers (`SessionCopy`).
+  the recorder's writers (`session_copy.SessionCopy`).
+
+Given a `LostWrites`, every recorder writer counts a write that fails (a full disk) there and goes
+on: a device thread never ends on its own files (`hardware.session.RecordSession`).
 """
 from __future__ import annotations
 
@@ -28,12 +31,11 @@ from typing import Callable
 
 from leonav.hardware.gnss.reader import GnssDecoder
 from leonav.hardware.imu.witmotion import SampleGrouper, WitMotionParser
-from leonav.hardware.jsonfile import write_json
-from leonav.hardware.records import GnssTimeTag, ImuSample
+from leonav.hardware.records import ImuSample
 from leonav.hardware.session import RecordSession
 from leonav.hardware.session_decode import iter_raw_chunks
-from leonav.hardware.session_files import (GNSS_FIX_COLUMNS, IMU_COLUMNS, CsvSink, RawLog, RunningTimeMap, gnss_rows, imu_row,
-                                    session_json)
+from leonav.hardware.session_files import LostWrites
+from leonav_runtime.nav.session_copy import SessionCopy, _baud  # noqa: F401 (`_baud` is used by run.py)
 
 TICK_S = 0.05
 
@@ -151,14 +153,15 @@ class LiveSource:
 
     def __init__(self, record_dir: Path, gnss: str | None, imu: str | None, sdr_index: int | None = None,
                  gnss_baud: int = 38400, imu_baud: int = 9600, configure: bool = False, sdr_settings=None,
-                 sdr_factory: Callable | None = None, playback: list[PacedPty] | None = None, beacons=None) -> None:
+                 sdr_factory: Callable | None = None, playback: list[PacedPty] | None = None, beacons=None,
+                 lost: LostWrites | None = None) -> None:
         self.queue: queue.SimpleQueue = queue.SimpleQueue()
         self.beacons = beacons
         self.record_dir = Path(record_dir)
         kw = {} if sdr_factory is None else {"sdr_factory": sdr_factory}
         self.session = RecordSession(record_dir, gnss=gnss, imu=imu, sdr_index=sdr_index, gnss_baud=gnss_baud,
                                      imu_baud=imu_baud, configure=configure, sdr_settings=sdr_settings,
-                                     progress=False, on_record=self._put, **kw)
+                                     progress=False, on_record=self._put, lost_writes=lost, **kw)
         self.playback = playback or []
         self.reported: set[str] = set()
         self.info: dict = {}
@@ -261,52 +264,6 @@ class LiveSource:
         return self.info
 
 
-class SessionCopy:
-    """The recorder's files for a fast playback: raw logs with the recorded stamps, live CSVs, session.json."""
-
-    def __init__(self, folder: Path, source_info: dict) -> None:
-        self.folder = Path(folder)
-        self.folder.mkdir(parents=True, exist_ok=True)
-        self.source_info = source_info
-        self.raw = {k: RawLog(self.folder, k) for k in ("gnss", "imu")}
-        self.tmap = RunningTimeMap()
-        self.fix_csv = CsvSink(self.folder / "gnss_fix.csv", GNSS_FIX_COLUMNS)
-        self.imu_csv = CsvSink(self.folder / "imu.csv", IMU_COLUMNS)
-
-    def chunk(self, kind: str, data: bytes, t: float) -> None:
-        self.raw[kind].write(data, t)
-
-    def gnss(self, rec) -> None:
-        if isinstance(rec, GnssTimeTag):
-            self.tmap.add(rec)
-        name, rows = gnss_rows(rec, self.tmap.utc)
-        if name == "gnss_fix":
-            for row in rows:
-                self.fix_csv.write(row)
-
-    def imu(self, s: ImuSample) -> None:
-        self.imu_csv.write(imu_row(s, self.tmap.utc))
-
-    def close(self, status: str, summaries: dict) -> dict:
-        for sink in (*self.raw.values(), self.fix_csv, self.imu_csv):
-            sink.close()
-        src = self.source_info
-        devices = [{"kind": k, "port": f"playback:{k}", "baud": b, "error": ""} | summaries.get(k, {})
-                   for k, b in (("gnss", _baud(src, "gnss")), ("imu", _baud(src, "imu")))]
-        info = session_json(status, src.get("start_utc", ""), src.get("t_mono_start_s", 0.0), devices, None,
-                            (src.get("stop_utc", ""), src.get("t_mono_stop_s", 0.0), self.tmap.final()))
-        info["played_back_from"] = src.get("_folder", "")
-        write_json(self.folder / "session.json", info)
-        return info
-
-
-def _baud(info: dict, kind: str) -> int | None:
-    for d in info.get("devices", []):
-        if d.get("kind") == kind and isinstance(d.get("baud"), int):
-            return d["baud"]
-    return None
-
-
 def read_session_info(folder: Path) -> dict:
     path = folder / "session.json"
     info = json.loads(path.read_text()) if path.exists() else {}
@@ -329,11 +286,12 @@ def same_stamp_groups(samples: list[ImuSample]) -> list[list[ImuSample]]:
 class FastPlayback:
     """A session's chunks through the decoders in stamp order, as fast as possible (module doc)."""
 
-    def __init__(self, folder: Path, record_dir: Path | None, beacons=None) -> None:
+    def __init__(self, folder: Path, record_dir: Path | None, beacons=None, lost: LostWrites | None = None) -> None:
         self.folder = Path(folder)
         self.beacons = beacons
+        self.lost = lost
         self.info = read_session_info(self.folder)
-        self.copy = SessionCopy(record_dir, self.info) if record_dir is not None else None
+        self.copy = SessionCopy(record_dir, self.info, lost) if record_dir is not None else None
         self.gnss = GnssDecoder()
         self.parser, self.grouper = WitMotionParser(), SampleGrouper()
 
@@ -391,7 +349,12 @@ class FastPlayback:
             return {}
         for name in ("sdr.cu8", "sdr.sigmf-meta"):     # the capture is copied as it is
             if (self.folder / name).exists():
-                shutil.copyfile(self.folder / name, self.copy.folder / name)
+                try:
+                    shutil.copyfile(self.folder / name, self.copy.folder / name)
+                except OSError as exc:
+                    if self.lost is None:
+                        raise
+                    self.lost.add(self.copy.folder / name, exc)
         summaries = {"gnss": self.gnss.summary(), "imu": {"rejected": self.rejected()["imu"],
                                                           "accepted": dict(self.parser.counts)}}
         return self.copy.close(status, summaries)
