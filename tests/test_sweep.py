@@ -134,3 +134,15 @@ def test_outage_end_error_reads_the_last_epoch_when_the_outage_reaches_the_end()
     summary = {"position": {"rmse_t": np.arange(t.size, dtype=float)}}
     assert outage_end_error(summary, 10.0, t) == 99.0                 # GPS back at 10 s: the epoch before
     assert outage_end_error(summary, 20.0, t) == float(t.size - 1)    # lost to the end: the final epoch
+
+
+def test_paper_findings_only_for_a_scenario_that_declares_itself_the_papers(tmp_path):
+    """maritime-outage (like a user's own scenario) prints its own checks, not the paper's verdicts."""
+    from leonav_runtime.scenarios.load import load_scenario
+    from leonav_runtime.sweep.run import run_sweep, summary_table
+
+    paper, maritime = load_scenario("paper"), load_scenario("maritime-outage")
+    assert paper.raw["monte_carlo"]["paper_findings"] and not maritime.raw["monte_carlo"].get("paper_findings")
+    res = run_sweep(maritime, tmp_path, trials=2, workers=1, progress=False)
+    assert res.findings and {f["kind"] for f in res.findings} == {"scenario"}
+    assert "the paper's findings" not in summary_table(maritime, res)

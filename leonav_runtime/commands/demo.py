@@ -31,9 +31,12 @@ def run(args: argparse.Namespace) -> int:
     raw = copy.deepcopy(base.raw)
     raw.setdefault("starlink", {})["counts"] = [max(base.starlink["counts"])]
     raw.setdefault("monte_carlo", {})["trials"] = 1
+    paper = raw["monte_carlo"].pop("paper_findings", False)   # one trial: the paper's verdicts mean nothing
     scn = scenario_from_dict(raw, source=base.source, base_dir=Path(base.source).parent)
     out_dir = output.results_dir(args.out, f"demo-{scn.name}")
     res = run_sweep(scn, out_dir, trials=1, workers=1, progress=False)
     print(summary_table(scn, res))
+    if paper:
+        print("\n(one trial per mode: the paper's findings are checked by `leonav sweep`, not here)")
     print(f"\nresults: {out_dir}/")
     return 0

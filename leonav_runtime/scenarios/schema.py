@@ -151,6 +151,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "seed": Field(int, "-", 0, 2**63 - 1, default=1, doc="master seed"),
         "modes": Field(list, "-", default=list(MODES), doc="the paper's: " + ", ".join(MODES) + "; or any mode named "
                        "by the simulated observables' words, e.g. gps+imu+baro (leonav_runtime/gen/REGISTRY.md)"),
+        "paper_findings": Field(bool, "-", default=False, doc="check the paper's findings on this run (the paper's "
+                                "own scenarios say true; elsewhere its verdicts mean nothing)"),
     },
 }
 

@@ -65,8 +65,9 @@ def outage_end_error(summary: dict, end_s: float, t_eval: np.ndarray) -> float:
 
 
 def check_findings(scn: Scenario, summaries: dict[tuple[str, int], dict], t_eval: np.ndarray) -> list[dict]:
-    """The paper's simulation findings (kind "paper") and this scenario's own checks (kind
-    "scenario", e.g. the GPS outage), evaluated on our results.
+    """The paper's simulation findings (kind "paper"; only for a scenario that declares
+    `[monte_carlo] paper_findings = true`, as the paper's own do) and this scenario's own checks
+    (kind "scenario", e.g. the GPS outage), evaluated on our results.
 
     Each entry: finding, kind, holds, detail (text), and `values`: per (mode, count) the
     position RMSE averaged over time and at the final epoch (m); the paper's band if any.
@@ -88,8 +89,10 @@ def check_findings(scn: Scenario, summaries: dict[tuple[str, int], dict], t_eval
 
     out = []
 
+    paper = bool(scn.raw.get("monte_carlo", {}).get("paper_findings", False))
+
     def add(name, ok, detail, pairs=(), band=None, kind="paper"):
-        if ok is not None:
+        if ok is not None and (kind != "paper" or paper):
             out.append({"finding": name, "kind": kind, "holds": bool(ok), "detail": detail,
                         "values": values(pairs), "paper_band_m": list(band) if band else None})
 
