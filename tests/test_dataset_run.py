@@ -1,6 +1,6 @@
 """`leonav run` on the first 120 s of the real CPET run 3: scores, outage, files, --reference.
 
-The whole run (issue 11's goals, README table) is `leonav run cpet_run3`; this slice keeps
+The whole run (issue 11's goals, goals table in docs/drives.md) is `leonav run cpet_run3`; this slice keeps
 the test short. Outside references: the dataset's ground truth (800 poses, UTM), GPS alone
 (hold last fix) on the same epochs, RTKLIB's .pos format read back by `solution_io.read_pos`,
 and gpxpy's parser for the GPX file.
