@@ -224,12 +224,13 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
         checks.until(t_end_s, float(imu.t[0]) + 1.0, "the IMU starts (+ 1 s)")
         keep = imu.t <= t_end_s
         imu = ImuSamples(imu.t[keep], imu.w_b_radps[keep], imu.f_b_mps2[keep])
+    all_fixes = shift_fixes(ds.fixes, spec["gnss"]["time_offset_s"])   # a known latency off the tags
     con = spec["constraints"]
     still = align.standstill(imu, con["standstill_window_s"], con["standstill_accel_std_mps2"],
                              con["standstill_gyro_std_radps"])
     # a quiet IMU is not a standstill while the fixes move (a smooth straight drive is quiet too)
-    still, vetoed = align.veto_moving(still, imu.t, shift_fixes(ds.fixes, spec["gnss"]["time_offset_s"]),
-                                      spec["alignment"]["window_s"], spec["alignment"]["speed_mps"])
+    still, vetoed = align.veto_moving(still, imu.t, all_fixes, spec["alignment"]["window_s"],
+                                      spec["alignment"]["speed_mps"])
     report["standstill_vetoed_by_gnss_speed_s"] = vetoed
     rest = align.initial_rest(imu, still, spec["alignment"]["static_max_s"])
     profile = _profile(spec, rest, report)
@@ -238,7 +239,6 @@ def prepare(ds: Dataset, nav: navfuncs.NavFunctions | None = None, t_end_s: floa
                                      values=sensor_params(spec) | latency))
     nav = nav or navfuncs.NavFunctions(params=params)
     nav.params = params
-    all_fixes = shift_fixes(ds.fixes, spec["gnss"]["time_offset_s"])
     notes = list(ds.notes)
     moved = dataclasses.replace(ds, fixes=all_fixes)
     prior = initial_state(moved, imu, rest, profile, nav, report, notes)

@@ -96,7 +96,9 @@ def interpolated_fix(fixes: FixTable, t: np.ndarray) -> np.ndarray:
 
 def latency_estimate(res: lfilter.RunResult, layout) -> dict:
     """The estimated fix latency at the end of a run: value and 1-sigma (s)."""
-    return {"value": float(res.x[-1, layout.X_DT_FIX]), "sigma": float(np.sqrt(res.P_diag[-1, layout.DX_DDT_FIX]))}
+    from leonav_runtime.replay.options import latency_estimate as of_state
+
+    return of_state(res.x[-1], res.P_diag[-1], layout)
 
 
 AUTO_OUTAGE_FRACTIONS = (0.2, 0.35, 0.5, 0.65, 0.8)

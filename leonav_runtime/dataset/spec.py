@@ -18,6 +18,7 @@ from typing import Any
 
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.core import model
+from leonav_runtime.replay.options import LATENCY_PRIOR_SIGMA_S, LATENCY_RANDOM_WALK   # one default for every road
 from leonav_runtime.scenarios.load import Field, check_numbers, check_tables, show_value, where_key
 from leonav_runtime.common.toml_file import read_toml_file
 from leonav_runtime.dataset.spec_sources import check_columns as _columns, finish_sources
@@ -114,10 +115,10 @@ SCHEMA: dict[str, dict[str, Field]] = {
                                doc="fix latency on the IMU's time axis: a fix tagged t is the antenna at t - "
                                "time_offset_s (a known value shifts the tags); 'estimate': a filter state "
                                "(prior time_offset_sigma_s, random walk time_offset_rw), reported with its sigma"),
-        "time_offset_sigma_s": Field(float, "s", 1e-4, 10, default=0.3, doc="prior 1-sigma of the estimated "
+        "time_offset_sigma_s": Field(float, "s", 1e-4, 10, default=LATENCY_PRIOR_SIGMA_S, doc="prior 1-sigma of the estimated "
                                      "latency (around time_offset_prior_s)"),
         "time_offset_prior_s": Field(float, "s", -10, 10, default=0.0, doc="prior mean of the estimated latency"),
-        "time_offset_rw": Field(float, "s/sqrt(s)", 0, 1, default=1e-4, doc="random walk of the estimated latency "
+        "time_offset_rw": Field(float, "s/sqrt(s)", 0, 1, default=LATENCY_RANDOM_WALK, doc="random walk of the estimated latency "
                                 "(0: constant)"),
         "velocity_columns": Field(list, "-", default=[], doc="GNSS velocity E N U columns (m/s), if the file has "
                                   "them; used as a measurement in modes with 'vel'"),

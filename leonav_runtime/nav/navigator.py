@@ -31,7 +31,7 @@ from leonav_runtime.nav.outputs import COLUMNS_TEXT, Decimator, LiveOutputs, Tra
 from leonav_runtime.nav.road import RoadConfig, StreamingRoad
 from leonav_runtime.nav.status import StatusLine, format_status
 from leonav_runtime.nav.stepper import LagStepper
-from leonav_runtime.replay.options import replay_mode
+from leonav_runtime.replay.options import latency_estimate, replay_mode
 from leonav_runtime.replay.timebase import utc_of
 
 LATENCY_KEEP = 200_000        # latency samples kept for the run's percentiles (ring)
@@ -261,7 +261,7 @@ class Navigator:
         if self.stepper is not None and r.cfg.gnss_latency_s == "estimate":
             x, P = self.stepper.head()
             L = self.nav.layout
-            out["fix_latency_s"] = {"value": float(x[L.X_DT_FIX]), "sigma": float(math.sqrt(P[L.DX_DDT_FIX, L.DX_DDT_FIX]))}
+            out["fix_latency_s"] = latency_estimate(x, np.diag(P), L)
         if self.last_solution is not None:
             out["last_solution"] = {"utc": self.last_solution.utc, "lat_deg": self.last_solution.lat_deg,
                                     "lon_deg": self.last_solution.lon_deg, "h_m": self.last_solution.h_m,

@@ -55,6 +55,12 @@ def latency_values(latency: float | str) -> dict[str, float]:
     return {"dt_fix_rw": LATENCY_RANDOM_WALK if latency == "estimate" else 0.0}
 
 
+def latency_estimate(x, p_diag, layout) -> dict[str, float]:
+    """The fix latency state of a state x (NX,) and its error variances p_diag (NDX,): value and
+    1-sigma (s), as every run reports it (`fix_latency_s`)."""
+    return {"value": float(x[layout.X_DT_FIX]), "sigma": float(math.sqrt(p_diag[layout.DX_DDT_FIX]))}
+
+
 def parse_latency(text: str, option: str = "--gnss-latency") -> float | str:
     """A command-line latency: seconds in [0, 1) or the word 'estimate'."""
     if text == "estimate":

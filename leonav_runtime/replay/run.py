@@ -22,7 +22,8 @@ from leonav_runtime.replay.beacon_table import (BeaconMeasurements, beacon_measu
 from leonav_runtime.replay.gnss_raw import RawGnss, raw_gnss
 from leonav_runtime.replay.gnss_table import fix_height_m, fix_table, usable_fix
 from leonav_runtime.replay.options import (LATENCY_PRIOR_SIGMA_S, ReplayOptions, canonical_modes, check_options,
-                                           latency_given_s, latency_values, replay_mode, uses_raw_gnss)
+                                           latency_estimate, latency_given_s, latency_values, replay_mode,
+                                           uses_raw_gnss)
 from leonav_runtime.replay.timebase import device_baud, filter_profile, imu_table, mono_to_utc_function, utc_of
 
 WITMOTION_ATTITUDE = "WitMotion angle output"
@@ -271,8 +272,7 @@ def replay_session(folder: str | Path, out_dir: str | Path, options: ReplayOptio
         L = nav.layout
         for mode, (_, res, _) in runs.items():
             if mode in metrics["modes"] and res.x.shape[0]:
-                metrics["modes"][mode]["fix_latency_s"] = {"value": float(res.x[-1, L.X_DT_FIX]),
-                                                           "sigma": float(np.sqrt(res.P_diag[-1, L.DX_DDT_FIX]))}
+                metrics["modes"][mode]["fix_latency_s"] = latency_estimate(res.x[-1], res.P_diag[-1], L)
     metrics["trajectory_files"] = report.write_geodetic_trajectories(out_dir, inputs, runs, nav.layout,
                                                                       source=str(folder))
     if options.reference_file is not None:
