@@ -324,6 +324,11 @@ mutant("models-16", "models/ekf.py", "gyro noise uses the velocity random walk",
 mutant("models-17", "models/measurements/gnss_fix.py", "north velocity reads the east component", ('    """North velocity (m/s)."""\n    return x[_V + 1]', '    """North velocity (m/s)."""\n    return x[_V + 0]'))
 mutant("models-18", "models/ekf.py", "information update adds H H^T R", ("return J + ca.mtimes(H.T, H) / R", "return J + ca.mtimes(H.T, H) * R"))
 
+# Further groups live in their own files (one per area, so they can grow independently); each
+# adds its MODULES entries and calls mutant() on import.
+import mutants_gnss  # noqa: E402,F401
+import mutants_runtime  # noqa: E402,F401
+
 MUTANTS: list[Mutant] = _M
 _ids = [m.id for m in MUTANTS]
 assert len(set(_ids)) == len(_ids), "duplicate mutant id"
