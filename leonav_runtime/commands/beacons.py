@@ -104,7 +104,7 @@ def register(subparsers) -> None:
     p.add_argument("--lnb-lo", type=float, default=None, metavar="HZ",
                    help="nominal LNB local oscillator, Hz (default 9.75e9, universal LNB low band)")
     p.add_argument("--tone-freq", type=float, default=STARLINK_BEACON_HZ, metavar="HZ",
-                   help="nominal RF tone frequency the Doppler refers to (default %(default)g)")
+                   help="nominal RF tone frequency the Doppler refers to, Hz (default %(default)g)")
     p.add_argument("--mask", type=float, default=STARLINK_MASK_DEG, metavar="DEG",
                    help="elevation mask for candidate satellites, deg (default %(default)g, the paper's)")
     p.add_argument("--fft-size", type=int, default=None, metavar="N",

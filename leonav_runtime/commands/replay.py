@@ -45,7 +45,7 @@ def register(subparsers) -> None:
                    help="receiver output latency to remove from the time map, s (measure it with a PPS; default 0), "
                    "or 'estimate': a filter state (fix latency dt_fix, prior 0 +- 0.3 s), reported per mode")
     p.add_argument("--doppler-rate-sigma-floor", "--alpha-sigma-floor", dest="doppler_rate_sigma_floor", type=float,
-                   default=0.5, metavar="HZ/S", help="lower bound of the Doppler-rate 1-sigma (default %(default)g)")
+                   default=0.5, metavar="HZ/S", help="lower bound of the Doppler-rate 1-sigma, Hz/s (default %(default)g)")
     from leonav_runtime.commands.run import add_reference_arguments
 
     add_reference_arguments(p, heights=False)

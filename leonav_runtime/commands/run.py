@@ -19,7 +19,7 @@ def register(subparsers) -> None:
             "the generated filter in every mode of [filter] modes (fix+imu, +nhc, +zupt) and with 30 s GPS "
             "outages, and score at the reference epochs. Writes metrics.json, errors.csv, trajectory_<mode>.csv/"
             ".pos/.kml/.gpx, error_vs_time.png (outages shaded), error_cdf.png and trajectory.png. A bare name "
-            "(cpet_run3) picks a description shipped in leonav_runtime/dataset/descriptions/."),
+            "(cpet_run3) picks a description shipped with leonav (listed in docs/datasets.md)."),
     )
     p.add_argument("dataset", metavar="DATASET.toml", help="dataset description file, or a shipped name")
     add_reference_arguments(p, heights=True)

@@ -145,7 +145,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     info.set_defaults(func=_cmd_info)
 
     builtin = actions.add_parser("builtin", help="write a generated Walker constellation as 3LE text")
-    builtin.add_argument("constellation", choices=("starlink", "gps"))
+    builtin.add_argument("constellation", choices=("starlink", "gps"),
+                         help="which generated Walker constellation: starlink (9,616 satellites in shells) or gps (31, planes A-F)")
     builtin.add_argument("--epoch", metavar="ISO", default=None, help="element epoch, UTC (default: now)")
     add_out_argument(builtin)
     builtin.set_defaults(func=_cmd_builtin)

@@ -1,12 +1,11 @@
-"""`leonav gnss`: look at GNSS inputs (adapter; the command module is a one-line hook).
+"""`leonav gnss`: look at GNSS inputs (RINEX files, u-blox logs, GPS element sets).
 
     leonav gnss nav FILE...            ephemerides per system, rejected records (file:line: field: why)
     leonav gnss obs FILE [--nav NAV]   observation table summary; with --nav, satellite-state counts
     leonav gnss ubx LOG [--week W]     RAWX rows and SFRBX ephemerides of a u-blox log
-    leonav gnss tle-vs-brdc TLE NAV    TLE (SGP4) minus broadcast orbit table (RTN RMS / max)
+    leonav gnss tle-vs-brdc TLE NAV    TLE (SGP4) minus broadcast orbit table (RTN RMS / max, m)
 
-Read-only: prints, writes no results folder. Hook: `leonav_runtime/commands/gnss.py` with
-`from leonav_runtime.gnss.cli import register  # noqa: F401`.
+Read-only: prints to the terminal and writes no results folder.
 """
 from __future__ import annotations
 
@@ -66,20 +65,24 @@ def register(subparsers) -> None:
                               description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="gnss_command", metavar="WHAT", required=True)
     n = sub.add_parser("nav", help="RINEX navigation files")
-    n.add_argument("files", nargs="+")
-    n.add_argument("--max-rejections", type=int, default=20)
+    n.add_argument("files", nargs="+", metavar="FILE", help="RINEX 2 or 3 navigation file(s)")
+    n.add_argument("--max-rejections", type=int, default=20, metavar="N",
+                   help="rejected records to list per file, count (default 20; all are counted)")
     n.set_defaults(func=_nav)
     o = sub.add_parser("obs", help="a RINEX observation file")
-    o.add_argument("file")
-    o.add_argument("--nav", nargs="*", default=[])
-    o.add_argument("--max-rejections", type=int, default=20)
+    o.add_argument("file", metavar="FILE", help="RINEX 2 or 3 observation file")
+    o.add_argument("--nav", nargs="*", default=[], metavar="NAV",
+                   help="RINEX navigation file(s): also count the satellite states they give per epoch")
+    o.add_argument("--max-rejections", type=int, default=20, metavar="N",
+                   help="rejected lines to list, count (default 20; all are counted)")
     o.set_defaults(func=_obs)
     u = sub.add_parser("ubx", help="a u-blox log (RXM-RAWX, RXM-SFRBX)")
-    u.add_argument("file")
+    u.add_argument("file", metavar="LOG", help="u-blox binary log (UBX frames, NMEA interleaved allowed)")
     u.add_argument("--week", type=int, default=None, help="reference GPS week for the 10-bit LNAV week")
     u.set_defaults(func=_ubx)
     t = sub.add_parser("tle-vs-brdc", help="TLE minus broadcast orbits of GPS satellites")
-    t.add_argument("tle")
-    t.add_argument("nav")
-    t.add_argument("--step", type=float, default=300.0)
+    t.add_argument("tle", metavar="TLE", help="GPS element sets (TLE/3LE text, e.g. CelesTrak's gps-ops group)")
+    t.add_argument("nav", metavar="NAV", help="RINEX GPS navigation file of the same days")
+    t.add_argument("--step", type=float, default=300.0, metavar="S",
+                   help="comparison time step, s (default 300)")
     t.set_defaults(func=_tle)
