@@ -170,7 +170,7 @@ def test_stale_elements_warning_fires_past_the_threshold():
         warnings.simplefilter("error", StaleElementsWarning)
         # every element set within 3 days of the scenario (oldest is 6.5 d before newest)
         propagate_ecef(elements.select(elements.ages_s(newest) < 2.5 * 86400), newest, [0.0, 600.0])
-    with pytest.warns(StaleElementsWarning, match=r"32 of 32 element sets are more than 3 days"):
+    with pytest.warns(StaleElementsWarning, match=r"32 of 32 gps element sets are more than 3 days.*their satellites are kilometres"):
         propagate_ecef(elements, newest + dt.timedelta(days=3.5), [0.0])
     scenario = oldest + dt.timedelta(days=3.3)
     expected = sum(abs((scenario - e).total_seconds()) > 3 * 86400 for e in elements.epochs_utc)
@@ -185,3 +185,25 @@ def test_stale_elements_warning_fires_past_the_threshold():
     fresh = elements.select([int(np.argmax(elements.epochs_utc))])
     with pytest.warns(StaleElementsWarning):
         propagate_ecef(fresh, newest, [0.0, 4 * 86400.0])
+
+
+def test_stale_warning_of_a_scenario_counts_the_users_whole_file_and_blames_its_constellation():
+    """A scenario on the user's own GPS file ten days after its sets: the warning counts the 32
+    sets of the file (not the dozen the simulation keeps as visible candidates) and names GPS,
+    without blaming the LEO Doppler error."""
+    from leonav_runtime.scenarios.load import load_scenario
+    from leonav_runtime.scenarios.overrides import apply_overrides
+    from leonav_runtime.simulation.simulate import prepare
+
+    gps = shared_file("tle/gps-ops_2026-03-09.txt")
+    newest = max(_quiet_load(gps).epochs_utc)
+    epoch = (newest + dt.timedelta(days=10)).strftime("%Y-%m-%dT%H:%M:%SZ")
+    scn, _ = apply_overrides(load_scenario("paper"), modes=["gps+imu"], counts=[5], trials=1,
+                             sets=["elements.source=files", f"elements.files=[\"{gps}\"]",
+                                   f"time.epoch={epoch}", "time.duration_s=20"])
+    with pytest.warns(StaleElementsWarning) as record:
+        prepare(scn)
+    gps_warnings = [str(w.message) for w in record if "gps element sets" in str(w.message)]
+    assert len(gps_warnings) == 1, [str(w.message) for w in record]
+    assert gps_warnings[0].startswith("32 of 32 gps element sets")
+    assert "LEO Doppler" not in gps_warnings[0]

@@ -121,7 +121,7 @@ def predict_visible(elements, site: Site, start_utc: _dt.datetime, duration_s: f
     if vis.size == 0:
         empty = np.zeros((0, t.size))
         return Predictions(start_utc, t, [], ids, empty, empty, empty, vis)
-    st = propagate_ecef(elements.select(vis), start_utc, t, acceleration=True)
+    st = propagate_ecef(elements.select(vis), start_utc, t, acceleration=True, warn_stale=False)  # warned above
     _, el_fine, _ = az_el_range(st.r_ecef_m, r_rx, site.lat_rad, site.lon_rad)
     p = model_params(site.lat_rad, site.lon_rad, site.h_m, f_c_hz)
     d, r = evaluate_model(st.r_ecef_m, st.v_ecef_mps, st.a_ecef_mps2, p)

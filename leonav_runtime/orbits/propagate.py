@@ -117,8 +117,18 @@ def acceleration_ecef_mps2(r_ecef_m: np.ndarray, v_ecef_mps: np.ndarray,
     return a
 
 
+# What stale sets cost, per constellation: SGP4 error grows ~1-3 km/day for LEO, which is what
+# limits Doppler/Doppler-rate; for GPS the cost is the geometry (the real sky differs).
+_STALE_CONSEQUENCE = {"starlink": "stale elements dominate the LEO Doppler error"}
+_STALE_OTHER = "their satellites are kilometres from where they really are at that epoch"
+
+
 def warn_if_stale(elements: ElementSet, epoch_utc: _dt.datetime, t_s: np.ndarray) -> None:
-    """Warn when element epochs are more than `stale_after_days` from the scenario span."""
+    """Warn when element epochs are more than `stale_after_days` from the scenario span.
+
+    The count is over `elements` as given: callers pass the whole set a user loaded, not the
+    visible subset they propagate (see warn_stale of propagate_ecef).
+    """
     if len(elements) == 0:
         return
     ages_s = elements.ages_s(epoch_utc)
@@ -130,12 +140,13 @@ def warn_if_stale(elements: ElementSet, epoch_utc: _dt.datetime, t_s: np.ndarray
     stale = worst > limit_s
     if np.any(stale):
         k = int(np.argmax(worst))
+        which = "" if elements.constellation == "unknown" else f"{elements.constellation} "
         message = (
-            f"{int(stale.sum())} of {len(elements)} element sets are more than "
+            f"{int(stale.sum())} of {len(elements)} {which}element sets are more than "
             f"{elements.stale_after_days:g} days from the scenario epoch "
             f"{as_utc(epoch_utc).isoformat()} (worst {worst[k] / DAY_S:.1f} days: {elements.names[k]}, "
-            f"element epoch {elements.epochs_utc[k].isoformat()}); stale elements dominate the "
-            "LEO Doppler error, fetch fresh ones (`leonav tle fetch`)"
+            f"element epoch {elements.epochs_utc[k].isoformat()}); {_STALE_CONSEQUENCE.get(elements.constellation, _STALE_OTHER)}, "
+            "fetch fresh ones (`leonav tle fetch`)"
         )
         # one channel only: a warning (the CLI prints it once, as one line without a source path)
         warnings.warn(message, StaleElementsWarning, stacklevel=3)

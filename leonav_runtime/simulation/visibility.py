@@ -9,6 +9,7 @@ import numpy as np
 from leonav_runtime.orbits import geometry
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.orbits import ElementSet, default_elements, group_by_constellation, load_elements, propagate_ecef
+from leonav_runtime.orbits.propagate import warn_if_stale
 from leonav_runtime.scenarios.load import Scenario, mode_of
 
 
@@ -83,11 +84,12 @@ def _visible_ranked(scn, es, t_s, p_enu, mask_rad, notes: list[str], acceleratio
 
     Satellites SGP4 cannot propagate are left out (NaN) and named in `notes`.
     """
+    warn_if_stale(es, scn.epoch_utc, t_s)  # over the whole set the user gave, not the candidates
     if t_s.size > 2:
         cand = _candidates(scn, es, t_s, p_enu, mask_rad)
         es = es.select(cand)
         priority = None if priority is None else priority[cand]
-    states = propagate_ecef(es, scn.epoch_utc, t_s, acceleration=acceleration)
+    states = propagate_ecef(es, scn.epoch_utc, t_s, acceleration=acceleration, warn_stale=False)
     for name, norad, reason in states.failures:
         notes.append(f"{es.constellation} {name} ({norad}) left out: {reason}")
     r_rx = _receiver_ecef(scn, p_enu)                         # (nt, 3)
