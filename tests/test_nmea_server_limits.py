@@ -7,6 +7,8 @@ import sys
 import textwrap
 import time
 
+import pynmea2
+
 from leonav_runtime.nav.sinks.servers import TcpBroadcastServer
 
 
@@ -28,11 +30,18 @@ def test_clients_beyond_the_limit_are_closed_and_counted():
         srv.send(b"$GPGGA\r\n")
         got = []
         for c in clients:
+            data = b""
             try:
-                got.append(c.recv(16))
+                while chunk := c.recv(256):       # the refused ones: one TXT sentence, then the close
+                    data += chunk
+                    if data == b"$GPGGA\r\n":
+                        break
             except OSError:
-                got.append(b"")
-        assert got.count(b"$GPGGA\r\n") == 3 and got.count(b"") == 2     # the refused ones see the close
+                pass
+            got.append(data)
+        refused = [pynmea2.parse(g.decode().strip(), check=True) for g in got if g != b"$GPGGA\r\n"]
+        assert got.count(b"$GPGGA\r\n") == 3 and len(refused) == 2, got
+        assert all(r.sentence_type == "TXT" and "client limit 3 reached" in r.text for r in refused), refused
         for c in clients:
             c.close()
     finally:

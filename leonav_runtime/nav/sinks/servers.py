@@ -1,9 +1,10 @@
 """Byte sinks for live outputs: a TCP broadcast server and a pseudo-terminal.
 
-`TcpBroadcastServer` accepts any number of clients (gpsd, OpenCPN, QGIS, `nc`) and sends
-every line to each; it listens on 127.0.0.1 unless another host is named. A client that
-stops reading is dropped once its backlog passes `max_backlog_bytes` (counted), so a slow
-client never blocks the navigator. `PtyOutput` opens a pseudo-terminal and links its
+`TcpBroadcastServer` serves up to `max_clients` clients (gpsd, OpenCPN, QGIS, `nc`) and sends
+every line to each; it listens on 127.0.0.1 unless another host is named. A client beyond the
+limit gets one NMEA TXT sentence saying so and is closed (counted). Sends never block: a client
+that stops reading is dropped once its backlog passes `max_backlog_bytes` (counted), so a slow or
+dead client never delays the navigator, and `close` flushes for at most `CLOSE_FLUSH_S` in all. `PtyOutput` opens a pseudo-terminal and links its
 device to a path (`/tmp/leonav-nmea`), for programs that only read serial ports; what is
 already at that path is replaced only when it is a link to a pty device (an earlier run's),
 anything else is refused with a `UserInputError` and left as it is.
@@ -13,11 +14,14 @@ from __future__ import annotations
 import os
 import re
 import select
+import selectors
 import socket
 import stat
 import threading
+import time
 from pathlib import Path
 
+from leonav.hardware.gnss.nmea_write import sentence
 from leonav_runtime.common.errors import UserInputError
 
 
@@ -26,6 +30,14 @@ MAX_CLIENTS = 32
 runs out of descriptors can no longer open its own files (the trajectory, a lazy import)."""
 ACCEPT_RETRY_S = 0.1
 """Pause (s) after a failed accept (descriptors exhausted): the server keeps serving, never dies."""
+CLOSE_FLUSH_S = 0.5
+"""At the end, the time (s) given to all clients together to take their backlog: dead clients
+cannot hold up the shutdown."""
+
+
+def refusal_sentence(max_clients: int) -> bytes:
+    """The NMEA TXT sentence a client beyond the limit reads before its connection is closed."""
+    return sentence(f"GPTXT,01,01,01,leonav nav: client limit {max_clients} reached; closing")
 
 
 class TcpBroadcastServer:
@@ -43,7 +55,8 @@ class TcpBroadcastServer:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self.counts = {"clients_accepted": 0, "clients_dropped_slow": 0, "clients_closed": 0, "bytes_sent": 0,
-                       "clients_refused_limit": 0, "accept_errors": 0}
+                       "clients_refused_limit": 0, "accept_errors": 0, "bytes_unsent_at_close": 0}
+        self._refusal = refusal_sentence(self.max_clients)
         self._thread = threading.Thread(target=self._accept_loop, name="leonav-tcp-accept", daemon=True)
         self._thread.start()
 
@@ -67,11 +80,14 @@ class TcpBroadcastServer:
                     conn.setblocking(False)
                     self._clients[conn] = bytearray()
                     self.counts["clients_accepted"] += 1
-            if full:
+            if full:      # politely: one line saying why (a fresh socket takes it without blocking), then close
                 try:
-                    conn.close()
+                    conn.setblocking(False)
+                    conn.send(self._refusal)
+                    conn.shutdown(socket.SHUT_RDWR)
                 except OSError:
                     pass
+                conn.close()
 
     @property
     def n_clients(self) -> int:
@@ -104,21 +120,37 @@ class TcpBroadcastServer:
             pass
 
     def close(self) -> None:
-        """Flush what each client takes within a short time, then close everything."""
+        """Give the clients `CLOSE_FLUSH_S` in all to take their backlogs (what is left is counted in
+        `bytes_unsent_at_close`), then close everything."""
         self._stop.set()
         with self._lock:
-            for conn, backlog in list(self._clients.items()):
-                try:
-                    conn.setblocking(True)
-                    conn.settimeout(0.5)
-                    if backlog:
-                        conn.sendall(backlog)
-                except OSError:
-                    pass
+            self._flush(time.monotonic() + CLOSE_FLUSH_S)
+            for conn in self._clients:
                 conn.close()
             self._clients.clear()
         self._listener.close()
         self._thread.join(timeout=1.0)
+
+    def _flush(self, deadline: float) -> None:
+        pending = {conn: backlog for conn, backlog in self._clients.items() if backlog}
+        with selectors.DefaultSelector() as sel:      # not select.select: descriptors may be above 1024
+            for conn in pending:
+                sel.register(conn, selectors.EVENT_WRITE)
+            while pending and (left := deadline - time.monotonic()) > 0:
+                for key, _ in sel.select(left):
+                    conn, backlog = key.fileobj, pending[key.fileobj]
+                    try:
+                        n = conn.send(backlog)
+                        del backlog[:n]
+                        self.counts["bytes_sent"] += n
+                    except BlockingIOError:
+                        continue
+                    except OSError:
+                        backlog.clear()
+                    if not backlog:
+                        sel.unregister(conn)
+                        del pending[conn]
+        self.counts["bytes_unsent_at_close"] += sum(len(b) for b in pending.values())
 
 
 class PtyOutput:
