@@ -112,6 +112,14 @@ def plot_rmse_vs_time(scn, res, path: Path) -> None:
     ps.save(fig, path)
 
 
+STATIC_SPAN_M = 1.0  # a truth track within this of its start is drawn as one point
+
+
+def _is_static(p_enu: np.ndarray) -> bool:
+    """True when the truth track never leaves STATIC_SPAN_M (m) of its first point."""
+    return bool(np.max(np.linalg.norm(p_enu - p_enu[:1], axis=1)) < STATIC_SPAN_M)
+
+
 def plot_trajectories(scn, res, path: Path) -> None:
     """Plan view (truth, trial-0 estimates, start marker) and the horizontal / vertical error
     of trial 0 vs time, where errors of a few metres are visible on a km-long track."""
@@ -130,11 +138,17 @@ def plot_trajectories(scn, res, path: Path) -> None:
         # the path starts at the first output sample: the filter's initial estimate is not
         # on the output grid, so no jump from it is drawn as motion
         ax2.plot(p[:, 0], p[:, 1], color=st["color"], linestyle=st["linestyle"], lw=0.9, zorder=2)
+        # where the estimate starts (the initial error, tens of metres) is marked, not guessed
+        ax2.plot(p[0, 0], p[0, 1], marker="o", ms=5, mfc="none", mec=st["color"], linestyle="", zorder=3)
         err = p - gt[: p.shape[0]]
         axh.plot(t[: p.shape[0]], np.hypot(err[:, 0], err[:, 1]), color=st["color"], linestyle=st["linestyle"])
         axv.plot(t[: p.shape[0]], err[:, 2], color=st["color"], linestyle=st["linestyle"])
-    ax2.plot(gt[0, 0], gt[0, 1], "k^", ms=7, zorder=3)
-    ax2.plot(gt[-1, 0], gt[-1, 1], "ks", ms=6, zorder=3, mfc="white")
+    static = _is_static(gt)
+    if static:  # start and end markers would hide each other: one marker says both
+        ax2.plot(gt[0, 0], gt[0, 1], "k*", ms=10, zorder=4)
+    else:
+        ax2.plot(gt[-1, 0], gt[-1, 1], "ks", ms=6, zorder=3, mfc="white")
+        ax2.plot(gt[0, 0], gt[0, 1], "k^", ms=7, zorder=4)
     ax2.set_xlabel("East [m]")
     ax2.set_ylabel("North [m]")
     ax2.set_aspect("equal", adjustable="datalim")
@@ -147,9 +161,14 @@ def plot_trajectories(scn, res, path: Path) -> None:
     axv.set_ylabel("up error [m]")
     axv.set_xlabel("time since start [s]")
     axh.sharex(axv)
-    handles, labels = [Line2D([], [], color="k", lw=2.2, alpha=0.6),
-                       Line2D([], [], color="k", marker="^", linestyle=""),
-                       Line2D([], [], color="k", marker="s", mfc="white", linestyle="")], ["truth", "start", "end"]
+    if static:
+        handles, labels = [Line2D([], [], color="k", marker="*", ms=10, linestyle="")], ["truth (static)"]
+    else:
+        handles = [Line2D([], [], color="k", lw=2.2, alpha=0.6), Line2D([], [], color="k", marker="^", linestyle=""),
+                   Line2D([], [], color="k", marker="s", mfc="white", linestyle="")]
+        labels = ["truth", "start", "end"]
+    handles.append(Line2D([], [], color="0.3", marker="o", mfc="none", linestyle=""))
+    labels.append("first estimate of each mode")
     handles += [Line2D([], [], color=styles[m]["color"], linestyle=styles[m]["linestyle"]) for m in res.trajectories]
     labels += list(res.trajectories)
     if scn.gps["outages"]:
