@@ -61,6 +61,12 @@ def make_copy(root: Path, dest: Path, tests_rev: str | None) -> None:
         target = dest / rel
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(root / rel, target)
+    # models/, codegen/, hardware/ install as leonav.models, ... (setup.py): links inside the copy's
+    # leonav/ make those names import the copy (else the editable install maps them to the working tree)
+    for folder in ("models", "codegen", "hardware"):
+        link = dest / "leonav" / folder
+        if (dest / folder).is_dir() and not link.exists():
+            link.symlink_to(Path("..") / folder, target_is_directory=True)
     if tests_rev:
         shutil.rmtree(dest / "tests")
         archive = subprocess.run(["git", "archive", tests_rev, "tests"], cwd=root, capture_output=True, check=True)
@@ -103,7 +109,7 @@ def run_tests(copy: Path, tests: list[str], env: dict, timeout_s: float) -> tupl
 
 
 def regenerate(copy: Path, env: dict) -> tuple[bool, str]:
-    proc = subprocess.run([sys.executable, "-m", "codegen"], cwd=copy, env=env, capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, "-m", "leonav.codegen"], cwd=copy, env=env, capture_output=True, text=True)
     return proc.returncode == 0, (proc.stdout + proc.stderr).strip()[-400:]
 
 
@@ -141,9 +147,10 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="leonav-mutation-") as tmp:
         copy = Path(tmp) / "leonav"
         make_copy(ROOT, copy, args.tests_rev)
-        check = subprocess.run([sys.executable, "-c", "import hardware, leonav_runtime, models; "
-                                "print(leonav_runtime.__file__)"], cwd=copy, env=env, capture_output=True, text=True)
-        if not check.stdout.strip().startswith(str(copy)):
+        check = subprocess.run([sys.executable, "-c", "import leonav.hardware, leonav_runtime, leonav.models as m; "
+                                "print(leonav_runtime.__file__, leonav.hardware.__file__, m.__file__)"],
+                               cwd=copy, env=env, capture_output=True, text=True)
+        if not check.stdout.split() or not all(f.startswith(str(copy)) for f in check.stdout.split()):
             print(f"the copy does not import its own modules ({check.stdout.strip()}): stop", file=sys.stderr)
             return 2
         for module in modules:
