@@ -90,8 +90,10 @@ def test_result_files_carry_units_and_both_rmse_kinds(tiny):
 
 def test_sky_labels_are_short():
     assert short_label("GPS BIIR-2  (PRN 13)", 24876) == "G13"
-    assert short_label("STARLINK-31190", 58897) == "31190"
-    assert short_label("ONEWEB", 1234) == "1234"
+    assert short_label("STARLINK-31190", 58897) == "SL-31190"
+    assert short_label("STARLINK-1008", 44714) == "SL-1008"   # not a bare 4-digit tail
+    assert short_label("ONEWEB-0012", 44057) == "ONEWEB-0012"
+    assert short_label("A VERY LONG SATELLITE NAME", 1234) == "#1234"
 
 
 def test_waterfall_labels_each_satellite_once_and_predictions_lie_on_the_ridges(tmp_path, monkeypatch):

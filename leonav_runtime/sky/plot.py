@@ -20,12 +20,16 @@ def _colour(name: str, i: int) -> str:
 
 
 def short_label(name: str, norad_id: int) -> str:
-    """A short satellite label: the PRN of a GPS name, the number of a STARLINK-NNNN name."""
+    """A short satellite label a reader can look up: G13 for a GPS "(PRN 13)" name, SL-31190 for
+    STARLINK-31190, a short name as it is, otherwise the NORAD catalogue number as #58897."""
     prn = re.search(r"PRN\s*0*(\d+)", name)
     if prn:
         return f"G{int(prn.group(1)):02d}"
-    num = re.search(r"-(\d+)\s*$", name.strip())
-    return num.group(1) if num else str(norad_id)
+    starlink = re.fullmatch(r"STARLINK-(\d+)", name.strip(), re.I)
+    if starlink:
+        return f"SL-{starlink.group(1)}"
+    short = name.strip()
+    return short if 0 < len(short) <= 12 else f"#{norad_id}"
 
 
 def _label_rows(az_rad: np.ndarray, el_deg: np.ndarray, min_sep_deg: float = 9.0) -> list[int]:
@@ -88,7 +92,8 @@ def plot(view: SkyView, path) -> None:
                             zorder=z + 1)
         handles.append(ax_cnt.step(t_axis, c.count, where="post", color=colour, lw=1.2)[0])
         shown = "" if el0.size <= MAX_LABELS else ", highest labelled"
-        labels.append(f"{name}: mask {mask_deg:g}° (dashed), {int(c.count[0])} visible at start{shown}")
+        key = ", SL-n = STARLINK-n" if name == "starlink" else ""
+        labels.append(f"{name}: mask {mask_deg:g}° (dashed), {int(c.count[0])} visible at start{shown}{key}")
         k = int(np.argmin(c.count))
         # the minimum is pointed at from below, so no marker sits on the line
         ax_cnt.annotate(f"min {int(c.count[k])}", (t_axis[k], c.count[k]), textcoords="offset points",
