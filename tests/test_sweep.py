@@ -101,7 +101,7 @@ def test_sweep_cli_writes_the_results_folder(tmp_path, capsys):
     raw = tomllib.loads(open(src).read())
     raw["time"]["duration_s"] = 2.0
     raw["starlink"]["counts"] = [5, 10]
-    raw["monte_carlo"]["modes"] = ["gps+imu", "leo-alpha+ofdm+imu"]
+    raw["monte_carlo"]["modes"] = ["leo-alpha+ofdm+imu", "gps+imu"]  # not alphabetical: the order is kept
     body = "\n".join(
         f"[{sec}]\n" + "\n".join(f"{k} = {json.dumps(v)}" for k, v in vals.items())
         if isinstance(vals, dict) else f"{sec} = {json.dumps(vals)}"
@@ -116,8 +116,12 @@ def test_sweep_cli_writes_the_results_folder(tmp_path, capsys):
                  "rmse_vs_time.png", "trajectories.png", "visibility.png"):
         assert (out / name).stat().st_size > 0, name
     metrics = json.loads((out / "metrics.json").read_text())
-    assert {(r["mode"], r["count"]) for r in metrics["results"]} == {
-        (m, c) for m in ("gps+imu", "leo-alpha+ofdm+imu") for c in (5, 10)}
+    # console table, metrics.json and report.html list the modes in the scenario's order
+    assert [(r["mode"], r["count"]) for r in metrics["results"]] == [
+        (m, c) for m in ("leo-alpha+ofdm+imu", "gps+imu") for c in (5, 10)]
+    assert text.index("\nleo-alpha+ofdm+imu ") < text.index("\ngps+imu ")
+    html = (out / "report.html").read_text()
+    assert html.index("<td>leo-alpha+ofdm+imu</td>") < html.index("<td>gps+imu</td>")
     assert all(np.isfinite(r["position"]["rmse"]) for r in metrics["results"])
 
 

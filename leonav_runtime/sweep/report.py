@@ -82,7 +82,9 @@ def metrics_dict(scn, res) -> dict:
         "timing": res.timing,
         "results": [],
     }
-    for (mode, count), s in sorted(res.summaries.items()):
+    # the scenario's mode order (as the console table), counts ascending: not alphabetical
+    order = {m: i for i, m in enumerate(scn.modes)}
+    for (mode, count), s in sorted(res.summaries.items(), key=lambda kv: (order.get(kv[0][0], len(order)), kv[0])):
         entry = {"mode": mode, "count": count, "trials": s["trials"], "gated": s["gated"], "failed": s["failed"],
                  "nees": {k: v for k, v in s["nees"].items() if k != "nees_t"},
                  "nis": {str(k): v for k, v in s["nis"].items()}}
