@@ -23,18 +23,12 @@ import numpy as np
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.common.output import add_out_argument, results_dir, write_csv, write_json
 
-_RINEX_LABEL = "RINEX VERSION / TYPE"
-
 
 def _is_rinex(path: Path) -> bool:
-    try:
-        with path.open("rb") as fh:
-            first = fh.readline(200).decode("ascii", "replace")
-    except FileNotFoundError:
-        raise UserInputError(f"{path}: observation file not found") from None
-    except IsADirectoryError:
-        raise UserInputError(f"{path}: is a directory, expected an observation file") from None
-    return _RINEX_LABEL in first
+    """RINEX (plain or compressed) rather than a u-blox log."""
+    from leonav_runtime.gnss.rinex_files import looks_like_rinex
+
+    return looks_like_rinex(path)
 
 
 def _load_navs(paths: list[str], cache: dict | None = None):

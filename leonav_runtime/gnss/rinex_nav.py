@@ -28,6 +28,7 @@ import numpy as np
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import EPH_DTYPE, Ephemerides, Rejection, default_fit_s, is_bds_geo
+from leonav_runtime.gnss.rinex_files import read_rinex_text  # noqa: F401  (plain or compressed; also imported from here)
 
 log = logging.getLogger("leonav.gnss")
 
@@ -327,20 +328,9 @@ def parse_rinex_nav(text: str, source: str = "<string>") -> NavFile:
     return NavFile(source, version, eph, iono, leap)
 
 
-def read_rinex_text(path: str | Path, kind: str) -> str:
-    """Text of a RINEX `kind` ("navigation", "observation") file, non-ASCII bytes replaced;
-    UserInputError naming the file when it is missing or a directory."""
-    path = Path(path)
-    try:
-        return path.read_text(encoding="ascii", errors="replace")
-    except FileNotFoundError:
-        raise UserInputError(f"{path}: {kind} file not found") from None
-    except IsADirectoryError:
-        raise UserInputError(f"{path}: is a directory, expected a RINEX {kind} file") from None
-
-
 def read_rinex_nav(path: str | Path) -> NavFile:
-    """Read a RINEX navigation file (see `parse_rinex_nav`); UserInputError when unreadable."""
+    """Read a RINEX navigation file, plain or compressed (.gz, .Z, .bz2; see `rinex_files`), with
+    `parse_rinex_nav`; UserInputError when unreadable."""
     return parse_rinex_nav(read_rinex_text(path, "navigation"), str(path))
 
 

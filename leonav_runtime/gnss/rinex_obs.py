@@ -35,7 +35,7 @@ from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gnss import rinex_obs_v2
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import Rejection
-from leonav_runtime.gnss.rinex_nav import read_rinex_text
+from leonav_runtime.gnss.rinex_files import read_rinex_text
 from leonav_runtime.gnss.observations import (
     FLAG_ANTISPOOFING,
     FLAG_CP_VALID,
@@ -349,5 +349,6 @@ def parse_rinex_obs(text: str, source: str = "<string>") -> ObservationTable:
 
 
 def read_rinex_obs(path: str | Path) -> ObservationTable:
-    """Read a RINEX observation file (see `parse_rinex_obs`)."""
+    """Read a RINEX observation file, plain or compressed (.gz, .Z, .bz2, Hatanaka .crx/.YYd and
+    those compressed again; see `rinex_files`), with `parse_rinex_obs`."""
     return parse_rinex_obs(read_rinex_text(path, "observation"), str(path))
