@@ -4,8 +4,7 @@
 Doppler-rate measurements, predicts every visible satellite with the symbolic model, groups
 the ridges into per-satellite tone combs and associates them with one LO offset and drift
 for the whole capture (`associate.associate_capture`). `write_outputs` writes associations.csv,
-doppler_rate_measurements.csv (the
-filter's input), waterfall.png and summary.json.
+doppler_rate_measurements.csv (the filter's input), summary.json and, last, waterfall.png.
 """
 from __future__ import annotations
 
@@ -253,8 +252,10 @@ def _iso(start: _dt.datetime | None, t: float) -> str:
     return (start + _dt.timedelta(seconds=float(t))).isoformat().replace("+00:00", "Z")
 
 
-def write_outputs(res: PipelineResult, out_dir: Path) -> dict[str, Path]:
-    """associations.csv, doppler_rate_measurements.csv (+ .columns.txt), waterfall.png, summary.json."""
+def write_outputs(res: PipelineResult, out_dir: Path, figures: bool = True) -> dict[str, Path]:
+    """associations.csv, doppler_rate_measurements.csv (+ .columns.txt), summary.json, then
+    waterfall.png (last, and only with `figures`: the numbers are on disk before matplotlib
+    is even imported)."""
     from leonav_runtime.common.output import write_csv, write_json
 
     out_dir = Path(out_dir)
@@ -302,10 +303,11 @@ def write_outputs(res: PipelineResult, out_dir: Path) -> dict[str, Path]:
     cols = out_dir / "doppler_rate_measurements.columns.txt"
     cols.write_text("".join(f"{n} [{u}]: {d}\n" for n, u, d in MEASUREMENT_COLUMNS))
     paths["columns"] = cols
-    paths["waterfall"] = plot_waterfall(res, out_dir / "waterfall.png")
     from leonav_runtime.common.provenance import provenance
 
     paths["summary"] = write_json(out_dir / "summary.json", {"provenance": provenance(), **summary(res)})
+    if figures:
+        paths["waterfall"] = plot_waterfall(res, out_dir / "waterfall.png")
     return paths
 
 

@@ -95,16 +95,22 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
     buf = np.zeros(0, np.complex64)
     buf_start = 0  # sample index of buf[0]
     need = n + (slices_per_block - 1) * hop
+    # windowed frames go into one reused buffer: a fresh array per block costs page faults
+    frames = np.empty((slices_per_block, n), np.complex64)
+    any_notch = bool(notch.any())
 
     def emit(b: np.ndarray, start: int) -> SpectrumBlock:
         ns = 1 + (b.size - n) // hop
-        frames = np.lib.stride_tricks.sliding_window_view(b, n)[::hop][:ns] * window
-        spec = scipy.fft.fft(frames, axis=1, workers=workers)[:, idx]
-        p = (spec.real ** 2 + spec.imag ** 2).astype(np.float32)
-        p[:, notch] = 0.0
+        fr = frames[:ns]
+        np.multiply(np.lib.stride_tricks.sliding_window_view(b, n)[::hop][:ns], window, out=fr)
+        spec = scipy.fft.fft(fr, axis=1, workers=workers)[:, idx]
+        p = np.square(spec.real)  # float32, as |X|^2 of the complex64 spectrum
+        p += np.square(spec.imag)
+        if any_notch:
+            p[:, notch] = 0.0
         sub = p[:, ::floor_step]
-        med = np.median(sub, axis=1)
-        mad = np.median(np.abs(sub - med[:, None]), axis=1)
+        med = row_median(sub)
+        mad = row_median(np.abs(sub - med[:, None]))
         t = (start + np.arange(ns) * hop + n / 2) / sample_rate_hz
         return SpectrumBlock(t, p, med, mad)
 
@@ -117,6 +123,18 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
             buf_start += consumed
     if buf.size >= n:
         yield emit(buf, buf_start)
+
+
+def row_median(x: np.ndarray) -> np.ndarray:
+    """Median of each row of a 2-D float array, equal to `np.median(x, axis=1)` (same dtype and
+    values) at about a third of its cost: one partition at the middle element instead of two."""
+    m = x.shape[1]
+    h = m // 2
+    q = np.partition(x, h if m % 2 else h - 1, axis=1)
+    if m % 2:
+        return q[:, h]
+    # the upper middle value is the smallest of the upper half; the mean of the two as np.median takes it
+    return (q[:, h - 1] + q[:, h:].min(axis=1)) / x.dtype.type(2)
 
 
 def n_slices(n_samples: int, cfg: StftConfig) -> int:
