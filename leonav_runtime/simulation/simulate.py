@@ -190,9 +190,10 @@ def _error_truth(setup: Setup, nav, rng, n: int, dt: float, g: float) -> dict[st
     return draw_truth(rng, blocks, n, dt, Phi, Qd, setup.scn, setup.imu_profile, nav.layout, g)
 
 
-def _local_tables(setup: Setup, nav, rng, mode, x_true: np.ndarray, g: float) -> list[LocalSensorTable]:
-    """The mode's local sensors: generated h at the trial's truth plus noise (each observable's own stream)."""
-    L, tables = nav.layout, []
+def local_values(setup: Setup, nav, rng, mode, x_true: np.ndarray, g: float):
+    """The mode's local sensors: [(token, z (epochs, observables), sigma (observables,))], each
+    the generated h at the trial's truth plus noise (each observable's own stream)."""
+    L, out = nav.layout, []
     for token in mode.local_sensors:
         k = setup.local_k[token]
         obs = [o for o in mode.observables if o.token == token]
@@ -204,34 +205,42 @@ def _local_tables(setup: Setup, nav, rng, mode, x_true: np.ndarray, g: float) ->
             z[:, i] = nav.h_many(o.suffix, x_true[k], aux, params=setup.params, jacobian=False)[0]
             sigma[i] = noise_sigma(setup.scn, o.suffix)
             z[:, i] += g * sigma[i] * own_stream(rng, o.name).standard_normal(k.size)
-        tables.append(LocalSensorTable(token, setup.t_imu[k], z, sigma))
-    return tables
+        out.append((token, z, sigma))
+    return out
 
 
-def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
-                  nav: navfuncs.NavFunctions | None = None, noise_free: bool = False) -> Trial:
-    """Draw one trial of `mode` with `count` Starlink satellites.
+@dataclass
+class Draws:
+    """One trial's random part before it becomes tables: the sensor-error truth per block
+    (n+1, size), the measured IMU increments u (n, 6), per used satellite observable
+    [kind_name, rows, z, sigma], and the filter's initial state x0 (NX,)."""
 
-    The random draws are made in a fixed order for every mode and count, so trials with
-    the same seed share IMU, clock and noise realisations (common random numbers).
-    noise_free: no sensor noise, no biases, filter starts at the truth (used for the PCRB
-    and for checks).
-    """
-    nav = nav or navfuncs.NavFunctions(params=setup.params)
-    scn, L, prof = setup.scn, nav.layout, setup.imu_profile
-    parsed = mode_of(mode)
-    n = setup.u_true.shape[0]
-    dt = 1.0 / scn.imu_rate_hz
-    x_true = setup.x_true.copy()
-    g = 0.0 if noise_free else 1.0
+    errors: dict[str, np.ndarray]
+    u: np.ndarray
+    parts: list
+    x0: np.ndarray
 
-    errors = _error_truth(setup, nav, rng, n, dt, g)
+
+def with_errors(x_base: np.ndarray, errors: dict[str, np.ndarray]) -> np.ndarray:
+    """The truth (n+1, NX): x_base with each sensor-error block replaced by its drawn truth."""
+    x_true = x_base.copy()
     for name, values in errors.items():
         b = model.state_block(name)
         x_true[:, b.offset:b.offset + b.size] = values
+    return x_true
+
+
+def trial_draws(setup: Setup, parsed, count: int, rng: np.random.Generator, nav: navfuncs.NavFunctions,
+                g: float = 1.0) -> Draws:
+    """Every draw of one trial except the realism switches' (module doc: draw order), and the
+    values they make: the part shared by `trial_records` and the block builder (trial_block.py).
+    g = 0: no noise, no biases, x0 at the truth (the draws are still made)."""
+    scn, L, prof = setup.scn, nav.layout, setup.imu_profile
+    n = setup.u_true.shape[0]
+    dt = 1.0 / scn.imu_rate_hz
+    errors = _error_truth(setup, nav, rng, n, dt, g)
     zero = np.zeros((n + 1, 3))
     u = measured_increments(rng, prof, setup.u_true, errors.get("b_a", zero), errors.get("b_g", zero), dt, g)
-    imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
     measuring = [b for b in model.STATES if b.role == "measurement"]
     parts = []   # [kind_name, rows, z, sigma]
     for o in satellites.satellite_observables():
@@ -248,14 +257,15 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
         for b in measuring:
             if b.error_name in o.reads:
                 for j in range(b.size):
-                    z += s.H[rows, b.error_offset + j] * x_true[k, b.offset + j]
+                    value = errors[b.name][:, j] if b.name in errors else setup.x_true[:, b.offset + j]
+                    z += s.H[rows, b.error_offset + j] * value[k]
         z += g * sigma * noise[rows]
         parts.append([o.suffix, rows, z, sigma])
 
     # the initial error is drawn over the states with a prior: the paper's blocks from the trial's
     # stream (as before any block was added), a block of its own stream from that stream
     dx0 = np.zeros(L.NDX)
-    if not noise_free:
+    if g:
         var = np.diag(setup.P0)
         own = {b.name for b in model.STATES if b.truth["stream"] == "own"}
         shared = np.array([i for b in model.STATES if b.name not in own
@@ -265,20 +275,45 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
             e = slice(b.error_offset, b.error_offset + b.error_size)
             if b.name in own and np.any(var[e] > 0):
                 dx0[e] = np.sqrt(var[e]) * own_stream(rng, b.name + ":prior").standard_normal(b.error_size)
-    x0 = nav.boxplus(x_true[0], dx0)
-    params = setup.params
+    x_start = setup.x_true[0].copy()
+    for name, values in errors.items():
+        b = model.state_block(name)
+        x_start[b.offset:b.offset + b.size] = values[0]
+    return Draws(errors, u, parts, nav.boxplus(x_start, dx0))
+
+
+def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
+                  nav: navfuncs.NavFunctions | None = None, noise_free: bool = False) -> Trial:
+    """Draw one trial of `mode` with `count` Starlink satellites (the one road; a block of trials
+    at once: trial_block.py, the same records).
+
+    The random draws are made in a fixed order for every mode and count, so trials with
+    the same seed share IMU, clock and noise realisations (common random numbers).
+    noise_free: no sensor noise, no biases, filter starts at the truth (used for the PCRB
+    and for checks).
+    """
+    nav = nav or navfuncs.NavFunctions(params=setup.params)
+    scn = setup.scn
+    parsed = mode_of(mode)
+    n = setup.u_true.shape[0]
+    dt = 1.0 / scn.imu_rate_hz
+    g = 0.0 if noise_free else 1.0
+    d = trial_draws(setup, parsed, count, rng, nav, g)
+    x_true = with_errors(setup.x_true, d.errors)
+    u, parts, params = d.u, d.parts, setup.params
     if not noise_free and realism.active(scn):   # truth != filter; draws after all of the above
         u, params = realism.apply(setup, nav, rng, u, parts)
-        imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
-    tables = [_table(kind_name, setup.series[kind_name], rows, z, sigma) for kind_name, rows, z, sigma in parts]
+    imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
+    tables = [satellite_table(kind_name, setup.series[kind_name], rows, z, sigma) for kind_name, rows, z, sigma in parts]
+    local = [LocalSensorTable(token, setup.t_imu[setup.local_k[token]], z, sigma)
+             for token, z, sigma in local_values(setup, nav, rng, parsed, x_true, g)]
     # the road every source takes: tables -> records (aux f_b averaged from these IMU increments)
-    inputs = assemble(imu, params, Prior(x0, setup.P0), satellites=tables, nav=nav,
-                      local=_local_tables(setup, nav, rng, parsed, x_true, g),
+    inputs = assemble(imu, params, Prior(d.x0, setup.P0), satellites=tables, nav=nav, local=local,
                       orbit_consider=None if noise_free else realism.orbit_consider(scn))
-    return Trial(inputs.merged(parsed.streams), x0, x_true, params)
+    return Trial(inputs.merged(parsed.streams), d.x0, x_true, params)
 
 
-def _table(kind_name: str, s: SatSeries, rows: np.ndarray, z: np.ndarray, sigma: float):
+def satellite_table(kind_name: str, s: SatSeries, rows: np.ndarray, z: np.ndarray, sigma: float):
     """The measurements of `rows` of a series as the road's satellite table of that kind."""
     return SATELLITE_TABLES[kind_name](s.t_s[rows], s.sat_id[rows], z, sigma, s.sat_ecef[rows],
                                        s.ref_ecef[rows] if s.has_ref else None)
