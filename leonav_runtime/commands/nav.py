@@ -68,7 +68,9 @@ def register(subparsers) -> None:
                    help="how late a measurement may arrive and still be put in its place (default 3.5 s: a Doppler-rate epoch comes up to ~2.7 s after its time)")
     f.add_argument("--tle", action="append", default=[], metavar="FILE", help="Starlink element sets (beacons)")
     o = p.add_argument_group("outputs")
-    o.add_argument("--nmea-port", type=int, default=10110, help="NMEA TCP server port (default 10110; 0: off)")
+    o.add_argument("--nmea-port", default="10110", metavar="PORT|auto",
+                   help="NMEA TCP server port (default 10110; auto: a free port, printed at the start and in "
+                        "nav.json nmea_tcp; 0: no server)")
     o.add_argument("--nmea-max-clients", type=int, default=32, metavar="N",
                    help="most NMEA TCP clients at once (default 32); more are closed at once and counted")
     o.add_argument("--nmea-host", default="127.0.0.1", help="address the NMEA server listens on (default 127.0.0.1)")
@@ -98,6 +100,19 @@ def _sdr_settings(args: argparse.Namespace):
                        sample_rate_hz=args.sdr_rate or base.sample_rate_hz, gain_db=gain, ppm=args.sdr_ppm)
 
 
+def _nmea_port(text: str) -> int | str:
+    """--nmea-port: 0..65535 or 'auto'."""
+    if str(text).strip().lower() == "auto":
+        return "auto"
+    try:
+        port = int(text)
+    except ValueError:
+        port = -1
+    if not 0 <= port <= 65535:
+        raise UserInputError(f"--nmea-port {text}: expected a port 1..65535, auto (a free port) or 0 (off)")
+    return port
+
+
 def options_from_args(args: argparse.Namespace):
     from leonav_runtime.nav.navigator import NavConfig
     from leonav_runtime.nav.road import RoadConfig
@@ -115,8 +130,7 @@ def options_from_args(args: argparse.Namespace):
             raise UserInputError(f"--{name.replace('_', '-')}: {v!r}: expected a positive number")
     if args.seconds is not None and not (math.isfinite(args.seconds) and args.seconds > 0):
         raise UserInputError(f"--seconds: {args.seconds!r}: expected a positive duration")
-    if not 0 <= args.nmea_port <= 65535:
-        raise UserInputError(f"--nmea-port: {args.nmea_port}: expected 0..65535")
+    port = _nmea_port(args.nmea_port)
     if not 1 <= args.nmea_max_clients <= 1000:
         raise UserInputError(f"--nmea-max-clients: {args.nmea_max_clients}: expected 1..1000")
     has_sdr = args.sdr is not None or (args.session is not None and (Path(args.session) / "sdr.cu8").exists())
@@ -130,7 +144,7 @@ def options_from_args(args: argparse.Namespace):
         realtime=args.realtime, gnss=args.gnss, imu=args.imu, sdr_index=args.sdr,
         gnss_baud=args.gnss_baud, imu_baud=args.imu_baud, configure=args.configure,
         sdr_settings=_sdr_settings(args) if args.sdr is not None else None, seconds=args.seconds,
-        record=not args.no_record, tcp=(args.nmea_host, args.nmea_port) if args.nmea_port else None,
+        record=not args.no_record, tcp=None if port == 0 else (args.nmea_host, 0 if port == "auto" else port),
         nmea_max_clients=args.nmea_max_clients,
         pty_link=args.nmea_pty, mavlink=args.mavlink, json_lines=not args.no_json,
         status=False if args.quiet else None, tle_files=tuple(args.tle))

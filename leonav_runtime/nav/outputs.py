@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import datetime as _dt
+import errno
 import io
 import math
 from pathlib import Path
@@ -25,7 +26,10 @@ import numpy as np
 from leonav.hardware.session_files import LostWrites, RecordFile
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.core import navfuncs, records
+from leonav_runtime.core.filter import STATUS_APPLIED
 from leonav_runtime.orbits import geometry
+from leonav_runtime.nav.sinks import nmea_out
+from leonav_runtime.nav.sinks.servers import PtyOutput, TcpBroadcastServer
 from leonav_runtime.nav.sinks.solution import NavSolution
 
 TRAJECTORY_COLUMNS = [
@@ -74,23 +78,34 @@ def _named(what: str, hint: str = ""):
         raise UserInputError(f"{what} ({exc.strerror or exc}){hint}") from None
 
 
+def _listen(host: str, port: int, max_clients: int | None) -> TcpBroadcastServer:
+    """The NMEA TCP server, bound but not yet accepting; a taken port is said so in one line."""
+    try:
+        return TcpBroadcastServer(host, port, start=False,
+                                  **({} if max_clients is None else {"max_clients": max_clients}))
+    except OSError as exc:
+        if exc.errno == errno.EADDRINUSE:
+            raise UserInputError(f"--nmea-port {port}: port {port} on {host} is taken (another program, or another "
+                                 "`leonav nav`, listens on it); give --nmea-port auto (a free port, printed at "
+                                 "the start) or --nmea-port 0 (no NMEA server)") from None
+        raise UserInputError(f"--nmea-port {port} on {host}: cannot listen ({exc.strerror or exc}); expected a "
+                             "free port and an address of this machine (--nmea-host)") from None
+
+
 class LiveOutputs:
-    """NMEA (TCP server and/or pty), MAVLink and JSON lines for each solution."""
+    """NMEA (TCP server and/or pty), MAVLink and JSON lines for each solution. The TCP server
+    accepts clients only after `start()`: `leonav nav` calls it once everything is imported and
+    open (under descriptor exhaustion a lazy import or a first file open would fail)."""
 
     def __init__(self, tcp: tuple[str, int] | None = None, pty_link: str | None = None, mavlink: str | None = None,
                  json_path: Path | None = None, max_clients: int | None = None,
                  lost: LostWrites | None = None) -> None:
-        from leonav_runtime.nav.sinks.servers import PtyOutput, TcpBroadcastServer
-
         self.sinks: dict[str, object] = {}
         self.errors: dict[str, str] = {}
         self.counts = {"solutions": 0}
         try:
             if tcp is not None:
-                with _named(f"--nmea-port {tcp[1]} on {tcp[0]}: cannot listen",
-                            "; another program may use the port (--nmea-port 0: off)"):
-                    self.sinks["tcp"] = TcpBroadcastServer(tcp[0], tcp[1], **(
-                        {} if max_clients is None else {"max_clients": max_clients}))
+                self.sinks["tcp"] = _listen(tcp[0], tcp[1], max_clients)
             if pty_link:
                 with _named(f"--nmea-pty {pty_link}: cannot open a pty"):   # PtyOutput names what is at the path
                     self.sinks["pty"] = PtyOutput(pty_link)
@@ -106,6 +121,11 @@ class LiveOutputs:
             self.close()
             raise
 
+    def start(self) -> None:
+        """Start serving (the TCP server accepts from now on)."""
+        if "tcp" in self.sinks:
+            self.sinks["tcp"].start()
+
     @property
     def tcp_address(self) -> tuple[str, int] | None:
         s = self.sinks.get("tcp")
@@ -117,8 +137,6 @@ class LiveOutputs:
         return s.device if s is not None else None
 
     def send(self, sol: NavSolution) -> None:
-        from leonav_runtime.nav.sinks import nmea_out
-
         self.counts["solutions"] += 1
         nmea = None
         for name, sink in list(self.sinks.items()):
@@ -186,8 +204,6 @@ class TrajectoryWriter:
         self._meas_t: list[tuple[float, int]] = []    # (t, kind) of applied measurements, last second
 
     def add(self, settled, epoch_unix: float, origin, fix_kinds: set[int], dr_kind: int) -> None:
-        from leonav_runtime.core.filter import STATUS_APPLIED
-
         L = self.nav.layout
         recs, t = settled.recs, settled.recs["t"]
         applied = settled.status == STATUS_APPLIED

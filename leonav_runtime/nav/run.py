@@ -25,8 +25,10 @@ one stderr line says so and what was lost.
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
 import datetime as _dt
+import functools
 import os
 import signal
 import sys
@@ -42,6 +44,7 @@ from leonav_runtime.nav.out_lock import lock_out_dir
 from leonav_runtime.nav.outputs import LiveOutputs
 from leonav_runtime.nav.status import StatusLine
 from leonav_runtime.common.output import write_json
+from leonav_runtime.common.provenance import provenance
 
 EXIT_OK, EXIT_NEVER_NAVIGATED, EXIT_USAGE, EXIT_DEVICE_LOST = 0, 1, 2, 3
 EXIT_SIGINT, EXIT_SIGTERM = 130, 143
@@ -185,6 +188,44 @@ def _beacons(opts: NavOptions, record_dir: Path | None):
     return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor), f_c, src
 
 
+def preload(opts: NavOptions, beacons) -> dict:
+    """Import and open now what the run would otherwise load on first use, once clients are served:
+    with the descriptors exhausted (a client storm) a lazy import or a first file open fails. Returns
+    nav.json's provenance (it reads package metadata), computed here for the same reason."""
+    import _strptime  # noqa: F401  (datetime.strptime imports it on its first call)
+    import multiprocessing.popen_spawn_posix  # noqa: F401  (the beacon process is spawned in the run)
+
+    _dt.datetime.strptime("2026-02-23", "%Y-%m-%d")     # and reads the locale's time names once
+    if opts.mavlink:
+        import encodings.idna  # noqa: F401  (the first send to a host name encodes it)
+    if beacons is None:
+        return provenance()
+    fast = opts.session is not None and not opts.realtime
+    if fast and not opts.tle_files:     # the built-in Starlink set, made once the road starts, propagates
+        from leonav_runtime.orbits import eop            # with the EOP table (a file)
+        from leonav_runtime.simulation import session_synth  # noqa: F401
+
+        eop.default_table()
+    if not fast:        # an SDR thread records the capture: it writes its SigMF metadata at the start and end
+        import mmap  # noqa: F401  (numpy.memmap imports it on first use: sigmf maps the data file)
+
+        import sigmf.schema
+
+        if not hasattr(sigmf.schema.get_schema, "cache_info"):   # sigmf reads its schema file on every
+            sigmf.schema.get_schema = _copied(functools.lru_cache(sigmf.schema.get_schema))  # file: once here
+        sigmf.schema.get_schema(sigmf.__specification__)     # the call SigMFFile makes
+    return provenance()
+
+
+def _copied(cached: Callable) -> Callable:
+    """`cached` returning a fresh deep copy each call (callers may change what they get)."""
+    @functools.wraps(cached)
+    def call(*args, **kwargs):
+        return copy.deepcopy(cached(*args, **kwargs))
+    call.cache_info = cached.cache_info
+    return call
+
+
 def session_bauds(opts: NavOptions) -> tuple[int | None, int | None]:
     if opts.session is None:
         return opts.gnss_baud, opts.imu_baud
@@ -219,7 +260,8 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
     lost = LostWrites(out)
     outputs = LiveOutputs(opts.tcp, opts.pty_link, opts.mavlink,      # each failure names its option
                           out / "solutions.jsonl" if opts.json_lines else None, opts.nmea_max_clients, lost)
-    navigator = source = None
+    navigator = source = prov = None
+    tcp_address = outputs.tcp_address       # the port taken (--nmea-port auto: the free one chosen)
     reason, session_info, beacons, f_c_source = "error", {}, None, ""
     started_utc = _dt.datetime.now(_dt.timezone.utc)
     try:
@@ -227,6 +269,10 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
         # the devices first: one that cannot be opened stops the run before any output file is written
         source = _source(opts, record_dir, beacons, lost)
         navigator = Navigator(cfg, out, outputs, status, nav, lost)
+        prov = preload(opts, beacons)
+        outputs.start()     # serving from here on: nothing more is imported or opened for the first time
+        if opts.tcp is not None and opts.tcp[1] == 0 and outputs.tcp_address:    # --nmea-port auto
+            print(f"leonav nav: NMEA server on tcp://{outputs.tcp_address[0]}:{outputs.tcp_address[1]}", flush=True)
         where = [f"NMEA tcp://{outputs.tcp_address[0]}:{outputs.tcp_address[1]}" if outputs.tcp_address else "",
                  f"NMEA pty {opts.pty_link} -> {outputs.pty_device}" if outputs.pty_device else "",
                  f"MAVLink {opts.mavlink}" if opts.mavlink else ""]
@@ -259,11 +305,11 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
               "beacons": beacons.summary() if beacons is not None else None} | summary
     result |= {"files_complete": not lost.total(), "lost_writes": dict(lost.counts),
                "lost_write_errors": dict(lost.first_error)}
-    from leonav_runtime.common.provenance import provenance
-
+    if tcp_address:
+        result["nmea_tcp"] = f"{tcp_address[0]}:{tcp_address[1]}"
     reserve.shrink(0)
     try:
-        write_json(out / "nav.json", {"provenance": provenance(), **result})
+        write_json(out / "nav.json", {"provenance": prov if prov is not None else provenance(), **result})
     except OSError as exc:      # even the summary did not fit: say so, and what was lost, in one line
         lost.add(out / "nav.json", exc)
         result |= {"files_complete": False, "lost_writes": dict(lost.counts),

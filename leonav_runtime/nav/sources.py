@@ -123,6 +123,7 @@ class FileRtlSdr:
     rate; raises IOError at the end of the recording."""
 
     END = "end of the recorded capture"
+    IDLE_S = 0.05          # after the end: one empty read per this long (the capture loop sees its stop)
 
     def __init__(self, path: Path, start_delay_s: float = 0.0) -> None:
         self._fh = open(path, "rb")
@@ -136,8 +137,9 @@ class FileRtlSdr:
             time.sleep(self.start_delay_s)     # the capture started this long after the serial logs
             self._t0 = time.monotonic()
         data = self._fh.read(n)
-        if not data:
-            raise IOError(self.END)
+        if not data:        # the recording ended, the device did not: idle until the session stops it
+            time.sleep(self.IDLE_S)
+            return b""
         self._n += len(data) // 2
         delay = self._t0 + self._n / self.sample_rate - time.monotonic()
         if delay > 0:
@@ -256,9 +258,10 @@ class LiveSource:
                 navigator.device_ended(d.kind, reason)
 
     def stop(self, status: str) -> dict:
+        # the readers first: a pty closed under a reader is a device error, the end of a playback is not
+        self.info = self.session.stop(status)
         for p in self.playback:
             p.close()
-        self.info = self.session.stop(status)
         if self.beacons is not None:
             self.beacons.stop()
         return self.info

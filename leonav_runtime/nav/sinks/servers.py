@@ -42,10 +42,12 @@ def refusal_sentence(max_clients: int) -> bytes:
 
 class TcpBroadcastServer:
     """Send bytes to every connected client (at most `max_clients`; more are closed at once and
-    counted); accept in a background thread that survives accept errors."""
+    counted); accept in a background thread that survives accept errors. The port is bound at
+    once (port 0: a free one, in `address`); with `start=False` accepting waits for `start()`
+    (connections wait in the listen backlog meanwhile), so a caller can prepare everything first."""
 
     def __init__(self, host: str = "127.0.0.1", port: int = 10110, max_backlog_bytes: int = 1 << 20,
-                 max_clients: int = MAX_CLIENTS) -> None:
+                 max_clients: int = MAX_CLIENTS, start: bool = True) -> None:
         self._listener = socket.create_server((host, port), reuse_port=False)
         self._listener.settimeout(0.2)
         self.address = self._listener.getsockname()[:2]
@@ -58,7 +60,13 @@ class TcpBroadcastServer:
                        "clients_refused_limit": 0, "accept_errors": 0, "bytes_unsent_at_close": 0}
         self._refusal = refusal_sentence(self.max_clients)
         self._thread = threading.Thread(target=self._accept_loop, name="leonav-tcp-accept", daemon=True)
-        self._thread.start()
+        if start:
+            self.start()
+
+    def start(self) -> None:
+        """Start accepting (once)."""
+        if self._thread.ident is None and not self._stop.is_set():
+            self._thread.start()
 
     def _accept_loop(self) -> None:
         while not self._stop.is_set():
@@ -129,7 +137,8 @@ class TcpBroadcastServer:
                 conn.close()
             self._clients.clear()
         self._listener.close()
-        self._thread.join(timeout=1.0)
+        if self._thread.ident is not None:
+            self._thread.join(timeout=1.0)
 
     def _flush(self, deadline: float) -> None:
         pending = {conn: backlog for conn, backlog in self._clients.items() if backlog}
