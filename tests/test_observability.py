@@ -282,6 +282,11 @@ def test_command_writes_table_figures_and_json(tmp_path, capsys):
     assert rc == 0
     text = capsys.readouterr().out
     assert "fix+imu" in text and "dtheta_z (yaw)" in text
+    table = [line for line in text.splitlines() if line.startswith(("mode ", ro.GNSS_FIX_MODE + " "))]
+    assert table[0].split()[:6] == ["mode", "motion", "rank", "weak", "steps", "gap"] and len(table) == 3
+    end = table[0].index(" rank") + len(" rank")   # the ranks right-aligned under their header
+    assert [line[:end].split()[-1] for line in table[1:]] == ["12/22", "16/22"]
+    assert "gap: sigma_r / sigma_(r+1)" in " ".join(text.split())   # the columns explained under the table
     with open(tmp_path / "structural.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert [(r["mode"], r["motion"]) for r in rows] == [(ro.GNSS_FIX_MODE, "static"),

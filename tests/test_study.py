@@ -105,7 +105,15 @@ def test_study_cli_writes_table_json_figure(tmp_path, capsys):
     assert (out / "study.png").stat().st_size > 10_000
     again = load_study(out / "study.toml")      # the written study repeats the run, --set included
     assert again.trials == 1 and again.sets["starlink.elevation_mask_deg"] == 25
-    assert "initial_position_sigma_m=3.0" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    table = [line for line in text.splitlines() if "leo-alpha+imu" in line or "filter.initial_position_sigma_m" in line]
+    assert len(table) == 3 and "mode" in table[0]                  # header (the axis key) and one row per cell
+    assert [line.split()[0] for line in table[1:]] == ["3.0", "30.0"]
+    # columns straight whatever the value widths: every number column ends where its header ends
+    header = table[0]
+    for j, name in enumerate(["RMSE", "sqrt(PCRB)"]):
+        end = header.index(f" {name} ") + len(name) + 1
+        assert all(line[:end].endswith(line.split()[3 + j]) for line in table[1:]), (name, table)
     assert main(["study", str(path), "--out", str(out), "--set", "filter.bogus=1"]) == 2
     assert "unknown scenario key 'filter.bogus'" in capsys.readouterr().err
 

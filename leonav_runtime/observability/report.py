@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import textwrap
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -109,23 +110,30 @@ def structural_rows(summaries: Sequence[dict]) -> list[list]:
 
 
 def format_structural_table(summaries: Sequence[dict]) -> str:
-    """The mode x motion table as printed by `leonav observability`.
+    """The mode x motion table as printed by `leonav observability`, with its legend.
 
-    rank: observable directions of the error state (structural, numerical rank of O); +w: of
-    which w weak; steps: measurement epochs until the rank saturates; gap: sigma_r/sigma_r+1.
     Unobservable directions are named by their major terms (full combinations in the CSV/JSON).
     """
-    lines = [f"{'mode':22s} {'motion':17s} {'rank':>9s} {'steps':>5s} {'gap':>7s}  unobservable directions "
-             "(null space)  [weak directions]"]
+    from leonav_runtime.common.text_table import text_table
+
+    rows = []
     for s in summaries:
-        rank = f"{s['rank']}/{s['n_states']}" + (f"+{s['weak']}w" if s["weak"] else "")
         gap = "inf" if not math.isfinite(s["gap"]) else f"{s['gap']:.0e}"
         flags = ("" if s["gap_clear"] else " (gap not clear)") + ("" if s["draws_agree"] else " (draws disagree)")
         null = "; ".join(d["label"] for d in s["unobservable_directions"]) or "none"
         weak = "; ".join(f"{d['label']}: sigma {d['sigma']:.0e} {d['sigma_unit']}" for d in s["weak_directions"])
-        lines.append(f"{s['mode']:22s} {s['motion']:17s} {rank:>9s} {s['steps_to_saturate']:5d} {gap:>7s}  "
-                     f"{null}{' [' + weak + ']' if weak else ''}{flags}")
-    return "\n".join(lines)
+        rows.append([s["mode"], s["motion"], f"{s['rank']}/{s['n_states']}", s["weak"] or "-",
+                     s["steps_to_saturate"], gap, f"{null}{' [' + weak + ']' if weak else ''}{flags}"])
+    lines = text_table(["mode", "motion", "rank", "weak", "steps", "gap",
+                        "unobservable directions (null space)  [weak directions]"], rows, "llrrrrl")
+    return "\n".join(lines + [textwrap.fill(STRUCTURAL_LEGEND, 110)])
+
+
+STRUCTURAL_LEGEND = (
+    "rank: observable directions of the error state / its size (numerical rank of the observability matrix); "
+    "weak: of those, directions observable only weakly (singular value below the weak threshold above, relative to the largest); "
+    "steps: measurement epochs until the rank stops growing; gap: sigma_r / sigma_(r+1), the margin between "
+    "the last observable and the first unobservable direction (inf: nothing unobservable left)")
 
 
 def format_time_to_target(runs: Sequence[dict]) -> str:

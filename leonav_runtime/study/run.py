@@ -176,17 +176,22 @@ def write_results(study: Study, out_dir: Path, res: StudyResult, figures: bool =
 
 def summary_table(study: Study, res: StudyResult) -> str:
     """Position RMSE / sqrt(PCRB), time-averaged and final, per cell and mode (plain text)."""
+    from leonav_runtime.common.text_table import text_table
+
     keys = [a.key for a in study.axes]
-    lines = [f"study {study.name}: {len(study.cells)} cells x {len(study.modes)} modes, {study.trials} trials each",
-             "position, m: RMSE / sqrt(PCRB) time-averaged | at the final epoch; NEES (95 % band)"]
+    rows = []
     for cell in study.cells:
         for mode in study.modes:
             r = res.rows[(cell.index, mode)]
-            vals = " ".join(f"{k.split('.')[-1]}={cell.values[k]}" for k in keys)
-            lines.append(f"  {vals:44s} {mode:22s} N={cell.count:<3d} {r['position_rmse_m']:7.2f} / "
-                         f"{r['position_sqrt_pcrb_m']:<7.2f}| {r['position_final_rmse_m']:7.2f} / "
-                         f"{r['position_final_sqrt_pcrb_m']:<7.2f}"
-                         f" NEES {r['nees_mean']:.2f} [{r['nees_lo']:.2f}, {r['nees_hi']:.2f}]")
+            rows.append([*(cell.values[k] for k in keys), mode, cell.count,
+                         f"{r['position_rmse_m']:.2f}", f"{r['position_sqrt_pcrb_m']:.2f}",
+                         f"{r['position_final_rmse_m']:.2f}", f"{r['position_final_sqrt_pcrb_m']:.2f}",
+                         f"{r['nees_mean']:.2f}", f"[{r['nees_lo']:.2f}, {r['nees_hi']:.2f}]"])
+    header = [*keys, "mode", "N", "RMSE", "sqrt(PCRB)", "final RMSE", "final sqrt(PCRB)", "NEES", "95 % band"]
+    lines = [f"study {study.name}: {len(study.cells)} cells x {len(study.modes)} modes, {study.trials} trials each",
+             "position, m: RMSE and sqrt(PCRB) time-averaged and at the final epoch; N: Starlink satellites; "
+             "NEES: of the 9D error, mean over trials and time, with its 95 % band"]
+    lines += ["  " + line for line in text_table(header, rows, "r" * len(keys) + "lrrrrrrl")]
     t = res.timing
     lines.append(f"{t['trials_run']} trials in {t['wall_s']:.1f} s wall ({t['trial_cpu_ms']:.1f} ms CPU per trial "
                  f"incl. setup, {t['executor']})")

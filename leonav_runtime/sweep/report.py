@@ -153,7 +153,8 @@ def summary_table(res) -> str:
             cells.append(f"{p['rmse']:6.2f}/{p['pcrb']:<6.2f} ")
         lines.append(f"{mode:24s}" + "".join(f"{x:>14s}" for x in cells))
     hi = counts[-1]
-    lines.append(f"\nat {hi} satellites: velocity m/s, attitude deg, NEES (95 % band)")
+    lines.append(f"\nat {hi} satellites: velocity m/s, attitude deg, NEES (95 % band); each pair is RMSE/sqrt(PCRB), "
+                 "(xR) and pos xR their ratio RMSE / sqrt(PCRB) (1: the filter reaches its bound)")
     for mode in scn.modes:
         s = res.summaries[(mode, hi)]
         v, a, n = s["velocity"], s["attitude"], s["nees"]
