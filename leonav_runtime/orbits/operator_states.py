@@ -1,0 +1,182 @@
+"""Satellite ECEF states and covariance from operator ephemerides, at any time of their span.
+
+Interpolation: per 60 s interval, a quintic Hermite polynomial through the two bounding
+records' position, velocity and acceleration (EME2000). The file gives position and
+velocity; the acceleration is the zonal gravity model SGP4 is built on (point mass + J2,
+J3, J4, `propagate.gravity_ecef_mps2`) evaluated about the true pole. Why this choice:
+  - accuracy: the truncation term is (h/2)^6 / 6! |r^(6)| ~ 1e-5 m at h = 60 s in LEO; what is
+    left is the acceleration the model leaves out (drag, tesserals, ~1e-4 m/s^2) times h^2/64,
+    a few mm (tests/test_operator_states.py measures 0.1 mm against an integrated orbit). A
+    cubic Hermite without the acceleration would leave (h/2)^4 / 4! n^4 r ~ 0.3 m;
+  - locality: only the two records around t are used, so a discontinuity in the file (the
+    operator's "blend" products join two arcs) spoils one interval, not the 8 a Lagrange
+    interpolant over 8 points would.
+Covariance: the UVW (radial, in-track, cross-track) covariance is interpolated linearly
+between the two records (a convex combination of two covariances is one), then rotated to
+EME2000 with the axes of the interpolated state (U = r/|r|, W = r x v/|r x v|, V = W x U;
+the same rotation for the position and velocity blocks) and to ECEF with the 6 x 6 map of
+`eme2000.ecef_jacobian` (rotation and the Earth-rate term of the velocity).
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.orbits.eme2000 import ecef_jacobian, eme2000_to_ecef, eme2000_to_teme_matrix
+from leonav_runtime.orbits.elements import as_utc
+from leonav_runtime.orbits.eop import EopTable
+from leonav_runtime.orbits.operator_ephemeris import OperatorEphemeris, OperatorEphemerisSet
+from leonav_runtime.orbits.propagate import acceleration_ecef_mps2, earth_orientation, gravity_ecef_mps2
+
+
+class OperatorCoverageWarning(UserWarning):
+    """Some requested satellites have no operator ephemeris, or not over the requested times."""
+
+
+@dataclass
+class OperatorStates:
+    """ECEF states of `names` at `epoch_utc + t_s` from operator ephemerides.
+
+    r_ecef_m, v_ecef_mps, a_ecef_mps2: (nsat, nt, 3) m, m/s, m/s^2 (ECEF/ITRF); cov_ecef:
+    (nsat, nt, 6, 6) covariance of [r, v] in ECEF (m^2, m^2/s, m^2/s^2). ok: (nsat,) False for
+    a satellite without a file or outside its file's span at some time (NaN rows there);
+    failures: [(name, reason)]."""
+
+    r_ecef_m: np.ndarray
+    v_ecef_mps: np.ndarray
+    a_ecef_mps2: np.ndarray
+    cov_ecef: np.ndarray
+    t_s: np.ndarray
+    epoch_utc: _dt.datetime
+    names: list[str]
+    ok: np.ndarray
+    failures: list[tuple[str, str]]
+
+
+def _accel_eme2000(r_eme2000_m: np.ndarray, m_teme: np.ndarray) -> np.ndarray:
+    """Zonal gravity (n, 3) at EME2000 positions (n, 3), evaluated in the true-pole frame
+    (M: (n, 3, 3) EME2000 -> TEME) and rotated back."""
+    r_true = np.einsum("nij,nj->ni", m_teme, r_eme2000_m)
+    return np.einsum("nji,nj->ni", m_teme, gravity_ecef_mps2(r_true))
+
+
+def _hermite5(s: np.ndarray, h: float, p0, v0, a0, p1, v1, a1) -> tuple[np.ndarray, np.ndarray]:
+    """Quintic Hermite position and velocity at s in [0, 1] of an interval of h seconds."""
+    s = s[:, None]
+    s2, s3 = s * s, s * s * s
+    s4, s5 = s3 * s, s3 * s2
+    p = ((1 - 10 * s3 + 15 * s4 - 6 * s5) * p0 + (s - 6 * s3 + 8 * s4 - 3 * s5) * h * v0
+         + 0.5 * (s2 - 3 * s3 + 3 * s4 - s5) * h * h * a0 + (10 * s3 - 15 * s4 + 6 * s5) * p1
+         + (-4 * s3 + 7 * s4 - 3 * s5) * h * v1 + 0.5 * (s3 - 2 * s4 + s5) * h * h * a1)
+    dp = ((-30 * s2 + 60 * s3 - 30 * s4) * p0 + (1 - 18 * s2 + 32 * s3 - 15 * s4) * h * v0
+          + 0.5 * (2 * s - 9 * s2 + 12 * s3 - 5 * s4) * h * h * a0 + (30 * s2 - 60 * s3 + 30 * s4) * p1
+          + (-12 * s2 + 28 * s3 - 15 * s4) * h * v1 + 0.5 * (3 * s2 - 8 * s3 + 5 * s4) * h * h * a1)
+    return p, dp / h
+
+
+def uvw_axes(r_m: np.ndarray, v_mps: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) Q whose columns are U (radial), V (in-track), W (cross-track) of states (n, 3)
+    in their own frame: x_frame = Q x_uvw."""
+    u = r_m / np.linalg.norm(r_m, axis=1, keepdims=True)
+    w = np.cross(r_m, v_mps)
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    return np.stack([u, np.cross(w, u), w], axis=2)
+
+
+def uvw_to_frame(cov_uvw: np.ndarray, r_m: np.ndarray, v_mps: np.ndarray) -> np.ndarray:
+    """(n, 6, 6) covariance of [r, v] rotated from the UVW axes of states (n, 3) to their frame."""
+    q = uvw_axes(r_m, v_mps)
+    b = np.zeros((q.shape[0], 6, 6))
+    b[:, 0:3, 0:3] = q
+    b[:, 3:6, 3:6] = q
+    return b @ cov_uvw @ np.swapaxes(b, 1, 2)
+
+
+def interpolate_eme2000(eph: OperatorEphemeris, t_rel_s: np.ndarray, eop: EopTable | None = None
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(r (nt, 3) m, v (nt, 3) m/s, cov_uvw (nt, 6, 6), inside (nt,) bool) at t_rel_s seconds
+    after eph.start_utc (EME2000). Times outside the records' span are NaN, inside False."""
+    t_rel_s = np.atleast_1d(np.asarray(t_rel_s, dtype=float))
+    t_node = eph.t_ms * 1e-3
+    nt = t_rel_s.size
+    r = np.full((nt, 3), np.nan)
+    v = np.full((nt, 3), np.nan)
+    cov = np.full((nt, 6, 6), np.nan)
+    inside = (t_rel_s >= t_node[0]) & (t_rel_s <= t_node[-1]) & (len(eph) >= 2)
+    if not inside.any():
+        return r, v, cov, inside
+    tq = t_rel_s[inside]
+    k = np.clip(np.searchsorted(t_node, tq, side="right") - 1, 0, len(eph) - 2)
+    nodes = np.unique(np.concatenate([k, k + 1]))
+    ut1_utc, _, _ = earth_orientation(eph.start_utc, t_node[nodes], eop=eop)
+    m_teme, _ = eme2000_to_teme_matrix(eph.start_utc, t_node[nodes], ut1_utc)
+    a_nodes = np.zeros((len(eph), 3))
+    a_nodes[nodes] = _accel_eme2000(eph.r_eme2000_m[nodes], m_teme)
+    h = np.diff(t_node)[k]
+    s = (tq - t_node[k]) / h
+    rr, vv = eph.r_eme2000_m, eph.v_eme2000_mps
+    hh = h[:, None]                    # the basis is written for h = 1: velocity and acceleration scaled
+    p, dp = _hermite5(s, 1.0, rr[k], vv[k] * hh, a_nodes[k] * hh * hh, rr[k + 1], vv[k + 1] * hh,
+                      a_nodes[k + 1] * hh * hh)
+    r[inside], v[inside] = p, dp / hh
+    w = s[:, None, None]
+    cov[inside] = (1.0 - w) * eph.cov_uvw[k] + w * eph.cov_uvw[k + 1]
+    return r, v, cov, inside
+
+
+def _span_text(eph: OperatorEphemeris) -> str:
+    stop = eph.start_utc + _dt.timedelta(milliseconds=int(eph.t_ms[-1]))
+    return f"{eph.start_utc:%Y-%m-%d %H:%M:%S} .. {stop:%Y-%m-%d %H:%M:%S} UTC"
+
+
+def operator_states_ecef(ephemerides: OperatorEphemerisSet, names: list[str], epoch_utc: _dt.datetime,
+                         t_s: np.ndarray, *, eop: EopTable | None = None) -> OperatorStates:
+    """ECEF states and covariance of satellites `names` at epoch_utc + t_s (UTC seconds).
+
+    A requested satellite without a file, or a time outside its file's span, leaves NaN rows,
+    `ok` False and one reason in `failures` (announced by one OperatorCoverageWarning); when
+    no requested satellite is covered at all, a `UserInputError` in one line says what the
+    ephemerides hold and what was asked."""
+    epoch_utc = as_utc(epoch_utc)
+    t_s = np.atleast_1d(np.asarray(t_s, dtype=float))
+    nsat, nt = len(names), t_s.size
+    r_eme = np.full((nsat, nt, 3), np.nan)
+    v_eme = np.full((nsat, nt, 3), np.nan)
+    cov_eme = np.full((nsat, nt, 6, 6), np.nan)
+    ok = np.zeros(nsat, bool)
+    failures: list[tuple[str, str]] = []
+    req_lo, req_hi = (epoch_utc + _dt.timedelta(seconds=float(t_s.min())),
+                      epoch_utc + _dt.timedelta(seconds=float(t_s.max()))) if nt else (epoch_utc, epoch_utc)
+    for i, name in enumerate(names):
+        eph = ephemerides.ephemerides.get(name)
+        if eph is None:
+            failures.append((name, "no operator ephemeris file for this satellite"))
+            continue
+        r, v, cov_uvw, inside = interpolate_eme2000(eph, t_s - (eph.start_utc - epoch_utc).total_seconds(), eop)
+        if not inside.all():
+            failures.append((name, f"its ephemeris ({eph.source}) covers {_span_text(eph)}, "
+                             f"{int((~inside).sum())} of {nt} requested times lie outside it"))
+        ok[i] = inside.all()
+        r_eme[i], v_eme[i] = r, v
+        good = inside
+        if good.any():
+            cov_eme[i, good] = uvw_to_frame(cov_uvw[good], r[good], v[good])
+    if nsat and not np.isfinite(r_eme[..., 0]).any():
+        held = ", ".join(list(ephemerides.ephemerides)[:3]) + (" ..." if len(ephemerides.ephemerides) > 3 else "")
+        spans = {_span_text(e) for e in ephemerides.ephemerides.values()}
+        raise UserInputError(
+            f"operator ephemerides cover none of the {nsat} requested satellites over "
+            f"{req_lo:%Y-%m-%d %H:%M:%S} .. {req_hi:%Y-%m-%d %H:%M:%S} UTC (first asked: {names[0]}); "
+            f"they hold {len(ephemerides.ephemerides)} satellites ({held}) over {' / '.join(sorted(spans)[:2])}")
+    if failures:
+        warnings.warn(f"operator ephemerides: {len(failures)} of {nsat} satellites not covered over the run "
+                      f"(NaN there); first: {failures[0][0]}: {failures[0][1]}", OperatorCoverageWarning, stacklevel=2)
+    r_ecef, v_ecef = eme2000_to_ecef(r_eme, v_eme, epoch_utc, t_s, eop=eop)
+    T = ecef_jacobian(epoch_utc, t_s, eop=eop)
+    cov_ecef = T[None] @ cov_eme @ np.swapaxes(T, 1, 2)[None]
+    a_ecef = acceleration_ecef_mps2(r_ecef, v_ecef)
+    return OperatorStates(r_ecef, v_ecef, a_ecef, cov_ecef, t_s, epoch_utc, list(names), ok, failures)
