@@ -136,6 +136,15 @@ def interpolate_peak(power_row: np.ndarray, k: int) -> float:
     return float(np.clip(0.5 * (a - c) / den, -0.5, 0.5))
 
 
+def _peak_offsets(power: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """`interpolate_peak(power[r], c)` for every interior peak (r, c), vectorized (bins)."""
+    a, b, c = (np.log(power[rows, cols + d].astype(np.float64) + 1e-30) for d in (-1, 0, 1))
+    den = a - 2 * b + c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        off = np.clip(0.5 * (a - c) / den, -0.5, 0.5)
+    return np.where(den < 0, off, 0.0)
+
+
 class RidgeTracker:
     """Streaming multi-ridge tracker; feed `SpectrumBlock`s, then call `finish()`."""
 
@@ -160,12 +169,19 @@ class RidgeTracker:
         starts = np.searchsorted(rows, np.arange(p.shape[0] + 1))
         if self.hop_s is None and blk.t_s.size > 1:
             self.hop_s = float(blk.t_s[1] - blk.t_s[0])
+        # sub-bin frequency and SNR of every candidate peak of the block at once (the same
+        # element-wise operations as interpolate_peak and a per-peak log10, without a call per peak)
+        f_peak = (self.f_hz[0] + (cols + _peak_offsets(p, rows, cols)) * self.df).tolist()
+        snr_peak = (10 * np.log10(p[rows, cols] / blk.noise_mean[rows])).tolist()
         for s in range(p.shape[0]):
-            c = cols[starts[s]: starts[s + 1]]
-            self._slice(float(blk.t_s[s]), p[s], c, float(thr_det[s]), float(blk.noise_mean[s]))
+            a, b = starts[s], starts[s + 1]
+            self._slice(float(blk.t_s[s]), p[s], cols[a:b], float(thr_det[s]), f_peak[a:b], snr_peak[a:b])
         self.stats.slices += p.shape[0]
 
-    def _slice(self, t: float, row: np.ndarray, peaks: np.ndarray, thr_det: float, noise_mean: float) -> None:
+    def _slice(self, t: float, row: np.ndarray, peaks: np.ndarray, thr_det: float, f_peak: list[float],
+               snr_peak: list[float]) -> None:
+        """One slice: `peaks` its candidate bins (ascending), `f_peak` their interpolated
+        frequencies (Hz), `snr_peak` their power over the mean noise (dB)."""
         cfg, df = self.cfg, self.df
         # strongest ridges pick first so a weak ridge cannot steal a strong tone
         order = sorted(self.active, key=lambda tr: -tr.snr_avg)
@@ -196,8 +212,7 @@ class RidgeTracker:
             else:          # rate unknown yet: the strongest peak in the wide gate
                 best = max(cand, key=lambda i: power[i])
             k = pk[best]
-            f = f0 + (k + interpolate_peak(row, k)) * df
-            tr.add(t, f, 10 * np.log10(row[k] / noise_mean), cfg.rate_fit_s)
+            tr.add(t, f_peak[best], snr_peak[best], cfg.rate_fit_s)
             for i in range(bisect_left(pk, k - excl), bisect_right(pk, k + excl)):
                 taken[i] = True
         taken = np.asarray(taken, bool)
@@ -212,8 +227,7 @@ class RidgeTracker:
                 self.stats.births_refused += 1
                 taken[np.searchsorted(peaks, k - excl, "left"): np.searchsorted(peaks, k + excl, "right")] = True
                 continue
-            f = f0 + (k + interpolate_peak(row, k)) * df
-            self.active.append(_Track(t, f, 10 * np.log10(row[k] / noise_mean)))
+            self.active.append(_Track(t, f_peak[i], snr_peak[i]))
             self.stats.births += 1
             room -= 1
             taken[np.searchsorted(peaks, k - excl, "left"): np.searchsorted(peaks, k + excl, "right")] = True
