@@ -273,3 +273,11 @@ def test_wrong_satellite_or_time_span_is_one_clear_line():
     assert not st.ok.any() and np.isfinite(st.r_ecef_m[0, :2]).all() and np.isnan(st.r_ecef_m[0, 2]).all()
     assert np.isnan(st.r_ecef_m[1]).all() and "2 of 3 requested times" not in st.failures[0][1]
     assert "1 of 3 requested times" in st.failures[0][1]
+
+
+def test_the_gridded_rotation_matches_the_direct_one():
+    from leonav_runtime.orbits import eme2000
+    t = np.random.default_rng(1).uniform(0.0, 3 * 86400.0, 5000)
+    m, gmst = eme2000.eme2000_to_teme_matrix(EPOCH, t, 0.05)
+    m_direct, gmst_direct = eme2000._teme_matrix_direct(EPOCH, t, np.full(t.shape, 0.05))
+    assert np.abs(m - m_direct).max() < 2e-12 and np.abs(gmst - gmst_direct).max() < 1e-13

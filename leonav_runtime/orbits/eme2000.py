@@ -36,12 +36,38 @@ def _r3(angle_rad: np.ndarray) -> np.ndarray:
     return m
 
 
+GRID_S = 600.0   # M is evaluated on this grid and interpolated linearly for long time series
+
+
 def eme2000_to_teme_matrix(epoch_utc: _dt.datetime, t_s: np.ndarray,
                            ut1_utc_s: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
     """(M (nt, 3, 3) with r_teme = M r_eme2000, GMST82 (nt,) rad) at epoch_utc + t_s (UTC
     seconds), UT1-UTC in s. The "TEME" here is the frame `teme_to_ecef` turns into PEF with
-    GMST82, so M folds the equation of the equinoxes (GAST - GMST82) into it."""
+    GMST82, so M folds the equation of the equinoxes (GAST - GMST82) into it.
+
+    M moves by parts in 1e11 per second (precession, nutation, the GAST - GMST82 drift): for
+    more times than grid points it is evaluated every GRID_S seconds and interpolated
+    linearly, which departs from the direct value by 8e-13 at most (measured over 3 days:
+    6 um at 7000 km) and costs a thirtieth; GMST82 is always evaluated directly."""
     t_s = np.atleast_1d(np.asarray(t_s, dtype=float))
+    ut1 = np.broadcast_to(np.asarray(ut1_utc_s, dtype=float), t_s.shape)
+    span = float(t_s.max() - t_s.min()) if t_s.size else 0.0
+    n_grid = int(np.ceil(span / GRID_S)) + 1
+    if t_s.size <= 2 * n_grid:
+        return _teme_matrix_direct(epoch_utc, t_s, ut1)
+    grid = t_s.min() + np.arange(n_grid + 1) * GRID_S
+    order = np.argsort(t_s)
+    # M depends on UT1 only through GAST - GMST82 (~1e-11 rad per s of UT1): interpolated UT1 is ample
+    m_grid, _ = _teme_matrix_direct(epoch_utc, grid, np.interp(grid, t_s[order], ut1[order]))
+    k = np.clip(((t_s - grid[0]) // GRID_S).astype(int), 0, n_grid - 1)
+    w = ((t_s - grid[k]) / GRID_S)[:, None, None]
+    jd_whole, jd_frac = julian_date_split(as_utc(epoch_utc))
+    gmst = gmst82_rad(np.full(t_s.shape, jd_whole), jd_frac + (t_s + ut1) / DAY_S)
+    return (1.0 - w) * m_grid[k] + w * m_grid[k + 1], gmst
+
+
+def _teme_matrix_direct(epoch_utc: _dt.datetime, t_s: np.ndarray, ut1_utc_s: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
     jd_whole, jd_frac = julian_date_split(as_utc(epoch_utc))
     utc1 = np.full(t_s.shape, jd_whole)
     utc2 = jd_frac + t_s / DAY_S
