@@ -105,3 +105,55 @@ def test_the_server_survives_running_out_of_descriptors():
         proc.kill()
     counts = json.loads(out.strip().splitlines()[-1])
     assert counts["accept_errors"] > 0 and counts["accept_thread_alive"], (counts, err)
+
+
+def test_clients_that_never_read_delay_neither_the_sender_nor_the_shutdown():
+    """32 clients that never read (tiny receive buffers) and 4 MB sent to each: every send returns
+    at once (none blocks on a full socket), each client is dropped once its backlog passes
+    max_backlog_bytes (counted), and close() ends within CLOSE_FLUSH_S plus a margin although what
+    is left cannot be delivered (counted in bytes_unsent_at_close). (Before, close() waited 0.5 s per
+    client.)"""
+    from leonav_runtime.nav.sinks.servers import CLOSE_FLUSH_S
+
+    srv = TcpBroadcastServer("127.0.0.1", 0, max_backlog_bytes=2 << 20, max_clients=32)
+    dead = []
+    try:
+        for _ in range(32):
+            s = socket.socket()
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+            s.connect(srv.address)
+            dead.append(s)
+        assert _wait(lambda: srv.n_clients == 32)
+        line = b"$GPGGA," + b"0" * 57 + b"\r\n"
+        worst = 0.0
+        for _ in range(4096 * 16):          # 4 MB per client, more than the backlog allows
+            t0 = time.monotonic()
+            srv.send(line * 16)
+            worst = max(worst, time.monotonic() - t0)
+            if srv.n_clients == 0:
+                break
+        assert srv.counts["clients_dropped_slow"] == 32 and srv.n_clients == 0, srv.counts
+        assert worst < 0.5, worst            # a blocking send would wait for the reader forever
+        # shutdown with backlogs that cannot be delivered: 8 new dead clients, 6 MB queued for each
+        # (more than the loopback's socket buffers take); the old close needed 8 x 0.5 s
+        srv.max_backlog_bytes = 64 << 20
+        for s in dead:
+            s.close()
+        dead = []
+        for _ in range(8):
+            s = socket.socket()
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+            s.connect(srv.address)
+            dead.append(s)
+        assert _wait(lambda: srv.n_clients == 8)
+        for _ in range(6 * 1024):
+            srv.send(line * 16)
+        t0 = time.monotonic()
+        srv.close()
+        took = time.monotonic() - t0
+        assert took < CLOSE_FLUSH_S + 1.5, took
+        assert srv.counts["bytes_unsent_at_close"] > 0, srv.counts
+    finally:
+        for s in dead:
+            s.close()
+        srv.close()
