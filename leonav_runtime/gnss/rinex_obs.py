@@ -36,16 +36,8 @@ from leonav_runtime.gnss import rinex_obs_v2
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import Rejection
 from leonav_runtime.gnss.rinex_files import read_rinex_text
-from leonav_runtime.gnss.observations import (
-    FLAG_ANTISPOOFING,
-    FLAG_CP_VALID,
-    FLAG_HALF_CYCLE,
-    FLAG_LOSS_OF_LOCK,
-    FLAG_POWER_FAILURE,
-    FLAG_PR_VALID,
-    ObservationTable,
-    RowBuilder,
-)
+from leonav_runtime.gnss.observations import ObservationTable
+from leonav_runtime.gnss.rinex_obs_fields import Records, build_rows
 
 log = logging.getLogger("leonav.gnss")
 
@@ -60,7 +52,7 @@ class _Reader:
         self.source = source
         self.rejected: list[Rejection] = []
         self.counts: Counter = Counter()
-        self.rows = RowBuilder()
+        self.recs = Records()   # satellite records; their fields are read at the end, all at once
         self.version = 0.0
         self.file_system = "G"
         self.time_system = "GPS"
@@ -164,54 +156,12 @@ class _Reader:
         return t_sys
 
     # -------------------------------------------------------------- observations
-    def add_sat(self, t: float, sat: str, values: list[tuple[str, float, int, int]], power_failure: bool) -> None:
-        """values: (observation code, value, lli, ssi) of one satellite at one epoch."""
+    def add_record(self, t: float, sat: str, lines: tuple[int, ...], types: list[str], emit: bool,
+                   power_failure: bool) -> None:
+        """A satellite record at GPS time t (s) whose fields are on `lines` (0-based indices);
+        emit False: its fields are read (for their rejections) but give no rows."""
         system = sat[0] if sat[0].strip() else self.file_system
-        try:
-            prn = int(sat[1:3])
-        except ValueError:
-            self.counts["bad_satellite_id"] += 1
-            return
-        by_signal: dict[str, list] = {}
-        for code, value, lli, ssi in values:
-            if self.version < 3:
-                st = rinex_obs_v2.v2_type(code, system)
-            else:
-                st = (code[1:3], code[0]) if len(code) == 3 and code[0] in "CLDS" else None
-            if st is None:
-                continue
-            signal, qty = st
-            slot = by_signal.setdefault(signal, [math.nan, math.nan, math.nan, math.nan, 0, 0, 0])
-            if value == 0.0 and qty in "CLS":
-                self.counts[f"zero_{qty}"] += 1
-                continue
-            slot["CLDS".index(qty)] = value
-            if qty == "L":
-                slot[4] = lli
-            if qty == "C":
-                slot[5] = ssi
-            elif qty == "L" and not slot[5]:
-                slot[5] = ssi
-        for signal, (pr, cp, dop, cn0, lli, ssi, _) in by_signal.items():
-            if math.isnan(pr) and math.isnan(cp) and math.isnan(dop):
-                if not math.isnan(cn0):
-                    self.counts["rows_without_measurement"] += 1
-                continue
-            flags = 0
-            if not math.isnan(pr):
-                flags |= FLAG_PR_VALID
-            if not math.isnan(cp):
-                flags |= FLAG_CP_VALID
-            if lli & 1:
-                flags |= FLAG_LOSS_OF_LOCK
-            if lli & 2:
-                flags |= FLAG_HALF_CYCLE
-            if lli & 4:
-                flags |= FLAG_ANTISPOOFING
-            if power_failure:
-                flags |= FLAG_POWER_FAILURE
-            self.rows.add(t, system, prn, signal, pr, cp, dop, cn0, math.nan, lli, ssi, flags,
-                          self.glo_slots.get(prn, 0) if system == "R" else 0)
+        self.recs.add(t, sat, system, lines, types, emit, power_failure, len(self.rejected))
 
     def field(self, line_index: int, text: str, what: str) -> tuple[float, int, int]:
         """(value, lli, ssi) of one 16-column observation field; NaN when blank or unreadable."""
@@ -299,23 +249,12 @@ class _Reader:
                 self.reject(block_end if block_end < n else i, "satellite lines",
                             f"{len(sat_lines)} of {nsat} satellite lines before the next epoch/end of file")
             for k in sat_lines if keep else ():
-                sline = lines[k]
-                sat = sline[0:3]
-                system = sat[0]
-                types = self.types_v3.get(system)
+                sat = lines[k][0:3]
+                types = self.types_v3.get(sat[0])
                 if types is None:
-                    self.counts[f"no_obs_types_{system}"] += 1
+                    self.counts[f"no_obs_types_{sat[0]}"] += 1
                     continue
-                values = []
-                for m, code in enumerate(types):
-                    text = sline[3 + 16 * m:3 + 16 * (m + 1)]
-                    if not text.strip():
-                        continue
-                    v, lli, ssi = self.field(k, text, f"{code} of {sat}")
-                    if not math.isnan(v):
-                        values.append((code, v, lli, ssi))
-                if flag != 6:
-                    self.add_sat(t, sat, values, flag == 1)
+                self.add_record(t, sat, (k,), types, flag != 6, flag == 1)
             if keep:
                 self.counts["epochs" if flag != 6 else "cycle_slip_epochs"] += 1
             i = block_end
@@ -334,7 +273,9 @@ def parse_rinex_obs(text: str, source: str = "<string>") -> ObservationTable:
         rinex_obs_v2.read_body(r, first)
     else:
         r.body_v3(first)
-    table = r.rows.table(source=source, rejected=r.rejected, counts=r.counts, approx_position_ecef_m=r.approx)
+    columns = build_rows(r, r.recs)
+    table = ObservationTable(**columns, source=source, rejected=r.rejected, counts=r.counts,
+                             approx_position_ecef_m=r.approx)
     if r.counts["epochs_out_of_order"]:
         # consumers group rows by epoch with sorted times (the SPP normal equations per epoch);
         # stable, so the rows of one epoch keep the file's order

@@ -4,7 +4,6 @@ signals."""
 from __future__ import annotations
 
 import functools
-import math
 import re
 
 from leonav_runtime.gnss import time as gtime
@@ -103,14 +102,7 @@ def read_body(self, i: int) -> None:
                 i += cut
                 complete = False
                 break
-            values = []
-            for k, code in enumerate(self.types_v2):
-                text = block[k // 5][16 * (k % 5):16 * (k % 5) + 16]
-                v, lli, ssi = self.field(i + k // 5, text, f"{code} of {sat.strip()}")
-                if not math.isnan(v):
-                    values.append((code, v, lli, ssi))
-            if flag != 6 and keep:
-                self.add_sat(t, sat, values, flag == 1)
+            self.add_record(t, sat, tuple(range(i, i + per_sat)), self.types_v2, flag != 6 and keep, flag == 1)
             i += per_sat
         if keep:
             self.counts["epochs" if flag != 6 else "cycle_slip_epochs"] += 1 if complete or flag != 6 else 0
