@@ -175,16 +175,18 @@ mutant("beacons-23", LOF, "robust mean sigma not inflated by the scatter", ("sig
 
 # ---------------------------------------------------------------- scenario.py
 SCN = "leonav_runtime/scenarios/load.py"
-mutant("scenario-01", SCN, "NaN/inf accepted", ("if isinstance(value, float) and not math.isfinite(value):", "if False:"))
-mutant("scenario-02", SCN, "booleans accepted as numbers", ("if not isinstance(value, kinds) or isinstance(value, bool):", "if not isinstance(value, kinds):"))
+mutant("scenario-01", SCN, "NaN/inf accepted", ("if isinstance(given, float) and not _finite(given):", "if False:"))
+mutant("scenario-02", SCN, "booleans accepted as numbers",
+       ("if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):", "if not isinstance(value, kinds):"))
 mutant("scenario-03", SCN, "lower bound made exclusive", ("(spec.lo is not None and value < spec.lo)", "(spec.lo is not None and value <= spec.lo)"))
 mutant("scenario-04", SCN, "upper bound made exclusive", ("(spec.hi is not None and value > spec.hi)", "(spec.hi is not None and value >= spec.hi)"))
 mutant("scenario-05", SCN, "integers no longer accepted for float fields",
        ("if float in kinds and isinstance(value, int) and not isinstance(value, bool):", "if False:"))
-mutant("scenario-06", SCN, "NaN accepted in number lists", ("and not isinstance(v, bool) and math.isfinite(v) for v in value", "and not isinstance(v, bool) for v in value"))
-mutant("scenario-07", SCN, "booleans accepted in number lists", ("isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)", "isinstance(v, (int, float)) and math.isfinite(v)"))
+mutant("scenario-06", SCN, "inf accepted in number lists (NaN still fails the limit test)",
+       ("and not isinstance(v, bool) and _finite(v) and abs(v) <= limit for v in value", "and not isinstance(v, bool) and abs(v) <= limit for v in value"))
+mutant("scenario-07", SCN, "booleans accepted in number lists", ("isinstance(v, (int, float)) and not isinstance(v, bool) and _finite(v)", "isinstance(v, (int, float)) and _finite(v)"))
 mutant("scenario-08", SCN, "outage may end after the run", ("if not 0 <= a < b <= duration:", "if not 0 <= a < b:"))
-mutant("scenario-09", SCN, "zero-length manoeuvre accepted", ("if row[0] <= 0:", "if row[0] < 0:"))
+mutant("scenario-09", SCN, "zero-length manoeuvre accepted", ('(("duration", row[0], 1e-3, 86400, "s"),', '(("duration", row[0], 0, 86400, "s"),'))
 mutant("scenario-10", SCN, "choices not checked", ("if spec.choices is not None and value not in spec.choices:", "if False:"))
 mutant("scenario-11", SCN, "unknown keys accepted", ("            unknown = set(given) - set(fields)\n", "            unknown = set()\n"))
 mutant("scenario-12", SCN, "roll amplitude left in degrees", ('traj["roll_amplitude_rad"] = math.radians(traj.pop("roll_amplitude_deg"))', 'traj["roll_amplitude_rad"] = traj.pop("roll_amplitude_deg")'))
@@ -192,7 +194,7 @@ mutant("scenario-13", SCN, "element files not relative to the scenario file",
        ("element_files = [(base / f) if not Path(f).is_absolute() else Path(f) for f in files]", "element_files = [Path(f) for f in files]"))
 mutant("scenario-14", SCN, "counts neither sorted nor de-duplicated", ('star["counts"] = sorted(set(counts))', 'star["counts"] = list(counts)'))
 mutant("scenario-15", SCN, "modes reordered", ("modes = list(dict.fromkeys(modes))", "modes = sorted(set(modes))"))
-mutant("scenario-16", SCN, "booleans accepted as Starlink counts", ("all(isinstance(c, int) and not isinstance(c, bool) and c >= 1", "all(isinstance(c, int) and c >= 1"))
+mutant("scenario-16", SCN, "booleans accepted as Starlink counts", ("all(isinstance(c, int) and not isinstance(c, bool) and 1 <= c", "all(isinstance(c, int) and 1 <= c"))
 mutant("scenario-17", SCN, "files source with no files accepted", ('if values["elements"]["source"] == "files" and not element_files:', "if False:"))
 mutant("scenario-18", SCN, "attitude sigma left in degrees", ('filt["initial_attitude_sigma_rad"] = math.radians(filt.pop("initial_attitude_sigma_deg"))', 'filt["initial_attitude_sigma_rad"] = filt.pop("initial_attitude_sigma_deg")'))
 
@@ -238,12 +240,15 @@ mutant("filter-06", FIL, "h() ignores the given state", ("x_v = self.x if x is N
 mutant("filter-07", FIL, "run() ignores a per-call gate", ('gates = self.gate if isinstance(gate, str) and gate == "filter" else self.gate_vector(gate)', "gates = self.gate"))
 mutant("filter-08", FIL, "P0 shape not checked", ("        if arr.shape != (self.ndx, self.ndx):\n            raise ValueError", "        if False:\n            raise ValueError"))
 mutant("filter-09", FIL, "vector length not checked", ("        if arr.size != n:\n            raise ValueError", "        if False:\n            raise ValueError"))
-mutant("filter-10", FIL, "chi-square gate at 99 % (6.63)", ("CHI2_1DOF_999 = 10.827566170662733", "CHI2_1DOF_999 = 6.634896601021214"))
+mutant("filter-10", FIL, "default chi-square gate at 99 % (6.63)", ("gate: GateSpec = CHI2_1DOF_999,", "gate: GateSpec = 6.634896601021214,"))
 mutant("filter-11", FIL, "full P blocks returned transposed", ("p_hist = p_hist.transpose(0, 2, 1)  # each block was written column-major", "pass"),
        equivalent="P is exactly symmetric (the generated predict and update form the upper triangle and mirror it; "
                   "every block of a run equals its transpose bit for bit), so the transpose changes nothing")
-mutant("filter-12", FIL, "x_prior not saved after predict", ("        self.status = int(status)\n        self.x_prior, self.P_prior = self.x.copy(), self.P.copy(order=\"F\")\n        return self.status",
-                                                             "        self.status = int(status)\n        return self.status"))
+mutant("filter-12", FIL, "x_prior not saved after predict",
+       ('returned {compiled.code_name(rc)}")\n        self.status = STATUS_IMU if rc == _codes.OK else STATUS_FAILED\n'
+        '        self.x_prior, self.P_prior = self.x.copy(), self.P.copy(order="F")\n        return self.status\n\n    def predict_cv',
+        'returned {compiled.code_name(rc)}")\n        self.status = STATUS_IMU if rc == _codes.OK else STATUS_FAILED\n'
+        '        return self.status\n\n    def predict_cv'))
 mutant("filter-13", FIL, "pcrb x_lin shape not checked", ("    if x_lin.shape != (n, nx):\n", "    if False:\n"))
 mutant("filter-14", FIL, "update ignores aux", ("aux_v = np.zeros(records.NAUX) if aux is None else self._vector(\"aux\", aux, records.NAUX)\n        ysn",
                                                   "aux_v = np.zeros(records.NAUX)\n        ysn"))
@@ -264,13 +269,15 @@ mutant("models-06", "models/kinematics.py", "Earth rate north/up components swap
 mutant("models-07", "models/gravity.py", "Somigliana with the wrong sign of k", ("(1 + K.SOMIGLIANA_K * s2)", "(1 - K.SOMIGLIANA_K * s2)"))
 mutant("models-08", "models/measurements/doppler.py", "Doppler: LO offset subtracted", ("* rho_dot + x[X[\"b_lo\"].offset]", "* rho_dot - x[X[\"b_lo\"].offset]"))
 mutant("models-09", "models/clock.py", "clock bias noise dt^3/2", ("q_cddt * dt**3 / 3", "q_cddt * dt**3 / 2"))
-mutant("models-10", "models/kinematics.py", "clock bias not integrated over dt", ("c_dt + c_ddt * dt, c_ddt", "c_dt + c_ddt, c_ddt"))
+mutant("models-10", "models/dynamics.py", "clock bias (an integral block) not integrated over dt",
+       ("out.append(b + x[X[d.of].slice] * dt)", "out.append(b + x[X[d.of].slice])"))
 mutant("models-11", "models/kinematics.py", "Earth rotation applied the wrong way", ("e_n, e_b = frames.quat_exp(-w_ie * dt / 2)", "e_n, e_b = frames.quat_exp(w_ie * dt / 2)"))
 mutant("models-12", "models/ekf.py", "Joseph update: c = b - S K", ("c = b - S * K / 2", "c = b - S * K"))
 mutant("models-13", "models/measurements/ofdm_range_difference.py", "OFDM difference reversed",
        ("return ca.norm_2(aux[AUX[\"r_S_ecef\"].slice] - r_U) - ca.norm_2(aux[AUX[\"r_ref_ecef\"].slice] - r_U)",
         "return ca.norm_2(aux[AUX[\"r_ref_ecef\"].slice] - r_U) - ca.norm_2(aux[AUX[\"r_S_ecef\"].slice] - r_U)"))
-mutant("models-14", "models/ekf.py", "LO random walk noise not scaled by dt", ('diag_extra[DX["db_lo"].offset] = par("q_blo") * dt', 'diag_extra[DX["db_lo"].offset] = par("q_blo")'))
+mutant("models-14", "models/dynamics.py", "LO random walk noise not scaled by dt",
+       ("diag[blk] = q * dt\n", 'diag[blk] = q if s.name == "b_lo" else q * dt\n'))
 
 # ---------------------------------------------------------------- second batch
 # Written after the tests above, without looking at which of them would fail: a check on
@@ -298,8 +305,8 @@ mutant("beacons-26", LOF, "offset sigma without the floor", ("sig_off = float(np
 mutant("beacons-27", LOF, "circular offset sigma 1/sum(w)", ("return centre, float(1.0 / np.sqrt(np.sum(w))), inl", "return centre, float(1.0 / np.sum(w)), inl"))
 mutant("beacons-28", LOF, "rate-mean sigma without the overlap factor", ("sig_rate = float(np.sqrt(2 * np.mean(sigma_rate_hz_s**2) / t_s.size))", "sig_rate = float(np.sqrt(np.mean(sigma_rate_hz_s**2) / t_s.size))"))
 mutant("beacons-29", ASC, "joint_lo=False ignored", ("if not cfg.joint_lo or new == assign:", "if new == assign:"))
-mutant("scenario-19", SCN, "a count of 1 rejected", ("and not isinstance(c, bool) and c >= 1 for c in counts)", "and not isinstance(c, bool) and c > 1 for c in counts)"))
-mutant("scenario-20", SCN, "unknown top-level keys accepted", ("if key not in SCHEMA and not (key in SCHEMA[\"\"]):", "if False:"))
+mutant("scenario-19", SCN, "a count of 1 rejected", ("and 1 <= c <= MAX_COUNT for c in counts)", "and 1 < c <= MAX_COUNT for c in counts)"))
+mutant("scenario-20", SCN, "unknown top-level keys accepted", ('if key not in schema and key not in schema.get("", {}):', "if False:"))
 mutant("scenario-21", SCN, "an outage may start at its end", ("if not 0 <= a < b <= duration:", "if not 0 <= a <= b <= duration:"))
 mutant("scenario-22", SCN, "pitch amplitude left in degrees", ('traj["pitch_amplitude_rad"] = math.radians(traj.pop("pitch_amplitude_deg"))', 'traj["pitch_amplitude_rad"] = traj.pop("pitch_amplitude_deg")'))
 mutant("simulate-21", SIM, "specific force of the next interval at each sample", ("f_b = np.vstack([u_true[:1, 3:], u_true[:, 3:]]) / dt", "f_b = np.vstack([u_true[:, 3:], u_true[-1:, 3:]]) / dt"))
@@ -321,7 +328,9 @@ mutant("filter-18", FIL, "PCRB 9x9 blocks not transposed", ("return PcrbResult(r
 mutant("models-15", "models/gravity.py", "height term with the wrong sign", ("return g0 * (1 - 2 / a *", "return g0 * (1 + 2 / a *"))
 mutant("models-16", "models/ekf.py", "gyro noise uses the velocity random walk",
        ('ca.repmat(p[P["arw"].offset] ** 2 * dt, U["dtheta_b"].size, 1)', 'ca.repmat(p[P["vrw"].offset] ** 2 * dt, U["dtheta_b"].size, 1)'))
-mutant("models-17", "models/measurements/gnss_fix.py", "north velocity reads the east component", ('    """North velocity (m/s)."""\n    return x[_V + 1]', '    """North velocity (m/s)."""\n    return x[_V + 0]'))
+mutant("models-17", "models/measurements/gnss_fix.py", "north velocity reads the east component",
+       ('    """North antenna velocity (m/s)."""\n    return antenna_velocity(x, aux, p)[1]',
+        '    """North antenna velocity (m/s)."""\n    return antenna_velocity(x, aux, p)[0]'))
 mutant("models-18", "models/ekf.py", "information update adds H H^T R", ("return J + ca.mtimes(H.T, H) / R", "return J + ca.mtimes(H.T, H) * R"))
 
 # Further groups live in their own files (one per area, so they can grow independently); each
