@@ -29,6 +29,10 @@ The Jacobian is evaluated at one receiver state (the prior's; the filter's estim
 known when records are built): it depends on the receiver mainly through the line of sight
 over ranges of 500+ km. On maritime-outage (the ship moves 2.5 km in 360 s) the consider
 sigma at the prior differs from the one at the true position by 0.4 % (median), 5 % at most.
+
+Where an operator publishes the orbit's covariance (orbits/operator_states.py), P_sat is that
+covariance instead of the model's: `OrbitConsider.covariance` maps a kind to a provider of
+per-record ECEF covariances; records it does not cover keep the model's term (or none).
 """
 from __future__ import annotations
 
@@ -82,6 +86,15 @@ def consider_variance(J: np.ndarray, sat9: np.ndarray, ref9: np.ndarray | None,
     return var
 
 
+def covariance_variance(J: np.ndarray, p_sat: np.ndarray, p_ref: np.ndarray | None) -> np.ndarray:
+    """(n,) J P J^T per record for given ECEF covariances of [r, v] (n, 6, 6) of the satellite
+    and, for a differenced observable, of its reference (None: no reference)."""
+    var = np.einsum("ni,nij,nj->n", J[:, 0:6], p_sat, J[:, 0:6])
+    if p_ref is not None:
+        var = var + np.einsum("ni,nij,nj->n", J[:, 6:12], p_ref, J[:, 6:12])
+    return var
+
+
 def records_per_satellite(sat_id: np.ndarray, t: np.ndarray, correlation_s: float) -> np.ndarray:
     """(n,) m per record: how many records of its satellite lie within the error's correlation
     time (s) centred on it (1 when correlation_s is 0: white errors)."""
@@ -101,18 +114,37 @@ def records_per_satellite(sat_id: np.ndarray, t: np.ndarray, correlation_s: floa
 class OrbitConsider:
     """What the road needs for the consider term: per observable kind ("doppler_rate", ...)
     the 1-sigma radial, along-track, cross-track orbit error (3,) m of its satellites, and
-    the error's correlation time (s; 0 = white between records)."""
+    the error's correlation time (s; 0 = white between records). covariance: per kind, a
+    provider of the orbit's own covariance, `covariance_ecef(sat_id or None, t, state9)` ->
+    (n, 6, 6) ECEF [r, v] (NaN where it has none; sat_id None: identify the satellites by
+    their states, as for a differenced observable's reference); it wins over sigma_rac_m."""
 
     sigma_rac_m: dict
     correlation_s: float = 0.0
+    covariance: dict = dataclasses.field(default_factory=dict)
 
     def variance(self, table, aux: np.ndarray, x_rx: np.ndarray, params: np.ndarray, nav) -> np.ndarray | None:
         """(n,) variance (unit of z squared) the orbit error adds to each record of satellite
         `table` with aux rows (n, NAUX), Jacobian at receiver state x_rx (NX,); None when the
         table's kind has no sigma here."""
         sig = self.sigma_rac_m.get(table.KIND)
-        if sig is None or not table.t.size:
+        provider = self.covariance.get(table.KIND)
+        if (sig is None and provider is None) or not table.t.size:
             return None
         J = nav.orbit_jacobian_many(table.KIND, x_rx, aux, params)
-        var = consider_variance(J, table.sat_ecef, table.ref_ecef, sig)
+        if provider is None:
+            var = consider_variance(J, table.sat_ecef, table.ref_ecef, sig)
+        else:
+            t = np.asarray(table.t, float)
+            p_sat = provider.covariance_ecef(np.asarray(table.sat_id), t, table.sat_ecef)
+            reads_ref = table.ref_ecef is not None and np.any(J[:, 6:12])
+            p_ref = provider.covariance_ecef(None, t, table.ref_ecef) if reads_ref else None
+            var = covariance_variance(J, np.nan_to_num(p_sat), None if p_ref is None else np.nan_to_num(p_ref))
+            uncovered = ~np.isfinite(p_sat).all(axis=(1, 2))
+            if p_ref is not None:
+                uncovered |= ~np.isfinite(p_ref).all(axis=(1, 2))
+            if uncovered.any() and sig is not None:     # the model's term where the operator has none
+                sub = np.flatnonzero(uncovered)
+                var[sub] = consider_variance(J[sub], table.sat_ecef[sub],
+                                             None if table.ref_ecef is None else table.ref_ecef[sub], sig)
         return var * records_per_satellite(np.asarray(table.sat_id), np.asarray(table.t, float), self.correlation_s)

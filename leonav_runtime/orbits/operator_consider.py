@@ -1,0 +1,88 @@
+"""The operator's orbit covariance per measurement record, for the consider term of the filter.
+
+`OperatorCovariance` is the provider `inputs.consider.OrbitConsider.covariance` takes: for
+records (satellite id, time, satellite state) it returns the ECEF covariance of the
+satellite's [r, v] that its operator ephemeris gives at that time (operator_states.py), so
+R = sigma^2 + J P_operator J^T instead of the element-age model's J P_model J^T.
+
+Satellites are keyed by NORAD id on the records and by object name in the operator's files;
+`names_by_id` joins them (built from the element sets' names, the same STARLINK-nnnnn names).
+A differenced observable's reference carries no id on the records: it is recognised as the
+covered satellite whose operator position lies nearest the record's reference state (Starlink
+satellites in view are tens of km apart or more, the element sets' error is about 1 km), and
+only within `match_m`. Records without a covering file are NaN (the caller falls back) and
+counted in `uncovered_records`, announced once.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import warnings
+
+import numpy as np
+
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.orbits.eop import EopTable
+from leonav_runtime.orbits.operator_ephemeris import OperatorEphemerisSet
+from leonav_runtime.orbits.operator_states import OperatorCoverageWarning, operator_states_ecef
+
+
+def names_by_id(norad_ids, names) -> dict[int, str]:
+    """{NORAD id: object name} from element-set columns (names stripped)."""
+    return {int(i): str(n).strip() for i, n in zip(norad_ids, names)}
+
+
+class OperatorCovariance:
+    """Per-record ECEF covariance (m^2, m^2/s, m^2/s^2) of [r, v] from operator ephemerides;
+    times are seconds since `epoch_utc` (UTC), like the records'."""
+
+    def __init__(self, ephemerides: OperatorEphemerisSet, epoch_utc: _dt.datetime, ids_to_names: dict[int, str],
+                 *, eop: EopTable | None = None, match_m: float = 50e3) -> None:
+        self.ephemerides = ephemerides
+        self.epoch_utc = epoch_utc
+        self.ids_to_names = {i: n for i, n in ids_to_names.items() if n in ephemerides.ephemerides}
+        self.eop = eop
+        self.match_m = match_m
+        self.uncovered_records = 0
+        self._warned = False
+
+    def _states(self, names: list[str], t_s: np.ndarray):
+        with warnings.catch_warnings():      # partial coverage is counted below, once
+            warnings.simplefilter("ignore", OperatorCoverageWarning)
+            try:
+                return operator_states_ecef(self.ephemerides, names, self.epoch_utc, t_s, eop=self.eop)
+            except UserInputError:          # none covered over these times: all NaN
+                return None
+
+    def covariance_ecef(self, sat_id: np.ndarray | None, t_s: np.ndarray, state9: np.ndarray) -> np.ndarray:
+        """(n, 6, 6) covariance per record; sat_id None: match each record's state (n, 9)
+        to the nearest covered satellite. NaN where no file covers the record."""
+        t_s = np.asarray(t_s, float)
+        out = np.full((t_s.size, 6, 6), np.nan)
+        if sat_id is None:
+            names = sorted(set(self.ids_to_names.values()))
+            times, k = np.unique(t_s, return_inverse=True)
+            st = self._states(names, times) if names else None
+            if st is not None:
+                d = np.linalg.norm(st.r_ecef_m[:, k, :] - state9[None, :, 0:3], axis=2)   # (nsat, n)
+                d = np.where(np.isfinite(d), d, np.inf)
+                best = np.argmin(d, axis=0)
+                near = d[best, np.arange(t_s.size)] <= self.match_m
+                out[near] = st.cov_ecef[best[near], k[near]]
+        else:
+            for sid in np.unique(sat_id):
+                name = self.ids_to_names.get(int(sid))
+                if name is None:
+                    continue
+                rows = np.flatnonzero(sat_id == sid)
+                times, k = np.unique(t_s[rows], return_inverse=True)
+                st = self._states([name], times)
+                if st is not None:
+                    out[rows] = st.cov_ecef[0, k]
+        missing = int((~np.isfinite(out).all(axis=(1, 2))).sum())
+        self.uncovered_records += missing
+        if missing and not self._warned:
+            self._warned = True
+            warnings.warn(f"operator ephemerides: {missing} of {t_s.size} records have no operator covariance "
+                          "(satellite without a file, or outside its span); they keep the element-age model's "
+                          "consider term where one is set", OperatorCoverageWarning, stacklevel=2)
+        return out
