@@ -30,25 +30,27 @@ def own_stream(rng: np.random.Generator, name: str) -> np.random.Generator:
 
 
 def _walk(steps: np.ndarray, x0: np.ndarray, phi: np.ndarray) -> np.ndarray:
-    """x_{k+1} = phi x_k + steps_k per component, from x0: (n+1, size). phi = 1: a cumulative sum."""
+    """x_{k+1} = phi x_k + steps_k per component, from x0, for B trials at once: steps (B, n, size),
+    x0 (B, size) -> (B, n+1, size). phi = 1: a cumulative sum."""
     if np.all(phi == 1.0):
-        return np.concatenate([[x0], x0 + np.cumsum(steps, axis=0)])
-    out = np.empty((steps.shape[0] + 1, x0.size))
-    out[0] = x0
-    for j in range(x0.size):   # first-order recursion, per component
-        out[1:, j] = lfilter([1.0], [1.0, -phi[j]], steps[:, j], zi=[phi[j] * x0[j]])[0]
+        return np.concatenate([x0[:, None], x0[:, None] + np.cumsum(steps, axis=1)], axis=1)
+    out = np.empty((steps.shape[0], steps.shape[1] + 1, x0.shape[1]))
+    out[:, 0] = x0
+    for j in range(x0.shape[1]):   # first-order recursion, per component
+        out[:, 1:, j] = lfilter([1.0], [1.0, -phi[j]], steps[:, :, j], axis=1, zi=(phi[j] * x0[:, j])[:, None])[0]
     return out
 
 
-def _start(block, scn, scale: float, rng: np.random.Generator, profile, layout) -> np.ndarray:
+def _start(block, scn, scale: float, streams: list[np.random.Generator], profile, layout) -> np.ndarray:
+    """(B, size): the block's start in each trial (a prior draw from each trial's stream)."""
     start = block.truth["start"]
     if start == "zero":
-        return np.zeros(block.size)
+        return np.zeros((len(streams), block.size))
     if start == "prior":
         sigma = model.prior_sigmas(layout, profile, 0.0, 0.0, 0.0)[block.error_offset:block.error_offset + block.size]
-        return scale * sigma * rng.standard_normal(block.size)
+        return scale * sigma * np.stack([r.standard_normal(block.size) for r in streams])
     section, _, key = start.partition(".")
-    return np.full(block.size, float(getattr(scn, section)[key]))
+    return np.full((len(streams), block.size), float(getattr(scn, section)[key]))
 
 
 def draw_truth(rng: np.random.Generator, blocks, n: int, dt: float, Phi: np.ndarray, Qd: np.ndarray, scn, profile,
@@ -56,32 +58,45 @@ def draw_truth(rng: np.random.Generator, blocks, n: int, dt: float, Phi: np.ndar
     """Truth (n+1, size) of each block in `blocks` (registry entries, layout order) over n steps of
     dt, drawn from `rng` or each block's own stream (module doc). scale 0: no noise and no random
     start (the draws are still made, to keep the streams aligned)."""
+    return {k: v[0] for k, v in draw_truth_many([rng], blocks, n, dt, Phi, Qd, scn, profile, layout, scale).items()}
+
+
+def draw_truth_many(rngs: list[np.random.Generator], blocks, n: int, dt: float, Phi: np.ndarray, Qd: np.ndarray,
+                    scn, profile, layout, scale: float = 1.0) -> dict[str, np.ndarray]:
+    """`draw_truth` for B trials at once, trial i from rngs[i]: (B, n+1, size) per block. Each
+    trial's stream sees the draws of `draw_truth` in the same order, so the values are the same."""
     out: dict[str, np.ndarray] = {}
     names = {b.name for b in blocks}
     for b in blocks:
         if b.name in out or b.truth["stream"] == "none":
             continue
-        r = rng if b.truth["stream"] == "trial" else own_stream(rng, b.name)
+        rs = list(rngs) if b.truth["stream"] == "trial" else [own_stream(r, b.name) for r in rngs]
         e = slice(b.error_offset, b.error_offset + b.error_size)
         dyn = b.dynamics
         drift = model.state_block(dyn["of"]) if dyn["kind"] == "integral" else None
         if drift is not None and drift.name in names:   # an integral pair: exact two-state draw
             d = slice(drift.error_offset, drift.error_offset + drift.error_size)
-            x_b0, x_d0 = _start(b, scn, scale, r, profile, layout), _start(drift, scn, scale, r, profile, layout)
-            w_d = r.standard_normal((n, drift.size))
-            w_b = r.standard_normal((n, b.size))
+            parts = [_pair_draws(b, drift, scn, scale, r, profile, layout, n) for r in rs]
+            x_b0, x_d0, w_d, w_b = (np.stack([p[i] for p in parts]) for i in range(4))
             l11 = np.sqrt(np.diag(Qd[e, e]))
             l21 = np.diag(Qd[d, e]) / np.where(l11 > 0, l11, 1.0)
             l22 = np.sqrt(np.maximum(np.diag(Qd[d, d]) - l21**2, 0.0))
-            x_d = np.concatenate([[x_d0], x_d0 + np.cumsum(scale * (l21 * w_b + l22 * w_d), axis=0)])
-            x_b = np.concatenate([[x_b0], x_b0 + np.cumsum(x_d[:-1] * np.diag(Phi[e, d]) + scale * l11 * w_b,
-                                                            axis=0)])
+            x_d = np.concatenate([x_d0[:, None], x_d0[:, None] + np.cumsum(scale * (l21 * w_b + l22 * w_d), axis=1)],
+                                 axis=1)
+            x_b = np.concatenate([x_b0[:, None], x_b0[:, None] + np.cumsum(
+                x_d[:, :-1] * np.diag(Phi[e, d]) + scale * l11 * w_b, axis=1)], axis=1)
             out[b.name], out[drift.name] = x_b, x_d
             continue
-        x0 = _start(b, scn, scale, r, profile, layout)
-        steps = r.standard_normal((n, b.size)) * (scale * np.sqrt(np.diag(Qd[e, e])))
-        out[b.name] = _walk(steps, x0, np.diag(Phi[e, e]).copy())
+        parts = [(_start(b, scn, scale, [r], profile, layout)[0], r.standard_normal((n, b.size))) for r in rs]
+        x0, w = np.stack([p[0] for p in parts]), np.stack([p[1] for p in parts])
+        out[b.name] = _walk(w * (scale * np.sqrt(np.diag(Qd[e, e]))), x0, np.diag(Phi[e, e]).copy())
     return out
+
+
+def _pair_draws(b, drift, scn, scale, r, profile, layout, n):
+    """One trial's draws of an integral pair, in order: start, drift's start, w_d, w_b."""
+    x_b0, x_d0 = _start(b, scn, scale, [r], profile, layout)[0], _start(drift, scn, scale, [r], profile, layout)[0]
+    return x_b0, x_d0, r.standard_normal((n, drift.size)), r.standard_normal((n, b.size))
 
 
 def error_model(nav: navfuncs.NavFunctions, dt: float, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -105,8 +120,17 @@ def measured_increments(rng: np.random.Generator, profile, u_true: np.ndarray, b
                         b_g: np.ndarray, dt: float, scale: float = 1.0) -> np.ndarray:
     """IMU increments as the sensor gives them: the ideal ones plus the bias at the start of
     each interval and the white noise of the profile (ARW, VRW). (n, 6): rad, m/s."""
+    return measured_increments_many([rng], profile, u_true, b_a[None], b_g[None], dt, scale)[0]
+
+
+def measured_increments_many(rngs: list[np.random.Generator], profile, u_true: np.ndarray, b_a: np.ndarray,
+                             b_g: np.ndarray, dt: float, scale: float = 1.0) -> np.ndarray:
+    """`measured_increments` of B trials at once: b_a, b_g (B, n+1, 3), trial i's noise from
+    rngs[i] (gyro, then accelerometer, as `measured_increments`) -> (B, n, 6)."""
     n = u_true.shape[0]
-    u = u_true.copy()
-    u[:, :3] += b_g[:-1] * dt + scale * profile.arw * math.sqrt(dt) * rng.standard_normal((n, 3))
-    u[:, 3:] += b_a[:-1] * dt + scale * profile.vrw * math.sqrt(dt) * rng.standard_normal((n, 3))
+    w = [(r.standard_normal((n, 3)), r.standard_normal((n, 3))) for r in rngs]
+    u = np.empty((len(rngs),) + u_true.shape)
+    u[:] = u_true
+    u[:, :, :3] += b_g[:, :-1] * dt + scale * profile.arw * math.sqrt(dt) * np.stack([g for g, _ in w])
+    u[:, :, 3:] += b_a[:, :-1] * dt + scale * profile.vrw * math.sqrt(dt) * np.stack([a for _, a in w])
     return u

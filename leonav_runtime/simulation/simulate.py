@@ -45,7 +45,8 @@ from leonav_runtime.inputs import (F_B_AVERAGE_S, SATELLITE_TABLES, ImuTable, Lo
 from leonav_runtime.scenarios.load import Scenario, mode_of
 from leonav_runtime.simulation import realism, satellites
 from leonav_runtime.simulation.satellites import SatSeries
-from leonav_runtime.simulation.sensor_errors import bias_walks, draw_truth, measured_increments, own_stream
+from leonav_runtime.simulation.sensor_errors import (bias_walks, draw_truth_many, measured_increments,
+                                                     measured_increments_many, own_stream)
 from leonav_runtime.simulation.trajectory import motion
 from leonav_runtime.simulation.visibility import needed_constellations, scenario_elements
 
@@ -183,13 +184,6 @@ class Trial:
     params: np.ndarray | None = None   # the filter's parameters (realism compensation), else the setup's
 
 
-def _error_truth(setup: Setup, nav, rng, n: int, dt: float, g: float) -> dict[str, np.ndarray]:
-    """This trial's truth of every sensor-error block (sensor_errors.draw_truth)."""
-    Phi, Qd = nav.sensor_error_step(dt, setup.params)
-    blocks = [b for b in model.STATES if b.role != "navigation"]
-    return draw_truth(rng, blocks, n, dt, Phi, Qd, setup.scn, setup.imu_profile, nav.layout, g)
-
-
 def local_values(setup: Setup, nav, rng, mode, x_true: np.ndarray, g: float):
     """The mode's local sensors: [(token, z (epochs, observables), sigma (observables,))], each
     the generated h at the trial's truth plus noise (each observable's own stream)."""
@@ -211,9 +205,9 @@ def local_values(setup: Setup, nav, rng, mode, x_true: np.ndarray, g: float):
 
 @dataclass
 class Draws:
-    """One trial's random part before it becomes tables: the sensor-error truth per block
-    (n+1, size), the measured IMU increments u (n, 6), per used satellite observable
-    [kind_name, rows, z, sigma], and the filter's initial state x0 (NX,)."""
+    """The random part of B trials before it becomes tables: the sensor-error truth per block
+    (B, n+1, size), the measured IMU increments u (B, n, 6), per used satellite observable
+    [kind_name, rows, z (B, rows), sigma], and the filter's initial states x0 (B, NX)."""
 
     errors: dict[str, np.ndarray]
     u: np.ndarray
@@ -221,65 +215,83 @@ class Draws:
     x0: np.ndarray
 
 
-def with_errors(x_base: np.ndarray, errors: dict[str, np.ndarray]) -> np.ndarray:
-    """The truth (n+1, NX): x_base with each sensor-error block replaced by its drawn truth."""
-    x_true = x_base.copy()
+def with_errors(x_base: np.ndarray, errors: dict[str, np.ndarray], trials: int) -> np.ndarray:
+    """The truth (trials, n+1, NX): x_base (n+1, NX) with each sensor-error block replaced by its
+    drawn truth (trials, n+1, size)."""
+    x_true = np.empty((trials,) + x_base.shape)
+    x_true[:] = x_base
     for name, values in errors.items():
         b = model.state_block(name)
-        x_true[:, b.offset:b.offset + b.size] = values
+        x_true[..., b.offset:b.offset + b.size] = values
     return x_true
 
 
-def trial_draws(setup: Setup, parsed, count: int, rng: np.random.Generator, nav: navfuncs.NavFunctions,
+def prior_draws(rngs: list[np.random.Generator], cov: np.ndarray) -> np.ndarray:
+    """(B, m): trial i's `rngs[i].multivariate_normal(0, cov)`, the same values (numpy's SVD
+    method: one standard normal draw of m per trial times the factor u sqrt(s)), with the
+    factorisation made once for all trials instead of once per trial."""
+    u, s, _ = np.linalg.svd(cov)
+    factor_t = (u * np.sqrt(s)).T
+    zero = np.zeros(cov.shape[0])
+    # one row per product, as numpy's own: a product of several rows may round differently
+    return np.stack([zero + r.standard_normal(cov.shape[0]).reshape(1, -1) @ factor_t for r in rngs])[:, 0]
+
+
+def block_draws(setup: Setup, parsed, count: int, rngs: list[np.random.Generator], nav: navfuncs.NavFunctions,
                 g: float = 1.0) -> Draws:
-    """Every draw of one trial except the realism switches' (module doc: draw order), and the
-    values they make: the part shared by `trial_records` and the block builder (trial_block.py).
-    g = 0: no noise, no biases, x0 at the truth (the draws are still made)."""
+    """Every draw of B trials except the realism switches', trial i from rngs[i] in the order of
+    the module doc (each stream sees the same draws whatever B), and the values they make, as
+    arrays over the trials: shared by `trial_records` (B = 1) and the block builder
+    (trial_block.py). g = 0: no noise, no biases, x0 at the truth (the draws are still made)."""
     scn, L, prof = setup.scn, nav.layout, setup.imu_profile
     n = setup.u_true.shape[0]
     dt = 1.0 / scn.imu_rate_hz
-    errors = _error_truth(setup, nav, rng, n, dt, g)
-    zero = np.zeros((n + 1, 3))
-    u = measured_increments(rng, prof, setup.u_true, errors.get("b_a", zero), errors.get("b_g", zero), dt, g)
+    Phi, Qd = nav.sensor_error_step(dt, setup.params)
+    blocks = [b for b in model.STATES if b.role != "navigation"]
+    errors = draw_truth_many(rngs, blocks, n, dt, Phi, Qd, scn, prof, L, g)
+    zero = np.zeros((len(rngs), n + 1, 3))
+    u = measured_increments_many(rngs, prof, setup.u_true, errors.get("b_a", zero), errors.get("b_g", zero), dt, g)
     measuring = [b for b in model.STATES if b.role == "measurement"]
     parts = []   # [kind_name, rows, z, sigma]
     for o in satellites.satellite_observables():
         s = setup.series[o.suffix]
         sigma = noise_sigma(scn, o.suffix)
         # the paper's observables draw for every series from the trial's stream (common numbers)
-        noise = (rng if o.paper else own_stream(rng, o.name)).standard_normal(s.t_s.size)
+        noise = np.stack([(r if o.paper else own_stream(r, o.name)).standard_normal(s.t_s.size) for r in rngs])
         if o not in parsed.observables:
             continue
         rows = selected_rows(setup, o.suffix, count)
         k = np.rint(s.t_s[rows] * scn.imu_rate_hz).astype(int)
         # measuring sensors' states enter linearly: z = h(truth at zero) + H . (their true values)
-        z = s.z_true[rows].copy()
+        z = np.empty((len(rngs), rows.size))
+        z[:] = s.z_true[rows]
         for b in measuring:
             if b.error_name in o.reads:
                 for j in range(b.size):
-                    value = errors[b.name][:, j] if b.name in errors else setup.x_true[:, b.offset + j]
-                    z += s.H[rows, b.error_offset + j] * value[k]
-        z += g * sigma * noise[rows]
+                    value = errors[b.name][:, k, j] if b.name in errors else setup.x_true[k, b.offset + j]
+                    z += s.H[rows, b.error_offset + j] * value
+        z += g * sigma * noise[:, rows]
         parts.append([o.suffix, rows, z, sigma])
 
     # the initial error is drawn over the states with a prior: the paper's blocks from the trial's
     # stream (as before any block was added), a block of its own stream from that stream
-    dx0 = np.zeros(L.NDX)
+    dx0 = np.zeros((len(rngs), L.NDX))
     if g:
         var = np.diag(setup.P0)
         own = {b.name for b in model.STATES if b.truth["stream"] == "own"}
         shared = np.array([i for b in model.STATES if b.name not in own
                            for i in range(b.error_offset, b.error_offset + b.error_size) if var[i] > 0], int)
-        dx0[shared] = rng.multivariate_normal(np.zeros(shared.size), setup.P0[np.ix_(shared, shared)])
+        dx0[:, shared] = prior_draws(rngs, setup.P0[np.ix_(shared, shared)])
         for b in model.STATES:
             e = slice(b.error_offset, b.error_offset + b.error_size)
             if b.name in own and np.any(var[e] > 0):
-                dx0[e] = np.sqrt(var[e]) * own_stream(rng, b.name + ":prior").standard_normal(b.error_size)
-    x_start = setup.x_true[0].copy()
+                dx0[:, e] = np.sqrt(var[e]) * np.stack([own_stream(r, b.name + ":prior").standard_normal(b.error_size)
+                                                        for r in rngs])
+    x_start = np.repeat(setup.x_true[:1], len(rngs), axis=0)
     for name, values in errors.items():
         b = model.state_block(name)
-        x_start[b.offset:b.offset + b.size] = values[0]
-    return Draws(errors, u, parts, nav.boxplus(x_start, dx0))
+        x_start[:, b.offset:b.offset + b.size] = values[:, 0]
+    return Draws(errors, u, parts, nav.boxplus_many(x_start, dx0))
 
 
 def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
@@ -298,9 +310,10 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     n = setup.u_true.shape[0]
     dt = 1.0 / scn.imu_rate_hz
     g = 0.0 if noise_free else 1.0
-    d = trial_draws(setup, parsed, count, rng, nav, g)
-    x_true = with_errors(setup.x_true, d.errors)
-    u, parts, params = d.u, d.parts, setup.params
+    d = block_draws(setup, parsed, count, [rng], nav, g)
+    x_true = with_errors(setup.x_true, d.errors, 1)[0]
+    u, params = d.u[0], setup.params
+    parts = [[kind_name, rows, z[0], sigma] for kind_name, rows, z, sigma in d.parts]
     if not noise_free and realism.active(scn):   # truth != filter; draws after all of the above
         u, params = realism.apply(setup, nav, rng, u, parts)
     imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
@@ -308,9 +321,9 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     local = [LocalSensorTable(token, setup.t_imu[setup.local_k[token]], z, sigma)
              for token, z, sigma in local_values(setup, nav, rng, parsed, x_true, g)]
     # the road every source takes: tables -> records (aux f_b averaged from these IMU increments)
-    inputs = assemble(imu, params, Prior(d.x0, setup.P0), satellites=tables, nav=nav, local=local,
+    inputs = assemble(imu, params, Prior(d.x0[0], setup.P0), satellites=tables, nav=nav, local=local,
                       orbit_consider=None if noise_free else realism.orbit_consider(scn))
-    return Trial(inputs.merged(parsed.streams), d.x0, x_true, params)
+    return Trial(inputs.merged(parsed.streams), d.x0[0], x_true, params)
 
 
 def satellite_table(kind_name: str, s: SatSeries, rows: np.ndarray, z: np.ndarray, sigma: float):

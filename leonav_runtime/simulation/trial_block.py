@@ -6,9 +6,11 @@ R and satellite states; only the IMU increments, the measured values z and the a
 specific force in aux (it comes from the measured increments) differ. So the road runs once per
 (mode, count) on a *template* (`assemble` with the true increments and z set to each value's
 position), which gives the merged layout and where every drawn value goes; a block then draws
-each trial from its own stream (`simulate.trial_draws`, the same draws in the same order) and
-fills the values of all its trials with array operations. The results equal `trial_records`
-bit for bit (tests/test_simulate.py), so seeds give the same sweep as before.
+each trial from its own stream (`simulate.block_draws`, the same draws in the same order) and
+makes the values of all its trials with array operations. A trial's stream is the template
+with its values written in (`TrialBlock.fill`: one reused buffer, no stream copied per trial).
+The results equal `trial_records` bit for bit (tests/test_simulate.py), so seeds give the same
+sweep as before.
 
 The realism switches (realism.py) change R and aux per trial (inflate-r, consider): a scenario
 with any of them active takes the road per trial.
@@ -20,22 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from leonav_runtime.core import model, navfuncs
+from leonav_runtime.gen.state_layout import AUX_F_B_SLICE
 from leonav_runtime.inputs import ImuTable, LocalSensorTable, Prior, assemble
 from leonav_runtime.inputs.imu import F_B_AVERAGE_S, latest_sample
 from leonav_runtime.scenarios.load import mode_of
 from leonav_runtime.simulation import realism, simulate
-
-
-@dataclass
-class TrialBlock:
-    """Trials of one (mode, count): records (B, nrec) RECORD_DTYPE, one stream per trial; x0
-    (B, NX); x_true (B, n+1, NX) truth with each trial's sensor errors; params (NP,) of the filter
-    for every trial (realism compensation, else the setup's) or (B, NP) per trial."""
-
-    records: np.ndarray
-    x0: np.ndarray
-    x_true: np.ndarray
-    params: np.ndarray
 
 
 @dataclass
@@ -51,6 +42,52 @@ class Template:
     fb_ends: np.ndarray    # per distinct IMU sample: the averaging window's last sample ...
     fb_starts: np.ndarray  # ... and its first (inputs.imu.averaged_specific_force)
     tt: np.ndarray         # (n+1,) s, time of each IMU sample from the first
+
+
+@dataclass
+class TrialBlock:
+    """Trials of one (mode, count): x0 (B, NX); params (NP,), the filter's parameters of every
+    trial, or (B, NP) per trial; each trial's truth (`truth`) and record stream (RECORD_DTYPE,
+    from `records(j)` or, without a copy per trial, `fill(j, buffer)`)."""
+
+    x0: np.ndarray
+    params: np.ndarray
+    template: Template | None = None
+    u: np.ndarray | None = None        # (B, n, 6) measured IMU increments
+    z: np.ndarray | None = None        # (B, values) each trial's value vector (template.meas_src)
+    f_b: np.ndarray | None = None      # (B, distinct samples, 3) averaged specific force, m/s^2 body
+    errors: dict | None = None         # sensor-error truth per block (B, n+1, size) ...
+    x_base: np.ndarray | None = None   # ... over this truth (n+1, NX)
+    streams: np.ndarray | None = None  # (B, nrec) the streams themselves (road per trial: realism) ...
+    x_true: np.ndarray | None = None   # ... and their truths (B, n+1, NX)
+
+    def truth(self, k: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """(B, len(k), NX): each trial's truth, sensor errors included, at IMU samples k."""
+        if self.x_true is not None:
+            return self.x_true[:, k]
+        return simulate.with_errors(self.x_base[k], {name: v[:, k] for name, v in self.errors.items()}, len(self))
+
+    def __len__(self) -> int:
+        return self.x0.shape[0]
+
+    def buffer(self) -> np.ndarray:
+        """A stream to `fill`: the template's (everything but the drawn values)."""
+        return self.streams[0].copy() if self.template is None else self.template.rec.copy()
+
+    def fill(self, j: int, buf: np.ndarray) -> np.ndarray:
+        """Trial j's stream written into `buf` (from `buffer()`; only the drawn values change)."""
+        if self.template is None:
+            buf[:] = self.streams[j]
+            return buf
+        tpl = self.template
+        buf["u"][tpl.imu_pos] = self.u[j]
+        buf["z"][tpl.meas_pos] = self.z[j, tpl.meas_src]
+        buf["aux"][tpl.fb_pos, AUX_F_B_SLICE] = self.f_b[j, tpl.fb_sample]
+        return buf
+
+    def records(self, j: int) -> np.ndarray:
+        """Trial j's record stream, a new array."""
+        return self.fill(j, self.buffer())
 
 
 def _markers(n: int, offset: int) -> np.ndarray:
@@ -105,7 +142,7 @@ def template(setup: simulate.Setup, nav: navfuncs.NavFunctions, mode: str, count
 
 
 def satellites_used(parsed) -> list:
-    """The satellite observables a parsed mode uses, in the order trial_draws makes their parts."""
+    """The satellite observables a parsed mode uses, in the order block_draws makes their parts."""
     return [o for o in simulate.satellites.satellite_observables() if o in parsed.observables]
 
 
@@ -116,30 +153,23 @@ def trial_block(setup: simulate.Setup, mode: str, count: int, rngs: list[np.rand
     scn, L = setup.scn, nav.layout
     if realism.active(scn):
         trials = [simulate.trial_records(setup, mode, count, rng, nav) for rng in rngs]
-        return TrialBlock(np.stack([t.records for t in trials]), np.stack([t.x0 for t in trials]),
-                          np.stack([t.x_true for t in trials]), np.stack([t.params for t in trials]))
+        return TrialBlock(np.stack([t.x0 for t in trials]), np.stack([t.params for t in trials]),
+                          streams=np.stack([t.records for t in trials]), x_true=np.stack([t.x_true for t in trials]))
+    if not rngs:
+        raise ValueError("trial_block: expected at least one random stream")
     tpl = template(setup, nav, mode, count)
     parsed = mode_of(mode)
-    draws = [simulate.trial_draws(setup, parsed, count, rng, nav) for rng in rngs]
-    B = len(draws)
-    x_true = np.empty((B,) + setup.x_true.shape)
-    x_true[:] = setup.x_true
-    for name in draws[0].errors if draws else ():
-        b = model.state_block(name)
-        x_true[:, :, b.offset:b.offset + b.size] = np.stack([d.errors[name] for d in draws])
-    values = [np.concatenate([p[2] for p in d.parts]
-                             + [z.T.ravel() for _, z, _ in simulate.local_values(setup, nav, rng, parsed, x, 1.0)])
-              for d, rng, x in zip(draws, rngs, x_true)]
-    u = np.stack([d.u for d in draws])                                # (B, n, 6)
-    recs = np.empty((B, tpl.rec.size), tpl.rec.dtype)
-    recs[:] = tpl.rec
-    recs["u"][:, tpl.imu_pos] = u
-    if values and values[0].size:
-        recs["z"][:, tpl.meas_pos] = np.stack(values)[:, tpl.meas_src]
-    if tpl.fb_pos.size:
-        dvel = u[:, :, L.U_DVEL_B_SLICE]
-        dv = np.concatenate([np.zeros((B, 1, dvel.shape[2])), np.cumsum(dvel, axis=1)], axis=1)
-        e, s = tpl.fb_ends, tpl.fb_starts
-        f_b = (dv[:, e] - dv[:, s]) / (tpl.tt[e] - tpl.tt[s])[:, None]
-        recs["aux"][:, tpl.fb_pos, L.AUX_F_B_SLICE] = f_b[:, tpl.fb_sample]
-    return TrialBlock(recs, np.stack([d.x0 for d in draws]).reshape(B, L.NX), x_true, setup.params)
+    d = simulate.block_draws(setup, parsed, count, rngs, nav)
+    B = len(rngs)
+    values = np.concatenate([np.zeros((B, 0))] + [z for _, _, z, _ in d.parts], axis=1)
+    if parsed.local_sensors:   # local sensors: the generated h at each trial's truth (their own streams)
+        x_true = simulate.with_errors(setup.x_true, d.errors, B)
+        local = [np.concatenate([z.T.ravel() for _, z, _ in simulate.local_values(setup, nav, rng, parsed, x, 1.0)])
+                 for rng, x in zip(rngs, x_true)]
+        values = np.concatenate([values, np.stack(local)], axis=1)
+    u = d.u                                                           # (B, n, 6)
+    dvel = u[:, :, L.U_DVEL_B_SLICE]
+    dv = np.concatenate([np.zeros((B, 1, dvel.shape[2])), np.cumsum(dvel, axis=1)], axis=1)
+    e, s = tpl.fb_ends, tpl.fb_starts
+    f_b = (dv[:, e] - dv[:, s]) / (tpl.tt[e] - tpl.tt[s])[:, None]
+    return TrialBlock(d.x0, setup.params, tpl, u, values, f_b, d.errors, setup.x_true)
