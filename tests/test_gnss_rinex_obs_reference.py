@@ -1,7 +1,8 @@
 """The observation reader against its previous (per-field) version and against georinex.
 
 tests/data/rinex_obs_reference.json holds, for every input below, what the per-field reader
-of commit f5b507e returned: the row count, a SHA-256 of every value and flag of the table
+of commit f5b507e returned, with one fix (a code's blank SSI no longer cleared the SSI its
+phase had given: a row's SSI is the code's when it has one, else the phase's): the row count, a SHA-256 of every value and flag of the table
 (all columns, row order included), the counts and the rejections (file:line: field: reason),
 so the vectorised reader must give exactly the same table, counts and messages. Inputs: the
 shared GEONET files (RINEX 2.10), the same data written as RINEX 3.04 here, the synthetic

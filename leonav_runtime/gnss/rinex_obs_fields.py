@@ -216,8 +216,8 @@ def _group_rows(reader, recs, idx, values, lli, ssi, present, types, system, prn
             if qty == "L":
                 lli_s = np.where(use, lli[:, m], lli_s)
                 ssi_s = np.where(use & (ssi_s == 0), ssi[:, m], ssi_s)
-            elif qty == "C":
-                ssi_s = np.where(use, ssi[:, m], ssi_s)
+            elif qty == "C":   # the code's SSI when it has one, else the phase's
+                ssi_s = np.where(use & (ssi[:, m] != 0), ssi[:, m], ssi_s)
         measured = ~(np.isnan(q["C"]) & np.isnan(q["L"]) & np.isnan(q["D"]))
         no_meas = ~measured & ~np.isnan(q["S"]) & (key < len(types))
         if no_meas.any():
