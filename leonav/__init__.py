@@ -8,7 +8,7 @@ does not import the runtime.
 """
 from __future__ import annotations
 
-_API = ("MODES", "Scenario", "load_scenario", "run_replay", "run_study", "run_sweep")
+_API = ("MODES", "Scenario", "load_scenario", "run_dataset", "run_replay", "run_study", "run_sweep")
 __all__ = [*_API, "__version__"]
 
 

@@ -1,5 +1,5 @@
 """The Python API behind `import leonav`: load a scenario, run a sweep or a replay in
-memory, run a study (a grid over scenario fields) and get plain dicts and NumPy arrays whose key names carry their units
+memory, run a study (a grid over scenario fields) or a recorded dataset and get plain dicts and NumPy arrays whose key names carry their units
 (`position_rmse_m`, `attitude_rmse_deg`, `t_s`). Nothing is written unless `out_dir` is
 given; then the same results folder as the command line (with report.html) is written.
 
@@ -22,7 +22,7 @@ from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.scenarios.load import MODES, SCHEMA, Scenario
 from leonav_runtime.scenarios.load import load_scenario as _load_scenario
 
-__all__ = ["MODES", "Scenario", "load_scenario", "run_sweep", "run_replay", "run_study"]
+__all__ = ["MODES", "Scenario", "load_scenario", "run_sweep", "run_replay", "run_study", "run_dataset"]
 
 # block -> (key prefix, unit suffix, scale from the SI value in the summaries)
 _BLOCKS = {"position": ("position", "m", 1.0), "velocity": ("velocity", "mps", 1.0),
@@ -143,6 +143,33 @@ def run_replay(session: str | Path, *, out_dir: str | Path | None = None, tle: S
         return {"metrics": metrics, "errors": _read_columns(folder / "rmse_vs_time.csv"),
                 "trajectory": _read_columns(folder / "trajectory.csv"),
                 "out_dir": None if out_dir is None else folder}
+
+
+def run_dataset(description: str | Path, *, until_s: float | None = None, outages: bool = True,
+                out_dir: str | Path | None = None) -> dict[str, Any]:
+    """Run and score a GNSS/INS dataset (`leonav run`): a description TOML (docs/datasets.md) or
+    a shipped name such as `cpet_run3`.
+
+    `until_s`: only the first seconds after the first GNSS fix; `outages`: also the runs with
+    fixes removed. Returns {"metrics": the metrics.json content, "errors": the columns of
+    errors.csv (`t_s`, `gps_alone_horizontal_m`, `<mode>_horizontal_m`, `<mode>_e_m`, ...,
+    `<mode>_yaw_err_deg`, at the reference epochs), "out_dir"}. Without `out_dir` the files go
+    to a temporary folder that is removed.
+    """
+    from leonav_runtime.dataset import load_spec
+    from leonav_runtime.dataset.evaluate import run_dataset as _run
+
+    if until_s is not None and not (isinstance(until_s, (int, float)) and math.isfinite(until_s) and until_s > 0):
+        raise UserInputError(f"until_s = {until_s!r}: expected seconds > 0")
+    spec = load_spec(description)
+    with tempfile.TemporaryDirectory(prefix="leonav-run-") as tmp:
+        folder = Path(out_dir) if out_dir is not None else Path(tmp)
+        metrics = _run(spec, folder, t_end_s=until_s, outages=outages)
+        with open(folder / "errors.csv", newline="") as fh:
+            rows = list(csv.DictReader(fh))
+        errors = {key: np.array([float(r[key]) if r[key] not in ("", None) else math.nan for r in rows])
+                  for key in (rows[0] if rows else {})}
+        return {"metrics": metrics, "errors": errors, "out_dir": None if out_dir is None else folder}
 
 
 def run_study(study: str | Path, *, sets: Sequence[str] = (), trials: int | None = None, workers: int | None = 1,

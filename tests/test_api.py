@@ -122,3 +122,21 @@ def test_docs_table_lists_every_entry_point_and_built_in():
     readme = (DOC.parents[1] / "README.md").read_text()
     python_bullet = re.search(r"- \*\*Python\*\*:.*?(?=\n- |\n\n)", readme, flags=re.S).group(0)
     assert "run_study" in python_bullet
+
+
+def test_run_dataset_in_memory_scores_the_drive_and_leaves_no_folder(tmp_path, monkeypatch):
+    from leonav_runtime.dataset.synthetic import DriveConfig, write_drive
+
+    drive = write_drive(tmp_path / "drive", DriveConfig(seconds=30.0))
+    monkeypatch.chdir(tmp_path)
+    before = set(tmp_path.iterdir())
+    run = leonav.run_dataset(drive.toml, outages=False)
+    assert set(tmp_path.iterdir()) == before and run["out_dir"] is None
+    e, m = run["errors"], run["metrics"]
+    assert e["t_s"].size == m["reference_epochs"] and np.all(np.diff(e["t_s"]) > 0)
+    for mode, s in m["modes"].items():   # the returned columns are the metrics' own errors
+        assert np.sqrt(np.nanmean(e[f"{mode}_horizontal_m"] ** 2)) == pytest.approx(s["rmse_horizontal_m"], rel=1e-3)
+    from leonav_runtime.common.errors import UserInputError
+
+    with pytest.raises(UserInputError, match="until_s"):
+        leonav.run_dataset(drive.toml, until_s=-1.0)

@@ -16,19 +16,35 @@ MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 LINESTYLES = ("-", (0, (5, 1.5)), (0, (1, 1)), (0, (4, 1, 1, 1)), (0, (6, 1, 1, 1, 1, 1)), (0, (2, 1)))
 
 
+STYLE = {
+    "font.size": FONT_PT, "axes.titlesize": FONT_PT + 0.5, "axes.labelsize": FONT_PT,
+    "xtick.labelsize": FONT_PT - 0.5, "ytick.labelsize": FONT_PT - 0.5, "legend.fontsize": FONT_PT - 0.5,
+    "figure.titlesize": FONT_PT + 1, "lines.linewidth": 1.1, "lines.markersize": 4.0,
+    "axes.grid": True, "grid.alpha": 0.3, "savefig.dpi": DPI,
+}
+
+
 def pyplot():
-    """matplotlib.pyplot on the Agg backend with the shared style applied."""
+    """matplotlib.pyplot for leonav's figure files.
+
+    On the command line (pyplot not imported yet) it selects the headless Agg backend and the
+    shared style. Inside a user's session that already uses pyplot (a notebook, a script with
+    its own figures) the user's backend and rcParams are left as they are: switching to Agg
+    there would stop their inline figures, and the style would change their own plots. The
+    figure files are saved at DPI either way (`save`).
+    """
+    import sys
+
     import matplotlib
 
+    if "matplotlib.pyplot" in sys.modules:
+        import matplotlib.pyplot as plt
+
+        return plt
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    plt.rcParams.update({
-        "font.size": FONT_PT, "axes.titlesize": FONT_PT + 0.5, "axes.labelsize": FONT_PT,
-        "xtick.labelsize": FONT_PT - 0.5, "ytick.labelsize": FONT_PT - 0.5, "legend.fontsize": FONT_PT - 0.5,
-        "figure.titlesize": FONT_PT + 1, "lines.linewidth": 1.1, "lines.markersize": 4.0,
-        "axes.grid": True, "grid.alpha": 0.3, "savefig.dpi": DPI,
-    })
+    plt.rcParams.update(STYLE)
     return plt
 
 

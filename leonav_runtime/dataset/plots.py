@@ -63,7 +63,11 @@ def error_vs_time(path: Path, series: dict, gps: dict, outage_series: dict, leng
     for ax in axes:
         ax.grid(True, alpha=0.3)
     axes[1].set_ylabel("horizontal error in outages [m]")
-    axes[1].legend(fontsize=8, loc="upper left")
+    if outage_series:
+        axes[1].legend(fontsize=8, loc="upper left")
+    else:  # run without outages (--no-outages): say so rather than leave a blank panel unexplained
+        axes[1].text(0.5, 0.5, "no outage runs (--no-outages)", transform=axes[1].transAxes, ha="center",
+                     va="center", color="0.4")
     for mode, s in series.items():
         axes[2].plot(s["t"], np.degrees(s["yaw_err_rad"]), **style(mode), label=mode)
     axes[2].set_ylabel("yaw error [deg]")
