@@ -156,12 +156,12 @@ class _Reader:
         return t_sys
 
     # -------------------------------------------------------------- observations
-    def add_record(self, t: float, sat: str, lines: tuple[int, ...], types: list[str], emit: bool,
-                   power_failure: bool) -> None:
-        """A satellite record at GPS time t (s) whose fields are on `lines` (0-based indices);
-        emit False: its fields are read (for their rejections) but give no rows."""
-        system = sat[0] if sat[0].strip() else self.file_system
-        self.recs.add(t, sat, system, lines, types, emit, power_failure, len(self.rejected))
+    def add_epoch(self, t: float, sats: list[str], starts: list[int], types_by_system: dict[str, list[str]],
+                  emit: bool, power_failure: bool) -> None:
+        """The satellite records of an epoch at GPS time t (s), the first line of each at `starts`
+        (0-based indices); emit False: their fields are read (for their rejections) but give no rows."""
+        systems = [sat[0] if sat[0].strip() else self.file_system for sat in sats]
+        self.recs.add_epoch(t, sats, systems, starts, types_by_system, emit, power_failure, len(self.rejected))
 
     def field(self, line_index: int, text: str, what: str) -> tuple[float, int, int]:
         """(value, lli, ssi) of one 16-column observation field; NaN when blank or unreadable."""
@@ -248,13 +248,16 @@ class _Reader:
             if len(sat_lines) < nsat:
                 self.reject(block_end if block_end < n else i, "satellite lines",
                             f"{len(sat_lines)} of {nsat} satellite lines before the next epoch/end of file")
+            sats, starts = [], []
             for k in sat_lines if keep else ():
                 sat = lines[k][0:3]
-                types = self.types_v3.get(sat[0])
-                if types is None:
+                if sat[0] not in self.types_v3:
                     self.counts[f"no_obs_types_{sat[0]}"] += 1
                     continue
-                self.add_record(t, sat, (k,), types, flag != 6, flag == 1)
+                sats.append(sat)
+                starts.append(k)
+            if sats:
+                self.add_epoch(t, sats, starts, self.types_v3, flag != 6, flag == 1)
             if keep:
                 self.counts["epochs" if flag != 6 else "cycle_slip_epochs"] += 1
             i = block_end

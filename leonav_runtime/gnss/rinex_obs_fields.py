@@ -31,35 +31,37 @@ from leonav_runtime.gnss.observations import (
     FLAG_PR_VALID,
 )
 
-_POW10 = 10 ** np.arange(9, -1, -1, dtype=np.int64)   # place values of the 10 integer columns
+_PLACE = 10 ** np.arange(12, -1, -1, dtype=np.int64)   # thousandths of the 10 integer + 3 decimal columns
+_COL = np.arange(10)
 _QTY = "CLDS"
 
 
 class Records:
-    """Satellite records of a body, in file order (parallel lists)."""
+    """Satellite records of a body, in file order (parallel lists, appended an epoch at a time)."""
 
     def __init__(self) -> None:
         self.t: list[float] = []
         self.sat: list[str] = []        # 3 characters, as the reader names the satellite
-        self.system: list[str] = []
-        self.lines: list[tuple[int, ...]] = []   # line indices holding the record's fields
+        self.start: list[int] = []      # index of the record's first line (RINEX 2: its fields go on
+        #                                 the lines after it, 5 a line; RINEX 3: the one 'Snn' line)
         self.group: list[int] = []      # index into `groups`
         self.emit: list[bool] = []      # rows kept (False: read for its rejections only)
         self.power_failure: list[bool] = []
         self.rej_pos: list[int] = []    # rejections listed before this record's fields
-        self.groups: dict[tuple, int] = {}
+        self.groups: dict[tuple, int] = {}   # (observation types, system) -> group index
 
-    def add(self, t: float, sat: str, system: str, lines: tuple[int, ...], types: list[str], emit: bool,
-            power_failure: bool, rej_pos: int) -> None:
-        key = (tuple(types), system)
-        self.t.append(t)
-        self.sat.append(sat)
-        self.system.append(system)
-        self.lines.append(lines)
-        self.group.append(self.groups.setdefault(key, len(self.groups)))
-        self.emit.append(emit)
-        self.power_failure.append(power_failure)
-        self.rej_pos.append(rej_pos)
+    def add_epoch(self, t: float, sats: list[str], systems: list[str], starts: list[int],
+                  types_by_system: dict[str, list[str]], emit: bool, power_failure: bool, rej_pos: int) -> None:
+        """The satellite records of one epoch at GPS time t (s)."""
+        n = len(sats)
+        gid = {s: self.groups.setdefault((tuple(types_by_system[s]), s), len(self.groups)) for s in set(systems)}
+        self.t += [t] * n
+        self.sat += sats
+        self.start += starts
+        self.group += [gid[s] for s in systems]
+        self.emit += [emit] * n
+        self.power_failure += [power_failure] * n
+        self.rej_pos += [rej_pos] * n
 
 
 def _signal_of(code: str, system: str, version: float) -> tuple[str, str] | None:
@@ -72,14 +74,19 @@ def _fixed_width(reader, recs: Records, idx: np.ndarray, ntypes: int) -> tuple[n
     """(bytes (n, ntypes, 16), characters present per field (n, ntypes)) of the records `idx`."""
     lines, width = reader.lines, 16 * ntypes
     m = np.arange(ntypes)
+    starts = [recs.start[r] for r in idx]
     if reader.version < 3:   # 5 fields per 80-column line, the record's lines one after the other
         per_sat = max(1, -(-ntypes // 5))
-        wide = "".join("".join(lines[j].ljust(80)[:80] for j in recs.lines[r])[:width].ljust(width) for r in idx)
-        lens = np.array([[len(lines[j]) for j in recs.lines[r]] for r in idx], dtype=np.int64).reshape(-1, per_sat)
+        block = [lines[j] for s in starts for j in range(s, s + per_sat)]
+        wide = "".join([ln.ljust(80)[:80] for ln in block])
+        if per_sat * 80 != width:
+            wide = "".join(wide[k:k + width] for k in range(0, len(wide), per_sat * 80))
+        lens = np.fromiter(map(len, block), dtype=np.int64, count=len(block)).reshape(-1, per_sat)
         avail = lens[:, m // 5] - 16 * (m % 5)
     else:                    # one line: 'Snn' then the fields
-        wide = "".join(lines[recs.lines[r][0]][3:3 + width].ljust(width) for r in idx)
-        lens = np.array([len(lines[recs.lines[r][0]]) for r in idx], dtype=np.int64)
+        block = [lines[s] for s in starts]
+        wide = "".join([ln[3:3 + width].ljust(width) for ln in block])
+        lens = np.fromiter(map(len, block), dtype=np.int64, count=len(block))
         avail = lens[:, None] - 3 - 16 * m[None, :]
     raw = np.frombuffer(wide.encode("ascii", "replace"), dtype=np.uint8).reshape(len(idx), ntypes, 16)
     return raw, avail
@@ -88,23 +95,21 @@ def _fixed_width(reader, recs: Records, idx: np.ndarray, ntypes: int) -> tuple[n
 def _parse(raw: np.ndarray, avail: np.ndarray):
     """(values, lli, ssi, blank, plain) of fixed-width fields; `values` only where `plain`."""
     num = raw[..., :14]
-    blank = np.all(num == 32, axis=-1)
-    ip = num[..., :10]
-    digit = (ip >= 48) & (ip <= 57)
-    space = ip == 32
-    lead = np.cumprod(space, axis=-1).astype(bool)                # the leading spaces
-    first = ~lead & np.concatenate([np.ones_like(lead[..., :1]), lead[..., :-1]], axis=-1)
-    minus = (ip == 45) & first
-    frac = num[..., 11:14]
-    plain = (np.all(lead | digit | minus, axis=-1) & (num[..., 10] == 46)
-             & np.all((frac >= 48) & (frac <= 57), axis=-1) & (avail >= 14) & ~blank)
-    whole = (np.where(digit, ip - 48, 0).astype(np.int64) * _POW10).sum(axis=-1)
-    thousandths = ((frac.astype(np.int64) - 48) * np.array([100, 10, 1])).sum(axis=-1)
-    values = (whole * 1000 + thousandths).astype(np.float64) / 1000.0
-    values = np.where(np.any(minus, axis=-1), -values, values)
-    flags = raw[..., 14:16]
-    ok = (flags >= 48) & (flags <= 57)
-    code = np.where(ok, flags.astype(np.int64) - 48, 0)
+    blank = (num == 32).all(axis=-1)
+    d = num - np.uint8(48)                    # digits 0-9; any other byte wraps above 9
+    digit = d < 10
+    nonspace = num[..., :10] != 32
+    first = np.where(nonspace.any(axis=-1), nonspace.argmax(axis=-1), 10)[..., None]
+    lead = _COL < first                       # the leading spaces
+    minus = (num[..., :10] == 45) & (_COL == first)
+    plain = ((lead | digit[..., :10] | minus).all(axis=-1) & (num[..., 10] == 46) & digit[..., 11:14].all(axis=-1)
+             & (avail >= 14) & ~blank)
+    dd = np.where(digit, d, 0).astype(np.int64)
+    thousandths = dd[..., :10] @ _PLACE[:10] + dd[..., 11:14] @ _PLACE[10:]
+    values = thousandths.astype(np.float64) / 1000.0
+    values = np.where(minus.any(axis=-1), -values, values)
+    flags = raw[..., 14:16] - np.uint8(48)
+    code = np.where(flags < 10, flags, 0).astype(np.int64)
     return values, code[..., 0], code[..., 1], blank, plain
 
 
@@ -114,13 +119,12 @@ def _slow_fields(reader, recs: Records, todo: list[tuple[int, int, int, str]], f
     saved, reader.rejected = reader.rejected, []
     out = []
     for r, m, gid, code in sorted(todo):
-        rec_lines = recs.lines[r]
         if reader.version < 3:
-            k = rec_lines[m // 5]
+            k = recs.start[r] + m // 5
             text = reader.lines[k][16 * (m % 5):16 * (m % 5) + 16]
             what = f"{code} of {recs.sat[r].strip()}"
         else:
-            k = rec_lines[0]
+            k = recs.start[r]
             text = reader.lines[k][3 + 16 * m:3 + 16 * (m + 1)]
             what = f"{code} of {recs.sat[r]}"
         n0 = len(reader.rejected)

@@ -92,18 +92,20 @@ def read_body(self, i: int) -> None:
         ntypes = len(self.types_v2)
         per_sat = max(1, -(-ntypes // 5))
         i = j
-        complete = True
-        for sat in sats:
-            block = lines[i:i + per_sat]
-            if len(block) < per_sat or any(V2_EPOCH.match(b) for b in block):
-                cut = next((k for k, b in enumerate(block) if V2_EPOCH.match(b)), len(block))
-                self.reject(i + cut, f"observations of {sat.strip() or '?'}",
-                            "satellite block cut short (end of file or next epoch); rest of the epoch dropped")
-                i += cut
-                complete = False
-                break
-            self.add_record(t, sat, tuple(range(i, i + per_sat)), self.types_v2, flag != 6 and keep, flag == 1)
-            i += per_sat
+        need = nsat * per_sat
+        # the first line of the next epoch among the satellite lines (or the end of the file) cuts
+        # the epoch: the satellites before it are read, the rest dropped
+        cut = next((k for k, b in enumerate(lines[i:i + need]) if V2_EPOCH.match(b)), min(need, n - i))
+        complete = cut == need
+        n_ok = cut // per_sat
+        if n_ok:
+            self.add_epoch(t, sats[:n_ok], list(range(i, i + n_ok * per_sat, per_sat)),
+                           dict.fromkeys({x[0] for x in sats[:n_ok]}, self.types_v2),
+                           flag != 6 and keep, flag == 1)
+        if not complete:
+            self.reject(i + cut, f"observations of {sats[n_ok].strip() or '?'}",
+                        "satellite block cut short (end of file or next epoch); rest of the epoch dropped")
+        i += cut
         if keep:
             self.counts["epochs" if flag != 6 else "cycle_slip_epochs"] += 1 if complete or flag != 6 else 0
 
