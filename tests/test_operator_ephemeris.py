@@ -281,3 +281,39 @@ def test_the_gridded_rotation_matches_the_direct_one():
     m, gmst = eme2000.eme2000_to_teme_matrix(EPOCH, t, 0.05)
     m_direct, gmst_direct = eme2000._teme_matrix_direct(EPOCH, t, np.full(t.shape, 0.05))
     assert np.abs(m - m_direct).max() < 2e-12 and np.abs(gmst - gmst_direct).max() < 1e-13
+
+
+def test_operator_states_replace_sgp4_where_a_file_covers_the_satellite():
+    from leonav_runtime.orbits.elements import parse_elements_text
+    from leonav_runtime.orbits.operator_states import operator_sat_states
+    from leonav_runtime.orbits.propagate import propagate_ecef
+    tle = ("STARLINK-1008\n"
+           "1 44714U 19074B   26254.07000000  .00001500  00000-0  10000-3 0  9990\n"
+           "2 44714  53.0540 120.1234 0001400  90.0000 270.1000 15.06400000 12345\n"
+           "STARLINK-1009\n"
+           "1 44715U 19074C   26254.07000000  .00001500  00000-0  10000-3 0  9991\n"
+           "2 44715  53.0540 120.1234 0001400  90.0000 280.1000 15.06400000 12345\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        elements = parse_elements_text(tle, "fixture", strict_checksum=False)
+        t_nodes = np.arange(0.0, 601.0, 60.0)
+        sgp4 = propagate_ecef(elements, EPOCH, t_nodes, acceleration=False, warn_stale=False)
+    # the operator's orbit of the first satellite: SGP4's, 100 m higher
+    r0 = sgp4.r_ecef_m[0] * (1.0 + 100.0 / np.linalg.norm(sgp4.r_ecef_m[0], axis=1, keepdims=True))
+    r_eme, v_eme = ecef_to_eme2000(r0, sgp4.v_ecef_mps[0], EPOCH, t_nodes)
+    eph = OperatorEphemeris("op", "STARLINK-1008", None, EPOCH, EPOCH + dt.timedelta(seconds=600), 60.0, "x", "UVW",
+                            (t_nodes * 1000).astype(np.int64), r_eme, v_eme, _covariance_uvw(t_nodes.size))
+    t = np.array([30.0, 200.0, 570.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        states, used = operator_sat_states(OperatorEphemerisSet({eph.name: eph}), elements, EPOCH, t)
+        ref = propagate_ecef(elements, EPOCH, t, warn_stale=False)
+    assert used.tolist() == [True, False] and states.r_ecef_m.shape == (2, 3, 3)
+    lift = np.linalg.norm(states.r_ecef_m[0], axis=1) - np.linalg.norm(ref.r_ecef_m[0], axis=1)
+    assert np.abs(lift - 100.0).max() < 1.0                       # the operator's orbit, not SGP4's
+    np.testing.assert_array_equal(states.r_ecef_m[1], ref.r_ecef_m[1])
+    # past the file's end the satellite keeps SGP4 (counted in the mask)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        late, used_late = operator_sat_states(OperatorEphemerisSet({eph.name: eph}), elements, EPOCH, t + 60.0)
+    assert not used_late.any()

@@ -27,10 +27,11 @@ import numpy as np
 
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.orbits.eme2000 import ecef_jacobian, eme2000_to_ecef, eme2000_to_teme_matrix
-from leonav_runtime.orbits.elements import as_utc
+from leonav_runtime.orbits.elements import ElementSet, as_utc
 from leonav_runtime.orbits.eop import EopTable
 from leonav_runtime.orbits.operator_ephemeris import OperatorEphemeris, OperatorEphemerisSet
-from leonav_runtime.orbits.propagate import acceleration_ecef_mps2, earth_orientation, gravity_ecef_mps2
+from leonav_runtime.orbits.propagate import (SatStates, acceleration_ecef_mps2, earth_orientation, gravity_ecef_mps2,
+                                              propagate_ecef)
 
 
 class OperatorCoverageWarning(UserWarning):
@@ -180,3 +181,29 @@ def operator_states_ecef(ephemerides: OperatorEphemerisSet, names: list[str], ep
     cov_ecef = T[None] @ cov_eme @ np.swapaxes(T, 1, 2)[None]
     a_ecef = acceleration_ecef_mps2(r_ecef, v_ecef)
     return OperatorStates(r_ecef, v_ecef, a_ecef, cov_ecef, t_s, epoch_utc, list(names), ok, failures)
+
+
+def operator_sat_states(ephemerides: OperatorEphemerisSet, elements: ElementSet, epoch_utc: _dt.datetime, t_s: np.ndarray,
+                        *, eop: EopTable | None = None) -> tuple[SatStates, np.ndarray]:
+    """In place of `propagate.propagate_ecef(elements, ...)`: the same `SatStates` (indices of
+    `elements` kept), each satellite whose operator ephemeris (joined by name) covers every
+    time of t_s taken from it, the others from SGP4. Returns (states, from_operator (nsat,))."""
+    states = propagate_ecef(elements, epoch_utc, t_s, eop=eop)
+    names = [str(n).strip() for n in elements.names]
+    held = [i for i, n in enumerate(names) if n in ephemerides.ephemerides]
+    use = np.zeros(len(names), bool)
+    if not held:
+        return states, use
+    with warnings.catch_warnings():     # the satellites not covered keep SGP4; counted in the mask
+        warnings.simplefilter("ignore", OperatorCoverageWarning)
+        try:
+            op = operator_states_ecef(ephemerides, [names[i] for i in held], epoch_utc, t_s, eop=eop)
+        except UserInputError:
+            return states, use
+    for j, i in enumerate(held):
+        if op.ok[j]:
+            use[i] = True
+            states.r_ecef_m[i], states.v_ecef_mps[i] = op.r_ecef_m[j], op.v_ecef_mps[j]
+            if states.a_ecef_mps2 is not None:
+                states.a_ecef_mps2[i] = op.a_ecef_mps2[j]
+    return states, use
