@@ -32,7 +32,7 @@ def roundtrip(eph, reference_week, convention="source"):
     return asm, payloads
 
 
-@pytest.mark.parametrize("convention", ["source", "transmitted"])
+@pytest.mark.parametrize("convention", ["source", "transmitted", "upright"])
 @pytest.mark.parametrize("rel,week", NAVS.items())
 def test_every_field_back_to_its_last_bit(rel, week, convention):
     eph = read_rinex_nav(shared_file(rel)).ephemerides

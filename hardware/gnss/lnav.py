@@ -9,13 +9,17 @@ Subframe bit numbers (1..300) are the ICD's: word n holds bits 30(n-1)+1 .. 30n.
 
 Parity (IS-GPS-200 Table 20-XIV) runs over the source data d1..d24 and the last two
 parity bits D29*, D30* of the previous word. On air, data bits are sent as
-D_i = d_i xor D30*. Two conventions for the 24 data bits of a stored word:
-  * "source": bits 1-24 are d1..d24 (polarity already removed; u-blox RXM-SFRBX as its
-    users decode it: data taken as is, no inversion);
-  * "transmitted": bits 1-24 are D1..D24 as on air.
-Parity bits 25-30 are as transmitted in both. "auto" accepts a subframe when all its
-words pass in one of the two conventions. Word 1 of a subframe follows word 10 of the
-previous one, whose last two bits the ICD forces to 0 (the t bits), so D29* = D30* = 0.
+D_i = d_i xor D30*. Three conventions for a stored word:
+  * "source": bits 1-24 are d1..d24 (polarity removed), parity bits 25-30 as transmitted;
+  * "transmitted": all 30 bits as on air (D1..D24, D25..D30);
+  * "upright": all 30 bits as on air, then the whole word inverted when the previous word's
+    D30 was 1, so that bits 1-24 are d1..d24 and the parity bits are inverted with them.
+    This is what u-blox receivers deliver in RXM-SFRBX: on a real M8/F9 GPS frame (pyubx2's
+    test log, tests/test_gnss_lnav_ublox.py) the 4 words after a D30 = 1 fail both other
+    conventions and all 10 pass this one.
+"auto" accepts a subframe when all its words pass in one of the conventions. Word 1 of a
+subframe follows word 10 of the previous one, whose last two bits the ICD forces to 0 (the
+t bits), so D29* = D30* = 0.
 
 Scale factors, bit positions and two's complement: Tables 20-I/20-III; semicircles are
 converted to radians with the ICD's pi (3.1415926535898).
@@ -83,19 +87,43 @@ def word_ok(word: int, prev_word: int, convention: str) -> tuple[bool, int]:
     return parity(data, d29s, d30s) == (word & 0x3F), data
 
 
+CONVENTIONS = ("source", "transmitted", "upright")
+
+
+def from_upright(words: list[int]) -> list[int]:
+    """The on-air words of "upright" words (each inverted back when the D30 before it is 1)."""
+    out, d30 = [], 0
+    for w in words:
+        w = (w ^ WORD_MASK) & WORD_MASK if d30 else w & WORD_MASK
+        out.append(w)
+        d30 = w & 1
+    return out
+
+
+def to_upright(words: list[int]) -> list[int]:
+    """"upright" words of on-air words (each inverted when the D30 before it is 1)."""
+    out, d30 = [], 0
+    for w in words:
+        out.append((w ^ WORD_MASK) & WORD_MASK if d30 else w & WORD_MASK)
+        d30 = w & 1
+    return out
+
+
 def check_subframe(words: list[int], convention: str = "auto") -> tuple[list[int], str]:
     """Source data (10 x 24 bits) of a subframe whose 10 words all pass parity.
 
     Returns (data words, convention used); raises LnavError('parity' / 'preamble' / ...)."""
     if len(words) != 10:
         raise LnavError("word_count", f"{len(words)} words, expected 10")
-    conventions = ("source", "transmitted") if convention == "auto" else (convention,)
+    conventions = CONVENTIONS if convention == "auto" else (convention,)
     first_bad = None
     for conv in conventions:
+        on_air = from_upright(words) if conv == "upright" else words
+        rule = "transmitted" if conv == "upright" else conv
         prev = 0
         data = []
-        for k, w in enumerate(words):
-            ok, d = word_ok(w, prev, conv)
+        for k, w in enumerate(on_air):
+            ok, d = word_ok(w, prev, rule)
             if not ok:
                 first_bad = k + 1 if first_bad is None else first_bad
                 break
@@ -265,10 +293,10 @@ def encode_subframe(subframe_id: int, raw: dict[str, int], tow_count: int, *, tl
     for k in range(10):
         if k in (1, 9):
             _solve_t_bits(data, k, prev)
-        w = encode_word(data[k], prev, convention)
+        w = encode_word(data[k], prev, "transmitted" if convention == "upright" else convention)
         words.append(w)
         prev = w
-    return words
+    return to_upright(words) if convention == "upright" else words
 
 
 def ura_index(accuracy_m: float) -> int:

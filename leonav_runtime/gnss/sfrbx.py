@@ -6,8 +6,9 @@ numWords U1 @4, chn U1 @5, version U1 @6 (0x02), reserved U1 @7, then numWords x
 little endian @8 + 4 k. GPS L1 C/A: 10 words per subframe in transmission order, each
 holding the 30-bit LNAV word right-aligned (bit 29 = the word's first bit, bit 0 its
 parity bit D30); bits 31-30 are not data (ignored on decode, written as 0). The decoder
-accepts both data-bit conventions (see `hardware.gnss.lnav`: "source", the one u-blox
-users decode, and "transmitted").
+accepts the three word conventions of `hardware.gnss.lnav`: "upright" (whole words with the
+polarity removed, parity bits included: what u-blox receivers deliver, measured on a real
+frame), "source" and "transmitted".
 
 `LnavAssembler` collects subframes 1-3 per satellite and emits one ephemeris row
 (`leonav_runtime.gnss.ephemeris.EPH_DTYPE`) when subframe 1's IODC (8 LSBs) and the IODE
@@ -112,10 +113,10 @@ def encode_iono_page(coefficients, tow_count: int, *, convention: str = "source"
                 if lnav.parity(d, (prev >> 1) & 1, prev & 1) & 0b11 == 0:
                     data[k] = d
                     break
-        w = lnav.encode_word(data[k], prev, convention)
+        w = lnav.encode_word(data[k], prev, "transmitted" if convention == "upright" else convention)
         words.append(w)
         prev = w
-    return words
+    return lnav.to_upright(words) if convention == "upright" else words
 
 
 @dataclass
