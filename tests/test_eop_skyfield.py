@@ -53,8 +53,8 @@ def test_ut1_utc_and_polar_motion_match_skyfield_across_leap_seconds():
         warnings.simplefilter("error", eop.StaleEopWarning)   # all inside the measured table
         ours = [table.at(t) for t in times]
     ut1 = np.array([v.ut1_utc_s[0] for v in ours])
-    xp = np.array([v.xp_rad[0] for v in ours]) / eop.ARCSEC_RAD
-    yp = np.array([v.yp_rad[0] for v in ours]) / eop.ARCSEC_RAD
+    xp = np.degrees([v.xp_rad[0] for v in ours]) * 3600.0   # rad -> arcsec here, not with eop's constant
+    yp = np.degrees([v.yp_rad[0] for v in ours]) * 3600.0
     ref_ut1, ref_xp, ref_yp = _skyfield(times)
     assert np.abs(ut1 - ref_ut1).max() < 1e-7, np.abs(ut1 - ref_ut1).max()
     assert np.abs(xp - ref_xp).max() < 1e-7 and np.abs(yp - ref_yp).max() < 1e-7
@@ -72,3 +72,19 @@ def test_the_midnight_after_a_leap_second_takes_the_new_days_row():
         row = table.mjd == eop.mjd_utc(after)
         assert row.sum() == 1
         assert table.at(after).ut1_utc_s[0] == pytest.approx(float(table.ut1_utc_s[row][0]), abs=1e-9)
+
+
+def test_a_time_before_the_table_warns_and_takes_the_first_row():
+    table = eop.default_table()
+    before = eop.mjd_to_utc(table.mjd[0]) - dt.timedelta(days=30)
+    with pytest.warns(eop.StaleEopWarning, match="outside the table"):
+        v = table.at(before)
+    assert v.ut1_utc_s[0] == pytest.approx(float(table.ut1_utc_s[0]), abs=1e-9)
+
+
+def test_a_table_with_a_day_twice_is_refused_naming_the_file(tmp_path):
+    rows = [line for line in open(eop.default_path()) if line.startswith("26 2")][:4]
+    own = tmp_path / "twice.all"
+    own.write_text("".join(rows[:3] + [rows[2]] + rows[3:]))   # the third day repeated, as a bad merge writes it
+    with pytest.raises(eop.UserInputError, match="twice.all: duplicated MJD"):
+        eop.EopTable.load(own)
