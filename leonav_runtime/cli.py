@@ -66,8 +66,11 @@ class _VersionAction(argparse.Action):
         parser.exit()
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Build the top-level parser with every discovered subcommand (errors are one line)."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """Build the top-level parser with every discovered subcommand (errors are one line); with
+    `command` (the command word of a command line), only that command's module is imported,
+    so a command starts without the imports of all the others (the full parser when the word
+    names no command module, and always for `completion`, which describes every command)."""
     parser = OneLineErrorParser(
         prog="leonav",
         description=(
@@ -86,11 +89,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-q", "--quiet", action="count", default=0,
                         help="only errors: warnings are not printed (short form also accepted after the command)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for info in sorted(pkgutil.iter_modules(_commands_pkg.__path__), key=lambda m: m.name):
-        if info.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"{_commands_pkg.__name__}.{info.name}")
+    names = [m.name for m in sorted(pkgutil.iter_modules(_commands_pkg.__path__), key=lambda m: m.name)
+             if not m.name.startswith("_")]
+    only = command.replace("-", "_") if command and command != "completion" else None
+    for name in names if only not in names else [only]:
+        module = importlib.import_module(f"{_commands_pkg.__name__}.{name}")
         module.register(sub)
+    if only in names and command not in sub.choices:   # the module registers another name
+        return build_parser()
     return parser
 
 
@@ -237,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
     argv, debug = _split_debug(argv)
     argv, verbosity = _split_verbosity(argv)
     debug = debug or os.environ.get("LEONAV_DEBUG", "") not in ("", "0")
-    parser = build_parser()
+    parser = build_parser(next((a for a in argv if not a.startswith("-")), None))
     args, extra = parser.parse_known_args(argv)
     if extra:   # named after the command they were given to, as every other error
         prog = f"leonav {_command_name(args)}" if getattr(args, "command", None) else "leonav"

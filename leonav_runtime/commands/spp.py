@@ -64,7 +64,7 @@ def process(obs_path: Path, nav_paths: list[str], args, nav_funcs, out: Path, re
             nav_cache: dict | None = None) -> dict:
     """Solve one observation file and write its outputs; returns its summary. nav_cache: a
     dict shared by the files of one run, so that the --nav files are read once."""
-    from leonav_runtime.gnss import gnss_ekf, solution_io, spp
+    from leonav_runtime.gnss import solution_io, spp   # gnss_ekf (and the filter it imports) only for --ekf
     from leonav_runtime.gnss.rinex_obs import read_rinex_obs
     from leonav_runtime.gnss.signals import REASONS, SYSTEM_NAMES, gnss_rows
 
@@ -131,6 +131,8 @@ def process(obs_path: Path, nav_paths: list[str], args, nav_funcs, out: Path, re
         if not ok.any():   # the EKF starts from a single-point solution; say why there is none
             raise UserInputError(f"{obs_path}: --ekf: no epoch has a single-point solution to start the "
                                  f"GNSS-only EKF from ({_why_unsolved(summary)})")
+        from leonav_runtime.gnss import gnss_ekf
+
         sol = gnss_ekf.run(res, q_acc_m2ps3=args.q_acc, nav=nav_funcs)
         have = np.all(np.isfinite(sol.r_ecef_m), axis=1)
         solution_io.write_pos(out / f"{stem}_ekf.pos", sol.t_gps_s[have], sol.r_ecef_m[have], _enu_cov(sol, have),
