@@ -150,3 +150,60 @@ def test_a_differenced_observables_reference_is_found_by_its_state(run):
     far[:, 0:3] += 200e3                                # nothing within 50 km: not covered
     with pytest.warns(UserWarning, match="30 of 30 records have no operator covariance"):
         assert np.isnan(provider.covariance_ecef(None, s.t_s[rows], far)).all()
+
+
+def _scenario(**eph):
+    raw = copy.deepcopy(load_scenario("paper").raw)
+    raw["time"]["duration_s"] = 3.0
+    raw["starlink"]["counts"] = [10]
+    raw["monte_carlo"]["modes"] = ["leo-alpha+imu"]
+    raw["ephemeris_error"] = dict(eph)
+    return scenario_from_dict(raw, source="<operator consider scenario>")
+
+
+def _write_folder(run, folder, cov_uvw):
+    """The run's satellites as operator files named like their element sets."""
+    from leonav_runtime.orbits.operator_ephemeris import write_file
+    scn, _, _, _, _, ephs, ids = run
+    es = scenario_elements(scn)["starlink"]
+    for k, (sid, name) in enumerate(ids.items()):
+        e = copy.copy(ephs.ephemerides[name])
+        e.name = str(es.names[int(np.flatnonzero(es.norad_ids == sid)[0])])
+        e.cov_uvw = np.broadcast_to(cov_uvw, (len(e), 6, 6)).copy()
+        write_file(e, folder, serial=k)
+
+
+def test_a_scenarios_operator_folder_feeds_the_consider_term(run, tmp_path):
+    scn0, setup, nav, *_ = run
+    rng = np.random.default_rng(5)
+    a = rng.standard_normal((6, 6)) * np.array([2.0, 9.0, 1.5, 2e-3, 1e-3, 2e-3])[:, None]
+    cov = a @ a.T
+    _write_folder(run, tmp_path / "x1", cov)
+    _write_folder(run, tmp_path / "x4", 4.0 * cov)
+
+    def alpha_r(**eph):
+        scn = _scenario(**eph)
+        s, n = mc.setup_for(scn)
+        trial = simulate.trial_records(s, "leo-alpha+imu", 10, mc.trial_rng(scn.seed, 0), n)
+        alpha = trial.records["kind"] == n.kind_id("doppler_rate")
+        return trial.records["R"][alpha], trial.records[alpha], trial.x0
+    base, recs, x0 = alpha_r()
+    model, _, _ = alpha_r(compensate="consider")
+    op1, _, _ = alpha_r(compensate="consider", operator_folder=str(tmp_path / "x1"))
+    op4, _, _ = alpha_r(compensate="consider", operator_folder=str(tmp_path / "x4"))
+    J = nav.orbit_jacobian_many("doppler_rate", x0, recs["aux"], setup.params)
+    from leonav_runtime.orbits.operator_consider import folder_covariance
+    prov = folder_covariance(tmp_path / "x1", scenario_elements(scn0)["starlink"], scn0.epoch_utc)
+    p = prov.covariance_ecef(recs["sat_id"], recs["t"], np.zeros((recs.size, 9)))
+    assert prov.uncovered_records == 0
+    assert op1 - base == pytest.approx(consider.covariance_variance(J, p, None), rel=1e-9)
+    assert op4 - base == pytest.approx(4.0 * (op1 - base), rel=1e-9)        # R follows the files
+    assert np.abs((op1 - base) / (model - base) - 1.0).min() > 0.5           # not the element-age model
+
+
+def test_operator_folder_bad_input_is_one_line(tmp_path):
+    from leonav_runtime.common.errors import UserInputError
+    with pytest.raises(UserInputError, match=r"operator_folder = .* is used only by compensate = 'consider'"):
+        _scenario(operator_folder=str(tmp_path))
+    with pytest.raises(UserInputError, match=r"operator_folder = .*missing.* is not a folder"):
+        _scenario(compensate="consider", operator_folder=str(tmp_path / "missing"))

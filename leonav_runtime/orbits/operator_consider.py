@@ -16,19 +16,44 @@ counted in `uncovered_records`, announced once.
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import warnings
+from pathlib import Path
 
 import numpy as np
 
 from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.orbits.elements import ElementSet
 from leonav_runtime.orbits.eop import EopTable
-from leonav_runtime.orbits.operator_ephemeris import OperatorEphemerisSet
+from leonav_runtime.orbits.operator_ephemeris import OperatorEphemerisSet, load_folder
 from leonav_runtime.orbits.operator_states import OperatorCoverageWarning, operator_states_ecef
+
+
+_FOLDERS: dict[tuple, "OperatorCovariance"] = {}
+
+
+def folder_covariance(folder: str | Path, elements: ElementSet, epoch_utc: _dt.datetime) -> "OperatorCovariance":
+    """The provider for a scenario: the operator files in `folder` of the satellites of
+    `elements` (an `ElementSet`, joined by name), kept per process for the same folder
+    content, element names and epoch (every trial of a sweep builds its records with it)."""
+    folder = Path(folder)
+    listing = tuple(sorted((p.name, p.stat().st_mtime_ns, p.stat().st_size) for p in folder.iterdir() if p.is_file()))
+    ids_to_names = names_by_id(elements.norad_ids, elements.names)
+    key = (str(folder), listing, tuple(sorted(ids_to_names.items())), epoch_utc.isoformat())
+    if key not in _FOLDERS:
+        _FOLDERS.clear()    # one folder at a time: bounded memory
+        # only the scenario's satellites are read; refused files are counted and said once (load_folder)
+        ephemerides = load_folder(folder, names=sorted(set(ids_to_names.values())))
+        _FOLDERS[key] = OperatorCovariance(ephemerides, epoch_utc, ids_to_names)
+    return _FOLDERS[key]
 
 
 def names_by_id(norad_ids, names) -> dict[int, str]:
     """{NORAD id: object name} from element-set columns (names stripped)."""
     return {int(i): str(n).strip() for i, n in zip(norad_ids, names)}
+
+
+_MEMO_ENTRIES = 16   # distinct record sets kept (kinds x satellite counts of a sweep)
 
 
 class OperatorCovariance:
@@ -42,8 +67,9 @@ class OperatorCovariance:
         self.ids_to_names = {i: n for i, n in ids_to_names.items() if n in ephemerides.ephemerides}
         self.eop = eop
         self.match_m = match_m
-        self.uncovered_records = 0
+        self.uncovered_records = 0       # per distinct request (repeats come from the memo)
         self._warned = False
+        self._memo: dict[bytes, np.ndarray] = {}
 
     def _states(self, names: list[str], t_s: np.ndarray):
         with warnings.catch_warnings():      # partial coverage is counted below, once
@@ -57,6 +83,19 @@ class OperatorCovariance:
         """(n, 6, 6) covariance per record; sat_id None: match each record's state (n, 9)
         to the nearest covered satellite. NaN where no file covers the record."""
         t_s = np.asarray(t_s, float)
+        digest = hashlib.blake2b(t_s.tobytes(), digest_size=16)
+        digest.update(b"state" + np.ascontiguousarray(state9[:, 0:3]).tobytes() if sat_id is None
+                      else b"id" + np.asarray(sat_id, np.int64).tobytes())
+        key = digest.digest()
+        if key in self._memo:            # a sweep's trials ask for the same records again
+            return self._memo[key].copy()
+        out = self._compute(sat_id, t_s, state9)
+        if len(self._memo) >= _MEMO_ENTRIES:
+            self._memo.pop(next(iter(self._memo)))
+        self._memo[key] = out
+        return out.copy()
+
+    def _compute(self, sat_id: np.ndarray | None, t_s: np.ndarray, state9: np.ndarray) -> np.ndarray:
         out = np.full((t_s.size, 6, 6), np.nan)
         if sat_id is None:
             names = sorted(set(self.ids_to_names.values()))

@@ -240,7 +240,7 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
                                  f"within duration_s = {duration:g} s; expected a rate >= {1 / duration:g} Hz")
 
     return Scenario(
-        realism=_realism(source, values["ephemeris_error"], values["imu_errors"]),
+        realism=_realism(source, values["ephemeris_error"], values["imu_errors"], base),
         name=values[""]["name"],
         description=values[""]["description"],
         lat_rad=math.radians(values["site"]["lat_deg"]),
@@ -277,9 +277,21 @@ def _scenario_params(values: dict[str, dict[str, Any]]) -> dict[str, float]:
     return out
 
 
-def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """The realism sections in SI: sigmas (m), rad, m/s^2 and rad/s per degC, rates."""
+def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any], base: Path | None = None
+             ) -> dict[str, dict[str, Any]]:
+    """The realism sections in SI: sigmas (m), rad, m/s^2 and rad/s per degC, rates; the
+    operator-ephemeris folder as a path from `base` (the scenario file's folder)."""
     eph = dict(eph)
+    folder = eph.get("operator_folder", "")
+    if folder:
+        if eph["compensate"] != "consider":
+            raise UserInputError(f"{source}: [ephemeris_error] operator_folder = {show_value(folder)} is used only by "
+                                 f"compensate = 'consider' (found {show_value(eph['compensate'])})")
+        path = Path(folder) if Path(folder).is_absolute() else (base or Path.cwd()) / folder
+        if not path.is_dir():
+            raise UserInputError(f"{source}: [ephemeris_error] operator_folder = {show_value(folder)}: {path} is not "
+                                 "a folder (expected MANIFEST.txt and MEME_*.txt operator ephemerides)")
+        eph["operator_folder"] = str(path)
     for key in ("starlink_sigma_rac_m", "gps_sigma_rac_m"):
         eph[key] = check_numbers(source, "ephemeris_error", key, eph[key], 3, "m", limit=1e7)
         if min(eph[key]) < 0:

@@ -131,6 +131,10 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "consider_correlation_s": Field(float, "s", 0, 1e5, default=0.0,
                                         doc="consider: the term times the satellite's records within this "
                                             "time (its error is shared); 0 = white"),
+        "operator_folder": Field(str, "-", default="",
+                                 doc="consider: P_sat from the operator ephemerides in this folder (MANIFEST.txt; "
+                                     "relative to the scenario file) instead of the Starlink sigmas; "
+                                     "docs/ephemerides.md"),
     },
     "imu_errors": {
         "enabled": Field(bool, "-", default=False, doc="IMU errors the filter does not model"),

@@ -142,8 +142,16 @@ def orbit_consider(scn) -> OrbitConsider | None:
     eph = scn.realism.get("ephemeris", {})
     if eph.get("compensate") != "consider":
         return None
-    return OrbitConsider({k: sigma_rac(eph, c) for k, c in _satellite_constellations().items() if c in eph["apply_to"]},
-                         eph.get("consider_correlation_s", 0.0))
+    kinds = {k: c for k, c in _satellite_constellations().items() if c in eph["apply_to"]}
+    covariance = {}
+    if eph.get("operator_folder"):   # Starlink's P_sat from its operator ephemerides (docs/ephemerides.md)
+        # imported on use: ERFA and the operator readers cost ~60 ms of import every sweep would pay
+        from leonav_runtime.orbits.operator_consider import folder_covariance
+        from leonav_runtime.simulation.visibility import scenario_elements
+        provider = folder_covariance(eph["operator_folder"], scenario_elements(scn)["starlink"], scn.epoch_utc)
+        covariance = {k: provider for k, c in kinds.items() if c == "starlink"}
+    return OrbitConsider({k: sigma_rac(eph, c) for k, c in kinds.items()}, eph.get("consider_correlation_s", 0.0),
+                         covariance)
 
 
 def imu_error_increments(rng: np.random.Generator, cfg: dict, u_true: np.ndarray, t_start: np.ndarray,
