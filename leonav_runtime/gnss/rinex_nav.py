@@ -34,6 +34,7 @@ log = logging.getLogger("leonav.gnss")
 
 SUPPORTED = "RINEX 2.10/2.11 GPS navigation ('N') and RINEX 3.00-3.05 navigation ('N')"
 RECORD_LINES = {"G": 8, "E": 8, "C": 8, "J": 8, "I": 8, "R": 4, "S": 4}
+GLONASS_LINES_305 = 5   # RINEX 3.05 adds a 4th orbit line to GLONASS records (status flags, URAI, health)
 KEPLER_SYSTEMS = ("G", "E", "C", "J")
 
 # field names of the broadcast-orbit lines 2..8, per system (used in messages and for
@@ -299,7 +300,7 @@ def parse_rinex_nav(text: str, source: str = "<string>") -> NavFile:
             system, prn, epoch = _epoch(group[0], v3)
             if system not in RECORD_LINES:
                 raise _Bad(0, "system", f"unknown satellite system letter {system!r}")
-            want = RECORD_LINES[system]
+            want = GLONASS_LINES_305 if system == "R" and version >= 3.05 else RECORD_LINES[system]
             if system not in KEPLER_SYSTEMS:
                 counts[f"skipped_{system}"] += 1
                 if len(group) != want:
