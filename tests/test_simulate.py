@@ -374,3 +374,68 @@ def test_filter_prior_is_the_documented_one(paper_setup):
     assert sd[L.DX_DB_G:L.DX_DB_G + 3] == pytest.approx(np.broadcast_to(prof.gyro_bias_sigma, 3))
     assert sd[L.DX_DC_DT] == pytest.approx(C * 1e-6, rel=1e-3) and sd[L.DX_DC_DDT] == 1.0
     assert sd[L.DX_DB_LO] == 50e3 and np.count_nonzero(setup.P0 - np.diag(np.diag(setup.P0))) == 0
+
+
+# ---- a block of trials at once: the same records as one trial at a time -------------------------
+
+def _assert_block_is_the_reference(setup, nav, mode, count, indices, seed):
+    """trial_block's records, x0 and truth, and trial_records', equal the pre-block per-trial
+    simulator's (tests/simulate_reference.py) byte for byte, trial by trial."""
+    from leonav_runtime.simulation import trial_block
+    from tests import simulate_reference
+
+    block = trial_block.trial_block(setup, mode, count, [mc.trial_rng(seed, i) for i in indices], nav)
+    buf = block.buffer()
+    truth = block.truth()
+    assert len(block) == len(indices)
+    for j, i in enumerate(indices):
+        ref = simulate_reference.trial_records(setup, mode, count, mc.trial_rng(seed, i), nav)
+        one = simulate.trial_records(setup, mode, count, mc.trial_rng(seed, i), nav)
+        for got in (one.records, block.records(j), block.fill(j, buf)):
+            assert got.dtype == ref.records.dtype and got.size == ref.records.size, (mode, count, i)
+            for name in ref.records.dtype.names:   # name the first field that differs
+                assert got[name].tobytes() == ref.records[name].tobytes(), (mode, count, i, name)
+        assert one.x0.tobytes() == block.x0[j].tobytes() == ref.x0.tobytes(), (mode, count, i)
+        assert one.x_true.tobytes() == truth[j].tobytes() == ref.x_true.tobytes(), (mode, count, i)
+        params = block.params if block.params.ndim == 1 else block.params[j]
+        assert params.tobytes() == ref.params.tobytes()
+    k = np.array([0, 7, truth.shape[1] - 1])
+    assert block.truth(k).tobytes() == truth[:, k].tobytes()
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_a_block_of_trials_equals_the_per_trial_simulator_record_for_record(paper_setup, mode):
+    scn, setup, nav = paper_setup
+    for count in (5, 45):
+        _assert_block_is_the_reference(setup, nav, mode, count, [0, 3, 11], scn.seed)
+    ref = __import__("tests.simulate_reference", fromlist=["x"]).trial_records(
+        setup, mode, 45, np.random.default_rng(4), nav, noise_free=True)
+    one = simulate.trial_records(setup, mode, 45, np.random.default_rng(4), nav, noise_free=True)
+    assert one.records.tobytes() == ref.records.tobytes() and one.x0.tobytes() == ref.x0.tobytes()
+
+
+def test_a_block_with_local_sensors_and_an_outage_equals_the_per_trial_simulator():
+    """Barometer and magnetometer (own streams, generated h at each trial's truth), a GPS outage."""
+    scn = _scenario(time__duration_s=4.0, starlink__counts=[5], gps__outages_s=[[1.0, 2.5]],
+                    monte_carlo__modes=["gps+imu+baro+mag", "leo-alpha+imu+baro"])
+    setup, nav = mc.setup_for(scn)
+    for mode in scn.modes:
+        _assert_block_is_the_reference(setup, nav, mode, 5, [2, 5], scn.seed)
+
+
+def test_a_block_with_realism_switches_takes_the_road_per_trial_and_equals_it():
+    from tests.conftest import short_paper_scenario
+
+    scn = short_paper_scenario(3.0, [10], "<block realism test>",
+                               ephemeris_error={"enabled": True, "compensate": "inflate-r"},
+                               imu_errors={"enabled": True, "process_noise_inflation": 2.0})
+    setup, nav = mc.setup_for(scn)
+    _assert_block_is_the_reference(setup, nav, "gps+leo-alpha+imu", 10, [0, 1], scn.seed)
+
+
+def test_prior_draws_are_numpys_multivariate_normal_with_one_factorisation():
+    A = np.random.default_rng(5).standard_normal((7, 7))
+    cov = A @ A.T + np.eye(7)   # a full covariance: the factor's rotation matters
+    got = simulate.prior_draws([mc.trial_rng(9, i) for i in range(6)], cov)
+    ref = np.stack([mc.trial_rng(9, i).multivariate_normal(np.zeros(7), cov) for i in range(6)])
+    assert got.shape == (6, 7) and got.tobytes() == ref.tobytes()

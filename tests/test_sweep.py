@@ -150,3 +150,35 @@ def test_paper_findings_only_for_a_scenario_that_declares_itself_the_papers(tmp_
     res = run_sweep(maritime, tmp_path, trials=2, workers=1, progress=False)
     assert res.findings and {f["kind"] for f in res.findings} == {"scenario"}
     assert "the paper's findings" not in summary_table(maritime, res)
+
+
+def test_a_block_task_gives_each_trial_what_it_gives_alone():
+    """run_block (the block's records at once, one filter object per block, errors and NEES for the
+    whole block) equals run_trial trial by trial, bit for bit; its CPU covers its C loops."""
+    from pathlib import Path
+
+    from leonav_runtime.sweep import montecarlo as mc
+
+    scn = _paper(time__duration_s=3.0, starlink__counts=[5, 10])
+    for mode, count in (("gps+leo-alpha+imu", 10), ("leo-alpha+ofdm+imu", 5)):
+        block = mc.run_block((scn.raw, scn.source, str(Path(scn.source).parent), mode, count, [0, 4, 9]))
+        assert [r.index for r in block.results] == [0, 4, 9] and block.pcrb is not None
+        for r in block.results:
+            alone = mc.run_trial(scn, mode, count, r.index)
+            assert r.err.tobytes() == alone.err.tobytes() and r.nees.tobytes() == alone.nees.tobytes()
+            assert (r.nis_sum, r.nis_count, r.gated, r.failed) == (alone.nis_sum, alone.nis_count, alone.gated,
+                                                                   alone.failed)
+            assert (r.p_est is None) == (r.index != 0)
+        assert np.array_equal(block.p_est_trial0, mc.run_trial(scn, mode, count, 0).p_est)
+        assert 0 < block.c_seconds <= block.seconds
+
+
+def test_sweep_timing_is_cpu_against_its_c_floor(tmp_path):
+    scn = _paper(time__duration_s=3.0, starlink__counts=[5], monte_carlo__modes=["gps+imu"])
+    t = run_sweep(scn, None, trials=20, workers=1, progress=False, figures=False).timing
+    assert t["trials_run"] == 20 and t["imu_steps_per_trial"] == 300
+    assert t["floor_cpu_s"] == pytest.approx(20 * 300 * t["c_us_per_imu_step"] * 1e-6)
+    # inline: this process ran every trial, so its CPU holds the trials' (thread) CPU and the floor
+    assert t["floor_cpu_s"] < 1e-3 * t["trial_cpu_ms"] * 20 <= t["process_cpu_s"] + 0.005
+    assert t["total_cpu_s"] == pytest.approx(t["process_cpu_s"] + t["workers_cpu_s"])
+    assert t["cpu_over_floor"] == pytest.approx(t["total_cpu_s"] / t["floor_cpu_s"]) and t["cpu_over_floor"] > 1

@@ -119,7 +119,7 @@ def run_trial(scn: Scenario, mode: str, count: int, index: int) -> TrialResult:
     err = nav.boxminus(res.x[rows], trial.x_true[k])[:, NAV]
     P9 = res.P[:, NAV, NAV]
     nees = np.einsum("ni,ni->n", err, np.linalg.solve(P9, err[:, :, None])[:, :, 0])
-    nis_sum, nis_count = _nis_sums(res.kind, res.nis, res.status)
+    nis_sum, nis_count = _nis_sums(_kind_masks(res.kind), res.nis, res.status)
     p_est = res.x[rows, L.X_P_ENU_SLICE].copy() if index == 0 else None
     return TrialResult(index, err, nees, nis_sum, nis_count, res.n_gated, res.n_failed, p_est,
                        t_c, time.thread_time() - t0, time.perf_counter() - w0)
@@ -156,21 +156,25 @@ def run_block(task: tuple) -> BlockResult:
     x_est = np.empty((B, nt, L.NX))
     P9 = np.empty((B, nt, L.NNAV, L.NNAV))
     c_seconds, runs = [], []
+    ekf = lfilter.EKF(block.x0[0], setup.P0, block.params if block.params.ndim == 1 else block.params[0], gate=gate,
+                      library=nav.library)
+    kinds = _kind_masks(buf["kind"])   # the same for every trial of the block
     for j in range(B):
-        params = block.params if block.params.ndim == 1 else block.params[j]
-        ekf = lfilter.EKF(block.x0[j], setup.P0, params, gate=gate, library=nav.library)
+        # one filter object for the block: each trial starts it again at its own x0, P0 and params
+        ekf.x[:], ekf.P[:] = block.x0[j], setup.P0
+        ekf.params[:] = block.params if block.params.ndim == 1 else block.params[j]
         recs = block.fill(j, buf)
         t_c = time.thread_time()
         res = ekf.run(recs, P_rows=rows)  # full P only on the output grid, for NEES
         c_seconds.append(time.thread_time() - t_c)
         x_est[j], P9[j] = res.x[rows], res.P[:, NAV, NAV]
-        runs.append((res.kind, res.nis, res.status, res.n_gated, res.n_failed))
+        runs.append((res.nis, res.status, res.n_gated, res.n_failed))
     err = nav.boxminus(x_est.reshape(B * nt, L.NX), block.truth(k).reshape(B * nt, L.NX))[:, NAV]
     err = err.reshape(B, nt, L.NNAV)
     nees = np.einsum("bni,bni->bn", err, np.linalg.solve(P9, err[..., None])[..., 0])
     results = []
-    for j, (index, (kind, nis, status, gated, failed)) in enumerate(zip(indices, runs)):
-        nis_sum, nis_count = _nis_sums(kind, nis, status)
+    for j, (index, (nis, status, gated, failed)) in enumerate(zip(indices, runs)):
+        nis_sum, nis_count = _nis_sums(kinds, nis, status)
         p_est = x_est[j, :, L.X_P_ENU_SLICE].copy() if index == 0 else None
         results.append(TrialResult(index, err[j], nees[j], nis_sum, nis_count, gated, failed, p_est, c_seconds[j],
                                    math.nan, math.nan))
@@ -179,15 +183,21 @@ def run_block(task: tuple) -> BlockResult:
     return BlockResult(results, bound, p0, sum(c_seconds), time.thread_time() - t0, time.perf_counter() - w0)
 
 
-def _nis_sums(kind: np.ndarray, nis: np.ndarray, status: np.ndarray) -> tuple[dict[int, float], dict[int, int]]:
-    """Per measurement kind: the sum of NIS over applied and gated updates, and their number."""
-    meas = status >= 0
+def _nis_sums(kinds: list[tuple[int, np.ndarray]], nis: np.ndarray, status: np.ndarray,
+              ) -> tuple[dict[int, float], dict[int, int]]:
+    """Per measurement kind (id, its records' mask): the sum of NIS over the applied and gated
+    updates, and their number."""
+    used = (status >= 0) & (status <= 1)
     nis_sum, nis_count = {}, {}
-    for k in np.unique(kind[meas]):
-        sel = meas & (kind == k) & (status <= 1)
-        nis_sum[int(k)] = float(np.sum(nis[sel]))
-        nis_count[int(k)] = int(np.sum(sel))
+    for kind, mask in kinds:
+        sel = mask & used
+        nis_sum[kind] = float(np.sum(nis[sel]))
+        nis_count[kind] = int(np.count_nonzero(sel))
     return nis_sum, nis_count
+
+
+def _kind_masks(kind: np.ndarray) -> list[tuple[int, np.ndarray]]:
+    return [(int(k), kind == k) for k in np.unique(kind[kind >= 0])]
 
 
 def pcrb_on_truth(setup: simulate.Setup, nav: navfuncs.NavFunctions, mode: str, count: int,

@@ -171,6 +171,7 @@ def summary_table(res) -> str:
         for f in chosen:
             lines.append(f"  [{'holds' if f['holds'] else 'DIFFERS'}] {f['finding']}: {f['detail']}")
     t = res.timing
-    lines.append(f"\n{t['trials_run']} trials in {t['trials_wall_s']:.1f} s wall ({t['trial_cpu_ms']:.1f} ms CPU "
-                 f"per trial, {100 * t['c_share']:.0f} % in the C filter loop); total {t['wall_s']:.1f} s")
+    lines.append(f"\n{t['trials_run']} trials in {t['trials_wall_s']:.1f} s wall, {t['total_cpu_s']:.1f} s CPU = "
+                 f"{t['cpu_over_floor']:.2f}x the C floor ({t['trials_run']} trials x {t['imu_steps_per_trial']} IMU "
+                 f"steps x {t['c_us_per_imu_step']:.2f} us = {t['floor_cpu_s']:.1f} s); total {t['wall_s']:.1f} s wall")
     return "\n".join(lines)

@@ -12,12 +12,14 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import resource
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from leonav_runtime.simulation import trial_block
 from leonav_runtime.sweep import montecarlo as mc
 from leonav_runtime.sweep.executors import make_executor, map_in_order
 from leonav_runtime.gen import state_layout as L
@@ -28,6 +30,43 @@ log = logging.getLogger("leonav.sweep")
 
 BLOCK_TRIALS = 10  # trials per executor task: enough work per task to hide scheduling cost
 
+
+
+def _cpu_clocks() -> tuple[float, float]:
+    """CPU seconds (user + system) of this process and of its waited-for children (pool workers)."""
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time(), children.ru_utime + children.ru_stime
+
+
+def sweep_timing(blocks: list, steps: int, t_start: float, t_setup: float, cpu_setup: float, t_trials: float,
+                 cpu_start: tuple[float, float], cpu_trials: tuple[float, float], remote: bool) -> dict:
+    """metrics.json's timing: CPU from CPU clocks, wall times named *wall*.
+
+    The floor is trials x IMU steps x the C loop's CPU per IMU step, all measured in this run
+    (the worker threads' clocks around each C loop). total_cpu_s: this process (set-up, tasks,
+    summaries) plus its workers (the pool's processes, reaped when it closes; on Dask the
+    workers' clocks around their blocks), before the results folder is written.
+    """
+    n_trials = sum(len(b.results) for b in blocks)
+    c_time = sum(b.c_seconds for b in blocks)
+    cpu_blocks = sum(b.seconds for b in blocks)
+    process = cpu_trials[0] - cpu_start[0]
+    workers = cpu_blocks if remote else cpu_trials[1] - cpu_start[1]
+    c_step = c_time / max(n_trials * steps, 1)
+    floor = n_trials * steps * c_step
+    total = process + workers
+    return {
+        "wall_s": time.perf_counter() - t_start, "setup_wall_s": t_setup, "setup_cpu_s": cpu_setup,
+        "trials_wall_s": t_trials, "trials_run": n_trials, "imu_steps_per_trial": steps,
+        "trial_cpu_ms": 1e3 * cpu_blocks / max(n_trials, 1),
+        "trial_wall_ms": 1e3 * sum(b.wall_seconds for b in blocks) / max(n_trials, 1),
+        "c_us_per_imu_step": 1e6 * c_step, "floor_cpu_s": floor,
+        "process_cpu_s": process, "workers_cpu_s": workers, "total_cpu_s": total,
+        "cpu_over_floor": total / floor if floor > 0 else math.nan,
+        "c_share": c_time / cpu_blocks if cpu_blocks > 0 else math.nan,
+        "clock": "*_cpu_*, c_us_per_imu_step, c_share: CPU clocks (trials: the worker thread's; process and "
+                 "workers: process_time and getrusage of the pool's processes); *_wall_*: wall time",
+    }
 
 
 def uses_starlink(mode: str) -> bool:
@@ -149,10 +188,12 @@ def run_sweep(scn: Scenario, out_dir: Path | None = None, *, trials: int | None 
     trials = trials or scn.trials
     if trials != scn.trials:
         scn = dataclasses.replace(scn, trials=trials)
-    t_start = time.perf_counter()
+    t_start, cpu_start = time.perf_counter(), _cpu_clocks()
     setup, nav = mc.setup_for(scn)  # validates visibility before any work is sent out
-    t_setup = time.perf_counter() - t_start
+    t_setup, cpu_setup = time.perf_counter() - t_start, time.process_time() - cpu_start[0]
     tasks = _tasks(scn, trials)
+    for mode, count in dict.fromkeys((t[3], t[4]) for t in tasks):   # forked workers inherit them
+        trial_block.template(setup, nav, mode, count)
     log.info("sweep %s: %d modes x %d counts, %d trials each, %d tasks; setup %.2f s", scn.name, len(scn.modes),
              len(scn.starlink["counts"]), trials, len(tasks), t_setup)
     bar = None
@@ -164,6 +205,7 @@ def run_sweep(scn: Scenario, out_dir: Path | None = None, *, trials: int | None 
     with make_executor(workers, dask_address) as ex:
         blocks = map_in_order(ex, mc.run_block, tasks, on_done=(bar.update if bar else None))
     t_trials = time.perf_counter() - t0
+    cpu_trials = _cpu_clocks()
     if bar:
         bar.close()
 
@@ -182,17 +224,9 @@ def run_sweep(scn: Scenario, out_dir: Path | None = None, *, trials: int | None 
         else:
             for c in scn.starlink["counts"]:
                 summaries[(mode, c)] = s
-    n_trials = sum(len(b.results) for b in blocks)
-    c_time = sum(b.c_seconds for b in blocks)
-    cpu_time = sum(b.seconds for b in blocks)
-    timing = {
-        "wall_s": time.perf_counter() - t_start, "setup_s": t_setup, "trials_wall_s": t_trials,
-        "trials_run": n_trials, "trial_cpu_ms": 1e3 * cpu_time / max(n_trials, 1),
-        "trial_wall_ms": 1e3 * sum(b.wall_seconds for b in blocks) / max(n_trials, 1),
-        "clock": "trial_cpu_ms, c_share: the worker thread's CPU clock; *_wall_*: wall time",
-        "c_share": c_time / cpu_time if cpu_time > 0 else math.nan,
-        "executor": f"dask {dask_address}" if dask_address else f"process pool ({workers or 'all cores'})",
-    }
+    timing = sweep_timing(blocks, setup.u_true.shape[0], t_start, t_setup, cpu_setup, t_trials, cpu_start,
+                          cpu_trials, dask_address is not None)
+    timing["executor"] = f"dask {dask_address}" if dask_address else f"process pool ({workers or 'all cores'})"
     trajectories = {}
     for task, block in zip(tasks, blocks):
         if block.p_est_trial0 is not None and (task[3] not in trajectories or task[4] == scn.starlink["counts"][-1]):
