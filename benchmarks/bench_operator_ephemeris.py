@@ -26,23 +26,22 @@ import warnings
 
 import numpy as np
 
-from leonav_runtime.orbits import parse_elements_text, propagate_ecef, starlink_walker_tle
-from leonav_runtime.orbits.eme2000 import ecef_to_eme2000
-from leonav_runtime.orbits.operator_ephemeris import OperatorEphemeris, load_folder, write_file
-from leonav_runtime.orbits.operator_states import operator_states_ecef
+from leonav_runtime.orbits import (
+    parse_elements_text,
+    propagate_ecef,
+    starlink_walker_tle,
+)
+from leonav_runtime.orbits.operator_ephemeris import load_folder, write_file
+from leonav_runtime.orbits.operator_states import (
+    ephemerides_from_elements,
+    operator_states_ecef,
+)
 
 
 def _files(elements, epoch: dt.datetime, folder: str) -> None:
-    t_nodes = np.arange(-600.0, 7200.0 + 1.0, 60.0)
-    st = propagate_ecef(elements, epoch, t_nodes, acceleration=False, warn_stale=False)
-    start = epoch + dt.timedelta(seconds=float(t_nodes[0]))
-    cov = np.diag([0.5, 1.0, 1.2, 2e-6, 1e-6, 5e-6])
-    for j, name in enumerate(elements.names):
-        r, v = ecef_to_eme2000(st.r_ecef_m[j], st.v_ecef_mps[j], epoch, t_nodes)
-        n = t_nodes.size
-        eph = OperatorEphemeris("bench", name, None, start, start + dt.timedelta(seconds=float(t_nodes[-1] - t_nodes[0])),
-                                60.0, "bench", "UVW", np.arange(n, dtype=np.int64) * 60000, r, v,
-                                np.broadcast_to(cov, (n, 6, 6)).copy())
+    made = ephemerides_from_elements(elements, epoch, np.arange(-600.0, 7200.0 + 1.0, 60.0),
+                                     np.diag([0.5, 1.0, 1.2, 2e-6, 1e-6, 5e-6]))
+    for j, eph in enumerate(made.ephemerides.values()):
         write_file(eph, folder, serial=j)
 
 

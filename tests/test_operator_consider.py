@@ -10,12 +10,15 @@ import pytest
 
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.inputs import SATELLITE_TABLES, consider
-from leonav_runtime.inputs.measurements import satellite_records
 from leonav_runtime.inputs.imu import averaged_specific_force
+from leonav_runtime.inputs.measurements import satellite_records
 from leonav_runtime.inputs.tables import ImuTable
 from leonav_runtime.orbits.eme2000 import ecef_to_eme2000
 from leonav_runtime.orbits.operator_consider import OperatorCovariance, names_by_id
-from leonav_runtime.orbits.operator_ephemeris import OperatorEphemeris, OperatorEphemerisSet
+from leonav_runtime.orbits.operator_ephemeris import (
+    OperatorEphemeris,
+    OperatorEphemerisSet,
+)
 from leonav_runtime.orbits.propagate import propagate_ecef
 from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 from leonav_runtime.simulation import simulate
@@ -95,7 +98,7 @@ def test_r_follows_the_files_covariance(run):
     rng = np.random.default_rng(3)
     a = rng.standard_normal((6, 6)) * np.array([1.0, 8.0, 1.5, 2e-3, 1e-3, 2e-3])[:, None]
     cov = a @ a.T
-    table, aux, x0 = _table(s, rows), s.aux[rows], setup.x_true[0]
+    table, x0 = _table(s, rows), setup.x_true[0]
     dvel = setup.u_true[:, L.U_DVEL_B_SLICE]
     imu = ImuTable.from_increments(setup.t_imu[1:], np.diff(setup.t_imu), setup.u_true[:, L.U_DTHETA_B_SLICE], dvel)
     f_avg, span = averaged_specific_force(dvel, np.diff(setup.t_imu))
@@ -118,7 +121,7 @@ def test_uncovered_records_fall_back_to_the_model_and_are_counted(run):
     cov = np.zeros((6, 6))
     cov[0, 0] = 30.0 ** 2
     dropped = dict(ids)
-    gone = sorted(dropped)[0]
+    gone = min(dropped)
     del dropped[gone]                       # one satellite without a file
     provider = OperatorCovariance(_with_cov(ephs, cov), scn.epoch_utc, dropped)
     table, aux, x0 = _table(s, rows), s.aux[rows], setup.x_true[0]
@@ -135,7 +138,7 @@ def test_uncovered_records_fall_back_to_the_model_and_are_counted(run):
 
 
 def test_a_differenced_observables_reference_is_found_by_its_state(run):
-    scn, setup, nav, s, rows, ephs, ids = run
+    scn, _setup, _nav, s, rows, ephs, ids = run
     cov = np.zeros((6, 6))
     cov[0, 0] = 30.0 ** 2
     provider = OperatorCovariance(_with_cov(ephs, cov), scn.epoch_utc, ids)

@@ -11,11 +11,28 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from leonav_runtime.common.errors import UserInputError
-from leonav_runtime.orbits.eme2000 import ecef_to_eme2000, eme2000_to_ecef, eme2000_to_teme_matrix
-from leonav_runtime.orbits.operator_ephemeris import (OperatorEphemeris, OperatorEphemerisSet, RejectedEphemerisWarning,
-                                                      load_folder, parse_text, write_file, write_text)
-from leonav_runtime.orbits.operator_states import (OperatorCoverageWarning, interpolate_eme2000, operator_states_ecef,
-                                                   uvw_axes, uvw_to_frame)
+from leonav_runtime.orbits.eme2000 import (
+    ecef_to_eme2000,
+    eme2000_to_ecef,
+    eme2000_to_teme_matrix,
+)
+from leonav_runtime.orbits.operator_ephemeris import (
+    OperatorEphemeris,
+    OperatorEphemerisSet,
+    RejectedEphemerisWarning,
+    load_folder,
+    parse_text,
+    write_file,
+    write_text,
+)
+from leonav_runtime.orbits.operator_states import (
+    OperatorCoverageWarning,
+    ephemerides_from_elements,
+    interpolate_eme2000,
+    operator_states_ecef,
+    uvw_axes,
+    uvw_to_frame,
+)
 from leonav_runtime.orbits.propagate import gravity_ecef_mps2
 
 EPOCH = dt.datetime(2026, 9, 11, 1, 42, 42, tzinfo=dt.timezone.utc)
@@ -133,11 +150,8 @@ def test_interpolated_ecef_states_match_a_dense_sgp4_orbit(tmp_path):
         warnings.simplefilter("ignore")
         elements = parse_elements_text(tle, "fixture", strict_checksum=False)
     t_nodes = np.arange(0.0, 3601.0, 60.0)
-    st = propagate_ecef(elements, EPOCH, t_nodes, acceleration=False, warn_stale=False)
-    r_eme, v_eme = ecef_to_eme2000(st.r_ecef_m[0], st.v_ecef_mps[0], EPOCH, t_nodes)
-    eph = OperatorEphemeris("sgp4", "STARLINK-1008", None, EPOCH, EPOCH + dt.timedelta(seconds=3600), 60.0, "sgp4",
-                            "UVW", (t_nodes * 1000).astype(np.int64), r_eme, v_eme, _covariance_uvw(t_nodes.size))
-    path = write_file(eph, tmp_path)
+    made = ephemerides_from_elements(elements, EPOCH, t_nodes, _covariance_uvw(t_nodes.size))
+    path = write_file(made.ephemerides["STARLINK-1008"], tmp_path)
     got = load_folder(tmp_path)
     assert got.ephemerides["STARLINK-1008"].source == str(path)
     t_mid = t_nodes[:-1] + 30.0
@@ -145,6 +159,8 @@ def test_interpolated_ecef_states_match_a_dense_sgp4_orbit(tmp_path):
     ref = propagate_ecef(elements, EPOCH, t_mid, acceleration=True, warn_stale=False)
     err = np.linalg.norm(states.r_ecef_m[0] - ref.r_ecef_m[0], axis=1)
     assert states.ok.all() and err.max() < 1.0, err.max()
+    with pytest.raises(UserInputError, match="evenly spaced"):
+        ephemerides_from_elements(elements, EPOCH, np.array([0.0, 60.0, 130.0]), np.eye(6))
     # SGP4's velocity is not the derivative of its position to better than ~0.01 m/s (python-sgp4
     # TEME, central differences of 0.01 s: 0.009-0.013 m/s on this orbit); the file carries both
     assert np.linalg.norm(states.v_ecef_mps[0] - ref.v_ecef_mps[0], axis=1).max() < 0.05
@@ -315,5 +331,5 @@ def test_operator_states_replace_sgp4_where_a_file_covers_the_satellite():
     # past the file's end the satellite keeps SGP4 (counted in the mask)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        late, used_late = operator_sat_states(OperatorEphemerisSet({eph.name: eph}), elements, EPOCH, t + 60.0)
+        _late, used_late = operator_sat_states(OperatorEphemerisSet({eph.name: eph}), elements, EPOCH, t + 60.0)
     assert not used_late.any()

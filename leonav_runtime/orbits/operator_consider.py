@@ -26,13 +26,15 @@ from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.orbits.elements import ElementSet
 from leonav_runtime.orbits.eop import EopTable
 from leonav_runtime.orbits.operator_ephemeris import OperatorEphemerisSet, load_folder
-from leonav_runtime.orbits.operator_states import OperatorCoverageWarning, operator_states_ecef
+from leonav_runtime.orbits.operator_states import (
+    OperatorCoverageWarning,
+    operator_states_ecef,
+)
+
+_FOLDERS: dict[tuple, OperatorCovariance] = {}
 
 
-_FOLDERS: dict[tuple, "OperatorCovariance"] = {}
-
-
-def folder_covariance(folder: str | Path, elements: ElementSet, epoch_utc: _dt.datetime) -> "OperatorCovariance":
+def folder_covariance(folder: str | Path, elements: ElementSet, epoch_utc: _dt.datetime) -> OperatorCovariance:
     """The provider for a scenario: the operator files in `folder` of the satellites of
     `elements` (an `ElementSet`, joined by name), kept per process for the same folder
     content, element names and epoch (every trial of a sweep builds its records with it)."""

@@ -26,9 +26,9 @@ import datetime as _dt
 import math
 import re
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -295,8 +295,8 @@ def load_folder(folder: str | Path, names: Sequence[str] | None = None) -> Opera
             continue
         key = eph.name or entry
         if key in out.ephemerides:
-            out.rejected.append((entry, f"{folder / entry}: a second file for {key} "
-                                 f"(first: {out.ephemerides[key].source}); the first is kept"))
+            out.rejected.append((entry, (f"{folder / entry}: a second file for {key} "
+                                 f"(first: {out.ephemerides[key].source}); the first is kept")))
             continue
         out.ephemerides[key] = eph
     if out.rejected:

@@ -26,12 +26,25 @@ from dataclasses import dataclass
 import numpy as np
 
 from leonav_runtime.common.errors import UserInputError
-from leonav_runtime.orbits.eme2000 import ecef_jacobian, eme2000_to_ecef, eme2000_to_teme_matrix
 from leonav_runtime.orbits.elements import ElementSet, as_utc
+from leonav_runtime.orbits.eme2000 import (
+    ecef_jacobian,
+    ecef_to_eme2000,
+    eme2000_to_ecef,
+    eme2000_to_teme_matrix,
+)
 from leonav_runtime.orbits.eop import EopTable
-from leonav_runtime.orbits.operator_ephemeris import OperatorEphemeris, OperatorEphemerisSet
-from leonav_runtime.orbits.propagate import (SatStates, acceleration_ecef_mps2, earth_orientation, gravity_ecef_mps2,
-                                              propagate_ecef)
+from leonav_runtime.orbits.operator_ephemeris import (
+    OperatorEphemeris,
+    OperatorEphemerisSet,
+)
+from leonav_runtime.orbits.propagate import (
+    SatStates,
+    acceleration_ecef_mps2,
+    earth_orientation,
+    gravity_ecef_mps2,
+    propagate_ecef,
+)
 
 
 class OperatorCoverageWarning(UserWarning):
@@ -159,8 +172,8 @@ def operator_states_ecef(ephemerides: OperatorEphemerisSet, names: list[str], ep
             continue
         r, v, cov_uvw, inside = interpolate_eme2000(eph, t_s - (eph.start_utc - epoch_utc).total_seconds(), eop)
         if not inside.all():
-            failures.append((name, f"its ephemeris ({eph.source}) covers {_span_text(eph)}, "
-                             f"{int((~inside).sum())} of {nt} requested times lie outside it"))
+            failures.append((name, (f"its ephemeris ({eph.source}) covers {_span_text(eph)}, "
+                             f"{int((~inside).sum())} of {nt} requested times lie outside it")))
         ok[i] = inside.all()
         r_eme[i], v_eme[i] = r, v
         good = inside
@@ -207,3 +220,30 @@ def operator_sat_states(ephemerides: OperatorEphemerisSet, elements: ElementSet,
             if states.a_ecef_mps2 is not None:
                 states.a_ecef_mps2[i] = op.a_ecef_mps2[j]
     return states, use
+
+
+def ephemerides_from_elements(elements: ElementSet, epoch_utc: _dt.datetime, t_nodes_s: np.ndarray,
+                              cov_uvw: np.ndarray, *, source: str = "sgp4", eop: EopTable | None = None
+                              ) -> OperatorEphemerisSet:
+    """Operator ephemerides of `elements`' SGP4 orbits at epoch_utc + t_nodes_s (evenly
+    spaced, s), EME2000, with UVW covariance cov_uvw ((6, 6) or (n, 6, 6), SI) at every
+    record: what the simulator and the fixtures write with `operator_ephemeris.write_file`."""
+    t_nodes_s = np.asarray(t_nodes_s, dtype=float)
+    steps = np.diff(t_nodes_s)
+    if t_nodes_s.size < 2 or np.abs(steps - steps[0]).max() > 1e-3 or steps[0] <= 0:
+        raise UserInputError(f"operator ephemerides: record times must be 2 or more, evenly spaced and increasing "
+                             f"(got {t_nodes_s.size} times)")
+    st = propagate_ecef(elements, epoch_utc, t_nodes_s, acceleration=False, warn_stale=False, eop=eop)
+    start = as_utc(epoch_utc) + _dt.timedelta(seconds=float(t_nodes_s[0]))
+    stop = start + _dt.timedelta(seconds=float(t_nodes_s[-1] - t_nodes_s[0]))
+    t_ms = np.rint((t_nodes_s - t_nodes_s[0]) * 1000).astype(np.int64)
+    cov = np.broadcast_to(np.asarray(cov_uvw, dtype=float), (t_nodes_s.size, 6, 6))
+    out = {}
+    for j, name in enumerate(elements.names):
+        if not st.ok[j]:
+            continue    # SGP4 failed: no ephemeris rather than NaN records (st.failures says why)
+        r, v = ecef_to_eme2000(st.r_ecef_m[j], st.v_ecef_mps[j], epoch_utc, t_nodes_s, eop=eop)
+        name = str(name).strip()
+        out[name] = OperatorEphemeris(source, name, None, start, stop, float(steps[0]), source, "UVW", t_ms.copy(),
+                                      r, v, cov.copy())
+    return OperatorEphemerisSet(out, [(n, why) for n, _, why in st.failures])
