@@ -121,8 +121,8 @@ mutant("beacons_signal-03", WF, "hop from the overlap instead of 1 - overlap",
        ("max(1, int(round(n * (1.0 - overlap))))", "max(1, int(round(n * overlap)))"))
 mutant("beacons_signal-04", WF, "slice time at its start, not its centre", ("t = (start + np.arange(ns) * hop + n / 2) / sample_rate_hz",
                                                                           "t = (start + np.arange(ns) * hop) / sample_rate_hz"))
-mutant("beacons_signal-05", RID, "tracked SNR in 20 log10 of the power", ("tr.add(t, f, 10 * np.log10(row[k] / noise_mean), cfg.rate_fit_s)",
-                                                                        "tr.add(t, f, 20 * np.log10(row[k] / noise_mean), cfg.rate_fit_s)"))
+mutant("beacons_signal-05", RID, "peak SNR in 20 log10 of the power", ("snr_peak = (10 * np.log10(p[rows, cols] / blk.noise_mean[rows]))",
+                                                                     "snr_peak = (20 * np.log10(p[rows, cols] / blk.noise_mean[rows]))"))
 mutant("beacons_signal-06", DOP, "window SNR is the whole ridge's median", ("rows.append((tk, *fit, float(np.median(ridge.snr_db[sel]))))",
                                                                           "rows.append((tk, *fit, float(np.median(ridge.snr_db))))"))
 mutant("beacons_signal-07", DOP, "fit variance divided by n (no degrees of freedom)", ("s2 = float(res @ res) / (n - degree - 1)", "s2 = float(res @ res) / n"))

@@ -171,7 +171,14 @@ def main(argv: list[str] | None = None) -> int:
                 path = copy / m.path
                 original = path.read_text()
                 try:
-                    path.write_text(apply(original, m))
+                    mutated = apply(original, m)
+                except ValueError as exc:   # the source moved on while the run went: say so, go on
+                    print(f"  {m.id:12s} DOES NOT APPLY: {exc}", flush=True)
+                    results.append(dict(id=m.id, module=module, what=m.what, outcome="does not apply", killed=False,
+                                        equivalent=bool(m.equivalent), seconds=0.0))
+                    continue
+                try:
+                    path.write_text(mutated)
                     outcome, secs, tail = "", 0.0, ""
                     if m.path.startswith("models/"):
                         ok, msg = regenerate(copy, env)
