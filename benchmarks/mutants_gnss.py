@@ -11,8 +11,9 @@ from __future__ import annotations
 
 from mutants import MODULES, mutant  # noqa: F401
 
-MODULES["rinex_obs"] = {"files": ["leonav_runtime/gnss/rinex_obs.py", "leonav_runtime/gnss/rinex_obs_v2.py"],
-                        "tests": ["tests/test_gnss_rinex2_many_types.py", "tests/test_gnss_rinex_obs.py",
+MODULES["rinex_obs"] = {"files": ["leonav_runtime/gnss/rinex_obs.py", "leonav_runtime/gnss/rinex_obs_v2.py",
+                                  "leonav_runtime/gnss/rinex_obs_fields.py"],
+                        "tests": ["tests/test_gnss_rinex_obs_vs_georinex.py", "tests/test_gnss_rinex_obs.py",
                                   "tests/test_gnss_hostile_rinex.py"]}
 MODULES["rinex_nav"] = {"files": ["leonav_runtime/gnss/rinex_nav.py"],
                         "tests": ["tests/test_gnss_eccentric_orbits.py", "tests/test_gnss_rinex_nav.py"]}
@@ -21,7 +22,7 @@ MODULES["broadcast"] = {"files": ["leonav_runtime/orbits/broadcast.py", "leonav_
                                   "tests/test_gnss_rtklib.py"]}
 MODULES["spp"] = {"files": ["leonav_runtime/gnss/spp.py", "leonav_runtime/gnss/signals.py"],
                   "tests": ["tests/test_gnss_spp_edges.py", "tests/test_spp_bad_input.py", "tests/test_spp.py",
-                            "tests/test_gnss_rtklib.py", "tests/test_gnss_rinex2_many_types.py"]}
+                            "tests/test_gnss_rtklib.py"]}
 MODULES["gnss_ekf"] = {"files": ["leonav_runtime/gnss/gnss_ekf.py", "leonav_runtime/gnss/coupled.py"],
                        "tests": ["tests/test_gnss_ekf_outputs.py", "tests/test_gnss_coupled_edges.py",
                                  "tests/test_spp.py", "tests/test_gnss_coupled.py"]}
@@ -31,30 +32,34 @@ MODULES["eop"] = {"files": ["leonav_runtime/orbits/eop.py"],
                   "tests": ["tests/test_eop_skyfield.py", "tests/test_eop.py"]}
 
 # ---------------------------------------------------------------- rinex_obs
-OBS, OBS2 = "leonav_runtime/gnss/rinex_obs.py", "leonav_runtime/gnss/rinex_obs_v2.py"
+OBS, OBS2, OBSF = "leonav_runtime/gnss/rinex_obs.py", "leonav_runtime/gnss/rinex_obs_v2.py", "leonav_runtime/gnss/rinex_obs_fields.py"
+# re-targeted to the NumPy field reader (rinex_obs_fields.py, d6247de) after the catalogue's first
+# run: same bugs, today's code
 mutant("rinex_obs-01", OBS2, "RINEX 2: one line per satellite whatever the number of types (floor, not ceiling)",
        ("per_sat = max(1, -(-ntypes // 5))", "per_sat = max(1, ntypes // 5)"))
-mutant("rinex_obs-02", OBS2, "RINEX 2: LLI and SSI columns cut off (14 columns per field)",
-       ("text = block[k // 5][16 * (k % 5):16 * (k % 5) + 16]", "text = block[k // 5][16 * (k % 5):16 * (k % 5) + 14]"))
+mutant("rinex_obs-02", OBSF, "LLI and SSI columns not read (fields taken as 14 columns)",
+       ("code = np.where(flags < 10, flags, 0).astype(np.int64)", "code = np.zeros(flags.shape, dtype=np.int64)"))
 mutant("rinex_obs-03", OBS2, "RINEX 2: continuation line of the satellite list reads 12 ids again",
        ("take = min(12, nsat - len(sats))", "take = min(12, nsat)"))
 mutant("rinex_obs-04", OBS2, "RINEX 2: C2 and P2 mapped to each other's signal",
        ('"C2": "2X", "P2": "2W"', '"C2": "2W", "P2": "2X"'))
-mutant("rinex_obs-05", OBS, "LLI taken from the code fields as well as the phase",
-       ('            if qty == "L":\n                slot[4] = lli', '            if qty in "CL":\n                slot[4] = lli'))
-mutant("rinex_obs-06", OBS, "half-cycle flag read from LLI bit 2 (value 4)",
-       ("if lli & 2:\n                flags |= FLAG_HALF_CYCLE", "if lli & 4:\n                flags |= FLAG_HALF_CYCLE"))
-mutant("rinex_obs-07", OBS, "anti-spoofing flag read from LLI bit 0",
-       ("if lli & 4:\n                flags |= FLAG_ANTISPOOFING", "if lli & 1:\n                flags |= FLAG_ANTISPOOFING"))
-mutant("rinex_obs-08", OBS, "LLI and SSI columns swapped (fast path)",
-       ("lli_c, ssi_c = text[14:15], text[15:16]\n                    return",
-        "ssi_c, lli_c = text[14:15], text[15:16]\n                    return"))
-mutant("rinex_obs-09", OBS, "SSI of the phase not used when the code field has none",
-       ('            elif qty == "L" and not slot[5]:\n                slot[5] = ssi\n', ""))
+mutant("rinex_obs-05", OBSF, "LLI taken from the code fields as well as the phase",
+       ("                ssi_s = np.where(use & (ssi[:, m] != 0), ssi[:, m], ssi_s)\n",
+        "                ssi_s = np.where(use & (ssi[:, m] != 0), ssi[:, m], ssi_s)\n"
+        "                lli_s = np.where(use, lli[:, m], lli_s)\n"))
+mutant("rinex_obs-06", OBSF, "half-cycle flag read from LLI bit 2 (value 4)",
+       ("np.where(lli_s[sel] & 2, FLAG_HALF_CYCLE, 0)", "np.where(lli_s[sel] & 4, FLAG_HALF_CYCLE, 0)"))
+mutant("rinex_obs-07", OBSF, "anti-spoofing flag read from LLI bit 0",
+       ("np.where(lli_s[sel] & 4, FLAG_ANTISPOOFING, 0)", "np.where(lli_s[sel] & 1, FLAG_ANTISPOOFING, 0)"))
+mutant("rinex_obs-08", OBSF, "LLI and SSI columns swapped",
+       ("return values, code[..., 0], code[..., 1], blank, plain", "return values, code[..., 1], code[..., 0], blank, plain"))
+mutant("rinex_obs-09", OBSF, "SSI of the phase not used when the code field has none",
+       ("                ssi_s = np.where(use & (ssi_s == 0), ssi[:, m], ssi_s)\n", ""))
 mutant("rinex_obs-10", OBS, "GLONASS (UTC) epochs: leap seconds subtracted",
        ("return t_sys + gtime.leap_seconds_at_gps(t_sys + 18)", "return t_sys - gtime.leap_seconds_at_gps(t_sys + 18)"))
-mutant("rinex_obs-11", OBS, "RINEX 3: observation fields start one column late",
-       ("text = sline[3 + 16 * m:3 + 16 * (m + 1)]", "text = sline[4 + 16 * m:4 + 16 * (m + 1)]"))
+mutant("rinex_obs-11", OBSF, "RINEX 3: observation fields start one column late",
+       ("wide = \"\".join([ln[3:3 + width].ljust(width) for ln in block])",
+        "wide = \"\".join([ln[4:4 + width].ljust(width) for ln in block])"))
 
 # ---------------------------------------------------------------- rinex_nav
 NAV = "leonav_runtime/gnss/rinex_nav.py"
