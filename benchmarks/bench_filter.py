@@ -13,6 +13,8 @@ so each IMU step carries its share of the update epochs.
   (d) bare C:  benchmarks/bench_bare_loop.c, the generated functions in a minimal C
                loop without the driver, compiled here with the same flags
 
+Then the paper sweep's CPU against its C floor (benchmarks/bench_sweep.py, `--sweep-trials`).
+
 Run: `leonav bench [--out DIR]` or `python benchmarks/bench_filter.py [--out DIR]`.
 """
 from __future__ import annotations
@@ -179,8 +181,11 @@ def code_size(paths: list[Path]) -> dict:
     return {p.name: {"bytes": p.stat().st_size, "lines": p.read_text().count("\n")} for p in paths}
 
 
-def run_benchmark(seconds: float = 20.0, repeats: int = 20, py_repeats: int = 2, out: str | None = None) -> dict:
-    """Run all four variants, print the table, write bench.json into the results folder."""
+def run_benchmark(seconds: float = 20.0, repeats: int = 20, py_repeats: int = 2, out: str | None = None,
+                  sweep_trials: int = 100) -> dict:
+    """Run all four variants, print the table, then (sweep_trials > 0) the paper sweep with that
+    many trials per point against its C floor (bench_sweep.py); write bench.json into the results
+    folder."""
     folder = results_dir(out, "bench")
     lib = compiled.load()
     kinds = {name: lib.kind_id(name) for name in ("pseudorange", "doppler_rate")}
@@ -238,6 +243,12 @@ def run_benchmark(seconds: float = 20.0, repeats: int = 20, py_repeats: int = 2,
                   "ldflags": cold.ldflags, "cold_compile_s": cold.compile_time_s},
     }
     _print_table(result)
+    if sweep_trials:
+        from bench_sweep import measure_sweep, print_sweep
+
+        print(f"\npaper sweep, {sweep_trials} trials per point, against its C floor ...", flush=True)
+        result["sweep"] = measure_sweep("paper", sweep_trials, out=str(folder / "sweep"))
+        print_sweep(result["sweep"])
     path = write_json(folder / "bench.json", result)
     print(f"wrote {path}")
     return result

@@ -1,8 +1,9 @@
 """`leonav bench`: speed of the generated filter, C loop vs CasADi vs NumPy vs bare C.
 
 The implementation is `benchmarks/bench_filter.py` of the source checkout (it also needs
-`benchmarks/numpy_ekf.py` and `benchmarks/bench_bare_loop.c`, which are not installed
-with the package); this command runs it and writes `bench.json` into the results folder.
+`benchmarks/numpy_ekf.py`, `benchmarks/bench_bare_loop.c` and `benchmarks/bench_sweep.py`, which
+are not installed with the package); this command runs it and writes `bench.json` into the
+results folder.
 """
 from __future__ import annotations
 
@@ -30,9 +31,9 @@ def _bench_module() -> ModuleType:
 
 
 def _run(args: argparse.Namespace) -> int:
-    if args.seconds <= 0 or args.repeats < 1 or args.py_repeats < 1:
-        raise UserInputError("--seconds must be > 0 and --repeats/--py-repeats >= 1")
-    _bench_module().run_benchmark(args.seconds, args.repeats, args.py_repeats, args.out)
+    if args.seconds <= 0 or args.repeats < 1 or args.py_repeats < 1 or args.sweep_trials < 0:
+        raise UserInputError("--seconds must be > 0, --repeats/--py-repeats >= 1 and --sweep-trials >= 0")
+    _bench_module().run_benchmark(args.seconds, args.repeats, args.py_repeats, args.out, args.sweep_trials)
     return 0
 
 
@@ -44,10 +45,14 @@ def register(subparsers) -> None:
         description="Time per IMU step of the generated filter (100 Hz IMU, 10 Hz GPS with 8 "
         "pseudoranges, 1 Hz Starlink with 10 Doppler-rates): (a) C loop, (b) the same CasADi "
         "Functions called from Python, (c) plain NumPy, (d) bare generated C loop; plus code "
-        "size and compile time. Writes bench.json.",
+        "size and compile time; then the paper sweep's CPU against its C floor (trials x IMU "
+        "steps x the C loop's CPU per step, measured in the same run). Writes bench.json.",
     )
     parser.add_argument("--seconds", type=float, default=20.0, help="stream length, s (default 20)")
     parser.add_argument("--repeats", type=int, default=20, help="repeats of the C paths, best taken (default 20)")
     parser.add_argument("--py-repeats", type=int, default=2, help="repeats of the Python paths (default 2)")
+    parser.add_argument("--sweep-trials", type=int, default=100, metavar="N",
+                        help="trials per point of the paper sweep timed against its C floor (default 100, "
+                             "the paper's; 0 skips it)")
     add_out_argument(parser)
     parser.set_defaults(func=_run)
