@@ -10,9 +10,9 @@ third-order PLL (`carrier_loop`, where the loop design is documented). Per epoch
   the LO and clock terms); NaN when not locked. Its integer part is arbitrary per arc;
 - sigma_cycles: sqrt(B_n / (C/N0) (1 + 1 / (2 T C/N0))) / 2 pi with the loop's own noise
   bandwidth (`carrier_loop.noise_bandwidth_hz`) and the estimated C/N0 (thermal only);
-- locked: every prompt of the epoch's interval in lock, none within two lock windows
-  before a declared loss (the detector needs ~0.1-0.2 s to see a fade; those prompts are
-  taken back);
+- locked: every prompt of the epoch's interval in lock, and none between the last good
+  lock statistic (d >= 3) and a declared loss, nor a lock window before it (the detector
+  needs ~0.1-0.3 s to see a fade; those prompts are taken back);
 - slip: the epoch starts a new arc after the first: the loop relocked after a loss, or the
   step detector found a jump in the locked NCO phase (least-squares step of a cubic plus
   step fitted over +-`slip_half_s`, |step| > `slip_threshold_cycles`). The phase is
@@ -41,7 +41,7 @@ class CarrierConfig:
     epoch_s: float = 0.1
     fit_half_s: float = 0.25
     slip_half_s: float = 0.3
-    slip_threshold_cycles: float = 0.5
+    slip_threshold_cycles: float = 0.4   # 4.4 sigma of the step statistic in lock at 20 dB-Hz
     cn0_window_s: float = 1.0
     sub_rate_hz: float = SUB_RATE_HZ
 
@@ -107,12 +107,16 @@ def track_tones(blocks: Iterable[np.ndarray], sample_rate_hz: float, aidings: Se
     return [_epochs(t, cfg) for t in tones]
 
 
-def _retro_unlock(mode: np.ndarray, window: int) -> np.ndarray:
-    """Lock per prompt, taking back the 2 windows before each declared loss."""
+def _retro_unlock(mode: np.ndarray, d: np.ndarray, window: int, good_d: float) -> np.ndarray:
+    """Lock per prompt, taking back, before each declared loss, the prompts since the lock
+    statistic was last good (>= `good_d`) and one window more (its sum spans a window)."""
     ok = mode == LOCK
     loss = np.nonzero((mode[1:] == LOST) & (mode[:-1] == LOCK))[0] + 1
     for j in loss:
-        ok[max(0, j - 2 * window):j] = False
+        k = j - 1
+        while k > 0 and ok[k] and d[k] < good_d:
+            k -= 1
+        ok[max(0, k - window):j] = False
     return ok
 
 
@@ -167,7 +171,7 @@ def _epochs(tone: _Tone, cfg: CarrierConfig) -> CarrierTrack:
         k = np.clip((t / dt_sub).astype(int), 0, phi_aid.size - 1)
         return phi_aid[k] + f_aid[k] * (t - k * dt_sub)
 
-    ok = _retro_unlock(rec["mode"], cfg.loop.lock_window)
+    ok = _retro_unlock(rec["mode"], rec["d"], cfg.loop.lock_window, cfg.loop.lock_on_d)
     arc = rec["arc"]
     res = (rec["phi"] + rec["w"] * 0.5 * T) / (2 * np.pi)            # NCO residual phase at prompt centres
     total_c = aid_phase(centre) + res

@@ -17,16 +17,25 @@ Loop design (defaults, and why):
   an aiding error is followed; what remains is the jerk over w0^3 (50 Hz/s^2 unaided:
   0.15 rad). Thermal jitter sigma^2 = B_n / (C/N0) (1 + 1 / (2 T C/N0)) rad^2: 18 deg at
   20 dB-Hz, 5.7 deg at 30; loop SNR C/N0 / B_n = 10 at 20 dB-Hz, above the ~4 lock needs;
-- FLL assist while pulling in or after losing lock: frequency discriminator
+- FLL assist while pulling in after an acquisition: frequency discriminator
   atan2(cross, dot) / T of consecutive prompts (+-1 / (2T) = +-50 Hz), second-order FLL of
   B_f = 2 Hz (w0f = B_f / 0.53, a2 = 1.414) feeding the same integrators; off once locked;
+- lost lock (a fade, a blockage): the loop's frequency is set to the slope of its phase
+  over the 0.4 s before the last two lock windows (its own state integrated noise while
+  the detector made up its mind, up to ~20 Hz/s of rate in 0.2 s), its rate to 0 (the
+  aiding carries the dynamics), and it coasts while the prompts' power says the tone is
+  absent (prompt powers over 0.2 s below 1.5 x noise); once back, the PLL pulls in from
+  there (no FLL: at 20 dB-Hz its noise would undo the held frequency), so a signal back within
+  `reacq_s` is locked again in a few tenths of a second;
 - acquisition: FFT of the first `acq_s` (0.4 s) of samples summed to 2 kHz, over
   +-`acq_range_hz` (1 kHz, the element-set error at zenith: 4 kHz/s x 0.13 s of along-track
   error), 4x zero padding, the peak accepted at `acq_threshold` (16) x the noise power of
   a bin (false peak among ~800 bins: 1e-4), parabolic interpolation of the peak.
 - lock: on a sliding 10-prompt (0.1 s) coherent sum Z, d = Re(Z) / sqrt(10 sigma_z^2 / 2)
   (unit variance in noise alone; 14 at 30 dB-Hz, ~4 at 20). Locked after 10 prompts with
-  d >= 3 and |arg Z| < 30 deg; lost after 10 prompts with d < 1.5, or 3 with d < 0; after
+  d >= 3 and |arg Z| < 45 deg, and no sooner than `settle_s` (0.4 s) after an acquisition
+  (the pull-in transient can slip a cycle at 20 dB-Hz); lost after 10 prompts with d < 1.5,
+  or 3 with d < 0; after
   `reacq_s` (1 s) lost, acquisition again. Each lock starts a new arc (new ambiguity).
 - C/N0: sigma_z^2 (noise per prompt) from the first differences of the loop-rotated
   decimated samples (the residual carrier hardly changes in 0.1 ms, so they are noise;
@@ -36,6 +45,7 @@ Loop design (defaults, and why):
 from __future__ import annotations
 
 import cmath
+import collections
 import dataclasses
 import math
 
@@ -56,8 +66,9 @@ class LoopConfig:
     acq_threshold: float = 16.0
     lock_window: int = 10          # prompts in the lock detector's coherent sum
     lock_on_d: float = 3.0
-    lock_on_deg: float = 30.0
+    lock_on_deg: float = 45.0
     lock_off_d: float = 1.5
+    settle_s: float = 0.4          # no lock declared sooner after an acquisition (FLL-to-PLL handover)
     reacq_s: float = 1.0
 
 
@@ -135,8 +146,10 @@ class Loop:
         self.noise_sum, self.noise_n = 0.0, 0
         self.ring = [0j] * cfg.lock_window
         self.ring_i, self.zsum = 0, 0j
+        self.pring, self.psum, self.pring_i, self.present = [0.0] * (2 * cfg.lock_window), 0.0, 0, 0
         self.on = self.off = self.neg = 0
-        self.lost_prompts = 0
+        self.lost_prompts = self.since_acq = 0
+        self.hist: collections.deque = collections.deque(maxlen=6 * cfg.lock_window)
         self.arc = -1
         self.rec: dict[str, list] = {k: [] for k in ("i0", "mode", "phi", "w", "z", "d", "arc", "noise")}
         self.acquisitions = 0
@@ -163,6 +176,7 @@ class Loop:
                 if not self.noise_n:
                     self.sigma2_y = got[2]
                 self.mode, self.on, self.off, self.neg, self.lost_prompts = PULL, 0, 0, 0, 0
+                self.since_acq = 0
                 self.ring = [0j] * cfg.lock_window
                 self.zsum = 0j
             self._prompt(y[i:i + p], offset + i)
@@ -186,16 +200,29 @@ class Loop:
         d = self.zsum.real / math.sqrt(cfg.lock_window * s2z / 2) if s2z > 0 else 0.0
         self._record(i0, z, d)
         self._lock_logic(d, abs(math.degrees(cmath.phase(self.zsum))))
-        # loop filter (FLL assist while not locked)
+        # signal present: prompt powers over two windows 1.8 dB above the noise (a frequency
+        # error would cancel a coherent sum; noise alone passes 1 %), 5 prompts in a row
+        pw = abs(z) ** 2
+        self.psum += pw - self.pring[self.pring_i]
+        self.pring[self.pring_i] = pw
+        self.pring_i = (self.pring_i + 1) % len(self.pring)
+        loud = s2z > 0 and self.psum > 1.5 * len(self.pring) * s2z
+        self.present = self.present + 1 if loud else 0
+        present = self.present >= 5
         ef = 0.0
-        if self.mode != LOCK and self.prev_e is not None:
+        if self.mode == PULL and self.prev_e is not None:   # FLL assist while pulling in
             ef = ((e - self.prev_e + math.pi) % (2 * math.pi) - math.pi) / self.t
         self.prev_e = e
         t = self.t
-        self.w2 += t * (self.k3 * e + self.f2 * ef)
-        self.w1 += t * (self.w2 + self.k2 * e + self.f1 * ef)
+        if self.mode == LOST and not present:   # coast on the held frequency and rate
+            self.w1 += t * self.w2
+            e = 0.0
+        else:
+            self.w2 += t * (self.k3 * e + self.f2 * ef)
+            self.w1 += t * (self.w2 + self.k2 * e + self.f1 * ef)
         self.phi += self.w * t
         self.w = self.w1 + self.k1 * e
+        self.hist.append(self.phi)
 
     def _lock_logic(self, d: float, arg_deg: float) -> None:
         cfg = self.cfg
@@ -204,9 +231,13 @@ class Loop:
             self.neg = self.neg + 1 if d < 0 else 0
             if self.off >= cfg.lock_window or self.neg >= 3:
                 self.mode, self.on, self.lost_prompts = LOST, 0, 0
+                # the filter integrated noise while the detector made up its mind: take its
+                # frequency and rate back to before (the prompts `carrier` takes back too)
+                self.w1, self.w2 = self._held_frequency(), 0.0
             return
         self.on = self.on + 1 if (d >= cfg.lock_on_d and arg_deg < cfg.lock_on_deg) else 0
-        if self.on >= cfg.lock_window:
+        self.since_acq += 1
+        if self.on >= cfg.lock_window and self.since_acq * self.t >= cfg.settle_s:
             self.mode, self.off, self.neg = LOCK, 0, 0
             self.arc += 1
             return
@@ -214,6 +245,15 @@ class Loop:
             self.lost_prompts += 1
             if self.lost_prompts * self.t >= cfg.reacq_s:
                 self.mode = ACQ
+
+    def _held_frequency(self) -> float:
+        """NCO frequency (rad/s) to coast on: slope of a line through the NCO phase over the
+        history before the last two lock windows (the filter's own frequency state is noisy,
+        +-10 Hz at 20 dB-Hz, and integrated noise while the detector made up its mind)."""
+        ph = np.asarray(self.hist)[:len(self.hist) - 2 * self.cfg.lock_window]
+        if ph.size < 3:
+            return self.w1
+        return float(np.polyfit(np.arange(ph.size) * self.t, ph, 1)[0])
 
     def _record(self, i0: int, z: complex, d: float) -> None:
         r = self.rec

@@ -31,6 +31,7 @@ import dataclasses
 from typing import Iterator, Sequence
 
 import numpy as np
+import scipy.fft
 
 from leonav_runtime.gen.constants import C_LIGHT_MPS, STARLINK_BEACON_HZ
 
@@ -129,7 +130,7 @@ def draw_phase_noise(n: int, rate_hz: float, points: Sequence[tuple[float, float
                      rng: np.random.Generator) -> np.ndarray:
     """Phase (rad) on n samples at rate_hz whose two-sided density is L(|f|) (small angle:
     variance 2 int_0^inf L df), by shaping white noise in the frequency domain."""
-    m = max(n, 2)
+    m = scipy.fft.next_fast_len(max(n, 2), real=True)
     w = np.fft.rfft(rng.standard_normal(m))
     f = np.fft.rfftfreq(m, 1.0 / rate_hz)
     h = np.sqrt(phase_noise_density(f, points) * rate_hz)
@@ -185,9 +186,13 @@ def truth_frequency(truth_t_s: np.ndarray, phase_cycles: np.ndarray) -> np.ndarr
 
 
 def iter_phase_iq(tones: Sequence[ToneSpec], cfg: PhaseBenchConfig) -> Iterator[np.ndarray]:
-    """The capture's samples block by block (complex64); same draws as `make_capture`."""
+    """The capture's samples block by block (complex64); the same samples as `make_capture`."""
     rng = np.random.default_rng(cfg.seed)
-    truth = _Truth(tones, cfg, rng)
+    yield from _iter_iq(_Truth(tones, cfg, rng), rng)
+
+
+def _iter_iq(truth: _Truth, rng: np.random.Generator) -> Iterator[np.ndarray]:
+    cfg, tones = truth.cfg, truth.tones
     amps = [np.sqrt(10 ** (s.cn0_dbhz / 10) / cfg.sample_rate_hz) for s in tones]
     n_total = int(round(cfg.duration_s * cfg.sample_rate_hz))
     sigma = np.float32(np.sqrt(0.5))
@@ -216,9 +221,9 @@ def make_capture(tones: Sequence[ToneSpec], cfg: PhaseBenchConfig | None = None)
         if f_max + abs(cfg.lo_offset_hz) > 0.45 * cfg.sample_rate_hz:
             raise ValueError(f"tone {i}: reaches {f_max:.0f} Hz at baseband, beyond 0.45 x the sample rate "
                              f"{cfg.sample_rate_hz:g} Hz; choose if_hz or t_closest_s so it stays in the band")
-    iq = np.concatenate(list(iter_phase_iq(tones, cfg)))
     rng = np.random.default_rng(cfg.seed)
-    truth = _Truth(tones, cfg, rng)    # same draws as the samples' (the same seed, first use)
+    truth = _Truth(tones, cfg, rng)
+    iq = np.concatenate(list(_iter_iq(truth, rng)))
     t = np.arange(0.0, cfg.duration_s + 0.5 * TRUTH_STEP_S, TRUTH_STEP_S)
     ph = np.stack([truth.phase(i, t)[0] for i in range(len(tones))])
     return PhaseCapture(iq, cfg.sample_rate_hz, t, ph, truth_frequency(t, ph), list(tones), cfg)
