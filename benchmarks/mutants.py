@@ -33,7 +33,9 @@ MODULES = {
                 "tests": ["tests/test_beacons_lo_drift.py", "tests/test_beacons_joint.py",
                           "tests/test_beacons_association.py"]},
     "scenario": {"files": ["leonav_runtime/scenarios/load.py"], "tests": ["tests/test_scenario.py"]},
-    "simulate": {"files": ["leonav_runtime/simulation/simulate.py"],
+    "simulate": {"files": ["leonav_runtime/simulation/simulate.py", "leonav_runtime/simulation/satellites.py",
+                           "leonav_runtime/simulation/visibility.py", "leonav_runtime/simulation/trial_block.py",
+                           "leonav_runtime/simulation/sensor_errors.py"],
                  "tests": ["tests/test_simulate.py"]},
     "filter": {"files": ["leonav_runtime/core/filter.py"],
                "tests": ["tests/test_filter_api.py", "tests/test_runtime_filter.py"]},
@@ -200,34 +202,44 @@ mutant("scenario-18", SCN, "attitude sigma left in degrees", ('filt["initial_att
 
 # ---------------------------------------------------------------- simulate.py
 SIM = "leonav_runtime/simulation/simulate.py"
-mutant("simulate-01", SIM, "light-time correction deleted",
-       ("tau = rho[s, j] / C_LIGHT_MPS\n", "tau = 0.0\n"),
-       ("                tau = np.linalg.norm(r_tx - r_rx[j]) / C_LIGHT_MPS\n", "                tau = 0.0\n"))
-mutant("simulate-02", SIM, "light-time correction with the wrong sign",
-       ("r_tx = r - v * tau + 0.5 * a * tau**2", "r_tx = r + v * tau + 0.5 * a * tau**2"))
-mutant("simulate-03", SIM, "GPS velocity taken at receive time", ("_aux(nav, r_tx, v - a * tau, a, f_b[k])", "_aux(nav, r_tx, v, a, f_b[k])"))
-mutant("simulate-04", SIM, "GPS visibility checked at the best epoch", ("return rows, min(vis) if vis else 0", "return rows, max(vis) if vis else 0"))
-mutant("simulate-05", SIM, "Starlink visibility checked at the best epoch", ("return alpha, dopp, ofdm, min(vis) if vis else 0", "return alpha, dopp, ofdm, max(vis) if vis else 0"))
-mutant("simulate-06", SIM, "max_satellites ignored for GPS", ('use = ranked[j][: scn.gps["max_satellites"]]', "use = ranked[j]"))
-mutant("simulate-07", SIM, "measurement rate that does not divide the IMU rate accepted",
+SAT, VIS = "leonav_runtime/simulation/satellites.py", "leonav_runtime/simulation/visibility.py"
+BLK, ERR = "leonav_runtime/simulation/trial_block.py", "leonav_runtime/simulation/sensor_errors.py"
+mutant("simulate-01", SAT, "light-time correction deleted",
+       ("r_tx, v_tx, _ = nav.transmit_state(states.r_ecef_m[s, j], states.v_ecef_mps[s, j], a, r_rx[j])",
+        "r_tx, v_tx = states.r_ecef_m[s, j], states.v_ecef_mps[s, j]"))
+mutant("simulate-02", SAT, "light-time correction with the wrong sign (satellite moved forward by v tau)",
+       ("            rows.append((k, t[j], int(es.norad_ids[s]), np.concatenate([r_tx, v_tx, a]), None, rank))",
+        "            r_tx = 2 * states.r_ecef_m[s, j] - r_tx\n"
+        "            rows.append((k, t[j], int(es.norad_ids[s]), np.concatenate([r_tx, v_tx, a]), None, rank))"))
+mutant("simulate-03", SAT, "GPS velocity taken at receive time", ("np.concatenate([r_tx, v_tx, a])", "np.concatenate([r_tx, states.v_ecef_mps[s, j], a])"))
+mutant("simulate-04", SAT, "GPS visibility checked at the best epoch",
+       ("None, rank))\n    vis = [len(r) for r in ranked]\n    return rows, min(vis) if vis else 0",
+        "None, rank))\n    vis = [len(r) for r in ranked]\n    return rows, max(vis) if vis else 0"))
+mutant("simulate-05", SAT, "Starlink visibility checked at the best epoch",
+       ("for rank, s in enumerate(use)]\n    vis = [len(r) for r in ranked]\n    return rows, min(vis) if vis else 0",
+        "for rank, s in enumerate(use)]\n    vis = [len(r) for r in ranked]\n    return rows, max(vis) if vis else 0"))
+mutant("simulate-06", SAT, "max_satellites ignored for GPS", ('use = ranked[j][: scn.gps["max_satellites"]]', "use = ranked[j]"))
+mutant("simulate-07", SAT, "measurement rate that does not divide the IMU rate accepted",
        ("if step < 1 or abs(scn.imu_rate_hz / rate_hz - step) > 1e-9:", "if step < 1:"))
-mutant("simulate-08", SIM, "Starlink reference is the lowest satellite", ("ref = use[0]", "ref = use[-1]"))
-mutant("simulate-09", SIM, "satellites ranked lowest first", ('ranked.append(vis[np.argsort(-el[vis, j], kind="stable")])', 'ranked.append(vis[np.argsort(el[vis, j], kind="stable")])'))
-mutant("simulate-10", SIM, "GPS uses the Starlink elevation mask",
-       ('states, ranked, rho = _visible_ranked(scn, es, t, p_enu, scn.gps["elevation_mask_rad"], notes)',
-        'states, ranked, rho = _visible_ranked(scn, es, t, p_enu, scn.starlink["elevation_mask_rad"], notes)'))
-mutant("simulate-11", SIM, "first measurement epoch at t = 0", ("return np.arange(step, t_imu.size, step)", "return np.arange(0, t_imu.size, step)"))
-mutant("simulate-12", SIM, "clock and LO enter with the wrong sign", ("z += s.H[rows, dx_off] * x_true[k, off]", "z -= s.H[rows, dx_off] * x_true[k, off]"))
-mutant("simulate-13", SIM, "noise added to noise-free trials", ("z += g * sigma * noise[rows]", "z += sigma * noise[rows]"))
-mutant("simulate-14", SIM, "Doppler-rate R without the specific-force noise",
-       ("R = doppler_rate_variance(sigma, setup.params[L.P_F_C_HZ], prof.vrw, f_b_span_s)", "R = sigma**2"))
-mutant("simulate-15", SIM, "GPS outages keep only the outage", ("keep &= ~((s.t_s >= a) & (s.t_s < b))", "keep &= ((s.t_s >= a) & (s.t_s < b))"))
-mutant("simulate-16", SIM, "aux keeps the true instead of the measured specific force",
-       ("        aux[:, L.AUX_F_B:L.AUX_F_B + 3] = f_b_avg[k]  # measured, averaged specific force\n", ""))
+mutant("simulate-08", SAT, "Starlink reference is the lowest satellite", ("sat[rank], sat[0], rank)", "sat[rank], sat[-1], rank)"))
+mutant("simulate-09", VIS, "satellites ranked lowest first", ('ranked.append(vis[np.argsort(-key, kind="stable")])', 'ranked.append(vis[np.argsort(key, kind="stable")])'))
+mutant("simulate-10", SAT, "GPS uses the Starlink elevation mask",
+       ('_visible_ranked(scn, es, t, p_enu, scn.gps["elevation_mask_rad"], notes)',
+        '_visible_ranked(scn, es, t, p_enu, scn.starlink["elevation_mask_rad"], notes)'))
+mutant("simulate-11", SAT, "first measurement epoch at t = 0", ("return np.arange(step, t_imu.size, step)", "return np.arange(0, t_imu.size, step)"))
+mutant("simulate-12", SIM, "clock and LO enter with the wrong sign", ("z += s.H[rows, b.error_offset + j] * value", "z -= s.H[rows, b.error_offset + j] * value"))
+mutant("simulate-13", SIM, "noise added to noise-free trials", ("z += g * sigma * noise[:, rows]", "z += sigma * noise[:, rows]"))
+mutant("simulate-14", BLK, "Doppler-rate aux f_b of one IMU sample while R assumes the 0.1 s average (block builder)",
+       ("n_avg = max(1, int(round(F_B_AVERAGE_S / float(np.median(imu.dt)))))", "n_avg = 1"))
+mutant("simulate-15", SIM, "GPS outages keep only the outage", ("keep &= ~((s.t_s >= a) & ((s.t_s < b) | (b >= end_s)))", "keep &= ((s.t_s >= a) & ((s.t_s < b) | (b >= end_s)))"))
+mutant("simulate-16", BLK, "aux keeps the true instead of the measured specific force (block builder)",
+       ('        buf["aux"][tpl.fb_pos, AUX_F_B_SLICE] = self.f_b[j, tpl.fb_sample]\n', ""))
 mutant("simulate-17", SIM, "count selects one satellite too many", ("return np.flatnonzero(s.rank < count)", "return np.flatnonzero(s.rank <= count)"))
-mutant("simulate-18", SIM, "OFDM difference includes the reference itself", ("if rank > 0:  # differenced", "if rank >= 0:  # differenced"))
-mutant("simulate-19", SIM, "LO offset with the wrong sign", ('b_lo = _random_walk(rng, n, dt, scn.starlink["lo_offset_hz"]', 'b_lo = _random_walk(rng, n, dt, -scn.starlink["lo_offset_hz"]'))
-mutant("simulate-20", SIM, "too few GPS satellites accepted", ('if "gps" in needed and gps_min < 4:', 'if "gps" in needed and gps_min < 1:'))
+mutant("simulate-18", SAT, "OFDM difference includes the reference itself", ("return [r for r in rows if r[5] > 0]", "return [r for r in rows if r[5] >= 0]"))
+mutant("simulate-19", ERR, "clock and LO truth start from the scenario values with the wrong sign",
+       ("return np.full((len(streams), block.size), float(getattr(scn, section)[key]))",
+        "return np.full((len(streams), block.size), -float(getattr(scn, section)[key]))"))
+mutant("simulate-20", SIM, "too few GPS satellites accepted", ('if "gps" in needed and visible["gps"] < 4:', 'if "gps" in needed and visible["gps"] < 1:'))
 
 # ---------------------------------------------------------------- filter.py
 FIL = "leonav_runtime/core/filter.py"
@@ -309,16 +321,29 @@ mutant("scenario-19", SCN, "a count of 1 rejected", ("and 1 <= c <= MAX_COUNT fo
 mutant("scenario-20", SCN, "unknown top-level keys accepted", ('if key not in schema and key not in schema.get("", {}):', "if False:"))
 mutant("scenario-21", SCN, "an outage may start at its end", ("if not 0 <= a < b <= duration:", "if not 0 <= a <= b <= duration:"))
 mutant("scenario-22", SCN, "pitch amplitude left in degrees", ('traj["pitch_amplitude_rad"] = math.radians(traj.pop("pitch_amplitude_deg"))', 'traj["pitch_amplitude_rad"] = traj.pop("pitch_amplitude_deg")'))
-mutant("simulate-21", SIM, "specific force of the next interval at each sample", ("f_b = np.vstack([u_true[:1, 3:], u_true[:, 3:]]) / dt", "f_b = np.vstack([u_true[:, 3:], u_true[-1:, 3:]]) / dt"))
-mutant("simulate-22", SIM, "one light-time iteration instead of two", ("            for _ in range(2):\n                r_tx", "            for _ in range(1):\n                r_tx"),
-       equivalent="the first iteration already puts the satellite within ~1 mm of its transmit-time position "
-                  "(tau error ~ rho_dot tau / c ~ 2e-7 s): far below the metres of pseudorange noise")
-mutant("simulate-23", SIM, "outage end included", ("keep &= ~((s.t_s >= a) & (s.t_s < b))", "keep &= ~((s.t_s >= a) & (s.t_s <= b))"))
-mutant("simulate-24", SIM, "clock bias and drift prior sigmas swapped", ("sig[L.DX_DC_DT] = CLOCK_BIAS_SIGMA_M\n    sig[L.DX_DC_DDT] = CLOCK_DRIFT_SIGMA_MPS",
-                                                                          "sig[L.DX_DC_DT] = CLOCK_DRIFT_SIGMA_MPS\n    sig[L.DX_DC_DDT] = CLOCK_BIAS_SIGMA_M"))
+mutant("simulate-21", SIM, "specific force of the next interval at each sample", ("f_b = np.vstack([dvel[:1], dvel]) / dt", "f_b = np.vstack([dvel, dvel[-1:]]) / dt"))
+mutant("simulate-22", SAT, "light time without the satellite's acceleration (0.5 a tau^2 dropped)",
+       ("nav.transmit_state(states.r_ecef_m[s, j], states.v_ecef_mps[s, j], a, r_rx[j])",
+        "nav.transmit_state(states.r_ecef_m[s, j], states.v_ecef_mps[s, j], 0 * a, r_rx[j])"))
+mutant("simulate-23", SIM, "outage end included", ("keep &= ~((s.t_s >= a) & ((s.t_s < b) | (b >= end_s)))", "keep &= ~((s.t_s >= a) & ((s.t_s <= b) | (b >= end_s)))"))
+mutant("simulate-24", SIM, "position and velocity prior sigmas swapped",
+       ('prior_sigmas(layout, profile, f["initial_position_sigma_m"], f["initial_velocity_sigma_mps"],',
+        'prior_sigmas(layout, profile, f["initial_velocity_sigma_mps"], f["initial_position_sigma_m"],'))
 mutant("simulate-25", SIM, "noise drawn only for the mode's observables",
-       ("        noise = rng.standard_normal(s.t_s.size)  # drawn for every series: common numbers\n        if kind_name not in MODE_OBSERVABLES[mode]:\n            continue\n",
-        "        if kind_name not in MODE_OBSERVABLES[mode]:\n            continue\n        noise = rng.standard_normal(s.t_s.size)\n"))
+       ("        noise = np.stack([(r if o.paper else own_stream(r, o.name)).standard_normal(s.t_s.size) for r in rngs])\n"
+        "        if o not in parsed.observables:\n            continue\n",
+        "        if o not in parsed.observables:\n            continue\n"
+        "        noise = np.stack([(r if o.paper else own_stream(r, o.name)).standard_normal(s.t_s.size) for r in rngs])\n"))
+# the block builder (issue 25): written with it, each a bug the per-trial road could not have
+mutant("simulate-26", BLK, "averaging window of f_b one sample short", ("np.maximum(ends - n_avg, 0)", "np.maximum(ends - n_avg + 1, 0)"))
+mutant("simulate-27", SIM, "prior drawn with the variances as sigmas", ("factor_t = (u * np.sqrt(s)).T", "factor_t = (u * s).T"))
+mutant("simulate-28", SIM, "measuring sensors' truth one IMU sample early in z", ("value = errors[b.name][:, k, j]", "value = errors[b.name][:, k - 1, j]"))
+mutant("simulate-29", ERR, "clock bias integrates the drift at the end of each step", ("x_d[:, :-1] * np.diag(Phi[e, d])", "x_d[:, 1:] * np.diag(Phi[e, d])"))
+mutant("simulate-30", ERR, "IMU bias of the interval's end added to its increment", ("u[:, :, :3] += b_g[:, :-1] * dt", "u[:, :, :3] += b_g[:, 1:] * dt"))
+mutant("simulate-31", BLK, "block measurements written in the template's record order", ('buf["z"][tpl.meas_pos] = self.z[j, tpl.meas_src]', 'buf["z"][tpl.meas_pos] = self.z[j, np.sort(tpl.meas_src)]'))
+mutant("simulate-32", ERR, "every trial of a block draws the first trial's own-stream blocks",
+       ('rs = list(rngs) if b.truth["stream"] == "trial" else [own_stream(r, b.name) for r in rngs]',
+        'rs = list(rngs) if b.truth["stream"] == "trial" else [own_stream(rngs[0], b.name)] * len(rngs)'))
 mutant("filter-15", FIL, "record stream not checked", ("        records.check_records(recs, len(self.lib.meas_ids))\n        n = recs.size\n        gates", "        n = recs.size\n        gates"))
 mutant("filter-16", FIL, "applied and gated counts swapped", ("int(out.n_imu), int(out.n_applied), int(out.n_gated),", "int(out.n_imu), int(out.n_gated), int(out.n_applied),"))
 mutant("filter-17", FIL, "a number as gate ignored", ("return np.full(n, float(gate))", "return np.full(n, CHI2_1DOF_999)"))
