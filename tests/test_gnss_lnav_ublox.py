@@ -74,7 +74,7 @@ def _rtklib_nav(path: Path) -> dict:
     out = {}
     lines = path.read_text().splitlines()
     i = next(k for k, ln in enumerate(lines) if "END OF HEADER" in ln) + 1
-    num = lambda s: float(s.replace("D", "E"))   # noqa: E731
+    num = lambda s: float(s.replace("D", "E"))
     while i + 8 <= len(lines):
         rec = lines[i:i + 8]
         f = [num(rec[0][23 + 19 * k:42 + 19 * k]) for k in range(3)]
