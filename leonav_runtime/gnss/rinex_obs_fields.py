@@ -16,6 +16,7 @@ in the order their first observation appears in the record), so the table is ide
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -171,20 +172,23 @@ def build_rows(reader, recs: Records) -> dict[str, np.ndarray]:
         values[a, m], lli[a, m], ssi[a, m] = v, l_, s_
         plain[a, m] = not math.isnan(v)
     emit = np.asarray(recs.emit, dtype=bool)
+    per_record = (np.asarray(recs.t, dtype=np.float64), np.asarray(recs.power_failure, dtype=bool))
+    sats = recs.sat
     parts = []
     for gid, (idx, values, lli, ssi, present) in parsed.items():
         types, system = groups[gid]
         keep = emit[idx]
-        prn = np.array([_prn(recs.sat[r]) for r in idx], dtype=np.int64)
+        prn = np.array([_prn(sats[r]) for r in idx.tolist()], dtype=np.int64)
         bad_id = keep & (prn < 0)
         if bad_id.any():
             reader.counts["bad_satellite_id"] += int(bad_id.sum())
         keep &= ~bad_id
-        parts += _group_rows(reader, recs, idx[keep], values[keep], lli[keep], ssi[keep], present[keep],
+        parts += _group_rows(reader, per_record, idx[keep], values[keep], lli[keep], ssi[keep], present[keep],
                              types, system, prn[keep])
     return _assemble(parts, n)
 
 
+@functools.lru_cache(maxsize=4096)
 def _prn(sat: str) -> int:
     try:
         return int(sat[1:3])
@@ -192,15 +196,16 @@ def _prn(sat: str) -> int:
         return -1
 
 
-def _group_rows(reader, recs, idx, values, lli, ssi, present, types, system, prn) -> list[dict]:
-    """Rows of one group: one dict of columns per signal."""
+def _group_rows(reader, per_record, idx, values, lli, ssi, present, types, system, prn) -> list[dict]:
+    """Rows of one group: one dict of columns per signal. per_record: (time, power failure) of
+    every record."""
     by_signal: dict[str, list[tuple[int, str]]] = {}
     for m, code in enumerate(types):
         st = _signal_of(code, system, reader.version)
         if st is not None:
             by_signal.setdefault(st[0], []).append((m, st[1]))
     n = idx.size
-    t = np.asarray(recs.t)[idx]
+    t, power_failure = per_record[0][idx], per_record[1][idx]
     out = []
     for signal, cols in by_signal.items():
         q = {c: np.full(n, np.nan) for c in _QTY}
@@ -229,7 +234,7 @@ def _group_rows(reader, recs, idx, values, lli, ssi, present, types, system, prn
         if not measured.any():
             continue
         sel = measured
-        pf = np.asarray([recs.power_failure[r] for r in idx[sel]], dtype=bool)
+        pf = power_failure[sel]
         flags = (np.where(np.isnan(q["C"][sel]), 0, FLAG_PR_VALID) | np.where(np.isnan(q["L"][sel]), 0, FLAG_CP_VALID)
                  | np.where(lli_s[sel] & 1, FLAG_LOSS_OF_LOCK, 0) | np.where(lli_s[sel] & 2, FLAG_HALF_CYCLE, 0)
                  | np.where(lli_s[sel] & 4, FLAG_ANTISPOOFING, 0) | np.where(pf, FLAG_POWER_FAILURE, 0))

@@ -74,8 +74,12 @@ def read_body(self, i: int) -> None:
         while len(sats) < nsat:
             chunk = lines[j][32:68] if j < n else ""
             take = min(12, nsat - len(sats))
-            ids = [chunk[3 * k:3 * k + 3].ljust(3) for k in range(take)]
-            ids = [(x[0] if x[0].strip() else self.file_system) + x[1:3].replace(" ", "0") for x in ids]
+            seg = chunk[:3 * take].ljust(3 * take)
+            # 'Gnn' ids; a blank letter is the file's system, a blank tens digit a 0 ("G 5" -> "G05")
+            letters = seg[0::3]
+            if not letters.isalpha():
+                letters = "".join(c if c.strip() else self.file_system for c in letters)
+            ids = [a + b + c for a, b, c in zip(letters, seg[1::3].replace(" ", "0"), seg[2::3].replace(" ", "0"))]
             if j > i and (j >= n or lines[j][:32].strip()):
                 break
             sats += ids
