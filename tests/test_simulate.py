@@ -265,6 +265,15 @@ def test_measurement_rate_must_divide_the_imu_rate_and_gps_needs_four():
         warnings.simplefilter("ignore")   # two of the sets are 6 days old: irrelevant here
         with pytest.raises(UserInputError, match=r"\[gps\] rate_hz = 3: .* must divide the IMU rate 10 Hz"):
             simulate.prepare(_scenario(gps__rate_hz=3.0, **gps_only))
+        # a scenario changed in code (not reloaded) meets the simulator's own check
+        import dataclasses
+
+        from leonav_runtime.simulation import satellites
+
+        scn = _scenario(**gps_only)
+        assert satellites.epochs(scn, 5.0, np.arange(11) / 10.0).tolist() == [2, 4, 6, 8, 10]
+        with pytest.raises(UserInputError, match=r"measurement rate 3.0 Hz must divide the IMU rate 10.0 Hz"):
+            satellites.epochs(dataclasses.replace(scn, gps=dict(scn.gps, rate_hz=3.0)), 3.0, np.arange(11) / 10.0)
         # two satellites above 60 deg at this epoch: a position needs four
         with pytest.raises(UserInputError, match=r"only 2 GPS satellites above the mask"):
             simulate.prepare(_scenario(gps__elevation_mask_deg=60.0, gps__max_satellites=4, **gps_only))

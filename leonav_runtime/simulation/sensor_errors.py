@@ -31,11 +31,12 @@ def own_stream(rng: np.random.Generator, name: str) -> np.random.Generator:
 
 def _walk(steps: np.ndarray, x0: np.ndarray, phi: np.ndarray) -> np.ndarray:
     """x_{k+1} = phi x_k + steps_k per component, from x0, for B trials at once: steps (B, n, size),
-    x0 (B, size) -> (B, n+1, size). phi = 1: a cumulative sum."""
-    if np.all(phi == 1.0):
-        return np.concatenate([x0[:, None], x0[:, None] + np.cumsum(steps, axis=1)], axis=1)
+    x0 (B, size) -> (B, n+1, size). phi = 1: a cumulative sum (made in `steps`)."""
     out = np.empty((steps.shape[0], steps.shape[1] + 1, x0.shape[1]))
     out[:, 0] = x0
+    if np.all(phi == 1.0):
+        np.add(x0[:, None], np.cumsum(steps, axis=1, out=steps), out=out[:, 1:])   # steps reused
+        return out
     for j in range(x0.shape[1]):   # first-order recursion, per component
         out[:, 1:, j] = lfilter([1.0], [1.0, -phi[j]], steps[:, :, j], axis=1, zi=(phi[j] * x0[:, j])[:, None])[0]
     return out
@@ -87,9 +88,12 @@ def draw_truth_many(rngs: list[np.random.Generator], blocks, n: int, dt: float, 
                 x_d[:, :-1] * np.diag(Phi[e, d]) + scale * l11 * w_b, axis=1)], axis=1)
             out[b.name], out[drift.name] = x_b, x_d
             continue
-        parts = [(_start(b, scn, scale, [r], profile, layout)[0], r.standard_normal((n, b.size))) for r in rs]
-        x0, w = np.stack([p[0] for p in parts]), np.stack([p[1] for p in parts])
-        out[b.name] = _walk(w * (scale * np.sqrt(np.diag(Qd[e, e]))), x0, np.diag(Phi[e, e]).copy())
+        x0, w = np.empty((len(rs), b.size)), np.empty((len(rs), n, b.size))
+        for i, r in enumerate(rs):   # each trial's start, then its noise
+            x0[i] = _start(b, scn, scale, [r], profile, layout)[0]
+            r.standard_normal(out=w[i])
+        w *= scale * np.sqrt(np.diag(Qd[e, e]))
+        out[b.name] = _walk(w, x0, np.diag(Phi[e, e]).copy())
     return out
 
 
@@ -128,9 +132,14 @@ def measured_increments_many(rngs: list[np.random.Generator], profile, u_true: n
     """`measured_increments` of B trials at once: b_a, b_g (B, n+1, 3), trial i's noise from
     rngs[i] (gyro, then accelerometer, as `measured_increments`) -> (B, n, 6)."""
     n = u_true.shape[0]
-    w = [(r.standard_normal((n, 3)), r.standard_normal((n, 3))) for r in rngs]
+    w_g, w_a = np.empty((len(rngs), n, 3)), np.empty((len(rngs), n, 3))
+    for i, r in enumerate(rngs):
+        r.standard_normal(out=w_g[i])
+        r.standard_normal(out=w_a[i])
+    w_g *= scale * profile.arw * math.sqrt(dt)
+    w_a *= scale * profile.vrw * math.sqrt(dt)
     u = np.empty((len(rngs),) + u_true.shape)
     u[:] = u_true
-    u[:, :, :3] += b_g[:, :-1] * dt + scale * profile.arw * math.sqrt(dt) * np.stack([g for g, _ in w])
-    u[:, :, 3:] += b_a[:, :-1] * dt + scale * profile.vrw * math.sqrt(dt) * np.stack([a for _, a in w])
+    u[:, :, :3] += b_g[:, :-1] * dt + w_g
+    u[:, :, 3:] += b_a[:, :-1] * dt + w_a
     return u
