@@ -22,8 +22,8 @@ Per tone, in cycles, at receiver sample n (nominal receiver time t_rx = n / fs):
 
 Noise: complex white, unit power per sample (N0 = 1 / fs); the tone amplitude is
 sqrt(10^(cn0/10) / fs), so C/N0 is exactly `cn0_dbhz` dB-Hz per tone (outside fades).
-The phase noise is drawn at `PN_RATE_HZ` and interpolated linearly to fs: offsets above
-PN_RATE_HZ / 2 (200 kHz, where the density is below -100 dBc/Hz) are left out.
+The phase noise is drawn at min(`PN_RATE_HZ`, fs) and interpolated linearly to fs: offsets
+above PN_RATE_HZ / 2 (200 kHz, where the density is below -100 dBc/Hz) are left out.
 """
 from __future__ import annotations
 
@@ -147,11 +147,11 @@ def _slip_terms(t_rx: np.ndarray, spec: ToneSpec) -> tuple[np.ndarray, np.ndarra
     """(extra phase in cycles, amplitude factor) of the tone's slip events at receiver times."""
     extra = np.zeros(t_rx.shape)
     gain = np.ones(t_rx.shape)
-    for ev in spec.slips:
-        u = (t_rx - ev.t_s) / ev.duration_s
-        extra += ev.cycles * _smoothstep(u)
-        inside = (u >= 0) & (u < 1)
-        gain[inside] *= 0.0 if np.isinf(ev.fade_db) else 10 ** (-ev.fade_db / 20)
+    for ev in spec.slips:   # t_rx increases: only the samples inside the event need the step
+        i0, i1 = np.searchsorted(t_rx, [ev.t_s, ev.t_s + ev.duration_s])
+        extra[i0:i1] += ev.cycles * _smoothstep((t_rx[i0:i1] - ev.t_s) / ev.duration_s)
+        extra[i1:] += ev.cycles
+        gain[i0:i1] *= 0.0 if np.isinf(ev.fade_db) else 10 ** (-ev.fade_db / 20)
     return extra, gain
 
 
@@ -161,10 +161,11 @@ class _Truth:
     def __init__(self, tones: Sequence[ToneSpec], cfg: PhaseBenchConfig, rng: np.random.Generator):
         self.tones, self.cfg = list(tones), cfg
         self.scale = 1.0 / (1.0 + cfg.ppm * 1e-6)
-        n_pn = int(np.ceil(cfg.duration_s * PN_RATE_HZ)) + 2
+        self.pn_rate = min(PN_RATE_HZ, cfg.sample_rate_hz)   # offsets up to fs / 2 exist in the samples
+        n_pn = int(np.ceil(cfg.duration_s * self.pn_rate)) + 2
         self.pn = None
         if cfg.phase_noise:
-            self.pn = draw_phase_noise(n_pn, PN_RATE_HZ, cfg.phase_noise, rng) / (2 * np.pi)
+            self.pn = draw_phase_noise(n_pn, self.pn_rate, cfg.phase_noise, rng) / (2 * np.pi)
 
     def phase(self, i: int, t_rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         cfg, spec = self.cfg, self.tones[i]
@@ -173,7 +174,7 @@ class _Truth:
         ph = spec.phase0_cycles - k * (_pass_range(t, spec) - _pass_range(np.zeros(1), spec))
         ph += (spec.if_hz - cfg.lo_offset_hz - cfg.ppm * 1e-6 * cfg.tuning_hz) * t - 0.5 * cfg.lo_drift_hz_s * t * t
         if self.pn is not None:   # linear interpolation (np.interp would search the long grid)
-            pos = t * PN_RATE_HZ
+            pos = t * self.pn_rate
             j = np.minimum(pos.astype(np.int64), self.pn.size - 2)
             ph += self.pn[j] + (pos - j) * (self.pn[j + 1] - self.pn[j])
         extra, gain = _slip_terms(t_rx, spec)
@@ -217,8 +218,10 @@ def make_capture(tones: Sequence[ToneSpec], cfg: PhaseBenchConfig | None = None)
     if not tones:
         raise ValueError("make_capture: no tones given")
     for i, s in enumerate(tones):
-        f_max = np.max(np.abs(s.if_hz + _pass_doppler(np.array([0.0, cfg.duration_s]), s, cfg.f_c_hz)[0]))
-        if f_max + abs(cfg.lo_offset_hz) > 0.45 * cfg.sample_rate_hz:
+        ends = np.array([0.0, cfg.duration_s])   # a straight pass: the Doppler is monotonic
+        lo = cfg.lo_offset_hz + cfg.ppm * 1e-6 * cfg.tuning_hz
+        f_max = np.max(np.abs(s.if_hz - lo + _pass_doppler(ends, s, cfg.f_c_hz)[0]))
+        if f_max + abs(cfg.lo_drift_hz_s) * cfg.duration_s > 0.45 * cfg.sample_rate_hz:
             raise ValueError(f"tone {i}: reaches {f_max:.0f} Hz at baseband, beyond 0.45 x the sample rate "
                              f"{cfg.sample_rate_hz:g} Hz; choose if_hz or t_closest_s so it stays in the band")
     rng = np.random.default_rng(cfg.seed)
