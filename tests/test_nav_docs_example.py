@@ -34,9 +34,12 @@ def documented_runs() -> list[tuple[str, list[str]]]:
 
 
 def _skeleton(line: str) -> str:
-    """The line with every number as '#' and runs of blanks as one; a status line printed before the
-    first solution shows 'latency -' (none in the last second yet), which the docs mention."""
-    return " ".join(NUMBER.sub("#", line).split()).replace("| latency - |", "| latency #/# ms |")
+    """The line with every number as '#' and runs of blanks as one. Two things the docs say vary with
+    timing: the first line names what the start waits for at that moment, and a status line drawn
+    before the first solution shows 'latency -'."""
+    line = " ".join(NUMBER.sub("#", line).split()).replace("| latency - |", "| latency #/# ms |")
+    return re.sub(r"\] waiting: (GNSS time tags|a GNSS fix|IMU samples|# s of IMU after the first fix) \|",
+                  "] waiting: ? |", line)
 
 
 def _run(cmd: str, cwd: Path, merge: bool) -> list[str]:
