@@ -8,7 +8,7 @@ percentiles and baselines, the waterfall's SNR and band, the sign of the CSV res
 """
 from __future__ import annotations
 
-from mutants import MODULES, mutant  # noqa: F401
+from mutants import MODULES, mutant
 
 MODULES["dataset"] = {
     "files": ["leonav_runtime/dataset/", "leonav_runtime/scoring/errors.py"],

@@ -14,7 +14,13 @@ import pytest
 
 from leonav_runtime.beacons.doppler import local_poly_fit, ridge_measurements
 from leonav_runtime.beacons.ridges import Ridge, RidgeTracker, TrackerConfig
-from leonav_runtime.beacons.waterfall import SpectrumBlock, StftConfig, WaterfallImage, band_bins, iter_spectra
+from leonav_runtime.beacons.waterfall import (
+    SpectrumBlock,
+    StftConfig,
+    WaterfallImage,
+    band_bins,
+    iter_spectra,
+)
 from tests.conftest import shared_file
 
 

@@ -103,8 +103,8 @@ def test_plnav_fields_in_their_documented_order():
 
 def _tags_and_sentences(n: int, t0_mono: float):
     """Records of n seconds of RMC as the session decoder gives them: the sentence and its time tag."""
-    from leonav.hardware.gnss.reader import GnssDecoder
     from leonav.hardware.gnss.nmea_write import rmc
+    from leonav.hardware.gnss.reader import GnssDecoder
 
     t0 = dt.datetime(2026, 2, 23, 12, 0, 0, tzinfo=UTC)
     dec, recs, length = GnssDecoder(), [], 0
@@ -137,9 +137,13 @@ def test_streaming_time_map_adds_the_gnss_latency_and_the_tag_sentence_serializa
 
 def test_streaming_time_map_with_a_latency_agrees_with_the_replays_map(tmp_path):
     from leonav.hardware.session import decode_session
+
     from leonav_runtime.nav.timemap import StreamingTimeMap
     from leonav_runtime.replay.timebase import mono_to_utc_function
-    from leonav_runtime.simulation.session_synth import SynthSessionConfig, write_synthetic_session
+    from leonav_runtime.simulation.session_synth import (
+        SynthSessionConfig,
+        write_synthetic_session,
+    )
 
     write_synthetic_session(tmp_path / "s", SynthSessionConfig(seconds=4.0, sdr=False))
     dec = decode_session(tmp_path / "s")

@@ -9,13 +9,13 @@ import math
 
 import numpy as np
 import pytest
-
 from leonav.codegen import observability as ob
+
 from leonav_runtime import observability as ro
 from leonav_runtime.core import compiled
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _case(mode: str = "gps+leo-alpha+imu", motion: str = "accelerating") -> ob.CaseResult:
     return ob.analyze_case(mode, ro.analysis_modes()[mode], motion, n_sats=ob.N_SATS, n_draws=1)
 
