@@ -152,15 +152,17 @@ def test_paper_findings_only_for_a_scenario_that_declares_itself_the_papers(tmp_
     assert "the paper's findings" not in summary_table(maritime, res)
 
 
-def test_a_block_task_gives_each_trial_what_it_gives_alone():
+def test_a_block_task_gives_each_trial_what_it_gives_alone(monkeypatch):
     """run_block (the block's records at once, one filter object per block, errors and NEES for the
-    whole block) equals run_trial trial by trial, bit for bit; its CPU covers its C loops."""
+    whole block; a long run in smaller blocks) equals run_trial trial by trial, bit for bit; its
+    CPU covers its C loops."""
     from pathlib import Path
 
     from leonav_runtime.sweep import montecarlo as mc
 
     scn = _paper(time__duration_s=3.0, starlink__counts=[5, 10])
-    for mode, count in (("gps+leo-alpha+imu", 10), ("leo-alpha+ofdm+imu", 5)):
+    for mode, count, samples in (("gps+leo-alpha+imu", 10, mc.BLOCK_SAMPLES), ("leo-alpha+ofdm+imu", 5, 2 * 301)):
+        monkeypatch.setattr(mc, "BLOCK_SAMPLES", samples)   # 2 x 301 IMU samples: blocks of 2 trials
         block = mc.run_block((scn.raw, scn.source, str(Path(scn.source).parent), mode, count, [0, 4, 9]))
         assert [r.index for r in block.results] == [0, 4, 9] and block.pcrb is not None
         for r in block.results:

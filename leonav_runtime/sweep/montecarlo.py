@@ -1,8 +1,9 @@
 """Monte Carlo sweep: RMSE, NEES, NIS and the PCRB per mode and Starlink satellite count.
 
 Work unit: a *task* is (scenario, mode, count, a block of trial indices). Each worker
-process prepares the scenario once (truth, satellites; cached per process) and runs its
-trials through the compiled C filter loop. Trial i draws from the stream
+process prepares the scenario once (truth, satellites; cached per process), builds the block's
+records at once (simulation/trial_block.py) and runs each trial through the compiled C filter
+loop. Trial i draws from the stream
 `SeedSequence(seed).spawn(n)[i]` whatever mode, count or executor runs it, so the
 modes are compared on common random numbers and results do not depend on the executor.
 
@@ -35,6 +36,7 @@ NAV = L.DX_NAV9_SLICE  # the 9D error (dp, dv, dtheta): the leading NNAV entries
 BLOCKS = {"position": L.DX_DP_SLICE, "velocity": L.DX_DV_SLICE, "attitude": L.DX_DTHETA_SLICE,
           "vertical": slice(L.DX_DP_SLICE.start + 2, L.DX_DP_SLICE.start + 3)}   # the Up component of dp
 
+BLOCK_SAMPLES = 250_000   # trials x IMU samples drawn at once (a 20 s run at 100 Hz: 124 trials)
 _SETUPS: dict[str, simulate.Setup] = {}
 MAX_SETUPS = 4   # prepared scenarios kept per process (bounded memory over a study's cells)
 _NAV: dict[str, navfuncs.NavFunctions] = {}
@@ -87,7 +89,8 @@ class TrialResult:
     p_est: estimated ENU position on the output grid (kept for trial 0 only, for plots);
     c_seconds: CPU time (s) of the C filter loop; seconds: CPU time of the whole trial (the
     worker thread's own clock, `time.thread_time`: under load a wall clock counts the waits);
-    wall_seconds: the trial's wall time.
+    wall_seconds: the trial's wall time. In a block (`run_block`) the trials share their
+    draws and evaluation: seconds and wall_seconds are NaN there, the block carries them.
     """
 
     index: int
@@ -148,6 +151,19 @@ def run_block(task: tuple) -> BlockResult:
     raw, source, base_dir, mode, count, indices = task
     scn = scenario_from_dict(raw, source=source, base_dir=Path(base_dir))
     setup, nav = setup_for(scn)
+    # a long run draws fewer trials at once: a block's draws stay below one trial's records
+    step = max(1, BLOCK_SAMPLES // setup.t_imu.size)
+    parts = [_run_trials(scn, setup, nav, mode, count, indices[i:i + step]) for i in range(0, len(indices), step)]
+    results = [r for part in parts for r in part[0]]
+    bound = pcrb_curve(scn, mode, count) if 0 in indices else None
+    p0 = next((r.p_est for r in results if r.p_est is not None), None)
+    return BlockResult(results, bound, p0, sum(part[1] for part in parts), time.thread_time() - t0,
+                       time.perf_counter() - w0)
+
+
+def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions, mode: str, count: int,
+                indices: list[int]) -> tuple[list[TrialResult], float]:
+    """The trials `indices` of (mode, count) from one block of records: (results, C loop CPU s)."""
     block = trial_block.trial_block(setup, mode, count, [trial_rng(scn.seed, i) for i in indices], nav)
     gate = scn.filter["gate_nis"] or None
     buf = block.buffer()
@@ -178,9 +194,7 @@ def run_block(task: tuple) -> BlockResult:
         p_est = x_est[j, :, L.X_P_ENU_SLICE].copy() if index == 0 else None
         results.append(TrialResult(index, err[j], nees[j], nis_sum, nis_count, gated, failed, p_est, c_seconds[j],
                                    math.nan, math.nan))
-    bound = pcrb_curve(scn, mode, count) if 0 in indices else None
-    p0 = next((r.p_est for r in results if r.p_est is not None), None)
-    return BlockResult(results, bound, p0, sum(c_seconds), time.thread_time() - t0, time.perf_counter() - w0)
+    return results, sum(c_seconds)
 
 
 def _nis_sums(kinds: list[tuple[int, np.ndarray]], nis: np.ndarray, status: np.ndarray,

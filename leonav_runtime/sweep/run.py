@@ -28,7 +28,7 @@ from leonav_runtime.scenarios.load import Scenario, mode_of
 
 log = logging.getLogger("leonav.sweep")
 
-BLOCK_TRIALS = 10  # trials per executor task: enough work per task to hide scheduling cost
+BLOCK_TRIALS = 20  # trials per executor task: enough work per task to hide its set-up and scheduling
 
 
 
