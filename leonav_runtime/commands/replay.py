@@ -30,6 +30,10 @@ def register(subparsers) -> None:
     p.add_argument("--tle", action="append", default=[], metavar="FILE",
                    help="Starlink element sets (TLE/3LE/OMM) of the session's day, repeatable (default: the built-in "
                         "Walker constellation, only right for synthetic sessions)")
+    p.add_argument("--operator-ephemerides", default=None, metavar="DIR",
+                   help="folder of Starlink operator ephemerides (MANIFEST.txt and MEME_*.txt): satellites with a "
+                        "file over their measurement times take their states from it instead of their element "
+                        "sets, joined by name (docs/ephemerides.md)")
     p.add_argument("--modes", default=",".join(_modes()[0]), metavar="LIST",
                    help=f"comma-separated modes of {', '.join(_modes()[1])} (default %(default)s)")
     p.add_argument("--nav", action="append", default=[], metavar="RINEX_NAV",
@@ -80,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
                                    yaw_deg=args.yaw_deg, doppler_rate_sigma_floor_hz_s=args.doppler_rate_sigma_floor,
                                    use_truth=not args.no_truth, gnss_latency_s=parse_latency(str(args.gnss_latency)),
                                    nav_paths=tuple(args.nav), elevation_mask_deg=args.elevation_mask,
-                                   reference_file=reference_options(args))
+                                   reference_file=reference_options(args),
+                                   operator_ephemerides=args.operator_ephemerides)
     if args.origin:
         lat, lon, h = args.origin
         if not (abs(lat) <= 90 and abs(lon) <= 360 and -11_000 <= h <= 1e5):

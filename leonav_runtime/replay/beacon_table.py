@@ -9,7 +9,9 @@ id, row in the element set, Doppler-rate z Hz/s and its fit sigma Hz/s). The car
 beacon to baseband 0); without a readable Ku-band value, `STARLINK_BEACON_HZ` with a note.
 
 `doppler_rate_table` adds each satellite's SGP4 ECEF state and acceleration at the
-measurement times and floors the sigma (`ReplayOptions.doppler_rate_sigma_floor_hz_s`).
+measurement times and floors the sigma (`ReplayOptions.doppler_rate_sigma_floor_hz_s`); with
+operator ephemerides (`--operator-ephemerides`, docs/ephemerides.md) a satellite whose file
+covers its measurement times takes its states from the file instead.
 """
 from __future__ import annotations
 
@@ -150,17 +152,30 @@ def beacon_measurements(folder: Path, out_dir: Path | None, to_utc, time_source_
 
 
 def doppler_rate_table(meas: BeaconMeasurements, elements, epoch_utc: _dt.datetime,
-                       sigma_floor_hz_s: float) -> DopplerRateTable:
+                       sigma_floor_hz_s: float, operator=None, notes: list[str] | None = None) -> DopplerRateTable:
     """The measurements with each satellite's SGP4 ECEF state and acceleration at their times
-    (t s since `epoch_utc`) and 1-sigma max(fit sigma, floor) (Hz/s)."""
+    (t s since `epoch_utc`) and 1-sigma max(fit sigma, floor) (Hz/s). operator: an
+    `OperatorEphemerisSet`; a satellite it covers at all its times takes its states from it
+    (how many did goes to `notes`)."""
     from leonav_runtime.orbits import propagate_ecef
 
     sat = np.zeros((meas.t.size, 9))
+    from_files = 0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")     # staleness is reported by the beacon step
         for idx in np.unique(meas.sat_index):
             sel = meas.sat_index == idx
-            st = propagate_ecef(elements.select([int(idx)]), epoch_utc, meas.t[sel])
+            one = elements.select([int(idx)])
+            if operator is not None:
+                from leonav_runtime.orbits.operator_states import operator_sat_states
+                st, used = operator_sat_states(operator, one, epoch_utc, meas.t[sel])
+                from_files += int(used[0])
+            else:
+                st = propagate_ecef(one, epoch_utc, meas.t[sel])
             sat[sel, SAT_R_M], sat[sel, SAT_V_MPS], sat[sel, SAT_A_MPS2] = (st.r_ecef_m[0], st.v_ecef_mps[0],
                                                                            st.a_ecef_mps2[0])
+    if operator is not None and notes is not None:
+        n_sat = int(np.unique(meas.sat_index).size)
+        notes.append(f"beacons: {from_files} of {n_sat} satellites' states from operator ephemerides, "
+                     f"{n_sat - from_files} from their element sets (no file, or not over their measurement times)")
     return DopplerRateTable(meas.t, meas.norad_id, meas.z_hz_s, np.maximum(meas.sigma_hz_s, sigma_floor_hz_s), sat)

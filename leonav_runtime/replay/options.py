@@ -92,6 +92,7 @@ class ReplayOptions:
     nav_paths: tuple[str, ...] = ()  # RINEX navigation files for the pseudorange modes (besides RXM-SFRBX)
     elevation_mask_deg: float = GNSS_MASK_DEG   # pseudorange modes: satellites below are not used
     reference_file: dict | None = None   # --reference: path and how to read it (commands/run.reference_options)
+    operator_ephemerides: str | None = None   # --operator-ephemerides: folder of operator files (docs/ephemerides.md)
 
 
 def canonical_modes(modes) -> tuple[tuple[str, ...], list[str]]:

@@ -63,7 +63,14 @@ def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurem
                    spp=None) -> SessionInputs:
     """The road into the filter for one session's tables (also used by the direct simulation);
     spp: the single-point pass of the session's RXM-RAWX (pseudorange modes), or None."""
-    doppler_rate = doppler_rate_table(meas, elements, epoch_utc, options.doppler_rate_sigma_floor_hz_s)
+    operator = None
+    if options.operator_ephemerides and meas.t.size:
+        from leonav_runtime.orbits.operator_ephemeris import load_folder
+
+        # only the files of the satellites measured (a full folder holds ~10,000)
+        wanted = sorted({str(elements.names[int(i)]).strip() for i in np.unique(meas.sat_index)})
+        operator = load_folder(options.operator_ephemerides, names=wanted)
+    doppler_rate = doppler_rate_table(meas, elements, epoch_utc, options.doppler_rate_sigma_floor_hz_s, operator, notes)
     gnss = None
     if spp is not None:
         from leonav_runtime.gnss.coupled import observation_table
