@@ -57,9 +57,16 @@ mutant("rinex_obs-09", OBSF, "SSI of the phase not used when the code field has 
        ("                ssi_s = np.where(use & (ssi_s == 0), ssi[:, m], ssi_s)\n", ""))
 mutant("rinex_obs-10", OBS, "GLONASS (UTC) epochs: leap seconds subtracted",
        ("return t_sys + gtime.leap_seconds_at_gps(t_sys + 18)", "return t_sys - gtime.leap_seconds_at_gps(t_sys + 18)"))
-mutant("rinex_obs-11", OBSF, "RINEX 3: observation fields start one column late",
+mutant("rinex_obs-11", OBSF, "RINEX 3: observation fields start one column late (NumPy read only)",
        ("wide = \"\".join([ln[3:3 + width].ljust(width) for ln in block])",
-        "wide = \"\".join([ln[4:4 + width].ljust(width) for ln in block])"))
+        "wide = \"\".join([ln[4:4 + width].ljust(width) for ln in block])"),
+       equivalent="shifted by one column no F14.3 field has its '.' in column 11 any more, so every non-blank "
+                  "field fails the plain-number test and is re-read by the per-field reader at the right columns "
+                  "(a blank field stays blank or, with an LLI digit, is re-read too): the same table, only slower")
+mutant("rinex_obs-12", OBSF, "RINEX 3: observation fields start one column late (both readers)",
+       ("wide = \"\".join([ln[3:3 + width].ljust(width) for ln in block])",
+        "wide = \"\".join([ln[4:4 + width].ljust(width) for ln in block])"),
+       ("text = reader.lines[k][3 + 16 * m:3 + 16 * (m + 1)]", "text = reader.lines[k][4 + 16 * m:4 + 16 * (m + 1)]"))
 
 # ---------------------------------------------------------------- rinex_nav
 NAV = "leonav_runtime/gnss/rinex_nav.py"
