@@ -148,3 +148,35 @@ def test_coupled_clock_start_and_pseudoranges_continue_across_a_jump(data):
     base = coupled.observation_table(_spp(*data), dt.datetime(2005, 4, 2, tzinfo=dt.timezone.utc))
     np.testing.assert_allclose(table.pseudorange_m, base.pseudorange_m, atol=1e-6)
     np.testing.assert_allclose(table.clock_m, base.clock_m, atol=0.5)     # the 299.79 km step taken out
+
+
+def test_first_epoch_velocity_covariance_with_range_rates(data):
+    """GEONET has no Doppler: the receiver's D1 made here from the broadcast satellite velocity,
+    clock drifts and the (static) header position, D = -(u . v_s + c dt_r' - c dt_s') / lambda_L1.
+    After the first epoch's range rates the velocity covariance is the information sum of the
+    prior and the range-rate rows, R = RANGE_RATE_SIGMA_MPS^2."""
+    obs, nf = data
+    base = _spp(obs, nf)
+    drift_rx = float(np.median(np.diff(base.clock_m) / np.diff(base.t_gps_s)))     # 418.8 m/s
+    rows = _rows(obs, nf)
+    los = rows.aux[:, L.AUX_R_S_ECEF_SLICE] - obs.approx_position_ecef_m
+    u = los / np.linalg.norm(los, axis=1)[:, None]
+    rate = np.einsum("ij,ij->i", u, rows.aux[:, L.AUX_V_S_ECEF_SLICE]) + drift_rx - rows.aux[:, L.AUX_SAT_CLOCK + 1]
+    with_doppler = obs.take(np.arange(len(obs)))
+    with_doppler.doppler_hz = with_doppler.doppler_hz.copy()
+    with_doppler.doppler_hz[rows.obs_row] = -rate * K.GPS_L1_HZ / K.C_LIGHT_MPS
+    res = _spp(with_doppler, nf)
+    sol = gnss_ekf.run(res)
+    at0 = np.flatnonzero(sol.records["t"] == 0.0)
+    rr = at0[sol.records["kind"][at0] == L.MEAS_GNSS_RANGE_RATE]
+    assert rr.size == sol.ns[0] >= 6 and np.all(sol.run.status[rr] == 0)    # all applied
+    idx = gnss_ekf.filter_rows(res)
+    idx = idx[res.epoch_index[idx] == 0]
+    el, az = res.el_rad[idx], res.az_rad[idx]
+    u_enu = np.c_[np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)]
+    H = np.c_[-u_enu, np.ones(idx.size)]                                        # [v_enu (3), c dt']
+    P0 = np.diag([gnss_ekf.P0_VELOCITY_MPS**2] * 3 + [gnss_ekf.P0_DRIFT_MPS**2])
+    P = np.linalg.inv(np.linalg.inv(P0) + H.T @ H / K.RANGE_RATE_SIGMA_MPS**2)
+    np.testing.assert_allclose(sol.run.P_diag[at0[-1], L.DX_DV_SLICE], np.diag(P)[:3], rtol=1e-3)
+    # the range rates inform it (2.5 % in east; with a variance of 0.1 for 0.01 m^2/s^2 it would be 0.25 %)
+    assert np.diag(P)[:3].min() < 0.98 * gnss_ekf.P0_VELOCITY_MPS**2
