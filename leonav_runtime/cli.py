@@ -48,6 +48,8 @@ LEONAV_DEBUG=1 to also print the Python traceback.
 
 limits on untrusted input:
   element files (TLE/3LE/OMM)   64 MB; raise with LEONAV_MAX_ELEMENT_MB=<megabytes>
+  compressed RINEX files        2048 MB once expanded (.gz .Z .bz2 Hatanaka .crx/.YYd); raise
+                                with LEONAV_MAX_RINEX_MB=<megabytes>
   leonav tle fetch replies      64 MB; raise with --max-mb; --timeout (default 60 s) is the
                                 deadline of the whole download; a reply with rejected entries
                                 or < 90 % of the cached group's satellites needs --force

@@ -207,3 +207,51 @@ def test_zip_archive_is_refused_naming_the_tool(tmp_path, capsys):
         z.write(o, o.name)
     err = _one_line_error(["gnss", "obs", str(path)], capsys)
     assert f"{path}: a zip archive" in err and "unzip" in err
+
+
+@pytest.mark.parametrize("kind", ["gz", "bz2", "Z", "crx.gz"])
+def test_expansion_beyond_the_limit_is_refused_in_one_line(kind, tmp_path, capsys, monkeypatch):
+    """A small archive that expands past LEONAV_MAX_RINEX_MB (a decompression bomb) is refused
+    naming the file and the variable; the same file reads under a higher limit."""
+    o, n = shared_file(OBS[0]), shared_file(NAV[0])
+    path = _compressed_copies(o, tmp_path, observation=True)[kind]
+    size_mb = o.stat().st_size / 2**20   # 0.065 MB
+    monkeypatch.setenv("LEONAV_MAX_RINEX_MB", f"{size_mb / 2:.4f}")
+    err = _one_line_error(["spp", str(path), "--nav", str(n), "--out", str(tmp_path / "out")], capsys)
+    assert err.startswith(f"leonav spp: error: {path}: ") and "LEONAV_MAX_RINEX_MB" in err
+    monkeypatch.setenv("LEONAV_MAX_RINEX_MB", f"{size_mb * 1.01:.4f}")
+    _assert_same_table(read_rinex_obs(path), read_rinex_obs(o))
+
+
+def test_gzip_bomb_stops_at_the_limit(tmp_path, monkeypatch):
+    """64 MB of zeros in a 64 kB gzip file: refused after 1 MB, without expanding it all."""
+    import tracemalloc
+
+    path = tmp_path / "bomb.05o.gz"
+    path.write_bytes(gzip.compress(b"0" * (64 * 2**20), compresslevel=9))
+    assert path.stat().st_size < 2**17
+    monkeypatch.setenv("LEONAV_MAX_RINEX_MB", "1")
+    tracemalloc.start()
+    with pytest.raises(UserInputError, match="expands to more than 1 MB"):
+        read_rinex_obs(path)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 16 * 2**20
+
+
+def test_concatenated_gzip_members_read_as_one_file(tmp_path):
+    """gzip allows several members one after the other (cat a.gz b.gz): all are read."""
+    o = shared_file(OBS[0])
+    raw = o.read_bytes()
+    cut = raw.index(b"\n", len(raw) // 2) + 1
+    path = tmp_path / "two_members.05o.gz"
+    path.write_bytes(gzip.compress(raw[:cut]) + gzip.compress(raw[cut:]))
+    _assert_same_table(read_rinex_obs(path), read_rinex_obs(o))
+
+
+def test_bad_limit_value_is_one_line(tmp_path, monkeypatch):
+    o = shared_file(OBS[0])
+    path = _compressed_copies(o, tmp_path, observation=False)["gz"]
+    monkeypatch.setenv("LEONAV_MAX_RINEX_MB", "lots")
+    with pytest.raises(UserInputError, match="LEONAV_MAX_RINEX_MB='lots': expected a number of megabytes"):
+        read_rinex_obs(path)

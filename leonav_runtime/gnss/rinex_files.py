@@ -9,13 +9,16 @@ through the `hatanaka` package (its bundled crx2rnx, Y. Hatanaka's reference dec
 imported only when such a file is read.
 
 A corrupt or truncated compressed file is one `UserInputError` naming the file and the
-decompressor's reason. The unix compress format has no end marker or checksum: a `.Z` file cut
+decompressor's reason. What a compressed file expands to is capped (2048 MB by default, the
+environment variable LEONAV_MAX_RINEX_MB raises it): a small archive that would fill the
+memory is refused in one line instead. The unix compress format has no end marker or checksum: a `.Z` file cut
 short decompresses to a RINEX text cut short, which the readers reject by line like any cut file.
 """
 from __future__ import annotations
 
 import bz2
-import gzip
+import io
+import os
 import zlib
 from pathlib import Path
 
@@ -29,18 +32,77 @@ CRINEX_LABEL = b"CRINEX VERS   / TYPE"
 RINEX_LABEL = b"RINEX VERSION / TYPE"
 
 
-def _gunzip(data: bytes, path: Path) -> bytes:
+def max_bytes() -> int:
+    """The most a compressed RINEX file may expand to (bytes): LEONAV_MAX_RINEX_MB, default 2048."""
+    text = os.environ.get("LEONAV_MAX_RINEX_MB", "")
     try:
-        return gzip.decompress(data)
-    except (OSError, EOFError, zlib.error) as exc:   # BadGzipFile is an OSError
+        mb = float(text) if text else 2048.0
+    except ValueError:
+        raise UserInputError(f"LEONAV_MAX_RINEX_MB={text!r}: expected a number of megabytes") from None
+    return int(mb * 1024 * 1024)
+
+
+class _TooLarge(Exception):
+    pass
+
+
+def _too_large(path: Path, what: str, limit: int) -> UserInputError:
+    return UserInputError(f"{path}: {what} expands to more than {limit / 2**20:g} MB (a decompression bomb? "
+                          "raise the limit with LEONAV_MAX_RINEX_MB=<megabytes>)")
+
+
+def _stream(decompressor, data: bytes, limit: int) -> bytes:
+    """All members of a gzip/bzip2 stream, at most `limit` bytes (else _TooLarge)."""
+    out, rest = [], data
+    total = 0
+    while rest:
+        d = decompressor()
+        chunk = d.decompress(rest, max_length=limit - total + 1)
+        total += len(chunk)
+        out.append(chunk)
+        if total > limit:
+            raise _TooLarge
+        if not d.eof:   # within the limit and no end marker: the input ran out
+            raise EOFError("compressed file ended before the end-of-stream marker was reached")
+        rest = d.unused_data.lstrip(b"\0")   # gzip allows zero padding between members
+    return b"".join(out)
+
+
+def _gunzip(data: bytes, path: Path) -> bytes:
+    limit = max_bytes()
+    try:   # wbits 31: one gzip member with its header and CRC checked
+        return _stream(lambda: zlib.decompressobj(31), data, limit)
+    except _TooLarge:
+        raise _too_large(path, "gzip data", limit) from None
+    except (OSError, EOFError, zlib.error) as exc:
         raise UserInputError(f"{path}: gzip data corrupt or truncated ({exc})") from None
 
 
 def _bunzip2(data: bytes, path: Path) -> bytes:
+    limit = max_bytes()
     try:
-        return bz2.decompress(data)
+        return _stream(bz2.BZ2Decompressor, data, limit)
+    except _TooLarge:
+        raise _too_large(path, "bzip2 data", limit) from None
     except (OSError, EOFError, ValueError) as exc:
         raise UserInputError(f"{path}: bzip2 data corrupt or truncated ({exc})") from None
+
+
+class _CappedBuffer(io.RawIOBase):
+    """A write-only buffer that raises _TooLarge past `limit` bytes."""
+
+    def __init__(self, limit: int) -> None:
+        super().__init__()
+        self.data, self.limit = bytearray(), limit
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, b) -> int:
+        self.data += b
+        if len(self.data) > self.limit:
+            raise _TooLarge
+        return len(b)
 
 
 def _uncompress(data: bytes, path: Path) -> bytes:
@@ -49,10 +111,15 @@ def _uncompress(data: bytes, path: Path) -> bytes:
     except ImportError:
         raise UserInputError(f"{path}: unix-compressed (.Z) file and the ncompress package is not installed "
                              "(pip install ncompress, or decompress it first: uncompress FILE)") from None
+    limit = max_bytes()
+    out = _CappedBuffer(limit)
     try:
-        return ncompress.decompress(data)
+        ncompress.decompress(data, out)
+    except _TooLarge:
+        raise _too_large(path, "unix compress (.Z) data", limit) from None
     except (ValueError, OSError) as exc:
         raise UserInputError(f"{path}: unix compress (.Z) data corrupt ({exc})") from None
+    return bytes(out.data)
 
 
 def _crx2rnx(data: bytes, path: Path) -> bytes:
@@ -76,6 +143,8 @@ def _crx2rnx(data: bytes, path: Path) -> bytes:
     if caught:
         raise UserInputError(f"{path}: Compact RINEX (Hatanaka) data not decoded cleanly: "
                              f"{_one_line(str(caught[0].message))}")
+    if len(out) > max_bytes():   # crx2rnx writes it all; checked after (it expands ~3-10x, not 1000x)
+        raise _too_large(path, "Compact RINEX (Hatanaka) data", max_bytes())
     return out
 
 
