@@ -104,10 +104,10 @@ mutant("gnss-33", NMEA, "GGA after midnight gets the previous day", ("date = dat
 mutant("gnss-34", NMEA, "ZDA day and month swapped",
        ("_dt.date(int(msg.year), int(msg.month), int(msg.day))", "_dt.date(int(msg.year), int(msg.day), int(msg.month))"))
 mutant("gnss-35", NMEA, "west longitude not negated", ('if hemisphere in ("S", "W")', 'if hemisphere in ("S",)'))
-mutant("gnss-36", NMEA, "first 'quality == 0' check dropped", ("            if quality == 0:\n                return None\n", ""),
-       equivalent="the same check is repeated after the angles are parsed; the result is None either way")
+mutant("gnss-36", NMEA, "'quality == 0' check dropped (a GGA without a fix gives one)",
+       ("        if quality == 0:\n            return None\n        lat = ", "        lat = "))
 mutant("gnss-37", NMEA, "GGA hdop field not read", ("hdop=_to_float(msg.horizontal_dil)", "hdop=None"))
-mutant("gnss-38", NMEA, "GGA number of satellites ignored", ("num_sv=int(msg.num_sats or 0)", "num_sv=0"))
+mutant("gnss-38", NMEA, "GGA number of satellites ignored", ("num_sv = int(msg.num_sats or 0)", "num_sv = 0"))
 
 # ---------------------------------------------------------------- tle.py
 TLE = "leonav_runtime/orbits/tle.py"
