@@ -333,3 +333,26 @@ def test_operator_states_replace_sgp4_where_a_file_covers_the_satellite():
         warnings.simplefilter("ignore")
         _late, used_late = operator_sat_states(OperatorEphemerisSet({eph.name: eph}), elements, EPOCH, t + 60.0)
     assert not used_late.any()
+
+
+def test_a_join_of_two_arcs_is_found_and_not_interpolated_across():
+    from leonav_runtime.orbits.operator_states import discontinuities
+    eph = _ephemeris(n=11)
+    assert discontinuities(eph) == []
+    # from record 6 on, another arc of the same orbit 300 m further along it (the operator's
+    # "blend" files are reported to join two arcs at 48 h, a few hundred metres apart)
+    r2, v2 = _integrated_orbit(eph.t_ms[6:] * 1e-3 + 300.0 / 7590.0)
+    eph.r_eme2000_m[6:], eph.v_eme2000_mps[6:] = r2, v2
+    assert discontinuities(eph) == [5 + 4 * 6]                  # the line of record 6
+    t = np.array([30.0, 5 * 60.0 + 30.0, 8 * 60.0 + 30.0])
+    r, _, _, inside = interpolate_eme2000(eph, t)
+    assert inside.tolist() == [True, False, True] and np.isnan(r[1]).all()
+    r_true, _ = _integrated_orbit(np.array([0.0, 30.0]))
+    assert np.linalg.norm(r[0] - r_true[1]) < 0.01
+    with pytest.warns(OperatorCoverageWarning, match="between two arcs"):
+        st = operator_states_ecef(OperatorEphemerisSet({eph.name: eph}), [eph.name], EPOCH, t)
+    assert "new arc at line 29" in st.failures[0][1] and np.isfinite(st.r_ecef_m[0, [0, 2]]).all()
+    # a record whose velocity disagrees with its positions by 16 m/s spoils both its intervals
+    odd = _ephemeris(n=11)
+    odd.v_eme2000_mps[6] += 16.0 * odd.v_eme2000_mps[6] / np.linalg.norm(odd.v_eme2000_mps[6])
+    assert discontinuities(odd) == [29, 33]

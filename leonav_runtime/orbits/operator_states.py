@@ -110,10 +110,50 @@ def uvw_to_frame(cov_uvw: np.ndarray, r_m: np.ndarray, v_mps: np.ndarray) -> np.
     return b @ cov_uvw @ np.swapaxes(b, 1, 2)
 
 
+# A smooth LEO orbit at 60 s leaves ~0.01 m and ~0.2 m/s in these residuals (the first
+# records of a public file 0.35 m); the operator's arc joins ("blend") hundreds of m, ~16 m/s.
+SEAM_POSITION_M = 10.0
+SEAM_VELOCITY_MPS = 2.0
+
+
+def _seam(eph: OperatorEphemeris, k: np.ndarray, a_nodes: np.ndarray) -> np.ndarray:
+    """(len(k),) True where interval k (records k, k+1) is not one smooth arc: the corrected
+    trapezoid r1 - r0 - h (v0 + v1)/2 + h^2 (a1 - a0)/12 (error h^5 r^(5) / 720) or
+    v1 - v0 - h (a0 + a1)/2 (h^3 a'' / 12) beyond the limits, scaled with the step."""
+    h = (np.diff(eph.t_ms) * 1e-3)[k][:, None]
+    r, v = eph.r_eme2000_m, eph.v_eme2000_mps
+    res_r = r[k + 1] - r[k] - 0.5 * h * (v[k] + v[k + 1]) + h * h * (a_nodes[k + 1] - a_nodes[k]) / 12.0
+    res_v = v[k + 1] - v[k] - 0.5 * h * (a_nodes[k] + a_nodes[k + 1])
+    scale = h[:, 0] / 60.0
+    return ((np.linalg.norm(res_r, axis=1) > SEAM_POSITION_M * np.maximum(1.0, scale ** 5))
+            | (np.linalg.norm(res_v, axis=1) > SEAM_VELOCITY_MPS * np.maximum(1.0, scale ** 3)))
+
+
+def _node_accelerations(eph: OperatorEphemeris, nodes: np.ndarray, eop: EopTable | None) -> np.ndarray:
+    """(len(eph), 3) zonal gravity (m/s^2, EME2000) at the records `nodes` (zero elsewhere)."""
+    t_node = eph.t_ms * 1e-3
+    ut1_utc, _, _ = earth_orientation(eph.start_utc, t_node[nodes], eop=eop)
+    m_teme, _ = eme2000_to_teme_matrix(eph.start_utc, t_node[nodes], ut1_utc)
+    a_nodes = np.zeros((len(eph), 3))
+    a_nodes[nodes] = _accel_eme2000(eph.r_eme2000_m[nodes], m_teme)
+    return a_nodes
+
+
+def discontinuities(eph: OperatorEphemeris, eop: EopTable | None = None) -> list[int]:
+    """File line numbers of the records that start a new arc (the second record of each
+    interval that is not one smooth orbit); interpolation refuses times inside those."""
+    if len(eph) < 2:
+        return []
+    k = np.arange(len(eph) - 1)
+    bad = _seam(eph, k, _node_accelerations(eph, np.arange(len(eph)), eop))
+    return [5 + 4 * (int(j) + 1) for j in np.flatnonzero(bad)]
+
+
 def interpolate_eme2000(eph: OperatorEphemeris, t_rel_s: np.ndarray, eop: EopTable | None = None
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(r (nt, 3) m, v (nt, 3) m/s, cov_uvw (nt, 6, 6), inside (nt,) bool) at t_rel_s seconds
-    after eph.start_utc (EME2000). Times outside the records' span are NaN, inside False."""
+    after eph.start_utc (EME2000). Times outside the records' span, or inside an interval
+    that joins two arcs (`discontinuities`), are NaN, inside False."""
     t_rel_s = np.atleast_1d(np.asarray(t_rel_s, dtype=float))
     t_node = eph.t_ms * 1e-3
     nt = t_rel_s.size
@@ -126,10 +166,15 @@ def interpolate_eme2000(eph: OperatorEphemeris, t_rel_s: np.ndarray, eop: EopTab
     tq = t_rel_s[inside]
     k = np.clip(np.searchsorted(t_node, tq, side="right") - 1, 0, len(eph) - 2)
     nodes = np.unique(np.concatenate([k, k + 1]))
-    ut1_utc, _, _ = earth_orientation(eph.start_utc, t_node[nodes], eop=eop)
-    m_teme, _ = eme2000_to_teme_matrix(eph.start_utc, t_node[nodes], ut1_utc)
-    a_nodes = np.zeros((len(eph), 3))
-    a_nodes[nodes] = _accel_eme2000(eph.r_eme2000_m[nodes], m_teme)
+    a_nodes = _node_accelerations(eph, nodes, eop)
+    k_used, k_of = np.unique(k, return_inverse=True)
+    seam = _seam(eph, k_used, a_nodes)[k_of]
+    if seam.any():               # an interval across two arcs: refused (counted by the caller)
+        keep = ~seam
+        inside[np.flatnonzero(inside)[seam]] = False
+        tq, k = tq[keep], k[keep]
+        if not tq.size:
+            return r, v, cov, inside
     h = np.diff(t_node)[k]
     s = (tq - t_node[k]) / h
     rr, vv = eph.r_eme2000_m, eph.v_eme2000_mps
@@ -172,8 +217,18 @@ def operator_states_ecef(ephemerides: OperatorEphemerisSet, names: list[str], ep
             continue
         r, v, cov_uvw, inside = interpolate_eme2000(eph, t_s - (eph.start_utc - epoch_utc).total_seconds(), eop)
         if not inside.all():
-            failures.append((name, (f"its ephemeris ({eph.source}) covers {_span_text(eph)}, "
-                             f"{int((~inside).sum())} of {nt} requested times lie outside it")))
+            t_rel = t_s - (eph.start_utc - epoch_utc).total_seconds()
+            within = (t_rel >= eph.t_ms[0] * 1e-3) & (t_rel <= eph.t_ms[-1] * 1e-3)
+            outside, seam = int((~within).sum()), int((within & ~inside).sum())
+            why = []
+            if outside:
+                why.append(f"its ephemeris ({eph.source}) covers {_span_text(eph)}, "
+                           f"{outside} of {nt} requested times lie outside it")
+            if seam:
+                lines = discontinuities(eph, eop)
+                why.append(f"{seam} of {nt} requested times fall between two arcs of {eph.source} "
+                           f"(new arc at line {', '.join(map(str, lines[:3]))})")
+            failures.append((name, "; ".join(why)))
         ok[i] = inside.all()
         r_eme[i], v_eme[i] = r, v
         good = inside
