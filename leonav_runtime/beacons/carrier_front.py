@@ -10,7 +10,8 @@ frequency df (the aiding error, up to a few hundred Hz) costs sinc(df M / fs) of
 (0.4 % at 500 Hz).
 
 The oscillator is factored, m = a S + b: exp(-j w m) = exp(-j w a S) exp(-j w b), so a block
-costs A + S complex exponentials (A S = M) and one complex multiply-add per sample.
+costs A + S complex exponentials (A S = M) and one complex multiply-add per sample
+(a batched matrix product): about 2.5 ms of CPU per tone and second of capture at 2.4 MS/s.
 """
 from __future__ import annotations
 
@@ -78,6 +79,18 @@ class Aiding:
                                  "cannot hold this tone")
 
 
+def _phasor(angle_rad: np.ndarray) -> np.ndarray:
+    """exp(-j angle) as complex64 from float32 cos/sin (6x faster than a complex128 exp);
+    the callers keep |angle| below ~100 rad, so float32 rounding stays below 1e-5 rad."""
+    a = np.asarray(angle_rad, np.float32)
+    out = np.empty(a.shape, np.complex64)
+    parts = out.view(np.float32).reshape(*a.shape, 2)
+    np.cos(a, out=parts[..., 0])
+    np.sin(a, out=parts[..., 1])
+    np.negative(parts[..., 1], out=parts[..., 1])
+    return out
+
+
 class FrontEnd:
     """Streaming aided mix-down of one tone: feed sample blocks, get decimated samples.
 
@@ -92,27 +105,42 @@ class FrontEnd:
         self.k = 0                    # decimated samples produced so far
         self.phase = 0.0              # aiding phase (cycles) at the next block's first sample
         self._rest = np.zeros(0, np.complex64)
-        self._b = np.arange(self.s)
-        self._aS = np.arange(self.a) * self.s
+        self._b = np.arange(self.s, dtype=np.float32)
+        self._a_idx = np.arange(self.a, dtype=np.float32)
 
     def feed(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(y complex64, Phi_k cycles at each block start, f_k Hz) for the whole blocks available."""
-        if self._rest.size:
-            x = np.concatenate([self._rest, x])
+        parts = []
+        if self._rest.size:   # complete the pending block without copying the whole of x
+            need = self.m - self._rest.size
+            if x.size < need:
+                self._rest = np.concatenate([self._rest, x])
+                return np.zeros(0, np.complex64), np.zeros(0), np.zeros(0)
+            parts.append(self._mix(np.concatenate([self._rest, x[:need]])))
+            x = x[need:]
         nb = x.size // self.m
         self._rest = x[nb * self.m:].copy()
-        if nb == 0:
+        if nb:
+            parts.append(self._mix(x[:nb * self.m]))
+        if not parts:
             return np.zeros(0, np.complex64), np.zeros(0), np.zeros(0)
+        if len(parts) == 1:
+            return parts[0]
+        return tuple(np.concatenate(c) for c in zip(*parts))
+
+    def _mix(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        nb = x.size // self.m
         t_mid = ((self.k + np.arange(nb)) * self.m + 0.5 * (self.m - 1)) / self.fs
         f = self.aiding.at(t_mid)
         step = f * (self.m / self.fs)
         phi = self.phase + np.concatenate([[0.0], np.cumsum(step[:-1])])
         self.phase = float(phi[-1] + step[-1])
         self.k += nb
-        w = (2 * np.pi / self.fs) * f
-        pb = np.exp(-1j * np.outer(w, self._b)).astype(np.complex64)
-        frac = phi - np.floor(phi)
-        pa = np.exp(-1j * (np.outer(w, self._aS) + 2 * np.pi * frac[:, None])).astype(np.complex64)
-        xr = np.asarray(x[:nb * self.m], np.complex64).reshape(nb, self.a, self.s)
+        w = (2 * np.pi / self.fs) * f                       # rad per sample, |w| < 2.9
+        pb = _phasor(np.outer(w.astype(np.float32), self._b))
+        ws = np.remainder(w * self.s, 2 * np.pi).astype(np.float32)   # per inner block, reduced
+        frac = (2 * np.pi * (phi - np.floor(phi))).astype(np.float32)
+        pa = _phasor(np.outer(ws, self._a_idx) + frac[:, None])
+        xr = np.asarray(x, np.complex64).reshape(nb, self.a, self.s)
         inner = np.matmul(xr, pb[:, :, None])[..., 0]
         return np.einsum("ka,ka->k", inner, pa), phi, f
