@@ -193,7 +193,6 @@ def preload(opts: NavOptions, beacons) -> dict:
     with the descriptors exhausted (a client storm) a lazy import or a first file open fails. Returns
     nav.json's provenance (it reads package metadata), computed here for the same reason."""
     import _strptime  # noqa: F401  (datetime.strptime imports it on its first call)
-    import multiprocessing.popen_spawn_posix  # noqa: F401  (the beacon process is spawned in the run)
 
     _dt.datetime.strptime("2026-02-23", "%Y-%m-%d")     # and reads the locale's time names once
     if opts.mavlink:
@@ -206,7 +205,8 @@ def preload(opts: NavOptions, beacons) -> dict:
         from leonav_runtime.simulation import session_synth  # noqa: F401
 
         eop.default_table()
-    if not fast:        # an SDR thread records the capture: it writes its SigMF metadata at the start and end
+    if not fast:        # the beacon process is spawned in the run; an SDR thread records the capture and
+        import multiprocessing.popen_spawn_posix  # noqa: F401  (writes its SigMF metadata at the start and end)
         import mmap  # noqa: F401  (numpy.memmap imports it on first use: sigmf maps the data file)
 
         import sigmf.schema
