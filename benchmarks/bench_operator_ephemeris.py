@@ -11,6 +11,8 @@ alike, with the thread's CPU clock (time.thread_time; wall time beside it):
   operator        `operator_states_ecef` r, v, a and the 6 x 6 ECEF covariance
   operator, 1 s   the same at 1 Hz (the rotation matrices dominate less)
 
+and the CPU of reading and writing one 72 h file (the operator's length) after them.
+
 Prints the median of --repeats per variant, satellite-epochs per CPU second and the ratio to
 SGP4, and the load average at the start and the end (the machine is shared).
 """
@@ -31,7 +33,7 @@ from leonav_runtime.orbits import (
     propagate_ecef,
     starlink_walker_tle,
 )
-from leonav_runtime.orbits.operator_ephemeris import load_folder, write_file
+from leonav_runtime.orbits.operator_ephemeris import load_folder, parse_text, write_file, write_text
 from leonav_runtime.orbits.operator_states import (
     ephemerides_from_elements,
     operator_states_ecef,
@@ -81,6 +83,18 @@ def main() -> None:
                 fn()
                 cpu[name].append(time.thread_time() - c0)
                 wall[name].append(time.perf_counter() - w0)
+        # reading: one 72 h file (4321 records) parsed, and written
+        day3 = ephemerides_from_elements(elements.select([0]), epoch, np.arange(0.0, 72 * 3600.0 + 1.0, 60.0),
+                                         np.eye(6))
+        text = write_text(next(iter(day3.ephemerides.values())))
+        parse_cpu, write_cpu = [], []
+        for _ in range(args.repeats):
+            c0 = time.thread_time()
+            eph = parse_text(text, "bench")
+            c1 = time.thread_time()
+            write_text(eph)
+            parse_cpu.append(c1 - c0)
+            write_cpu.append(time.thread_time() - c1)
     load1 = os.getloadavg()
     ref = statistics.median(next(iter(cpu.values())))
     print(f"{args.sats} satellites, {args.duration:g} s; median of {args.repeats}; "
@@ -90,6 +104,8 @@ def main() -> None:
         c = statistics.median(cpu[name])
         print(f"{name:48s} {1e3 * c:9.1f} {1e3 * statistics.median(wall[name]):9.1f} "
               f"{args.sats * nt / c:17.3g} {c / ref:10.2f}")
+    print(f"one 72 h file ({len(text) / 1e6:.1f} MB, 4321 records): parse {1e3 * statistics.median(parse_cpu):.0f} ms "
+          f"CPU, write {1e3 * statistics.median(write_cpu):.0f} ms CPU")
 
 
 if __name__ == "__main__":

@@ -343,7 +343,7 @@ def write_file(eph: OperatorEphemeris, folder: str | Path, serial: int = 0) -> P
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     name = eph.name or "UNNAMED"
-    stamp = f"{eph.start_utc:%y}{eph.start_utc.timetuple().tm_yday:03d}{eph.start_utc:%H%M}"
+    stamp = f"{eph.start_utc.timetuple().tm_yday:03d}{eph.start_utc:%H%M}"   # DDDhhmm of the start, as published
     path = folder / f"MEME_{serial}_{name}_{stamp}_Operational_0_UNCLASSIFIED.txt"
     path.write_text(write_text(eph), encoding="ascii")
     manifest = folder / MANIFEST
