@@ -238,6 +238,8 @@ HOSTILE = {
     "garbled number": (lambda ls: _set(ls, 5, ls[5].replace("e", "x", 1)), 6, "field 1 (c11)"),
     "garbled state": (lambda ls: _set(ls, 4, ls[4].replace(" 6928.137", " 6928.1x7")), 5,
                       "field 2 (x)"),
+    "underscore in a number": (lambda ls: _set(ls, 4, ls[4].replace(" 6928.137", " 6_928.137")), 5,
+                               "field 2 (x) '6_928.1370000000' is not a finite number"),
     "epochs out of order": (lambda ls: ls[:4] + ls[8:12] + ls[4:8] + ls[12:], 9, "not after the previous"),
     "covariance number missing": (lambda ls: _set(ls, 6, " ".join(ls[6].split()[:6])), 7, "expected 7 numbers"),
     "covariance line missing": (lambda ls: ls[:7] + ls[8:], 8, "found a state line where covariance line 3"),

@@ -42,6 +42,7 @@ _EPOCH_RE = re.compile(r"^(\d{4})(\d{3})(\d{2})(\d{2})(\d{2})\.(\d{3})$")
 _HEADER_TIME = "%Y-%m-%d %H:%M:%S"
 _SPAN_RE = re.compile(r"^ephemeris_start:(.*?) UTC ephemeris_stop:(.*?) UTC step_size:(\S+)$")
 _STATE_FIELDS = ("x", "y", "z", "vx", "vy", "vz")
+_NUMBER_RE = re.compile(r"^[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?$", re.ASCII)
 _STEP_TOL_MS = 1                           # epochs are written to the millisecond
 MANIFEST = "MANIFEST.txt"
 
@@ -132,10 +133,8 @@ def _numbers(source: str, line: int, fields: list[str], labels: Sequence[str], w
         raise _fail(source, line, f"expected {len(labels)} numbers ({what}), found {len(fields)}")
     out = []
     for k, (text, label) in enumerate(zip(fields, labels)):
-        try:
-            value = float(text)
-        except ValueError:
-            value = math.nan
+        # plain decimal notation only: float() would also take '1_0', 'nan' and non-ASCII digits
+        value = float(text) if _NUMBER_RE.match(text) else math.nan
         if not math.isfinite(value):
             raise _fail(source, line, f"field {k + first} ({label}) {text!r} is not a finite number")
         out.append(value)
