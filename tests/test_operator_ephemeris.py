@@ -243,6 +243,9 @@ HOSTILE = {
     "epochs out of order": (lambda ls: ls[:4] + ls[8:12] + ls[4:8] + ls[12:], 9, "not after the previous"),
     "covariance number missing": (lambda ls: _set(ls, 6, " ".join(ls[6].split()[:6])), 7, "expected 7 numbers"),
     "covariance line missing": (lambda ls: ls[:7] + ls[8:], 8, "found a state line where covariance line 3"),
+    "records past the stop": (lambda ls: _set(ls, 1, ls[1].replace("ephemeris_stop:2026-09-11 01:45:42",
+                                                                   "ephemeris_stop:2026-09-11 01:44:42")), 17,
+                              "after the header's ephemeris_stop"),
     "record missing": (lambda ls: ls[:8] + ls[12:], 9, "expected the header's step_size"),
     "bad epoch": (lambda ls: _set(ls, 4, "2026367014242.000" + ls[4][17:]), 5, "out of range"),
     "bad step": (lambda ls: _set(ls, 1, ls[1].replace("step_size:60", "step_size:-1")), 2, "positive"),
@@ -260,6 +263,14 @@ def test_hostile_file_is_refused_in_one_line_naming_the_line(case):
     message = str(info.value)
     assert "\n" not in message and message.startswith(f"eph.txt line {line}:"), message
     assert words in message, message
+
+
+def test_a_file_over_the_size_limit_is_refused_before_reading(tmp_path, monkeypatch):
+    from leonav_runtime.orbits.operator_ephemeris import load_file
+    path = write_file(_ephemeris(n=4), tmp_path)
+    monkeypatch.setenv("LEONAV_MAX_ELEMENT_MB", "0.001")
+    with pytest.raises(UserInputError, match=r"0\.0 MB is more than the orbit-file limit of 0\.001 MB"):
+        load_file(path)
 
 
 def test_a_folder_loads_the_good_files_and_counts_the_bad(tmp_path):

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from leonav_runtime.common.errors import UserInputError
-from leonav_runtime.orbits.element_checks import _too_large, max_element_bytes
+from leonav_runtime.orbits.element_checks import MAX_ELEMENT_MB_ENV, max_element_bytes
 
 KM = 1000.0
 COVARIANCE_FRAMES = ("UVW",)              # the frame the operator publishes; others are refused
@@ -241,10 +241,15 @@ def _check_span(source: str, epochs: list[_dt.datetime], t_ms: np.ndarray, start
         k = int(off[0]) + 1
         raise _fail(source, line_of(k), f"epoch is {gaps[k - 1] / 1000:g} s after the previous one; "
                     f"expected the header's step_size of {step_s:g} s (a record missing?)")
-    if abs((epochs[-1] - stop).total_seconds()) * 1000 > _STEP_TOL_MS:
+    late_ms = (epochs[-1] - stop).total_seconds() * 1000
+    if late_ms < -_STEP_TOL_MS:
         raise _fail(source, line_of(len(epochs) - 1) + 3,
                     f"file ends at epoch {epochs[-1]:%Y-%m-%d %H:%M:%S} UTC but its header (line 2) declares "
                     f"ephemeris_stop {stop:%Y-%m-%d %H:%M:%S} UTC (truncated file?)")
+    if late_ms > _STEP_TOL_MS:
+        k = int(np.searchsorted(t_ms, (stop - epochs[0]).total_seconds() * 1000 + _STEP_TOL_MS, side="right"))
+        raise _fail(source, line_of(k), f"epoch {epochs[k]:%Y-%m-%d %H:%M:%S} UTC is after the header's "
+                    f"ephemeris_stop {stop:%Y-%m-%d %H:%M:%S} UTC (line 2)")
 
 
 def load_file(path: str | Path) -> OperatorEphemeris:
@@ -254,7 +259,9 @@ def load_file(path: str | Path) -> OperatorEphemeris:
         size = path.stat().st_size
         limit = max_element_bytes()
         if size > limit:
-            raise _too_large(str(path), size, limit)
+            raise UserInputError(
+                f"{path}: {size / 1e6:.1f} MB is more than the orbit-file limit of {limit / 1e6:g} MB (a 72 h "
+                f"operator ephemeris is about 2 MB; set {MAX_ELEMENT_MB_ENV} to a larger number of megabytes)")
         raw = path.read_bytes()
     except OSError as exc:
         raise UserInputError(f"{path}: cannot read the operator ephemeris ({exc.strerror or exc})") from None
