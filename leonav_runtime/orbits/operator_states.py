@@ -6,8 +6,9 @@ velocity; the acceleration is the zonal gravity model SGP4 is built on (point ma
 J3, J4, `propagate.gravity_ecef_mps2`) evaluated about the true pole. Why this choice:
   - accuracy: the truncation term is (h/2)^6 / 6! |r^(6)| ~ 1e-5 m at h = 60 s in LEO; what is
     left is the acceleration the model leaves out (drag, tesserals, ~1e-4 m/s^2) times h^2/64,
-    a few mm (tests/test_operator_states.py measures 0.1 mm against an integrated orbit). A
-    cubic Hermite without the acceleration would leave (h/2)^4 / 4! n^4 r ~ 0.3 m;
+    a few mm (tests/test_operator_ephemeris.py: 2e-5 m against an orbit integrated with the
+    same gravity, 2.3 mm with an unmodelled 2e-5 m/s^2). A cubic Hermite without the
+    acceleration leaves (h/2)^4 / 4! n^4 r ~ 0.3 m (measured 0.34 m);
   - locality: only the two records around t are used, so a discontinuity in the file (the
     operator's "blend" products join two arcs) spoils one interval, not the 8 a Lagrange
     interpolant over 8 points would.
@@ -78,18 +79,19 @@ def _accel_eme2000(r_eme2000_m: np.ndarray, m_teme: np.ndarray) -> np.ndarray:
     return np.einsum("nji,nj->ni", m_teme, gravity_ecef_mps2(r_true))
 
 
-def _hermite5(s: np.ndarray, h: float, p0, v0, a0, p1, v1, a1) -> tuple[np.ndarray, np.ndarray]:
-    """Quintic Hermite position and velocity at s in [0, 1] of an interval of h seconds."""
+def _hermite5(s: np.ndarray, p0, d0, c0, p1, d1, c1) -> tuple[np.ndarray, np.ndarray]:
+    """Quintic Hermite value and d/ds at s in [0, 1] from the end values p, first derivatives
+    d and second derivatives c in s (for time t = t0 + s h: d = h v, c = h^2 a)."""
     s = s[:, None]
     s2, s3 = s * s, s * s * s
     s4, s5 = s3 * s, s3 * s2
-    p = ((1 - 10 * s3 + 15 * s4 - 6 * s5) * p0 + (s - 6 * s3 + 8 * s4 - 3 * s5) * h * v0
-         + 0.5 * (s2 - 3 * s3 + 3 * s4 - s5) * h * h * a0 + (10 * s3 - 15 * s4 + 6 * s5) * p1
-         + (-4 * s3 + 7 * s4 - 3 * s5) * h * v1 + 0.5 * (s3 - 2 * s4 + s5) * h * h * a1)
-    dp = ((-30 * s2 + 60 * s3 - 30 * s4) * p0 + (1 - 18 * s2 + 32 * s3 - 15 * s4) * h * v0
-          + 0.5 * (2 * s - 9 * s2 + 12 * s3 - 5 * s4) * h * h * a0 + (30 * s2 - 60 * s3 + 30 * s4) * p1
-          + (-12 * s2 + 28 * s3 - 15 * s4) * h * v1 + 0.5 * (3 * s2 - 8 * s3 + 5 * s4) * h * h * a1)
-    return p, dp / h
+    p = ((1 - 10 * s3 + 15 * s4 - 6 * s5) * p0 + (s - 6 * s3 + 8 * s4 - 3 * s5) * d0
+         + 0.5 * (s2 - 3 * s3 + 3 * s4 - s5) * c0 + (10 * s3 - 15 * s4 + 6 * s5) * p1
+         + (-4 * s3 + 7 * s4 - 3 * s5) * d1 + 0.5 * (s3 - 2 * s4 + s5) * c1)
+    dp = ((-30 * s2 + 60 * s3 - 30 * s4) * p0 + (1 - 18 * s2 + 32 * s3 - 15 * s4) * d0
+          + 0.5 * (2 * s - 9 * s2 + 12 * s3 - 5 * s4) * c0 + (30 * s2 - 60 * s3 + 30 * s4) * p1
+          + (-12 * s2 + 28 * s3 - 15 * s4) * d1 + 0.5 * (3 * s2 - 8 * s3 + 5 * s4) * c1)
+    return p, dp
 
 
 def uvw_axes(r_m: np.ndarray, v_mps: np.ndarray) -> np.ndarray:
@@ -178,8 +180,8 @@ def interpolate_eme2000(eph: OperatorEphemeris, t_rel_s: np.ndarray, eop: EopTab
     h = np.diff(t_node)[k]
     s = (tq - t_node[k]) / h
     rr, vv = eph.r_eme2000_m, eph.v_eme2000_mps
-    hh = h[:, None]                    # the basis is written for h = 1: velocity and acceleration scaled
-    p, dp = _hermite5(s, 1.0, rr[k], vv[k] * hh, a_nodes[k] * hh * hh, rr[k + 1], vv[k + 1] * hh,
+    hh = h[:, None]
+    p, dp = _hermite5(s, rr[k], vv[k] * hh, a_nodes[k] * hh * hh, rr[k + 1], vv[k + 1] * hh,
                       a_nodes[k + 1] * hh * hh)
     r[inside], v[inside] = p, dp / hh
     w = s[:, None, None]
