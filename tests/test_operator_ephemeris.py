@@ -204,7 +204,13 @@ def test_radial_only_covariance_maps_to_the_radial_direction_and_keeps_its_eigen
     # in-track variance lies along the velocity (circular orbit: V is the velocity direction)
     q = uvw_axes(eph.r_eme2000_m, eph.v_eme2000_mps)
     vhat = eph.v_eme2000_mps / np.linalg.norm(eph.v_eme2000_mps, axis=1, keepdims=True)
-    assert np.abs(np.einsum("ni,ni->n", q[:, :, 1], vhat)).min() > 0.9999
+    assert np.einsum("ni,ni->n", q[:, :, 1], vhat).min() > 0.9999
+    # a positive radial / in-track correlation stays positive along r and v (the axes' signs)
+    corr = np.zeros((len(eph), 6, 6))
+    corr[:, 0:2, 0:2] = [[4.0, 3.0], [3.0, 9.0]]
+    p_eme = uvw_to_frame(corr, eph.r_eme2000_m, eph.v_eme2000_mps)
+    rhat = eph.r_eme2000_m / np.linalg.norm(eph.r_eme2000_m, axis=1, keepdims=True)
+    np.testing.assert_allclose(np.einsum("ni,nij,nj->n", rhat, p_eme[:, 0:3, 0:3], vhat), 3.0, rtol=1e-3)
     # a full covariance keeps its eigenvalues through the rotations (position block in ECEF)
     full = _ephemeris(n=3)
     p_eme = uvw_to_frame(full.cov_uvw, full.r_eme2000_m, full.v_eme2000_mps)
@@ -213,8 +219,8 @@ def test_radial_only_covariance_maps_to_the_radial_direction_and_keeps_its_eigen
     np.testing.assert_allclose(np.linalg.eigvalsh(st_full.cov_ecef[0, 0, 0:3, 0:3]),
                                np.linalg.eigvalsh(full.cov_uvw[0, 0:3, 0:3]), rtol=1e-9)
     # between records: the linear blend of the two UVW covariances
-    _, _, c_mid, _ = interpolate_eme2000(full, np.array([30.0]))
-    np.testing.assert_allclose(c_mid[0], 0.5 * (full.cov_uvw[0] + full.cov_uvw[1]), rtol=1e-12)
+    _, _, c_mid, _ = interpolate_eme2000(full, np.array([15.0]))
+    np.testing.assert_allclose(c_mid[0], 0.75 * full.cov_uvw[0] + 0.25 * full.cov_uvw[1], rtol=1e-12)
 
 
 # --------------------------------------------------------------------------- hostile files
