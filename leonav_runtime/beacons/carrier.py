@@ -18,8 +18,9 @@ third-order PLL (`carrier_loop`, where the loop design is documented). Per epoch
   step fitted over +-`slip_half_s`, |step| > `slip_threshold_cycles`). The phase is
   continuous (one ambiguity) within an arc;
 - cn0_dbhz over +-`cn0_window_s` / 2; freq_hz and rate_hz_s (baseband frequency and its
-  rate) from a quadratic fit of the tracked phase over +-`fit_half_s`, when all of it is
-  locked in one arc.
+  rate) from a cubic fit of the tracked phase over +-`fit_half_s`, when all of it is
+  locked in one arc (a quadratic's slope would carry jerk h^2 / 10 of bias: 0.2 Hz at
+  30 Hz/s^2 of jerk over +-0.25 s).
 
 Times are receiver times, s since the capture's first sample (the sample clock's error
 stays in them, as in the capture).
@@ -212,8 +213,8 @@ def _epochs(tone: _Tone, cfg: CarrierConfig) -> CarrierTrack:
         out["sigma"][e] = np.sqrt(bn / cn0 * (1 + 1 / (2 * T * cn0))) / (2 * np.pi)
         fit = np.abs(centre - te) <= cfg.fit_half_s
         if fit.sum() >= 5 and ok[fit].all() and np.unique(arc[fit]).size == 1:
-            c = np.polyfit(centre[fit] - te, total_c[fit] - total_c[fit][0], 2)
-            out["freq"][e], out["rate"][e] = c[1], 2 * c[0]
+            c = np.polyfit(centre[fit] - te, total_c[fit] - total_c[fit][0], 3)   # cubic: a quadratic's
+            out["freq"][e], out["rate"][e] = c[2], 2 * c[1]      # slope takes jerk h^2/10 (0.2 Hz) too
     losses = int(np.sum((rec["mode"][1:] == LOST) & (rec["mode"][:-1] == LOCK)))
     counts.update(epochs=n_ep, locked_epochs=int(locked.sum()), losses=losses, slips=int(slip.sum()),
                   step_slips=int(steps.size))

@@ -123,6 +123,10 @@ def register(subparsers) -> None:
     p.add_argument("--no-figures", action="store_true",
                    help="do not draw waterfall.png (skips matplotlib and the drawing, about 1 s of CPU); "
                         "the CSV files and summary.json are the same as with the figure")
+    p.add_argument("--carrier", action="store_true",
+                   help="also track the carrier phase of every associated tone (aided FLL-assisted PLL, "
+                        "0.1 s epochs; a second pass over the capture) and write carrier_phase.csv "
+                        "(columns in carrier_phase.columns.txt); off by default")
     sim = p.add_argument_group("simulation (--simulate)")
     sim.add_argument("--simulate", action="store_true",
                      help="write a synthetic capture to CAPTURE first, then process it")
@@ -256,6 +260,12 @@ def run(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     paths = pipeline.write_outputs(res, out_dir, figures=False)  # the figure last, after the numbers
+    if args.carrier:
+        from leonav_runtime.beacons import carrier_hook
+
+        tracked = carrier_hook.track_result(res)
+        paths.update(carrier_hook.write_carrier_csv(res, tracked, out_dir))
+        print(carrier_hook.summary_line(tracked))
     s = pipeline.summary(res)
     notes = res.track_stats.notes()
     if caught or notes:
