@@ -62,14 +62,15 @@ def _limit_descriptors(n: int):
 
 
 class NavChild:
-    """`leonav nav --from SESSION --realtime --nmea-port auto --quiet` as a child process under
+    """`leonav nav --from SESSION [--realtime] --nmea-port auto --quiet` as a child process under
     `ulimit -n nofile`; `port` once it serves, `wait()` -> (exit code, nav.json, audit, stdout)."""
 
-    def __init__(self, session: Path, out: Path, nofile: int = 256, extra: tuple = ()) -> None:
+    def __init__(self, session: Path, out: Path, nofile: int = 256, extra: tuple = (), realtime: bool = True) -> None:
         self.out = Path(out)
         self.audit_path = self.out.parent / f"{self.out.name}.audit.json"
         argv = [sys.executable, "-c", NAV_CHILD, str(self.out), str(session), "nav", "--from", str(session),
-                "--realtime", "--out", str(self.out), "--nmea-port", "auto", "--quiet", *extra]
+                *(["--realtime"] if realtime else []), "--out", str(self.out), "--nmea-port", "auto", "--quiet",
+                *extra]
         env = os.environ | {"LEONAV_NAV_AUDIT": str(self.audit_path)}
         self.proc = subprocess.Popen(argv, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True, preexec_fn=_limit_descriptors(nofile))

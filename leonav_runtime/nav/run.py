@@ -200,11 +200,12 @@ def preload(opts: NavOptions, beacons) -> dict:
     if beacons is None:
         return provenance()
     fast = opts.session is not None and not opts.realtime
-    if fast and not opts.tle_files:     # the built-in Starlink set, made once the road starts, propagates
-        from leonav_runtime.orbits import eop            # with the EOP table (a file)
-        from leonav_runtime.simulation import session_synth  # noqa: F401
+    if fast:        # the beacon stream runs in this process: its predictions read the EOP table (a file)
+        from leonav_runtime.orbits import eop
 
         eop.default_table()
+        if not opts.tle_files:      # the built-in Starlink set is made once the road starts
+            from leonav_runtime.simulation import session_synth  # noqa: F401
     if not fast:        # the beacon process is spawned in the run; an SDR thread records the capture and
         import multiprocessing.popen_spawn_posix  # noqa: F401  (writes its SigMF metadata at the start and end)
         import mmap  # noqa: F401  (numpy.memmap imports it on first use: sigmf maps the data file)
