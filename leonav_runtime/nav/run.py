@@ -203,7 +203,7 @@ def preload(opts: NavOptions, beacons) -> dict:
     if fast:        # the beacon stream runs in this process: its predictions read the EOP table (a file)
         from leonav_runtime.orbits import eop
 
-        eop.default_table()
+        eop.default_table()     # a missing or bad table is an error now rather than in the middle of the run
         if not opts.tle_files:      # the built-in Starlink set is made once the road starts
             from leonav_runtime.simulation import session_synth  # noqa: F401
     if not fast:        # the beacon process is spawned in the run; an SDR thread records the capture and
