@@ -191,7 +191,9 @@ def _beacons(opts: NavOptions, record_dir: Path | None):
 def preload(opts: NavOptions, beacons) -> dict:
     """Import and open now what the run would otherwise load on first use, once clients are served:
     with the descriptors exhausted (a client storm) a lazy import or a first file open fails. Returns
-    nav.json's provenance (it reads package metadata), computed here for the same reason."""
+    nav.json's provenance (it reads package metadata), computed here for the same reason. What is
+    loaded here was found by auditing runs; tests/test_nav_load.py and test_nav_playback_end.py fail
+    on any module imported or file first opened once the NMEA server accepts."""
     import _strptime  # noqa: F401  (datetime.strptime imports it on its first call)
 
     _dt.datetime.strptime("2026-02-23", "%Y-%m-%d")     # and reads the locale's time names once
@@ -199,14 +201,13 @@ def preload(opts: NavOptions, beacons) -> dict:
         import encodings.idna  # noqa: F401  (the first send to a host name encodes it)
     if beacons is None:
         return provenance()
-    fast = opts.session is not None and not opts.realtime
-    if fast:        # the beacon stream runs in this process: its predictions read the EOP table (a file)
-        from leonav_runtime.orbits import eop
+    if opts.session is not None and not opts.realtime:   # fast playback: the beacon stream runs in this
+        from leonav_runtime.orbits import eop            # process, and its predictions read the EOP table
 
         eop.default_table()     # a missing or bad table is an error now rather than in the middle of the run
         if not opts.tle_files:      # the built-in Starlink set is made once the road starts
             from leonav_runtime.simulation import session_synth  # noqa: F401
-    if not fast:        # the beacon process is spawned in the run; an SDR thread records the capture and
+    else:       # the beacon process is spawned in the run; an SDR thread records the capture and
         import multiprocessing.popen_spawn_posix  # noqa: F401  (writes its SigMF metadata at the start and end)
         import mmap  # noqa: F401  (numpy.memmap imports it on first use: sigmf maps the data file)
 
