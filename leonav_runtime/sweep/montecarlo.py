@@ -14,6 +14,7 @@ vector (rad). NEES uses the 9 x 9 navigation block of P.
 """
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import json
 import math
@@ -24,6 +25,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
+from leonav_runtime.core import compiled, records
 from leonav_runtime.core import filter as lfilter
 from leonav_runtime.core import navfuncs
 from leonav_runtime.simulation import simulate, trial_block
@@ -172,29 +174,65 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     x_est = np.empty((B, nt, L.NX))
     P9 = np.empty((B, nt, L.NNAV, L.NNAV))
     c_seconds, runs = [], []
-    ekf = lfilter.EKF(block.x0[0], setup.P0, block.params if block.params.ndim == 1 else block.params[0], gate=gate,
-                      library=nav.library)
+    loop = _CLoop(nav.library, buf, rows, lfilter.EKF(block.x0[0], setup.P0, block.params.reshape(-1, L.NP)[0],
+                                                      gate=gate, library=nav.library).gate)
     kinds = _kind_masks(buf["kind"])   # the same for every trial of the block
     for j in range(B):
-        # one filter object for the block: each trial starts it again at its own x0, P0 and params
-        ekf.x[:], ekf.P[:] = block.x0[j], setup.P0
-        ekf.params[:] = block.params if block.params.ndim == 1 else block.params[j]
-        recs = block.fill(j, buf)
-        t_c = time.thread_time()
-        res = ekf.run(recs, P_rows=rows)  # full P only on the output grid, for NEES
-        c_seconds.append(time.thread_time() - t_c)
-        x_est[j], P9[j] = res.x[rows], res.P[:, NAV, NAV]
-        runs.append((res.nis, res.status, res.n_gated, res.n_failed))
+        params = block.params if block.params.ndim == 1 else block.params[j]
+        c_seconds.append(loop.run(block.x0[j], setup.P0, params, block.fill(j, buf)))
+        x_est[j], P9[j] = loop.x[rows], loop.P_rows[:, NAV, NAV]
+        runs.append((_nis_sums(kinds, loop.nis, loop.status), int(loop.out.n_gated), int(loop.out.n_failed)))
     err = nav.boxminus(x_est.reshape(B * nt, L.NX), block.truth(k).reshape(B * nt, L.NX))[:, NAV]
     err = err.reshape(B, nt, L.NNAV)
     nees = np.einsum("bni,bni->bn", err, np.linalg.solve(P9, err[..., None])[..., 0])
     results = []
-    for j, (index, (nis, status, gated, failed)) in enumerate(zip(indices, runs)):
-        nis_sum, nis_count = _nis_sums(kinds, nis, status)
+    for j, (index, ((nis_sum, nis_count), gated, failed)) in enumerate(zip(indices, runs)):
         p_est = x_est[j, :, L.X_P_ENU_SLICE].copy() if index == 0 else None
         results.append(TrialResult(index, err[j], nees[j], nis_sum, nis_count, gated, failed, p_est, c_seconds[j],
                                    math.nan, math.nan))
     return results, sum(c_seconds)
+
+
+class _CLoop:
+    """The C filter loop (`leonav_run`, what `EKF.run` calls, with the same outputs) for the trials
+    of one block: their streams share times and kinds, so they are checked once, and the outputs
+    are allocated once; `run` times the C call alone (the worker thread's CPU clock)."""
+
+    def __init__(self, library, recs: np.ndarray, rows: np.ndarray, gates: np.ndarray) -> None:
+        records.check_records(recs, len(library.meas_ids))
+        n, self.lib, self.n = recs.size, library, recs.size
+        self.gates = np.ascontiguousarray(gates, dtype=np.float64)
+        self.work = library.new_workspace()
+        self.x, self.P_diag = np.empty((n, L.NX)), np.empty((n, L.NDX))
+        self.mask = np.zeros(n, dtype=np.uint8)
+        self.mask[rows] = 1
+        self.P_blocks = np.empty((rows.size, L.NDX, L.NDX))
+        self.P_rows = self.P_blocks.transpose(0, 2, 1)   # each block is written column-major
+        self.y, self.S, self.nis = np.empty(n), np.empty(n), np.empty(n)
+        self.status = np.empty(n, dtype=np.int32)
+        self.out = compiled.RunOut(
+            x=_ptr(self.x), P_diag=_ptr(self.P_diag), P=_ptr(self.P_blocks),
+            P_mask=self.mask.ctypes.data_as(ctypes.POINTER(ctypes.c_uint8)), y=_ptr(self.y), S=_ptr(self.S),
+            nis=_ptr(self.nis), status=self.status.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
+
+    def run(self, x0: np.ndarray, P0: np.ndarray, params: np.ndarray, recs: np.ndarray) -> float:
+        """Run one trial's stream (the block's layout) from x0, P0; returns the C call's CPU s."""
+        x = np.array(x0, dtype=np.float64)
+        P = np.array(P0, dtype=np.float64, order="F")
+        p = np.ascontiguousarray(params, dtype=np.float64)
+        if recs.size != self.n or not recs.flags.c_contiguous:
+            raise ValueError(f"records: expected the block's {self.n} contiguous records, got {recs.size}")
+        t_c = time.thread_time()
+        rc = self.lib.lib.leonav_run(_ptr(x), _ptr(P), _ptr(p), recs.ctypes.data, self.n, _ptr(self.gates),
+                                     ctypes.byref(self.out), self.work.ctypes.data)
+        t_c = time.thread_time() - t_c
+        if rc != L.OK:
+            raise RuntimeError(f"leonav_run returned {compiled.code_name(rc)} at record {self.out.n_done}")
+        return t_c
+
+
+def _ptr(a: np.ndarray):
+    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
 
 
 def _nis_sums(kinds: list[tuple[int, np.ndarray]], nis: np.ndarray, status: np.ndarray,
