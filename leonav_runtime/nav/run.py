@@ -14,6 +14,8 @@ Exit codes (also in nav.json `exit_code` and `leonav nav --help`):
   3    a device disappeared during the run (the filter went on with the rest; see nav.json)
   130  interrupted by SIGINT (Ctrl-C)
   143  stopped by SIGTERM (systemd stop): every output flushed, as for 0
+The NMEA TCP server binds its port first (a taken port fails before anything is written) and accepts
+clients only once the devices are open and `preload` has imported and opened what the run needs.
 SIGINT and SIGTERM only set a flag: the loop sees it within 50 ms, then every output is flushed
 and closed and session.json, trajectory.csv and nav.json are complete.
 
