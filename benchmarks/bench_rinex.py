@@ -107,14 +107,14 @@ def main(argv=None) -> int:
         for label, path, reader in cases:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                ours = best(lambda: reader(path), args.repeat)
-                theirs = best(lambda: georinex.load(path), args.repeat) if georinex else float("nan")
+                ours = best(lambda reader=reader, path=path: reader(path), args.repeat)
+                theirs = best(lambda path=path: georinex.load(path), args.repeat) if georinex else float("nan")
             print(f"{label:<34} {ours:>12.4f} {theirs:>14.4f} {theirs / ours:>6.1f}")
         print(f"\n{'the same files compressed':<34} {'CPU s':>12} {'/ plain':>14}")
         for label, path, reader in cases[1:]:
-            plain = best(lambda: reader(path), args.repeat)
+            plain = best(lambda reader=reader, path=path: reader(path), args.repeat)
             for kind, cpath in compressed(path, Path(tmp)).items():
-                t = best(lambda: reader(cpath), args.repeat)
+                t = best(lambda reader=reader, cpath=cpath: reader(cpath), args.repeat)
                 print(f"{label + ' .' + kind:<34} {t:>12.4f} {t / plain:>13.2f}x")
     eph = read_rinex_nav(nav).ephemerides
     t = float(np.min(eph["toe"])) + np.arange(0, 86400, 30.0)

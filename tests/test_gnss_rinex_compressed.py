@@ -201,7 +201,7 @@ def test_truncated_unix_compress_file_is_a_cut_rinex_file_rejected_by_line(tmp_p
 def test_zip_archive_is_refused_naming_the_tool(tmp_path, capsys):
     import zipfile
 
-    o, n = shared_file(OBS[0]), shared_file(NAV[0])
+    o = shared_file(OBS[0])
     path = tmp_path / "07590920.05o.zip"
     with zipfile.ZipFile(path, "w") as z:
         z.write(o, o.name)

@@ -28,7 +28,7 @@ import numpy as np
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import EPH_DTYPE, Ephemerides, Rejection, default_fit_s, is_bds_geo
-from leonav_runtime.gnss.rinex_files import read_rinex_text  # noqa: F401  (plain or compressed; also imported from here)
+from leonav_runtime.gnss.rinex_files import read_rinex_text   # plain or compressed files
 
 log = logging.getLogger("leonav.gnss")
 

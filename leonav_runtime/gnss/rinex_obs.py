@@ -35,8 +35,8 @@ from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gnss import rinex_obs_v2
 from leonav_runtime.gnss import time as gtime
 from leonav_runtime.gnss.ephemeris import Rejection
-from leonav_runtime.gnss.rinex_files import read_rinex_text
 from leonav_runtime.gnss.observations import ObservationTable
+from leonav_runtime.gnss.rinex_files import read_rinex_text
 from leonav_runtime.gnss.rinex_obs_fields import Records, build_rows
 
 log = logging.getLogger("leonav.gnss")

@@ -114,12 +114,12 @@ def _parse(raw: np.ndarray, avail: np.ndarray):
     return values, code[..., 0], code[..., 1], blank, plain
 
 
-def _slow_fields(reader, recs: Records, todo: list[tuple[int, int, int, str]], found: dict) -> list:
+def _slow_fields(reader, recs: Records, todo: list[tuple[int, int, str]], found: dict) -> list:
     """The per-field reader on the fields that are not plain F14.3, in file order: their values
     into `found[(record, m)]`; returns [(rejection position, Rejection)]."""
     saved, reader.rejected = reader.rejected, []
     out = []
-    for r, m, gid, code in sorted(todo):
+    for r, m, code in sorted(todo):
         if reader.version < 3:
             k = recs.start[r] + m // 5
             text = reader.lines[k][16 * (m % 5):16 * (m % 5) + 16]
@@ -152,8 +152,8 @@ def build_rows(reader, recs: Records) -> dict[str, np.ndarray]:
     groups = {gid: key for key, gid in recs.groups.items()}
     group_of = np.asarray(recs.group, dtype=np.int64)
     parsed = {}
-    todo: list[tuple[int, int, int, str]] = []
-    for gid, (types, system) in groups.items():
+    todo: list[tuple[int, int, str]] = []   # (record, field, observation code) of the fields read one by one
+    for gid, (types, _system) in groups.items():
         idx = np.flatnonzero(group_of == gid)
         if not types:
             continue
@@ -161,7 +161,7 @@ def build_rows(reader, recs: Records) -> dict[str, np.ndarray]:
         values, lli, ssi, blank, plain = _parse(raw, avail)
         slow = ~blank & ~plain
         for a, m in zip(*np.nonzero(slow)):
-            todo.append((int(idx[a]), int(m), gid, types[m]))
+            todo.append((int(idx[a]), int(m), types[m]))
         parsed[gid] = (idx, values, lli, ssi, plain)
     found: dict = {}
     reader.rejected = _merge(reader.rejected, _slow_fields(reader, recs, todo, found))
