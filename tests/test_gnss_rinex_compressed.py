@@ -255,3 +255,17 @@ def test_bad_limit_value_is_one_line(tmp_path, monkeypatch):
     monkeypatch.setenv("LEONAV_MAX_RINEX_MB", "lots")
     with pytest.raises(UserInputError, match="LEONAV_MAX_RINEX_MB='lots': expected a number of megabytes"):
         read_rinex_obs(path)
+
+
+def test_compact_rinex_that_crx2rnx_would_skip_is_refused_not_read_short(tmp_path, capsys):
+    """A repeated line in a Compact RINEX file: crx2rnx warns and skips every epoch up to the
+    next re-initialised one (hundreds of lines); taking its output would drop them uncounted,
+    so the file is refused in one line naming it and quoting crx2rnx."""
+    o, n = shared_file(OBS[0]), shared_file(NAV[0])
+    path = _compressed_copies(o, tmp_path, observation=True)["crx"]
+    lines = path.read_bytes().split(b"\n")
+    lines.insert(len(lines) // 2, lines[len(lines) // 2])
+    path.write_bytes(b"\n".join(lines))
+    err = _one_line_error(["spp", str(path), "--nav", str(n), "--out", str(tmp_path / "out")], capsys)
+    assert err.startswith(f"leonav spp: error: {path}: Compact RINEX (Hatanaka) data not decoded cleanly: crx2rnx")
+    assert "skip" in err

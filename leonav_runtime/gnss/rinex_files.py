@@ -140,9 +140,10 @@ def _crx2rnx(data: bytes, path: Path) -> bytes:
         except OSError as exc:   # the bundled binary could not be started (no binary for this platform)
             raise UserInputError(f"{path}: cannot run crx2rnx of the hatanaka package ({exc}); decompress the "
                                  "file first with crx2rnx FILE") from None
-    if caught:
+    told = [w for w in caught if str(w.message).startswith("crx2rnx")]   # its own, not a library's
+    if told:
         raise UserInputError(f"{path}: Compact RINEX (Hatanaka) data not decoded cleanly: "
-                             f"{_one_line(str(caught[0].message))}")
+                             f"{_one_line(str(told[0].message))}")
     if len(out) > max_bytes():   # crx2rnx writes it all; checked after (it expands ~3-10x, not 1000x)
         raise _too_large(path, "Compact RINEX (Hatanaka) data", max_bytes())
     return out
