@@ -269,3 +269,23 @@ def test_compact_rinex_that_crx2rnx_would_skip_is_refused_not_read_short(tmp_pat
     err = _one_line_error(["spp", str(path), "--nav", str(n), "--out", str(tmp_path / "out")], capsys)
     assert err.startswith(f"leonav spp: error: {path}: Compact RINEX (Hatanaka) data not decoded cleanly: crx2rnx")
     assert "skip" in err
+
+
+def test_gnss_obs_and_nav_commands_read_compressed_files(tmp_path, capsys):
+    """`leonav gnss obs|nav` print the same summary for a compressed file as for the plain one."""
+    import json
+
+    o, n = shared_file(OBS[0]), shared_file(NAV[0])
+    obs_crx = _compressed_copies(o, tmp_path, observation=True)["YYd.Z"]
+    nav_z = _compressed_copies(n, tmp_path, observation=False)["Z"]
+    summaries = []
+    for path in (o, obs_crx):
+        assert main(["gnss", "obs", str(path)]) == 0
+        out = capsys.readouterr().out
+        summaries.append(json.loads(out[:out.rindex("}") + 1]))
+    assert summaries[0] == summaries[1] and summaries[0]["rows"] == 1872
+    lines = []
+    for path in (n, nav_z):
+        assert main(["gnss", "nav", str(path)]) == 0
+        lines.append(capsys.readouterr().out.replace(str(path), "FILE"))
+    assert lines[0] == lines[1] and "ephemerides" in lines[0]
