@@ -120,9 +120,9 @@ def session_start_mono(folder: Path) -> float:
 
 class FileRtlSdr:
     """A recorded cu8 capture read back like pyrtlsdr's RtlSdr (`read_bytes`), paced at its sample
-    rate; raises IOError at the end of the recording."""
+    rate. At the end of the recording it returns empty reads until the session stops it: the recording
+    ended, the device did not fail."""
 
-    END = "end of the recorded capture"
     IDLE_S = 0.05          # after the end: one empty read per this long (the capture loop sees its stop)
 
     def __init__(self, path: Path, start_delay_s: float = 0.0) -> None:
@@ -254,7 +254,7 @@ class LiveSource:
                 continue
             self.reported.add(d.kind)
             reason = d.error or (d.reader.end_reason if d.kind != "sdr" and d.reader is not None else d.end_reason)
-            if "device error" in (reason or "") and FileRtlSdr.END not in reason or d.error:
+            if "device error" in (reason or "") or d.error:
                 navigator.device_ended(d.kind, reason)
 
     def stop(self, status: str) -> dict:
