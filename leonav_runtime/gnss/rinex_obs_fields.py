@@ -11,8 +11,11 @@ does). Any other non-blank field (cut short, not a number, exponents, '+') goes 
 reader's per-field `field()`, so its value and its rejection (file, line, field) are what they
 always were, at the same place in the list of rejections.
 
-Rows: per record and signal as `add_sat` built them, in the same order (the record's signals
-in the order their first observation appears in the record), so the table is identical.
+Rows: one per record and signal, as the per-field reader built them and in its order (a
+record's signals in the order their first observation appears in the record): the C/L/D/S of
+the signal's codes (a later code of the same quantity wins), zero C/L/S values missing and
+counted, LLI from the phase, SSI from the code when it has one, else from the phase.
+tests/test_gnss_rinex_obs_reference.py holds what the per-field reader returned.
 """
 from __future__ import annotations
 
