@@ -94,7 +94,6 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
     floor_step = max(1, idx.size // 4096)  # noise statistics from a subset of bins (speed)
     buf = np.zeros(0, np.complex64)
     buf_start = 0  # sample index of buf[0]
-    need = n + (slices_per_block - 1) * hop
     # windowed frames go into one reused buffer: a fresh array per block costs page faults
     frames = np.empty((slices_per_block, n), np.complex64)
     any_notch = bool(notch.any())
@@ -116,11 +115,14 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
 
     for block in blocks:
         buf = np.concatenate([buf, block]) if buf.size else block
-        while buf.size >= need:
-            yield emit(buf[:need], buf_start)
-            consumed = slices_per_block * hop
-            buf = buf[consumed:]
-            buf_start += consumed
+        # every whole slice the buffer holds, in blocks of 2..slices_per_block slices (the tracker
+        # takes the slice spacing from its first block): what is copied again with the next chunk
+        # is then under two slices, not most of a chunk. Slices are per-slice computations, so
+        # where the blocks split them changes no value.
+        while buf.size >= n + hop:
+            ns = min(slices_per_block, 1 + (buf.size - n) // hop)
+            yield emit(buf[: n + (ns - 1) * hop], buf_start)
+            buf, buf_start = buf[ns * hop:], buf_start + ns * hop
     if buf.size >= n:
         yield emit(buf, buf_start)
 
