@@ -16,7 +16,6 @@ short decompresses to a RINEX text cut short, which the readers reject by line l
 """
 from __future__ import annotations
 
-import bz2
 import io
 import os
 import zlib
@@ -79,6 +78,8 @@ def _gunzip(data: bytes, path: Path) -> bytes:
 
 
 def _bunzip2(data: bytes, path: Path) -> bytes:
+    import bz2   # only for such a file (a plain read needs none of the decoders)
+
     limit = max_bytes()
     try:
         return _stream(bz2.BZ2Decompressor, data, limit)
