@@ -76,10 +76,20 @@ def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurem
         from leonav_runtime.gnss.coupled import observation_table
 
         gnss = observation_table(spp, epoch_utc)
+    orbit_consider = provider = None
+    if operator is not None:    # the files' covariance into the Doppler-rate R (consider term)
+        from leonav_runtime.inputs.consider import OrbitConsider
+        from leonav_runtime.orbits.operator_consider import OperatorCovariance, names_by_id
+
+        provider = OperatorCovariance(operator, epoch_utc, names_by_id(elements.norad_ids, elements.names))
+        orbit_consider = OrbitConsider({}, covariance={"doppler_rate": provider})
     inputs = assemble(imu, filter_params(origin, profile, f_c_hz, latency_values(options.gnss_latency_s)),
                       replay_prior(options, profile),
                       fixes=fixes, satellites=[doppler_rate], nav=nav, notes=notes, epoch_utc=epoch_utc,
-                      origin=origin, gnss=gnss)
+                      origin=origin, gnss=gnss, orbit_consider=orbit_consider)
+    if provider is not None:
+        inputs.notes.append(f"beacons: Doppler-rate R + J P J^T of the operator covariance; "
+                            f"{provider.uncovered_records} records without it")
     out = SessionInputs.of(inputs, beacon_measurements=meas)
     out.counts["doppler_rate_satellites"] = int(np.unique(out.doppler_rate.sat_id).size)
     return out
