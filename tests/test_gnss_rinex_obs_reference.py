@@ -185,6 +185,36 @@ def test_reader_gives_exactly_the_previous_output(base):
         assert summary(text, name) == ref[name], name
 
 
+def test_numpy_path_reads_every_plain_field(monkeypatch):
+    """Every field of the shared files, their RINEX 3 writing and the synthetic text is a plain
+    F14.3 read by the NumPy path: none goes through the per-field reader (which gives the same
+    table, twice as slowly: a reader that sent everything there would pass the tests above), and
+    a garbled field is the one field sent there."""
+    from leonav_runtime.gnss import rinex_obs_fields
+
+    seen: list[list] = []
+    per_field = rinex_obs_fields._slow_fields
+
+    def spy(reader, recs, todo, found):
+        seen.append(sorted(todo))
+        return per_field(reader, recs, todo, found)
+
+    monkeypatch.setattr(rinex_obs_fields, "_slow_fields", spy)
+    bases = _bases()
+    if "07590920.05o" not in bases:
+        pytest.skip("needs ../shared/data/gnss_rinex/07590920.05o")
+    for name, text in bases.items():
+        seen.clear()
+        assert summary(text, name)["rows"] > 0
+        assert seen == [[]], (name, seen[0][:5])
+    lines = bases["07590920.05o"].splitlines()
+    k = next(i for i, ln in enumerate(lines) if "END OF HEADER" in ln) + 2   # the first satellite's line
+    lines[k] = lines[k][:5] + "x" + lines[k][6:]
+    seen.clear()
+    assert summary("\n".join(lines) + "\n", "garbled")["rejected"][0].startswith(f"garbled:{k + 1}: L1 of G")
+    assert len(seen[0]) == 1 and seen[0][0][1:] == (0, "L1")
+
+
 def test_v3_copy_reads_as_the_v2_file():
     """The RINEX 3 writing of a file reads to the same values as its RINEX 2 original (the
     signal codes of RINEX 2 C1/L1/L2/P2 are 1C, 1C, 2W, 2W either way)."""
