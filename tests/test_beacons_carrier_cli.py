@@ -57,3 +57,36 @@ def test_carrier_option_writes_phase_next_to_the_doppler_rate(tmp_path, capsys):
                 continue
             integral = simpson(dop[a:b + 1] - shift, x=t[a:b + 1])   # exact for a cubic phase
             assert abs((phase[b] - phase[a]) - integral) < 0.1     # cycles, of ~1e5 in that second
+
+
+def test_aiding_from_a_result_and_a_tone_the_capture_cannot_hold():
+    import datetime as dt
+    import types
+    from pathlib import Path
+
+    from leonav_runtime.beacons import carrier_hook
+    from leonav_runtime.beacons.associate import Association
+    from leonav_runtime.beacons.capture_io import CaptureInfo
+    from leonav_runtime.beacons.predict import Predictions
+    from leonav_runtime.beacons.ridges import Ridge
+
+    fs = 1e6
+    t = np.arange(-2.0, 8.01, 0.5)
+    doppler = np.stack([20e3 - 1500.0 * t, 480e3 + 5000.0 * t])   # B's tone leaves the band (0.45 fs)
+    pred = Predictions(dt.datetime(2026, 2, 23, tzinfo=dt.timezone.utc), t, ["A", "B"], np.array([1, 2]),
+                       doppler, np.stack([-1500.0 + 0 * t, 0 * t]), np.ones((2, t.size)), np.array([0, 1]))
+    rt = np.arange(0.1, 5.9, 0.016)
+    ridges = [Ridge(rt, 20e3 - 1500.0 * rt - 35e3 + 3.0 * np.sin(rt), np.zeros(rt.size), 0),
+              Ridge(rt[:60], 440e3 + 5000.0 * rt[:60], np.zeros(60), 1)]
+    assoc = [Association(0, "associated", "", 0, "A", 1), Association(1, "associated", "", 1, "B", 2)]
+    info = CaptureInfo(Path("x.cu8"), "cu8", fs, 1.575e9, 9.75e9, None, int(6 * fs))
+    res = types.SimpleNamespace(predictions=pred, ridges=ridges, associations=assoc, info=info)
+    skipped: list[str] = []
+    out = carrier_hook.aidings(res, skipped=skipped)
+    assert [a.norad_id for _, a, _ in out] == [1]
+    aid = out[0][2]
+    # the prediction's shape plus the ridge's median offset (-35 kHz here, the sine's median ~0)
+    assert np.allclose(aid.at(np.array([1.0, 3.0])), 20e3 - 1500.0 * np.array([1.0, 3.0]) - 35e3, atol=3.0)
+    assert len(skipped) == 1 and skipped[0].startswith("ridge 1 (B): predicted at") and "cannot hold" in skipped[0]
+    line = carrier_hook.summary_line([], skipped)
+    assert line.splitlines()[1].startswith("carrier: left out: ridge 1 (B)")

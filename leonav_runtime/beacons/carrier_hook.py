@@ -20,6 +20,7 @@ import numpy as np
 from leonav_runtime.beacons import capture_io
 from leonav_runtime.beacons.carrier import CarrierConfig, CarrierTrack, track_tones
 from leonav_runtime.beacons.carrier_front import Aiding
+from leonav_runtime.common.errors import UserInputError
 
 AID_STEP_S = 0.05
 MIN_RIDGE_POINTS = 8
@@ -45,10 +46,12 @@ CARRIER_COLUMNS = [
 ]
 
 
-def aidings(res, step_s: float = AID_STEP_S) -> list[tuple[object, object, Aiding]]:
-    """(ridge, association, aiding) for every associated ridge with enough points."""
+def aidings(res, step_s: float = AID_STEP_S, skipped: list | None = None) -> list[tuple[object, object, Aiding]]:
+    """(ridge, association, aiding) for every associated ridge with enough points; a tone the
+    capture cannot hold (predicted beyond 0.45 fs) is left out with its reason in `skipped`."""
     pred = res.predictions
     out = []
+    skipped = [] if skipped is None else skipped
     if pred is None or pred.t_s.size < 4:
         return out
     duration = res.info.duration_s
@@ -60,14 +63,22 @@ def aidings(res, step_s: float = AID_STEP_S) -> list[tuple[object, object, Aidin
             continue
         on_ridge = pred.at(ridge.t_s)[0][a.sat_row]
         offset = float(np.median(ridge.f_hz - on_ridge))
-        out.append((ridge, a, Aiding(t, curves[a.sat_row] + offset, f"ridge {ridge.ridge_id} ({a.name})")))
+        aid = Aiding(t, curves[a.sat_row] + offset, f"ridge {ridge.ridge_id} ({a.name})")
+        try:
+            aid.check_covers(duration, res.info.sample_rate_hz)
+        except UserInputError as exc:
+            skipped.append(str(exc))
+            continue
+        out.append((ridge, a, aid))
     return out
 
 
 def track_result(res, cfg: CarrierConfig | None = None, chunk_samples: int = 1 << 20,
-                 progress: Callable[[int], None] | None = None) -> list[tuple[object, object, CarrierTrack]]:
-    """Track the carrier of every associated tone of a pipeline result: (ridge, association, track)."""
-    aid = aidings(res)
+                 progress: Callable[[int], None] | None = None,
+                 skipped: list | None = None) -> list[tuple[object, object, CarrierTrack]]:
+    """Track the carrier of every associated tone of a pipeline result: (ridge, association,
+    track); tones left out are described in `skipped`."""
+    aid = aidings(res, skipped=skipped)
     if not aid:
         return []
     info = res.info
@@ -113,12 +124,13 @@ def write_carrier_csv(res, tracked: list, out_dir: Path) -> dict[str, Path]:
     return {"carrier": path, "carrier_columns": cols}
 
 
-def summary_line(tracked: list) -> str:
-    """One line for the command's output."""
+def summary_line(tracked: list, skipped: list | None = None) -> str:
+    """One line for the command's output (and one per tone left out)."""
+    notes = "".join(f"\ncarrier: left out: {s}" for s in (skipped or []))
     if not tracked:
-        return "carrier: no associated tone to track"
+        return "carrier: no associated tone to track" + notes
     ep = sum(tr.t_s.size for _, _, tr in tracked)
     lk = sum(int(tr.locked.sum()) for _, _, tr in tracked)
     slips = sum(int(tr.slip.sum()) for _, _, tr in tracked)
     return (f"carrier: {len(tracked)} tone(s) tracked, locked on {lk} of {ep} epochs "
-            f"({100 * lk / max(ep, 1):.1f} %), {slips} slip(s) or relock(s)")
+            f"({100 * lk / max(ep, 1):.1f} %), {slips} slip(s) or relock(s)") + notes

@@ -263,9 +263,10 @@ def run(args: argparse.Namespace) -> int:
     if args.carrier:
         from leonav_runtime.beacons import carrier_hook
 
-        tracked = carrier_hook.track_result(res)
+        skipped: list[str] = []
+        tracked = carrier_hook.track_result(res, skipped=skipped)
         paths.update(carrier_hook.write_carrier_csv(res, tracked, out_dir))
-        print(carrier_hook.summary_line(tracked))
+        print(carrier_hook.summary_line(tracked, skipped))
     s = pipeline.summary(res)
     notes = res.track_stats.notes()
     if caught or notes:
