@@ -139,8 +139,10 @@ def _step_slips(res_cycles: np.ndarray, ok: np.ndarray, arc: np.ndarray, half: i
     s = step_statistic(res_cycles, half)
     n = s.size
     same = np.zeros(n, bool)
-    for i in range(half, n - half + 1):
-        same[i] = ok[i - half:i + half].all() and arc[i - half] == arc[min(i + half - 1, n - 1)]
+    if n >= 2 * half:   # window [i - half, i + half) all locked, one arc at both ends
+        bad = np.concatenate([[0], np.cumsum(~ok)])
+        i = np.arange(half, n - half + 1)
+        same[i] = (bad[i + half] - bad[i - half] == 0) & (arc[i - half] == arc[i + half - 1])
     cand = np.nonzero(same & (np.abs(np.nan_to_num(s)) > thr))[0]
     out = []
     for i in cand:
@@ -187,17 +189,21 @@ def _epochs(tone: _Tone, cfg: CarrierConfig) -> CarrierTrack:
     bn = counts["bn_hz"]
     step_t = t0[steps] if steps.size else np.zeros(0)
     prev_loop_arc, cur_arc = None, -1
+    def window(t_lo, t_hi):   # prompts whose centres lie in [t_lo, t_hi] (centres increase)
+        return slice(int(np.searchsorted(centre, t_lo, "left")), int(np.searchsorted(centre, t_hi, "right")))
+
+    p2 = np.abs(rec["z"]) ** 2
     for e, te in enumerate(t_e):
         i = int(np.searchsorted(t0, te, side="right") - 1)
-        span = (t0 + T > te - cfg.epoch_s) & (t0 < te)
-        win = np.abs(centre - te) <= 0.5 * cfg.cn0_window_s
-        win &= rec["mode"] != 0
-        if win.any():
-            n2 = np.median(rec["noise"][win]) * loop.p
-            ps = np.mean(np.abs(rec["z"][win]) ** 2) - n2
+        span = slice(int(np.searchsorted(t0 + T, te - cfg.epoch_s, "right")), int(np.searchsorted(t0, te, "left")))
+        win = window(te - 0.5 * cfg.cn0_window_s, te + 0.5 * cfg.cn0_window_s)
+        use = rec["mode"][win] != 0
+        if use.any():
+            n2 = np.median(rec["noise"][win][use]) * loop.p
+            ps = np.mean(p2[win][use]) - n2
             if ps > 0 and n2 > 0:
                 out["cn0"][e] = 10 * np.log10(ps / n2 / T)
-        if not (span.any() and ok[span].all() and np.unique(arc[span]).size == 1):
+        if not (span.stop > span.start and ok[span].all() and np.unique(arc[span]).size == 1):
             continue
         locked[e] = True
         la = int(arc[span][0])
@@ -211,8 +217,8 @@ def _epochs(tone: _Tone, cfg: CarrierConfig) -> CarrierTrack:
         out["phase"][e] = aid_phase(np.array([te]))[0] + (rec["phi"][i] + rec["w"][i] * (te - t0[i])) / (2 * np.pi)
         cn0 = 10 ** (out["cn0"][e] / 10) if np.isfinite(out["cn0"][e]) else np.nan
         out["sigma"][e] = np.sqrt(bn / cn0 * (1 + 1 / (2 * T * cn0))) / (2 * np.pi)
-        fit = np.abs(centre - te) <= cfg.fit_half_s
-        if fit.sum() >= 5 and ok[fit].all() and np.unique(arc[fit]).size == 1:
+        fit = window(te - cfg.fit_half_s, te + cfg.fit_half_s)
+        if fit.stop - fit.start >= 5 and ok[fit].all() and np.unique(arc[fit]).size == 1:
             c = np.polyfit(centre[fit] - te, total_c[fit] - total_c[fit][0], 3)   # cubic: a quadratic's
             out["freq"][e], out["rate"][e] = c[2], 2 * c[1]      # slope takes jerk h^2/10 (0.2 Hz) too
     losses = int(np.sum((rec["mode"][1:] == LOST) & (rec["mode"][:-1] == LOCK)))

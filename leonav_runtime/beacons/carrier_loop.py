@@ -17,9 +17,12 @@ Loop design (defaults, and why):
   an aiding error is followed; what remains is the jerk over w0^3 (50 Hz/s^2 unaided:
   0.15 rad). Thermal jitter sigma^2 = B_n / (C/N0) (1 + 1 / (2 T C/N0)) rad^2: 18 deg at
   20 dB-Hz, 5.7 deg at 30; loop SNR C/N0 / B_n = 10 at 20 dB-Hz, above the ~4 lock needs;
-- FLL assist while pulling in after an acquisition: frequency discriminator
-  atan2(cross, dot) / T of consecutive prompts (+-1 / (2T) = +-50 Hz), second-order FLL of
-  B_f = 2 Hz (w0f = B_f / 0.53, a2 = 1.414) feeding the same integrators; off once locked;
+- FLL assist for the first `fll_s` (0.3 s) of the pull-in after an acquisition: frequency
+  discriminator atan2(cross, dot) / T of consecutive prompts (+-1 / (2T) = +-50 Hz),
+  second-order FLL of B_f = 2 Hz (w0f = B_f / 0.53, a2 = 1.414) feeding the same
+  integrators. The FFT has the frequency to ~1 Hz already; at 20 dB-Hz a longer-running FLL
+  integrates its own noise into a runaway. A pull-in not locked after settle_s + reacq_s
+  (1.4 s) acquires again;
 - lost lock (a fade, a blockage): the loop's frequency is set to the slope of its phase
   over the 0.4 s before the last two lock windows (its own state integrated noise while
   the detector made up its mind, up to ~20 Hz/s of rate in 0.2 s), its rate to 0 (the
@@ -69,6 +72,7 @@ class LoopConfig:
     lock_on_deg: float = 45.0
     lock_off_d: float = 1.5
     settle_s: float = 0.4          # no lock declared sooner after an acquisition (FLL-to-PLL handover)
+    fll_s: float = 0.3             # FLL assist for this long after an acquisition
     reacq_s: float = 1.0
 
 
@@ -210,7 +214,7 @@ class Loop:
         self.present = self.present + 1 if loud else 0
         present = self.present >= 5
         ef = 0.0
-        if self.mode == PULL and self.prev_e is not None:   # FLL assist while pulling in
+        if self.mode == PULL and self.prev_e is not None and self.since_acq * self.t < cfg.fll_s:
             ef = ((e - self.prev_e + math.pi) % (2 * math.pi) - math.pi) / self.t
         self.prev_e = e
         t = self.t
@@ -245,6 +249,8 @@ class Loop:
             self.lost_prompts += 1
             if self.lost_prompts * self.t >= cfg.reacq_s:
                 self.mode = ACQ
+        elif self.since_acq * self.t >= cfg.settle_s + cfg.reacq_s:   # a pull-in that never locked
+            self.mode = ACQ
 
     def _held_frequency(self) -> float:
         """NCO frequency (rad/s) to coast on: slope of a line through the NCO phase over the
