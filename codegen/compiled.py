@@ -15,6 +15,7 @@ import subprocess
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Sequence
 
 import casadi as ca
 
@@ -22,14 +23,15 @@ from leonav.codegen.emit_c import C_DIR
 from leonav.codegen.generate import GEN_NAME, default_output_dir
 
 
-def compile_shared(gen_dir: str | Path | None = None) -> Path:
-    """Path of a `cc -O2 -shared -fPIC` build of every generated function in `gen_dir`/c
-    (default: the committed leonav_runtime/gen/)."""
+def compile_shared(gen_dir: str | Path | None = None, cflags: Sequence[str] = ("-O2",)) -> Path:
+    """Path of a `cc CFLAGS -shared` build of every generated function in `gen_dir`/c
+    (default: the committed leonav_runtime/gen/); pass the runtime's flags
+    (leonav_runtime.core.compiled.CFLAGS) to check the code as the runtime compiles it."""
     c_files = sorted((Path(gen_dir) if gen_dir else default_output_dir()).joinpath(C_DIR).glob("*.c"))
     if not c_files:
         raise FileNotFoundError(f"no generated C in {gen_dir or default_output_dir()}/{C_DIR}")
-    flags = ["-O2", "-shared", "-fPIC", "-Dcasadi_int=long long int"]
-    digest = hashlib.sha256(" ".join(flags).encode())
+    flags = [*cflags, "-fPIC", "-Dcasadi_int=long long int"]
+    digest = hashlib.sha256((" ".join(flags) + "\0shared").encode())
     for path in c_files:
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     folder = Path(tempfile.gettempdir()) / f"leonav-codegen-{digest.hexdigest()[:16]}"
@@ -42,7 +44,7 @@ def compile_shared(gen_dir: str | Path | None = None) -> Path:
 
     def compile_one(pair):
         path, obj = pair
-        subprocess.run([compiler, "-O2", "-fPIC", flags[3], "-c", str(path), "-o", str(obj)], check=True)
+        subprocess.run([compiler, *flags, "-c", str(path), "-o", str(obj)], check=True)
 
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
         list(pool.map(compile_one, zip(c_files, objects)))

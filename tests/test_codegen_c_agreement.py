@@ -32,7 +32,9 @@ def seed_of(name: str) -> int:
 
 @pytest.fixture(scope="module")
 def so_path():
-    return compile_shared()
+    from leonav_runtime.core.compiled import CFLAGS
+
+    return compile_shared(cflags=CFLAGS)   # the code as the runtime compiles it
 
 
 def _random_input(name: str, shape: tuple[int, int], rng) -> np.ndarray:

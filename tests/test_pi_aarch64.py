@@ -89,14 +89,16 @@ def test_aarch64_program_and_library_equal_the_x86_run_bit_for_bit(exported, x86
     env = os.environ | {"QEMU_LD_PREFIX": str(SYSROOT)}
     _run(["qemu-aarch64", str(pi_program(CROSS)), records, init, str(tmp_path / "arm.csv")], env)
     # the library as the runtime builds it (leonav_runtime.core.compiled: same flags), the program linked to it
-    flags = ["-O2", "-std=c99", "-fPIC", f"-I{GEN}", f"-I{CSRC}"]
+    from leonav_runtime.core.compiled import CFLAGS
+
+    flags = [*CFLAGS, f"-I{GEN}", f"-I{CSRC}"]
     objs = []
     for src in (*sorted((GEN / "c").glob("*.c")), CSRC / "leonav_driver.c"):
         obj = tmp_path / (src.stem + ".o")
         _run([CROSS, *flags, "-c", str(src), "-o", str(obj)])
         objs.append(str(obj))
     _run([CROSS, "-shared", "-o", str(tmp_path / "libleonav.so"), *objs, "-lm"])
-    _run([CROSS, "-O2", "-std=c99", f"-I{GEN}", f"-I{CSRC}", "-o", str(tmp_path / "filter_lib"),
+    _run([CROSS, *(f for f in CFLAGS if f != "-fPIC"), f"-I{GEN}", f"-I{CSRC}", "-o", str(tmp_path / "filter_lib"),
           str(PI / "leonav_filter.c"), f"-L{tmp_path}", "-lleonav", "-lm"])
     _run(["qemu-aarch64", str(tmp_path / "filter_lib"), records, init, str(tmp_path / "arm_lib.csv")],
          env | {"LD_LIBRARY_PATH": str(tmp_path)})

@@ -9,7 +9,9 @@ renamed, so parallel processes can build into the same cache safely.
 
 Generated folder: `$LEONAV_GEN_DIR` if set. Cache folder: `$LEONAV_BUILD_DIR`, else `$XDG_CACHE_HOME/leonav/build`, else
 `~/.cache/leonav/build`. Compiler: `$CC`, else `cc`. Flags: `CFLAGS` below (portable, no
-`-march=native`, so results match the Raspberry Pi build) plus `$LEONAV_CFLAGS`. Faults: see
+`-march=native`, so results match the Raspberry Pi build) plus `$LEONAV_CFLAGS` (added after
+them, so `LEONAV_CFLAGS=-march=native` opts in to this CPU's instructions, and `-O2` overrides
+the level). Faults: see
 `build_cache.py` (CompilerError, exit 4; a prebuilt library loads without a compiler).
 
 This module never imports casadi: the compiled library is all the filter needs.
@@ -43,7 +45,10 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1]   # leonav_runtime/
 GEN_DIR = Path(os.environ.get("LEONAV_GEN_DIR") or PACKAGE_DIR / "gen")
 CSRC_DIR = PACKAGE_DIR / "csrc"
 
-CFLAGS: tuple[str, ...] = ("-O2", "-std=c99", "-fPIC")
+# Portable and IEEE-exact (benchmarks/bench_cflags.py, docs/performance.md): -O3 and no errno or
+# trap bookkeeping change no result; no fused multiply-add keeps x86 and the aarch64 Pi bit for
+# bit (GCC's default in ISO C mode, stated for clang). No -march=native, no -ffast-math.
+CFLAGS: tuple[str, ...] = ("-O3", "-fno-math-errno", "-fno-trapping-math", "-ffp-contract=off", "-std=c99", "-fPIC")
 LDFLAGS: tuple[str, ...] = ("-shared",)
 LIBS: tuple[str, ...] = ("-lm",)
 
