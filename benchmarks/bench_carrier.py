@@ -14,7 +14,8 @@
    own noise bandwidth, their ratio, the LNB case and its prediction (thermal plus the phase
    noise the loop does not follow, 2 int L(f) |1 - H(f)|^2 df), lock share and C/N0 error.
    The captures run at 240 kS/s: the loop sees the same 10 kHz decimated samples as at
-   2.4 MS/s (only the front end's cost differs; that is table 3).
+   2.4 MS/s (only the front end's cost differs; that is table 3). Table 1b puts a narrower,
+   longer loop (5 Hz, 20 ms) beside the default at 17.5-25 dB-Hz.
 2. Injected slips at 20-25 dB-Hz (12 s captures, 6 fades of 0.4-0.8 s, each hiding 1-2
    cycles): events detected (the phase arc changes across the event), unflagged jumps inside
    an arc, false alarms per minute, relock delay after the fade.
@@ -62,14 +63,14 @@ def untracked_phase_noise_rad2(cfg: CarrierConfig, points=sp.LNB_PHASE_NOISE_DBC
     return float(2 * np.trapezoid(sp.phase_noise_density(f, points) * np.abs(err) ** 2, f))
 
 
-def _run(cn0: float, seed: int, lnb: bool, duration_s: float = 10.0, slips: int = 0):
+def _run(cn0: float, seed: int, lnb: bool, duration_s: float = 10.0, slips: int = 0, cc: CarrierConfig | None = None):
     rng = np.random.default_rng(1000 + seed)
     cfg = sp.PhaseBenchConfig(duration_s=duration_s, sample_rate_hz=240e3, seed=seed,
                               phase_noise=sp.LNB_PHASE_NOISE_DBC_HZ if lnb else None,
                               **(LNB if lnb else {}))
     events = sp.random_slips(rng, duration_s, slips) if slips else ()
     cap = sp.make_capture([sp.ToneSpec(cn0_dbhz=cn0, if_hz=40e3, t_closest_s=duration_s / 2, slips=events)], cfg)
-    tr = track_capture(cap)[0]
+    tr = track_capture(cap, cfg=cc)[0]
     return tr, score(tr, cap, 0)
 
 
@@ -99,6 +100,28 @@ def phase_table(trials: int) -> None:
         print(f" {cn0:5.1f} | {360 * m_th:8.2f} {m_th * WAVELENGTH_MM:6.3f}     {design:8.2f}     "
               f"{np.degrees(loop):8.2f}    {360 * m_th / np.degrees(loop):6.2f}    | {360 * m_ln:8.2f} "
               f"{m_ln * WAVELENGTH_MM:6.3f} {pred:7.2f}  | {lock:5.1f}  {cn0_err:+5.2f}   {jumps}")
+
+
+def narrow_table(trials: int) -> None:
+    """Low C/N0 with a narrower, longer loop beside the default (LNB + RTL-SDR front end)."""
+    from leonav_runtime.beacons.carrier_loop import LoopConfig
+
+    print(f"\n1b. low C/N0: default loop (10 Hz, 10 ms) beside a narrow one (5 Hz, 20 ms), LNB + RTL-SDR, "
+          f"{trials} x 10 s")
+    print(" C/N0 dB-Hz | default: rms deg  lock %  losses | narrow: rms deg  lock %  losses  loop relation deg")
+    narrow = CarrierConfig(loop=LoopConfig(bn_hz=5.0, t_coh_s=0.02))
+    bn = noise_bandwidth_hz(narrow.loop)
+    for cn0 in (17.5, 20.0, 22.5, 25.0):
+        row = []
+        for cc in (None, narrow):
+            runs = [_run(cn0, s, True, cc=cc) for s in range(trials)]
+            rms = float(np.sqrt(np.nanmean([r[1].jitter_cycles ** 2 for r in runs])))
+            row += [360 * rms, 100 * np.mean([r[1].locked_fraction for r in runs]),
+                    sum(r[0].counts["losses"] for r in runs)]
+        c = 10 ** (cn0 / 10)
+        rel = np.degrees(np.sqrt(bn / c * (1 + 1 / (2 * narrow.loop.t_coh_s * c))))
+        print(f"   {cn0:5.1f}    |     {row[0]:6.2f}      {row[1]:5.1f}   {row[2]:3d}   |     {row[3]:6.2f}      "
+              f"{row[4]:5.1f}   {row[5]:3d}      {rel:6.2f}")
 
 
 def slip_table(trials: int) -> None:
@@ -167,6 +190,7 @@ def main() -> None:
     t0 = time.perf_counter()
     if not a.skip_tables:
         phase_table(a.trials)
+        narrow_table(a.trials)
         slip_table(a.trials)
     if not a.skip_speed:
         speed_table()

@@ -15,8 +15,9 @@ Loop design (defaults, and why):
   table 5.6): w0 = B_n / 0.7845, a3 = 1.1, b3 = 2.4. A third-order loop follows a constant
   Doppler rate with no steady-state error, so the 4 kHz/s of an overhead pass left over by
   an aiding error is followed; what remains is the jerk over w0^3 (50 Hz/s^2 unaided:
-  0.15 rad). Thermal jitter sigma^2 = B_n / (C/N0) (1 + 1 / (2 T C/N0)) rad^2: 18 deg at
-  20 dB-Hz, 5.7 deg at 30; loop SNR C/N0 / B_n = 10 at 20 dB-Hz, above the ~4 lock needs;
+  0.15 rad). Thermal jitter sigma^2 = B_n / (C/N0) (1 + 1 / (2 T C/N0)) rad^2: 22 deg at
+  20 dB-Hz, 5.9 deg at 30 (18 and 5.7 without the low-SNR term); loop SNR C/N0 / B_n = 10
+  at 20 dB-Hz, above the ~4 lock needs;
 - FLL assist for the first `fll_s` (0.3 s) of the pull-in after an acquisition: frequency
   discriminator atan2(cross, dot) / T of consecutive prompts (+-1 / (2T) = +-50 Hz),
   second-order FLL of B_f = 2 Hz (w0f = B_f / 0.53, a2 = 1.414) feeding the same
@@ -38,8 +39,8 @@ Loop design (defaults, and why):
   (unit variance in noise alone; 14 at 30 dB-Hz, ~4 at 20). Locked after 10 prompts with
   d >= 3 and |arg Z| < 45 deg, and no sooner than `settle_s` (0.4 s) after an acquisition
   (the pull-in transient can slip a cycle at 20 dB-Hz); lost after 10 prompts with d < 1.5,
-  or 3 with d < 0; after
-  `reacq_s` (1 s) lost, acquisition again. Each lock starts a new arc (new ambiguity).
+  or 3 with d < 0; after `reacq_s` (1 s) lost, acquisition again. Each lock starts a new
+  arc (new ambiguity).
 - C/N0: sigma_z^2 (noise per prompt) from the first differences of the loop-rotated
   decimated samples (the residual carrier hardly changes in 0.1 ms, so they are noise;
   before the first prompt, from the acquisition spectrum's median bin), and
