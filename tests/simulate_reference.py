@@ -172,7 +172,8 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     if not noise_free and realism.active(scn):   # truth != filter; draws after all of the above
         u, params = realism.apply(setup, nav, rng, u, parts)
         imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
-    tables = [satellite_table(kind_name, setup.series[kind_name], rows, z, sigma) for kind_name, rows, z, sigma in parts]
+    tables = [satellite_table(kind_name, setup.series[kind_name], rows, z, sigma)
+              for kind_name, rows, z, sigma in parts]
     # the road every source takes: tables -> records (aux f_b averaged from these IMU increments)
     inputs = assemble(imu, params, Prior(x0, setup.P0), satellites=tables, nav=nav,
                       local=_local_tables(setup, nav, rng, parsed, x_true, g),

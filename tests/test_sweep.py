@@ -173,6 +173,16 @@ def test_a_block_task_gives_each_trial_what_it_gives_alone(monkeypatch):
             assert (r.p_est is None) == (r.index != 0)
         assert np.array_equal(block.p_est_trial0, mc.run_trial(scn, mode, count, 0).p_est)
         assert 0 < block.c_seconds <= block.seconds
+    # realism switches: the block takes the road per trial (per-trial R and parameters)
+    from tests.conftest import short_paper_scenario
+
+    scn = short_paper_scenario(3.0, [10], "<block realism>",
+                               ephemeris_error={"enabled": True, "compensate": "consider"},
+                               imu_errors={"enabled": True, "process_noise_inflation": 2.0})
+    block = mc.run_block((scn.raw, scn.source, str(Path(scn.source).parent), "leo-alpha+imu", 10, [1, 2]))
+    for r in block.results:
+        alone = mc.run_trial(scn, "leo-alpha+imu", 10, r.index)
+        assert r.err.tobytes() == alone.err.tobytes() and r.nis_sum == alone.nis_sum
 
 
 def test_sweep_timing_is_cpu_against_its_c_floor(tmp_path):
