@@ -63,6 +63,9 @@ VARIANTS: list[tuple[str, list[str], list[str] | None]] = [
     ("-O3 -fno-math-errno", ["-O3", *NME], None),
     ("-O3 -fno-math-errno -fno-trapping-math", ["-O3", *NME, "-fno-trapping-math"], None),
     ("-O3 -fno-math-errno -flto", ["-O3", *NME, "-flto"], None),
+    ("-O2 -fno-semantic-interposition", ["-O2", "-fno-semantic-interposition"], None),
+    ("-O3 -fno-math-errno -fno-trapping-math -fno-semantic-interposition",
+     ["-O3", *NME, "-fno-trapping-math", "-fno-semantic-interposition"], None),
     ("per function: hot -O3 -fno-math-errno, rest -O2", ["-O3", *NME], ["-O2"]),
     ("-O3 -march=native (opt-in, not portable)", ["-O3", "-march=native"], None),
     ("-O3 -fno-math-errno -march=native (opt-in)", ["-O3", *NME, "-march=native"], None),
@@ -173,7 +176,7 @@ def main() -> None:
     us = lambda s: s / n_imu * 1e6  # noqa: E731
     print(f"\nCPU per IMU step (predict + its share of 0.8 pseudorange and 0.1 Doppler-rate updates), best of "
           f"{a.repeats} x {a.rounds}; bit-identical: every output of (a) against {ref_label}")
-    print(f" {'flags after -std=c99 -ffp-contract=off -fPIC':52s} | (a) C loop us | vs {ref_label} | (d) bare us | (a)/(d) | "
+    print(f" {'flags after -std=c99 -ffp-contract=off -fPIC':70s} | (a) C loop us | vs {ref_label} | (d) bare us | (a)/(d) | "
           "bit-identical | library kB | build CPU s")
     default = sorted(compiled.CFLAGS)
     for label, flags, cold in VARIANTS:
@@ -185,7 +188,7 @@ def main() -> None:
         same = all(u.tobytes() == v.tobytes() for u, v in zip(_outputs(results[label]), ref))
         same_d = finals_d[label].tobytes() == finals_d[ref_label].tobytes()
         size = libs[label].build.library.stat().st_size / 1024
-        print(f" {label_shown:52s} | {us(best_a[label]):13.3f} | {best_a[label] / best_a[ref_label]:6.3f} | "
+        print(f" {label_shown:70s} | {us(best_a[label]):13.3f} | {best_a[label] / best_a[ref_label]:6.3f} | "
               f"{us(best_d[label]):11.3f} | {best_a[label] / best_d[label]:7.3f} | {str(same and same_d):13s} | "
               f"{size:10.0f} | {build_cpu[label]:11.1f}")
     print(f"\nruntime defaults now: {' '.join(compiled.CFLAGS)} (leonav_runtime/core/compiled.py; add flags with "
