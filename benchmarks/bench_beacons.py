@@ -1,13 +1,29 @@
-"""Beacon pipeline benchmark: processing time and peak memory of a full-rate capture, and
-association accuracy versus C/N0.
+"""Beacon pipeline benchmark: start-up cost, cost per second of capture, real-time factor
+and peak memory of full-rate captures, and association accuracy versus C/N0.
 
-    python benchmarks/bench_beacons.py                 # 20 s at 2.4 MS/s (RTL-SDR cu8, 96 MB)
+    python benchmarks/bench_beacons.py                 # 5, 20, 60 s at 2.4 MS/s (RTL-SDR cu8)
+    python benchmarks/bench_beacons.py --durations 5 20 --repeat 3
     python benchmarks/bench_beacons.py --snr-table     # + accuracy vs C/N0 (reduced rate, 10 trials each)
     python benchmarks/bench_beacons.py --lo-table      # + joint LO offset/drift error and combs (20 trials)
 
-The capture is synthesized first (not timed) from the real Starlink element sets in
-../shared/data/tle/starlink_2026-02-23.txt at the paper's Rochester site; processing is then
-timed in a fresh child process so its peak RSS (resource.getrusage) is the pipeline's own.
+The captures are synthesized first (not timed) from the real Starlink element sets in
+../shared/data/tle/starlink_2026-02-23.txt (9,543 satellites) at the paper's Rochester site.
+Each one is then processed, side by side in this run:
+
+  command      `leonav beacons CAPTURE --tle ... --no-figures` and the same with the figure,
+               each in its own process: CPU (user + system, all threads) and peak RSS of that
+               child from os.wait4, wall time beside it
+  in-process   a fresh interpreter that imports the pipeline and times its stages with
+               time.process_time (imports, element sets, STFT + tracking + association,
+               CSV/JSON, figure)
+
+Fixed cost and cost per second of capture are the intercept and slope of a least-squares
+line through CPU seconds against capture seconds (a capture shorter than ~4.1 s is refused,
+so the "0 s capture" is that line's value at 0). The real-time factor is capture seconds
+over CPU seconds (and over wall seconds, which other load on the machine inflates). Figures
+are the best of `--repeat` runs. Bytecode is cached in a temporary PYTHONPYCACHEPREFIX (as an
+installed package has its .pyc files); one extra line shows a run that compiles every module
+from source, as with PYTHONDONTWRITEBYTECODE=1.
 """
 from __future__ import annotations
 
@@ -15,6 +31,7 @@ import argparse
 import datetime as dt
 import json
 import logging
+import os
 import resource
 import subprocess
 import sys
@@ -38,51 +55,131 @@ def _quiet():
     logging.disable(logging.WARNING)
 
 
-def child_process(capture: str) -> None:
-    """Process one capture and print JSON with time and peak RSS (run in a fresh interpreter)."""
+def child_process(capture: str, out_dir: str, figures: bool) -> None:
+    """Process one capture in this (fresh) interpreter; print JSON with CPU seconds per stage."""
+    cpu = time.process_time
+    c0, w0 = cpu(), time.perf_counter()
     _quiet()
     from leonav_runtime.beacons import capture_io, pipeline
     from leonav_runtime.beacons.predict import Site
-    from leonav_runtime.orbits import load_elements
+    from leonav_runtime.orbits.elements import load_element_files
 
-    elements = load_elements(TLE)
-    site = Site.from_degrees(*SITE_DEG)
-    t0 = time.perf_counter()
+    c1 = cpu()
+    elements = load_element_files([TLE])
+    c2 = cpu()
     info = capture_io.open_capture(capture)
-    res = pipeline.process_capture(info, elements, site)
-    t1 = time.perf_counter()
+    res = pipeline.process_capture(info, elements, Site.from_degrees(*SITE_DEG))
+    c3 = cpu()
+    pipeline.write_outputs(res, Path(out_dir), figures=False)
+    c4 = cpu()
+    if figures:
+        pipeline.plot_waterfall(res, Path(out_dir) / "waterfall.png")
+    c5 = cpu()
     s = pipeline.summary(res)
-    print(json.dumps({"seconds": t1 - t0, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    print(json.dumps({"imports": c1 - c0, "elements": c2 - c1, "process": c3 - c2, "write": c4 - c3,
+                      "figure": c5 - c4, "cpu": c5 - c0, "wall": time.perf_counter() - w0,
+                      "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                       "counts": s["counts"], "residual": s["rate_residual_abs_hz_s"],
                       "lo": {k: s["lo"][k] for k in ("offset_hz", "drift_hz_s", "drift_removed")},
                       "duration_s": info.duration_s, "bytes": info.path.stat().st_size}))
 
 
-def full_rate() -> None:
-    _quiet()
+def _timed(argv: list[str], env: dict) -> dict:
+    """CPU, wall and peak RSS of one child process (os.wait4 gives that child's own rusage)."""
+    w0 = time.perf_counter()
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    out = proc.stdout.read()
+    err = proc.stderr.read()
+    _, status, ru = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - w0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode:
+        raise SystemExit(f"{' '.join(map(str, argv))} failed ({proc.returncode}):\n{err.decode().strip()}")
+    return {"cpu": ru.ru_utime + ru.ru_stime, "wall": wall, "peak_rss_mb": ru.ru_maxrss / 1024,
+            "out": out.decode()}
+
+
+def _best(runs: list[dict]) -> dict:
+    return min(runs, key=lambda r: r["cpu"])
+
+
+def _line(x: list[float], y: list[float]) -> tuple[float, float]:
+    """(intercept, slope) of the least-squares line y = a + b x."""
+    b, a = np.polyfit(np.asarray(x, float), np.asarray(y, float), 1)
+    return float(a), float(b)
+
+
+def synthesize(path: Path, duration_s: float) -> tuple[object, float]:
     from leonav_runtime.beacons import synth
     from leonav_runtime.beacons.predict import Site
     from leonav_runtime.orbits import load_elements
 
-    elements = load_elements(TLE)
+    cfg = synth.SynthConfig(duration_s=duration_s, sample_rate_hz=2.4e6, cn0_dbhz=38.0, n_satellites=6, seed=11,
+                            tones_per_satellite=TONES, full_comb_in_band=False)
+    t0 = time.process_time()
+    _, truth = synth.write_synthetic_capture(path, load_elements(TLE), Site.from_degrees(*SITE_DEG), START, cfg)
+    return truth, time.process_time() - t0
+
+
+def startup_and_real_time(durations: list[float], repeat: int) -> None:
+    """Command and in-process CPU per capture length; fixed cost, cost per second, real-time factor."""
+    _quiet()
+    load = os.getloadavg()
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "bench.cu8"
-        cfg = synth.SynthConfig(duration_s=20.0, sample_rate_hz=2.4e6, cn0_dbhz=38.0, n_satellites=6, seed=11,
-                                tones_per_satellite=TONES, full_comb_in_band=False)
-        t0 = time.perf_counter()
-        _, truth = synth.write_synthetic_capture(path, elements, Site.from_degrees(*SITE_DEG), START, cfg)
-        t_synth = time.perf_counter() - t0
-        out = subprocess.run([sys.executable, __file__, "--child", str(path)], capture_output=True, text=True, check=True)
-        r = json.loads(out.stdout.strip().splitlines()[-1])
-    print(f"full-rate capture (RTL-SDR cu8, 6 satellites x {TONES} tones at 38 dB-Hz, LO drift 0.3 Hz/s)")
-    print(f"  capture: {r['duration_s']:.1f} s at 2.4 MS/s, {r['bytes'] / 1e6:.0f} MB (synthesized in {t_synth:.1f} s)")
-    print(f"  processing time {r['seconds']:.2f} s  vs capture duration {r['duration_s']:.1f} s  "
-          f"(ratio {r['seconds'] / r['duration_s']:.2f}x real time; budget 20 s)")
-    print(f"  peak RSS {r['peak_rss_mb']:.0f} MB (budget 1024 MB; capture file {r['bytes'] / 1e6:.0f} MB)")
-    print(f"  ridges {r['counts']}, |delta alpha| {r['residual']}")
-    print(f"  truth: {list(map(int, truth.norad_ids))}; LO offset {-truth.lo_err_hz[np.searchsorted(truth.t_grid_s, 0)]:.1f} Hz "
-          f"(estimated {r['lo']['offset_hz']:.1f}), drift -0.3 Hz/s (estimated {r['lo']['drift_hz_s']:.3f}, "
-          f"removed: {r['lo']['drift_removed']})")
+        tmp = Path(tmp)
+        env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+        env["PYTHONPYCACHEPREFIX"] = str(tmp / "pyc")
+        caps = {}
+        for d in durations:
+            caps[d] = tmp / f"c{d:g}.cu8"
+            truth, t_synth = synthesize(caps[d], d)
+            print(f"capture {d:g} s at 2.4 MS/s: {caps[d].stat().st_size / 1e6:.0f} MB cu8, 6 satellites x {TONES} "
+                  f"tone(s) at 38 dB-Hz, LO drift 0.3 Hz/s (synthesized in {t_synth:.1f} s CPU, not timed)")
+        leonav = [sys.executable, "-m", "leonav_runtime.cli", "beacons"]
+        tle = ["--tle", str(TLE)]
+        _timed(leonav + [str(caps[durations[0]])] + tle + ["--out", str(tmp / "warm")], env)  # writes the .pyc
+        rows = {}
+        for d in durations:
+            r = {"cmd": [], "cmd_fig": [], "inproc": []}
+            for k in range(repeat):
+                r["cmd"].append(_timed(leonav + [str(caps[d])] + tle + ["--no-figures", "--out", str(tmp / f"n{d}")], env))
+                r["cmd_fig"].append(_timed(leonav + [str(caps[d])] + tle + ["--out", str(tmp / f"f{d}")], env))
+                ip = _timed([sys.executable, __file__, "--child", str(caps[d]), str(tmp / f"i{d}")], env)
+                ip.update(json.loads(ip["out"].strip().splitlines()[-1]))
+                r["inproc"].append(ip)
+            rows[d] = {k: _best(v) for k, v in r.items()}
+            same = all((tmp / f"n{d}" / f).read_bytes() == (tmp / f"f{d}" / f).read_bytes()
+                       for f in ("associations.csv", "doppler_rate_measurements.csv"))
+            rows[d]["same"] = same and not (tmp / f"n{d}" / "waterfall.png").exists()
+        cold = _timed(leonav + [str(caps[durations[0]])] + tle + ["--no-figures", "--out", str(tmp / "cold")],
+                      {**env, "PYTHONDONTWRITEBYTECODE": "1", "PYTHONPYCACHEPREFIX": str(tmp / "empty")})
+    print(f"\nCPU seconds (user + system, all threads; best of {repeat}), load average at start "
+          f"{load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f} on {os.cpu_count()} cores")
+    print(" capture s | command --no-figures: CPU  wall  RSS MB  x real time (CPU, wall) | with figure: CPU  RSS MB "
+          "x real time | in-process: imports elements process write figure | --no-figures same CSVs, no PNG")
+    for d, r in rows.items():
+        c, f, i = r["cmd"], r["cmd_fig"], r["inproc"]
+        print(f" {d:9g} | {c['cpu']:26.2f} {c['wall']:5.2f} {c['peak_rss_mb']:7.0f} {d / c['cpu']:8.1f}x "
+              f"{d / c['wall']:5.1f}x | {f['cpu']:16.2f} {f['peak_rss_mb']:7.0f} {d / f['cpu']:6.1f}x | "
+              f"{i['imports']:19.2f} {i['elements']:8.2f} {i['process']:7.2f} {i['write']:5.2f} {i['figure']:6.2f}"
+              f" | {r['same']}")
+    ds = list(rows)
+    if len(ds) >= 2:
+        print("\nleast-squares line CPU = fixed + per_second x capture seconds:")
+        for label, key, sub in (("command --no-figures", "cmd", "cpu"), ("command with figure", "cmd_fig", "cpu"),
+                                ("in-process, no figure", "inproc", None)):
+            y = [rows[d][key][sub] if sub else rows[d][key]["cpu"] - rows[d][key]["figure"] for d in ds]
+            a, b = _line(ds, y)
+            print(f"  {label:22s} fixed {a:5.2f} s, {b * 1e3:5.1f} ms CPU per second of capture "
+                  f"({1 / b:5.1f}x real time once started)")
+        i0 = rows[ds[0]]["inproc"]
+        print(f"  fixed parts in-process: imports {i0['imports']:.2f} s, element sets (9,543 TLEs) "
+              f"{i0['elements']:.2f} s; the figure {np.mean([rows[d]['inproc']['figure'] for d in ds]):.2f} s")
+    print(f"  every module compiled from source (PYTHONDONTWRITEBYTECODE=1), {durations[0]:g} s capture: "
+          f"{cold['cpu']:.2f} s CPU against {rows[durations[0]]['cmd']['cpu']:.2f} s with cached bytecode")
+    rss = ", ".join(f"{rows[d]['cmd']['peak_rss_mb']:.0f}" for d in ds)
+    print(f"  peak RSS {rss} MB for {', '.join(f'{d:g}' for d in ds)} s captures (command, --no-figures); "
+          f"ridges of the longest: {rows[max(rows)]['inproc']['counts']}")
 
 
 def snr_table(trials: int = 10) -> None:
@@ -174,17 +271,20 @@ def lo_table(trials: int = 20) -> None:
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--child", metavar="CAPTURE", help=argparse.SUPPRESS)
+    ap.add_argument("--child", nargs=2, metavar=("CAPTURE", "OUT"), help=argparse.SUPPRESS)
+    ap.add_argument("--durations", type=float, nargs="+", default=[5.0, 20.0, 60.0], metavar="S",
+                    help="capture lengths at 2.4 MS/s, s (default 5 20 60; at least 4.2)")
+    ap.add_argument("--repeat", type=int, default=1, help="runs per capture and way; the best is shown")
     ap.add_argument("--snr-table", action="store_true", help="also print accuracy versus C/N0")
     ap.add_argument("--lo-table", action="store_true", help="also print the joint LO fit table")
-    ap.add_argument("--tones", type=int, default=1, help="tones per satellite in the full-rate capture")
+    ap.add_argument("--tones", type=int, default=1, help="tones per satellite in the full-rate captures")
     ap.add_argument("--trials", type=int, default=10)
     a = ap.parse_args()
     if a.child:
-        child_process(a.child)
+        child_process(a.child[0], a.child[1], figures=True)
     else:
         TONES = a.tones
-        full_rate()
+        startup_and_real_time(sorted(a.durations), max(1, a.repeat))
         if a.lo_table:
             lo_table(2 * a.trials)
         if a.snr_table:

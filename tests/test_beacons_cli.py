@@ -42,3 +42,51 @@ def test_no_tle_is_a_clear_error(tmp_path, capsys):
     cap.write_bytes(bytes(4096))
     assert main(["beacons", str(cap), "--out", str(tmp_path / "o")]) == 2
     assert "--tle" in capsys.readouterr().err
+
+
+def _simulated_capture(tmp_path, tle) -> list[str]:
+    """A short synthetic capture (5 s at 500 kS/s, 3 satellites) written once; the CLI args to process it."""
+    cap = tmp_path / "sim.cu8"
+    assert main(["beacons", str(cap), "--simulate", "--sim-format", "cu8", "--tle", str(tle), "--duration", "5",
+                 "--sim-rate", "500e3", "--band", "500e3", "--n-sats", "3", "--cn0", "38",
+                 "--start", "2026-02-23T06:00:00Z", "--out", str(tmp_path / "sim")]) == 0
+    return ["beacons", str(cap), "--tle", str(tle), "--band", "500e3"]
+
+
+def test_no_figures_writes_the_same_numbers_and_no_png(tmp_path, capsys):
+    args = _simulated_capture(tmp_path, shared_file("tle/starlink_2026-02-23.txt"))
+    assert main(args + ["--out", str(tmp_path / "fig")]) == 0
+    assert main(args + ["--no-figures", "--out", str(tmp_path / "nofig")]) == 0
+    fig, nofig = tmp_path / "fig", tmp_path / "nofig"
+    assert (fig / "waterfall.png").stat().st_size > 0
+    assert not list(nofig.glob("*.png"))
+    for name in ("associations.csv", "doppler_rate_measurements.csv", "doppler_rate_measurements.columns.txt"):
+        assert (fig / name).read_bytes() == (nofig / name).read_bytes(), name
+    s_fig, s_nofig = (json.loads((d / "summary.json").read_text()) for d in (fig, nofig))
+    s_fig.pop("provenance"), s_nofig.pop("provenance")  # the command lines differ
+    assert s_fig == s_nofig and s_fig["counts"]["associated"] == 3
+
+
+_MODULES_AFTER = """
+import sys
+from leonav_runtime.cli import main
+rc = main(sys.argv[1:])
+print(rc, "matplotlib" in sys.modules, "casadi" in sys.modules)
+"""
+
+
+def test_the_beacons_path_imports_matplotlib_only_to_draw_the_figure(tmp_path):
+    """In a fresh interpreter: the whole command with --no-figures never imports matplotlib (nor
+    casadi); the same command drawing the figure does, so the check can see it."""
+    import subprocess
+    import sys
+
+    args = _simulated_capture(tmp_path, shared_file("tle/starlink_2026-02-23.txt"))
+    seen = {}
+    for flag in ("--no-figures", None):
+        argv = args + ["--out", str(tmp_path / f"o{flag}")] + ([flag] if flag else [])
+        out = subprocess.run([sys.executable, "-c", _MODULES_AFTER, *argv], capture_output=True, text=True,
+                             check=True).stdout.split()
+        seen[flag] = out[-3:]
+    assert seen["--no-figures"] == ["0", "False", "False"]
+    assert seen[None] == ["0", "True", "False"]
