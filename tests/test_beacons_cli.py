@@ -90,3 +90,23 @@ def test_the_beacons_path_imports_matplotlib_only_to_draw_the_figure(tmp_path):
         seen[flag] = out[-3:]
     assert seen["--no-figures"] == ["0", "False", "False"]
     assert seen[None] == ["0", "True", "False"]
+
+
+def test_the_numbers_are_written_before_the_figure(tmp_path, monkeypatch, capsys):
+    """A figure that cannot be drawn (here: the disk fills up in savefig) leaves the CSV files
+    and summary.json complete: they are written first."""
+    from leonav_runtime.beacons import pipeline
+
+    args = _simulated_capture(tmp_path, shared_file("tle/starlink_2026-02-23.txt"))
+    out = tmp_path / "o"
+
+    def full_disk(res, path):
+        assert (out / "summary.json").is_file() and (out / "doppler_rate_measurements.csv").is_file()
+        raise OSError(28, "No space left on device", str(path))
+
+    monkeypatch.setattr(pipeline, "plot_waterfall", full_disk)
+    assert main(args + ["--out", str(out)]) == 3
+    assert "waterfall.png: no space left on the device" in capsys.readouterr().err   # one line naming the file
+    assert json.loads((out / "summary.json").read_text())["counts"]["associated"] == 3
+    assert len(list(csv.DictReader((out / "doppler_rate_measurements.csv").open()))) > 0
+    assert not (out / "waterfall.png").exists()
