@@ -45,10 +45,11 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1]   # leonav_runtime/
 GEN_DIR = Path(os.environ.get("LEONAV_GEN_DIR") or PACKAGE_DIR / "gen")
 CSRC_DIR = PACKAGE_DIR / "csrc"
 
-# Portable and IEEE-exact (benchmarks/bench_cflags.py, docs/performance.md): -O3 and no errno or
-# trap bookkeeping change no result; no fused multiply-add keeps x86 and the aarch64 Pi bit for
-# bit (GCC's default in ISO C mode, stated for clang). No -march=native, no -ffast-math.
-CFLAGS: tuple[str, ...] = ("-O3", "-fno-math-errno", "-fno-trapping-math", "-ffp-contract=off", "-std=c99", "-fPIC")
+# Portable and IEEE-exact. No fused multiply-add keeps x86 and the aarch64 Pi bit for bit (GCC's
+# default in ISO C mode, stated for clang, whose default differs). -O3, -fno-math-errno, LTO and
+# per-function flags measured no faster (benchmarks/bench_cflags.py, docs/performance.md); no
+# -march=native (opt in with LEONAV_CFLAGS), no -ffast-math.
+CFLAGS: tuple[str, ...] = ("-O2", "-ffp-contract=off", "-std=c99", "-fPIC")
 LDFLAGS: tuple[str, ...] = ("-shared",)
 LIBS: tuple[str, ...] = ("-lm",)
 
