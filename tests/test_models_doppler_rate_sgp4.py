@@ -28,9 +28,9 @@ def test_doppler_rate_matches_second_difference_of_skyfield_range(shared_data):
     orbits = pytest.importorskip("leonav_runtime.orbits", reason="needs leonav_runtime.orbits (other engineer)")
     api = pytest.importorskip("skyfield.api")
     from skyfield.framelib import itrs
-    from leonav.codegen.functions import build_functions
+    from tests import symbolic
 
-    fns = {f.name(): f for f in build_functions()}
+    fns = symbolic.FNS
     tle_path = shared_data / "tle" / "starlink_2026-02-23.txt"
     if not tle_path.exists():
         pytest.skip(f"needs {tle_path}")

@@ -12,9 +12,9 @@ from leonav.models.clock import TCXO
 from leonav.models.imu import TACTICAL, WT901
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.core.params import build_params
-from leonav.codegen.functions import build_functions
+from tests import symbolic
 
-FNS = {f.name(): f for f in build_functions()}
+FNS = symbolic.FNS  # built on first use, once per process
 
 
 def _num(expr_fn, *args):

@@ -4,13 +4,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from leonav.codegen.functions import build_functions
+from tests import symbolic
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.core.params import build_params
 from leonav.models.state import MEASUREMENTS, NDX
 from tests.registry_reference import fd_steps, random_state
 
-FNS = {f.name(): f for f in build_functions()}
+FNS = symbolic.FNS  # built on first use, once per process
 P_VEC = np.array(build_params(np.radians(43.0848638), np.radians(-77.6786127), 170.0,
                              lever_b_m=(0.54, -0.22, 1.16)))   # non-zero: the fix Jacobian's attitude terms
 

@@ -13,14 +13,14 @@ import math
 
 import numpy as np
 
-from leonav.codegen.functions import build_functions
+from tests import symbolic
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.gen.profiles import WT901
 from leonav_runtime.core.params import build_params
 from leonav.models.state import NDX
 from tests.registry_reference import prior_sd
 
-FNS = {f.name(): f for f in build_functions()}
+FNS = symbolic.FNS  # built on first use, once per process
 
 
 def test_information_recursion_equals_kalman_covariance():

@@ -145,9 +145,13 @@ def test_paper_findings_only_for_a_scenario_that_declares_itself_the_papers(tmp_
     from leonav_runtime.scenarios.load import load_scenario
     from leonav_runtime.sweep.run import run_sweep, summary_table
 
+    from leonav_runtime.scenarios.overrides import apply_overrides
+
     paper, maritime = load_scenario("paper"), load_scenario("maritime-outage")
     assert paper.raw["monte_carlo"]["paper_findings"] and not maritime.raw["monte_carlo"].get("paper_findings")
-    res = run_sweep(maritime, tmp_path, trials=2, workers=1, progress=False)
+    # the two modes its outage check compares, at one count, in memory: what the verdicts depend on
+    maritime, _ = apply_overrides(maritime, modes=["gps+imu", "gps+leo-alpha+imu"], counts=[45])
+    res = run_sweep(maritime, None, trials=2, workers=1, progress=False)
     assert res.findings and {f["kind"] for f in res.findings} == {"scenario"}
     assert "the paper's findings" not in summary_table(maritime, res)
 
