@@ -88,15 +88,16 @@ def test_aarch64_program_and_library_equal_the_x86_run_bit_for_bit(exported, x86
     # the program as the Makefile builds it for a 64-bit Pi
     env = os.environ | {"QEMU_LD_PREFIX": str(SYSROOT)}
     _run(["qemu-aarch64", str(pi_program(CROSS)), records, init, str(tmp_path / "arm.csv")], env)
-    # the library as the runtime builds it (leonav_runtime.core.compiled: same flags), the program linked to it
+    # the library as the runtime builds it (leonav_runtime.core.compiled: the Makefile's flags, so
+    # the generated functions' objects are the Makefile's; the driver compiled the same way), the
+    # program linked to it
     from leonav_runtime.core.compiled import CFLAGS
 
     flags = [*CFLAGS, f"-I{GEN}", f"-I{CSRC}"]
-    objs = []
-    for src in (*sorted((GEN / "c").glob("*.c")), CSRC / "leonav_driver.c"):
-        obj = tmp_path / (src.stem + ".o")
-        _run([CROSS, *flags, "-c", str(src), "-o", str(obj)])
-        objs.append(str(obj))
+    objs = sorted(str(o) for o in (pi_program(CROSS).parent / "gen").glob("*.o"))
+    assert len(objs) == len(list((GEN / "c").glob("*.c")))
+    _run([CROSS, *flags, "-c", str(CSRC / "leonav_driver.c"), "-o", str(tmp_path / "leonav_driver.o")])
+    objs.append(str(tmp_path / "leonav_driver.o"))
     _run([CROSS, "-shared", "-o", str(tmp_path / "libleonav.so"), *objs, "-lm"])
     _run([CROSS, *(f for f in CFLAGS if f != "-fPIC"), f"-I{GEN}", f"-I{CSRC}", "-o", str(tmp_path / "filter_lib"),
           str(PI / "leonav_filter.c"), f"-L{tmp_path}", "-lleonav", "-lm"])
@@ -105,3 +106,11 @@ def test_aarch64_program_and_library_equal_the_x86_run_bit_for_bit(exported, x86
     ref = (tmp_path / "x86.csv").read_bytes()
     assert (tmp_path / "arm.csv").read_bytes() == ref
     assert (tmp_path / "arm_lib.csv").read_bytes() == ref
+
+
+def test_the_makefile_builds_with_the_runtimes_flags():
+    """The Pi program and the runtime's library come from the same objects only if the flags agree."""
+    from leonav_runtime.core.compiled import CFLAGS
+
+    line = next(l for l in (PI / "Makefile").read_text().splitlines() if l.startswith("CFLAGS"))
+    assert line.split("?=", 1)[1].split() == list(CFLAGS)
