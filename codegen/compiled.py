@@ -8,6 +8,7 @@ reads sparsity patterns as CasADi's own 64-bit integer, so this build defines
 """
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import os
 import shutil
@@ -39,6 +40,15 @@ def compile_shared(gen_dir: str | Path | None = None, cflags: Sequence[str] = ("
     if so_path.exists():
         return so_path
     folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / ".lock", "a") as lock:  # processes starting at once: one compiles, the others wait
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not so_path.exists():
+            _compile_into(folder, c_files, flags, so_path)
+    return so_path
+
+
+def _compile_into(folder: Path, c_files: list[Path], flags: list[str], so_path: Path) -> None:
+    """Compile every generated function in parallel and link `so_path` (renamed into place)."""
     compiler = os.environ.get("CC") or shutil.which("cc") or "gcc"
     objects = [folder / f"{path.stem}.{os.getpid()}.o" for path in c_files]
 
@@ -53,7 +63,6 @@ def compile_shared(gen_dir: str | Path | None = None, cflags: Sequence[str] = ("
     for obj in objects:
         obj.unlink()
     tmp_so.replace(so_path)  # atomic: concurrent test processes never see a partial file
-    return so_path
 
 
 def external(name: str, so_path: str | Path | None = None) -> ca.Function:

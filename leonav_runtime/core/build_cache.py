@@ -17,6 +17,7 @@ loads: each build records its library under a key without the compiler
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
 import shlex
@@ -63,6 +64,29 @@ def atomic_output(target: Path, produce: Callable[[Path], None]) -> None:
     finally:
         if os.path.lexists(tmp):
             os.unlink(tmp)
+
+
+@contextlib.contextmanager
+def build_lock(out: Path):
+    """Hold an exclusive lock on the cache folder while building into it.
+
+    Processes that start at once on an empty cache (xdist workers, several commands) would
+    otherwise all compile the same objects: one builds, the others wait and then find them.
+    Where the lock cannot be taken (no fcntl, a cache that cannot be written) it is skipped.
+    """
+    try:
+        import fcntl
+
+        fh = open(out / ".build.lock", "a")
+    except (ImportError, OSError):
+        yield
+        return
+    with fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
 
 
 def prepare_writes(out: Path) -> None:

@@ -34,8 +34,9 @@ from types import ModuleType
 
 import numpy as np
 
-from leonav_runtime.core.build_cache import (CompilerError, atomic_output, cache_dir, load_library, prebuilt_library,
-                                         prepare_writes, record_prebuilt, split_setting, version_line)
+from leonav_runtime.core.build_cache import (CompilerError, atomic_output, build_lock, cache_dir, load_library,
+                                         prebuilt_library, prepare_writes, record_prebuilt, split_setting,
+                                         version_line)
 from leonav_runtime.core import layout_check
 from leonav_runtime.core.layout_check import LayoutMismatchError, check_layout, expected_shapes, measurement_ids  # noqa: F401
 from leonav_runtime.gen import state_layout as _codes  # driver return codes (same in every layout)
@@ -191,18 +192,20 @@ def build(gen_dir: Path = GEN_DIR, csrc_dir: Path = CSRC_DIR, out_dir: Path | No
         atomic_output(obj, lambda tmp: _run_compiler(shlex.split(cc) + flags + includes + ["-c", str(src), "-o", str(tmp)]))
         return src.name
 
-    missing = [(s, o) for s, o in zip(srcs, objects) if not o.exists()]
-    if missing or not (out / f"libleonav-{library_key(keys, list(LDFLAGS) + list(LIBS))[:20]}.so").exists():
-        prepare_writes(out)
-    if missing:  # the generated file dominates; compile the objects in parallel
-        with ThreadPoolExecutor(max_workers=min(len(missing), os.cpu_count() or 1)) as pool:
-            info.compiled_objects = list(pool.map(compile_one, missing))
     key = library_key(keys, list(LDFLAGS) + list(LIBS))
     library = out / f"libleonav-{key[:20]}.so"
-    if not library.exists():
-        atomic_output(library, lambda tmp: _run_compiler(
-            shlex.split(cc) + list(LDFLAGS) + flags + [str(o) for o in objects] + ["-o", str(tmp)] + list(LIBS)))
-        info.linked = True
+    missing = [(s, o) for s, o in zip(srcs, objects) if not o.exists()]
+    if missing or not library.exists():
+        prepare_writes(out)
+        with build_lock(out):  # one builder at a time; the others then find its objects
+            missing = [(s, o) for s, o in zip(srcs, objects) if not o.exists()]
+            if missing:  # the generated file dominates; compile the objects in parallel
+                with ThreadPoolExecutor(max_workers=min(len(missing), os.cpu_count() or 1)) as pool:
+                    info.compiled_objects = list(pool.map(compile_one, missing))
+            if not library.exists():
+                atomic_output(library, lambda tmp: _run_compiler(
+                    shlex.split(cc) + list(LDFLAGS) + flags + [str(o) for o in objects] + ["-o", str(tmp)] + list(LIBS)))
+                info.linked = True
     info.library, info.key, info.objects = library, key, objects
     info.compile_time_s = time.perf_counter() - start if (missing or info.linked) else 0.0
     record_prebuilt(out, _sources_key(srcs, include_dirs, flags), library)
