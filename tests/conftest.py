@@ -38,6 +38,13 @@ def shared_data() -> Path:
     return SHARED_DATA
 
 
+def pytest_collection_modifyitems(config, items) -> None:
+    """Tests marked slow (the longest, 10-40 s each: paced live runs, subprocess pipelines) run
+    first, so the workers start them at once instead of one of them trailing at the end of the
+    run; the order of the others is kept."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
 def pytest_xdist_auto_num_workers(config) -> int:
     """Workers for `pytest -n auto`: two per core (at most 8). About a third of the suite's
     wall time is waiting (live navigation paced at the recorded rate, subprocesses, serial

@@ -60,6 +60,7 @@ def _trial(elements, tmp_path, seed, cn0, duration=6.0, fs=400e3, **kw):
     return res, truth
 
 
+@pytest.mark.slow
 def test_association_accuracy_over_20_trials(elements, tmp_path):
     """>= 95 % of ridges identified, five tones per capture at 35 dB-Hz, median |delta alpha| <= 0.8 Hz/s."""
     n_ridges = n_right = 0

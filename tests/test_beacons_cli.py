@@ -4,6 +4,8 @@ from __future__ import annotations
 import csv
 import json
 
+import pytest
+
 from leonav_runtime.cli import main
 from tests.conftest import shared_file
 
@@ -75,6 +77,7 @@ print(rc, "matplotlib" in sys.modules, "casadi" in sys.modules)
 """
 
 
+@pytest.mark.slow
 def test_the_beacons_path_imports_matplotlib_only_to_draw_the_figure(tmp_path):
     """In a fresh interpreter: the whole command with --no-figures never imports matplotlib (nor
     casadi); the same command drawing the figure does, so the check can see it."""

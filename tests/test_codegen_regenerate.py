@@ -6,7 +6,14 @@ import subprocess
 import sys
 from pathlib import Path
 
-from leonav.codegen.generate import default_output_dir, diff_against, existing_files, generated_files
+import pytest
+from leonav.codegen.generate import (
+    default_output_dir,
+    diff_against,
+    existing_files,
+    generated_files,
+)
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -18,6 +25,7 @@ def test_committed_generated_code_is_up_to_date():
     )
 
 
+@pytest.mark.slow
 def test_check_flag_fails_on_a_diff(tmp_path):
     out = tmp_path / "gen"
     run = lambda *a: subprocess.run([sys.executable, "-m", "leonav.codegen", *a], cwd=REPO_ROOT,  # noqa: E731
@@ -42,6 +50,7 @@ def test_check_flag_fails_on_a_diff(tmp_path):
     assert run("--out", str(out), "--check").returncode == 0
 
 
+@pytest.mark.slow
 def test_a_model_change_rewrites_only_the_functions_it_reaches(monkeypatch):
     """One file per generated function: changing one observable's h changes that observable's
     h, update and orbit Jacobian (and the manifest), nothing else; its information add calls

@@ -93,6 +93,7 @@ def static_imu(obs_epochs: np.ndarray, site_ecef, epoch_utc, rate_hz: float = 2.
                                     u[:, L.U_DVEL_B_SLICE], sim["ahrs_rpy_rad"])
 
 
+@pytest.mark.slow
 def test_python_api_pseudorange_imu_on_geonet_hour_agrees_with_rnx2rtkp():
     """3040, the whole hour (120 epochs), Klobuchar + Saastamoinen, 10 deg, through the API."""
     import datetime as dt

@@ -101,6 +101,7 @@ def _long_capture(path, pieces: int):
     return path
 
 
+@pytest.mark.slow
 def test_memory_does_not_grow_with_capture_length(tmp_path):
     # the waterfall kept every STFT row: ~1.5 MB per capture second here (35 MB at 8 s, 71 MB
     # at 32 s); now it is averaged as it streams (at most 800 rows, 6.5 MB)

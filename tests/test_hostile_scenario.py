@@ -163,6 +163,7 @@ def test_sweep_size_options_are_checked_before_work(tmp_path, capsys, monkeypatc
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 def test_the_estimate_covers_a_measured_run(tmp_path):
     """Peak allocation of preparing the paper scenario (GPS + Starlink, 60 s) and one trial,
     measured in a fresh process, is below the estimate, and the estimate within 4x of it."""

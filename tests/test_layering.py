@@ -84,6 +84,7 @@ def _run_blocked(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=600)
 
 
+@pytest.mark.slow
 def test_beacons_and_replay_run_with_casadi_unimportable(tmp_path):
     """`leonav beacons --simulate` and `leonav session synth` + `leonav replay` end to end
     with casadi and models made unimportable."""

@@ -69,6 +69,7 @@ def test_fast_playback_of_the_leo_modes_within_the_replays_sigma(session, mode):
     assert n > 80 and rms < sigma, (rms, sigma)
 
 
+@pytest.mark.slow
 def test_live_path_with_the_capture_agrees_with_the_replay(session):
     from leonav_runtime.nav.run import run_nav
 

@@ -57,6 +57,7 @@ def test_the_readme_example_is_the_documented_one():
     assert commands == [c for c, _ in documented_runs()][:2]
 
 
+@pytest.mark.slow
 def test_the_documented_session_replay_and_nav_output(tmp_path):
     runs = documented_runs()
     assert [c.split()[1] for c, _ in runs[:3]] == ["session", "replay", "nav"], runs

@@ -63,6 +63,7 @@ def _trajectory(out: Path) -> list[dict]:
         return list(csv.DictReader(fh))
 
 
+@pytest.mark.slow
 def test_gnss_unplugged_after_garbage_goes_on_with_the_imu(session):
     from leonav.hardware.session import decode_session
 
@@ -83,6 +84,7 @@ def test_gnss_unplugged_after_garbage_goes_on_with_the_imu(session):
     assert rec.gnss_summary["rejected"].get("junk_bytes", 0) > 0 and len(rec.imu_samples) > 70
 
 
+@pytest.mark.slow
 def test_imu_unplugged_stops_predicting_and_says_so(session):
     out = session / "imu_lost"
     res = _run_with_ptys(session, out, {"imu": 4.0})

@@ -118,6 +118,7 @@ def _nmea_client(port: int, got: list, stop: threading.Event) -> None:
     got.append(buf)
 
 
+@pytest.mark.slow
 def test_live_over_ptys_at_the_recorded_pace_agrees_with_the_replay(session):
     import os
 

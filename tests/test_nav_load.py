@@ -39,6 +39,7 @@ def stormed(tmp_path_factory):
     return code, nav, audit, text, seen, base, port
 
 
+@pytest.mark.slow
 def test_navigation_completes_under_1000_clients_and_256_descriptors(stormed):
     code, nav, _, text, seen, *_ = stormed
     assert code == 0 and nav, text

@@ -31,6 +31,7 @@ def session(tmp_path_factory):
     return folder
 
 
+@pytest.mark.slow
 def test_a_clean_end_of_a_realtime_playback_records_no_device_error(session):
     child = NavChild(session, session.parent / "rt")
     child.wait_serving()

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from tests.conftest import shared_file
 from tests.test_nav_live import nav_options
 
@@ -25,6 +27,7 @@ def _nmea_epochs(text: str) -> list[bytes]:
     return epochs
 
 
+@pytest.mark.slow
 def test_live_over_ptys_with_real_gnss_and_imu_logs(tmp_path):
     from leonav_runtime.nav import sources
     from leonav_runtime.nav.run import run_nav

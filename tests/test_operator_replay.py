@@ -64,6 +64,7 @@ def _metrics(out):
     return json.loads((out / "metrics.json").read_text())
 
 
+@pytest.mark.slow
 def test_replay_with_operator_ephemerides(session, tmp_path, capsys):
     es = _starlink()
     es = es.select(np.flatnonzero(np.isin(es.norad_ids, session.sdr_info["norad_ids"])))   # the capture's

@@ -78,6 +78,7 @@ def test_export_records_runs_in_the_pi_program_as_in_python(exported, x86_progra
     np.testing.assert_array_equal([int(r["status"]) for r in rows], ref.status)
 
 
+@pytest.mark.slow
 def test_aarch64_program_and_library_equal_the_x86_run_bit_for_bit(exported, x86_program, tmp_path):
     _need(CROSS, "qemu-aarch64")
     if not SYSROOT.is_dir():

@@ -140,6 +140,7 @@ def test_outage_end_error_reads_the_last_epoch_when_the_outage_reaches_the_end()
     assert outage_end_error(summary, 20.0, t) == float(t.size - 1)    # lost to the end: the final epoch
 
 
+@pytest.mark.slow
 def test_paper_findings_only_for_a_scenario_that_declares_itself_the_papers(tmp_path):
     """maritime-outage (like a user's own scenario) prints its own checks, not the paper's verdicts."""
     from leonav_runtime.scenarios.load import load_scenario
