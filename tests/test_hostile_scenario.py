@@ -20,7 +20,6 @@ import numpy as np
 import pytest
 
 from leonav_runtime.common import output
-from leonav_runtime.scenarios import load as scenario
 from leonav_runtime.cli import EXIT_BAD_INPUT, main
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.scenarios.load import BUILTIN_DIR, load_scenario, scenario_from_dict

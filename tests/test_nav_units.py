@@ -9,7 +9,7 @@ import datetime as dt
 import numpy as np
 import pytest
 
-from leonav.hardware.records import GnssFix, GnssTimeTag
+from leonav.hardware.records import GnssFix
 
 
 @pytest.fixture(scope="module")
@@ -142,7 +142,7 @@ def test_streaming_time_map_ends_at_the_sessions_map(tmp_path):
 
 def _gnss_epoch(t: dt.datetime, gst: bool, t_mono: float):
     from leonav.hardware.gnss.nmea import parse_sentence
-    from leonav.hardware.gnss.nmea_write import gga, gst as gst_s, rmc
+    from leonav.hardware.gnss.nmea_write import gst as gst_s, rmc
 
     recs = [parse_sentence(rmc(t, 43.0, -77.0, 0.0, 0.0).strip(), t_mono)]
     recs.append(GnssFix(t_mono + 0.02, "GGA", t, 0.75, -1.34, 170.0, 135.5, 1, 12, 0.8))

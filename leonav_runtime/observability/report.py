@@ -3,10 +3,7 @@ from __future__ import annotations
 
 import math
 import textwrap
-import re
-from dataclasses import dataclass
 from pathlib import Path
-from types import ModuleType
 from typing import Mapping, Sequence
 
 import numpy as np

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from leonav_runtime.core import model, navfuncs
+from leonav_runtime.core import navfuncs
 from leonav_runtime.gen.state_layout import AUX_F_B_SLICE
 from leonav_runtime.inputs import ImuTable, LocalSensorTable, Prior, assemble
 from leonav_runtime.inputs.imu import F_B_AVERAGE_S, latest_sample
@@ -101,7 +101,7 @@ def template(setup: simulate.Setup, nav: navfuncs.NavFunctions, mode: str, count
     cache = setup.__dict__.setdefault("_block_templates", {})
     if key in cache:
         return cache[key]
-    scn, L, parsed = setup.scn, nav.layout, mode_of(mode)
+    scn, parsed = setup.scn, mode_of(mode)
     n = setup.u_true.shape[0]
     dt = 1.0 / scn.imu_rate_hz
     imu = ImuTable(setup.t_imu[1:], np.full(n, dt), setup.u_true)
