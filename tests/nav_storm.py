@@ -79,6 +79,11 @@ class NavChild:
         self.port: int | None = None
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
+        # stderr in its own thread: communicate() would also read (and close) the stdout this
+        # class's reader iterates
+        self._err: list[str] = []
+        self._err_reader = threading.Thread(target=lambda: self._err.extend(self.proc.stderr), daemon=True)
+        self._err_reader.start()
 
     def _read(self) -> None:
         for line in self.proc.stdout:
@@ -91,16 +96,19 @@ class NavChild:
     def wait_serving(self, timeout_s: float = 60.0) -> int:
         if not self._port.wait(timeout_s) or self.port is None:
             self.proc.kill()
-            raise AssertionError(f"nav never said its port: {self.lines} {self.proc.stderr.read()}")
+            self._err_reader.join(timeout=5)
+            raise AssertionError(f"nav never said its port: {self.lines} {''.join(self._err)}")
         return self.port
 
     def wait(self, timeout_s: float = 60.0) -> tuple[int, dict, dict, str]:
         try:
-            _, err = self.proc.communicate(timeout=timeout_s)
+            self.proc.wait(timeout=timeout_s)
         finally:
             if self.proc.poll() is None:
                 self.proc.kill()
         self._reader.join(timeout=5)
+        self._err_reader.join(timeout=5)
+        err = "".join(self._err)
         nav = json.loads((self.out / "nav.json").read_text()) if (self.out / "nav.json").exists() else {}
         audit = json.loads(self.audit_path.read_text()) if self.audit_path.exists() else {}
         return self.proc.returncode, nav, audit, "\n".join(self.lines) + "\n" + err
