@@ -121,7 +121,7 @@ mutant("tle-04", TLE, "integer-field validation dropped",
         "    return int(text)"))
 mutant("tle-05", TLE, "Alpha-5 encoded off by 10,000", ("_ALPHA5_LETTERS[norad_id // 10000 - 10]", "_ALPHA5_LETTERS[norad_id // 10000 - 9]"))
 mutant("tle-06", TLE, "Alpha-5 length check dropped", ("or not text[1:].isdigit() or len(text) != 5:", "or not text[1:].isdigit():"))
-mutant("tle-07", TLE, "checksum ignores minus signs", ('        elif ch == "-":\n            total += 1\n', ""))
+mutant("tle-07", TLE, "checksum ignores minus signs", ('_CHECKSUM_WEIGHTS[ord("-")] = 1\n', ""))
 mutant("tle-08", TLE, "epoch year 57 read as 2057", ("year += 1900 if year >= 57 else 2000", "year += 1900 if year > 57 else 2000"))
 mutant("tle-09", TLE, "implied-exponent sign dropped", ('return -value if sign == "-" else value', "return value"))
 mutant("tle-10", TLE, "implied exponent with the wrong sign", ('(10.0 ** int(exponent or "+0"))', '(10.0 ** -int(exponent or "+0"))'))

@@ -63,15 +63,20 @@ def is_element_line(line: str) -> bool:
     return bool(_ELEMENT_LINE.match(line))
 
 
+# byte -> what it adds to the checksum: a digit its value, '-' one, anything else nothing (one
+# C-level translate + sum per line instead of a Python loop over 68 characters: a 9,500-set
+# Starlink file is parsed at every start of `leonav beacons`)
+_CHECKSUM_WEIGHTS = bytearray(256)
+for _digit in range(10):
+    _CHECKSUM_WEIGHTS[ord("0") + _digit] = _digit
+_CHECKSUM_WEIGHTS[ord("-")] = 1
+_CHECKSUM_WEIGHTS = bytes(_CHECKSUM_WEIGHTS)
+
+
 def checksum(line: str) -> int:
-    """Mod-10 checksum of columns 1-68: digits count their value, '-' counts 1."""
-    total = 0
-    for ch in line[: TLE_LINE_LENGTH - 1]:
-        if ch.isdigit():
-            total += int(ch)
-        elif ch == "-":
-            total += 1
-    return total % 10
+    """Mod-10 checksum of columns 1-68: digits count their value, '-' counts 1 (a character
+    outside ASCII counts nothing)."""
+    return sum(line[: TLE_LINE_LENGTH - 1].encode("ascii", "replace").translate(_CHECKSUM_WEIGHTS)) % 10
 
 
 def decode_catalog_number(text: str) -> int:
