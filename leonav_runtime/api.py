@@ -111,15 +111,23 @@ def run_sweep(scenario: Scenario | str | Path = "paper", *, trials: int | None =
     return out
 
 
+def _columns(rows: list[dict[str, str]]) -> dict[str, np.ndarray]:
+    """{column: float array} of CSV rows read by csv.DictReader (an empty cell is NaN)."""
+    return {key: np.array([float(r[key]) if r[key] not in ("", None) else math.nan for r in rows], float)
+            for key in (rows[0] if rows else {})}
+
+
+def _csv_rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
 def _read_columns(path: Path) -> dict[str, dict[str, np.ndarray]]:
     """{mode: {column: array}} of a replay CSV (t_s, mode, numeric columns with units)."""
-    by_mode: dict[str, dict[str, list]] = {}
-    with open(path, newline="") as fh:
-        for row in csv.DictReader(fh):
-            cols = by_mode.setdefault(row.pop("mode"), {})
-            for key, value in row.items():
-                cols.setdefault(key, []).append(float(value) if value not in ("", None) else math.nan)
-    return {m: {k: np.asarray(v, float) for k, v in cols.items()} for m, cols in by_mode.items()}
+    by_mode: dict[str, list[dict[str, str]]] = {}
+    for row in _csv_rows(path):
+        by_mode.setdefault(row.pop("mode"), []).append(row)
+    return {m: _columns(rows) for m, rows in by_mode.items()}
 
 
 def run_replay(session: str | Path, *, out_dir: str | Path | None = None, tle: Sequence[str | Path] = (),
@@ -165,10 +173,7 @@ def run_dataset(description: str | Path, *, until_s: float | None = None, outage
     with tempfile.TemporaryDirectory(prefix="leonav-run-") as tmp:
         folder = Path(out_dir) if out_dir is not None else Path(tmp)
         metrics = _run(spec, folder, t_end_s=until_s, outages=outages)
-        with open(folder / "errors.csv", newline="") as fh:
-            rows = list(csv.DictReader(fh))
-        errors = {key: np.array([float(r[key]) if r[key] not in ("", None) else math.nan for r in rows])
-                  for key in (rows[0] if rows else {})}
+        errors = _columns(_csv_rows(folder / "errors.csv"))
         return {"metrics": metrics, "errors": errors, "out_dir": None if out_dir is None else folder}
 
 

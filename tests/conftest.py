@@ -6,7 +6,6 @@ copied). Tests that need it skip with a clear reason when it is absent.
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import hashlib
 import http.server
 import os
@@ -70,8 +69,9 @@ def pi_program(cc: str = "cc") -> Path:
         digest.update(src.name.encode() + src.read_bytes())
     out = Path(tempfile.gettempdir()) / f"leonav-test-pi-{digest.hexdigest()[:16]}"
     out.mkdir(exist_ok=True)
-    with open(out / ".lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
+    from leonav_runtime.core.build_cache import build_lock
+
+    with build_lock(out):   # the runtime's build-cache lock: one builder, the others wait
         if not (out / "leonav_filter").is_file():
             run = subprocess.run(["make", "-s", f"-j{os.cpu_count() or 1}", "-C", str(PI_DIR), f"CC={cc}", f"OUT={out}"],
                                  capture_output=True, text=True, timeout=300)

@@ -121,12 +121,9 @@ def run(elements, site, start: _dt.datetime, names: list[str], cn0s: list[float]
 
 def write_results(out_dir: Path, rows: list[dict], meta: dict) -> None:
     """impairments.csv, impairments.json and impairments.png (correct fraction, |delta alpha|)."""
-    import matplotlib
+    from leonav_runtime.common import output, plot_style
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from leonav_runtime.common import output
+    plt = plot_style.pyplot(style=False)   # matplotlib's default look; a notebook keeps its backend
 
     out_dir = Path(out_dir)
     keys = list(rows[0])

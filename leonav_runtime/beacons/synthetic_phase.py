@@ -186,12 +186,6 @@ def truth_frequency(truth_t_s: np.ndarray, phase_cycles: np.ndarray) -> np.ndarr
     return np.gradient(phase_cycles, truth_t_s, axis=-1)
 
 
-def iter_phase_iq(tones: Sequence[ToneSpec], cfg: PhaseBenchConfig) -> Iterator[np.ndarray]:
-    """The capture's samples block by block (complex64); the same samples as `make_capture`."""
-    rng = np.random.default_rng(cfg.seed)
-    yield from _iter_iq(_Truth(tones, cfg, rng), rng)
-
-
 def _iter_iq(truth: _Truth, rng: np.random.Generator) -> Iterator[np.ndarray]:
     cfg, tones = truth.cfg, truth.tones
     amps = [np.sqrt(10 ** (s.cn0_dbhz / 10) / cfg.sample_rate_hz) for s in tones]

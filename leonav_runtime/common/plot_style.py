@@ -24,27 +24,31 @@ STYLE = {
 }
 
 
-def pyplot():
+_BACKEND_CHOSEN_HERE = False  # leonav selected Agg (the command line), not the user's session
+
+
+def pyplot(style: bool = True):
     """matplotlib.pyplot for leonav's figure files.
 
-    On the command line (pyplot not imported yet) it selects the headless Agg backend and the
-    shared style. Inside a user's session that already uses pyplot (a notebook, a script with
-    its own figures) the user's backend and rcParams are left as they are: switching to Agg
-    there would stop their inline figures, and the style would change their own plots. The
-    figure files are saved at DPI either way (`save`).
+    On the command line (pyplot not imported yet) it selects the headless Agg backend and, with
+    `style`, the shared style. Inside a user's session that already uses pyplot (a notebook, a
+    script with its own figures) the user's backend and rcParams are left as they are: switching
+    to Agg there would stop their inline figures, and the style would change their own plots.
+    The figure files are saved at DPI either way (`save`). Every figure module goes through
+    here (`style=False` for figures drawn in matplotlib's default look).
     """
     import sys
 
     import matplotlib
 
-    if "matplotlib.pyplot" in sys.modules:
-        import matplotlib.pyplot as plt
-
-        return plt
-    matplotlib.use("Agg")
+    global _BACKEND_CHOSEN_HERE
+    if "matplotlib.pyplot" not in sys.modules:
+        matplotlib.use("Agg")
+        _BACKEND_CHOSEN_HERE = True
     import matplotlib.pyplot as plt
 
-    plt.rcParams.update(STYLE)
+    if style and _BACKEND_CHOSEN_HERE:
+        plt.rcParams.update(STYLE)
     return plt
 
 

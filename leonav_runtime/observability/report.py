@@ -13,12 +13,9 @@ from leonav_runtime.observability.naming import *  # noqa: F401,F403
 # --- figures -----------------------------------------------------------------------------------
 
 def _pyplot():
-    import matplotlib
+    from leonav_runtime.common import plot_style
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return plot_style.pyplot(style=False)   # matplotlib's default look; a notebook keeps its backend
 
 
 def plot_singular_values(runs: Sequence[dict], path, title: str = "") -> Path:

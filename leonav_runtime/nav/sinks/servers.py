@@ -108,9 +108,7 @@ class TcpBroadcastServer:
             for conn, backlog in list(self._clients.items()):
                 backlog += data
                 try:
-                    n = conn.send(backlog)
-                    del backlog[:n]
-                    self.counts["bytes_sent"] += n
+                    self._send_some(conn, backlog)
                 except BlockingIOError:
                     pass
                 except OSError:
@@ -118,6 +116,12 @@ class TcpBroadcastServer:
                     continue
                 if len(backlog) > self.max_backlog_bytes:
                     self._drop(conn, "clients_dropped_slow")
+
+    def _send_some(self, conn: socket.socket, backlog: bytearray) -> None:
+        """Write what `conn` takes now and remove it from `backlog` (BlockingIOError, OSError: the caller's)."""
+        n = conn.send(backlog)
+        del backlog[:n]
+        self.counts["bytes_sent"] += n
 
     def _drop(self, conn: socket.socket, reason: str) -> None:
         self._clients.pop(conn, None)
@@ -149,9 +153,7 @@ class TcpBroadcastServer:
                 for key, _ in sel.select(left):
                     conn, backlog = key.fileobj, pending[key.fileobj]
                     try:
-                        n = conn.send(backlog)
-                        del backlog[:n]
-                        self.counts["bytes_sent"] += n
+                        self._send_some(conn, backlog)
                     except BlockingIOError:
                         continue
                     except OSError:
