@@ -84,13 +84,16 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
              notes: list[str] | None = None, epoch_utc: _dt.datetime | None = None,
              origin: tuple[float, float, float] | None = None,
              gnss: GnssObservationTable | None = None, orbit_consider: OrbitConsider | None = None,
-             local: Sequence[LocalSensorTable] = (), velocity: VelocityTable | None = None) -> FilterInputs:
+             local: Sequence[LocalSensorTable] = (), velocity: VelocityTable | None = None,
+             corrections=None) -> FilterInputs:
     """Records, x0, P0 and p from sensor tables (module doc). params: (NP,) (`filter_params`);
     prior: x0/P0 given (`Prior`) or made from the data (`FirstFixPrior`); satellites: at
     most one table per observable kind; gnss: code / Doppler observations of a GNSS receiver;
     orbit_consider: satellite orbit errors added to the satellite records' R (consider term,
     Jacobian at the prior's state); local: at most one table per local sensor (barometer, ...);
-    velocity: GNSS velocity of the antenna (the VEL stream)."""
+    velocity: GNSS velocity of the antenna (the VEL stream); corrections: a base's differential
+    corrections (`inputs.corrections.DifferentialCorrections`, its epoch_unix set) applied to the
+    satellite tables it covers."""
     nav = nav or navfuncs.NavFunctions(params=params)
     notes = list(notes or [])
     imu.check()
@@ -148,7 +151,8 @@ def assemble(imu: ImuTable, params: np.ndarray, prior: Prior | FirstFixPrior, *,
             # receiver acceleration input: the specific force averaged up to the latest IMU sample
             f_b_avg, f_b_span_s = averaged_specific_force(imu.dvel_b, imu.dt)
             counts["f_b_average_s"] = f_b_span_s
-        out[tab.KIND] = (satellite_records(used, imu, f_b_avg, f_b_span_s, params, nav, orbit_consider, prior.x0)
+        out[tab.KIND] = (satellite_records(used, imu, f_b_avg, f_b_span_s, params, nav, orbit_consider, prior.x0,
+                                           corrections)
                          if used.t.size else np.zeros(0, records.RECORD_DTYPE))
 
     used_gnss = GnssObservationTable.empty()

@@ -129,11 +129,15 @@ def satellite_aux(table: SatelliteTable, f_b: np.ndarray, layout) -> np.ndarray:
 
 def satellite_records(table: SatelliteTable, imu: ImuTable, f_b_avg: np.ndarray, f_b_span_s: float,
                       params: np.ndarray, nav: navfuncs.NavFunctions, consider: OrbitConsider | None = None,
-                      x_rx: np.ndarray | None = None) -> np.ndarray:
+                      x_rx: np.ndarray | None = None, corrections=None) -> np.ndarray:
     """Records of a satellite table; f_b_avg, f_b_span_s: `averaged_specific_force` of `imu`;
-    consider: the orbit error's consider term added to R (Jacobian at receiver state x_rx)."""
+    consider: the orbit error's consider term added to R (Jacobian at receiver state x_rx);
+    corrections: a base's differential corrections (`corrections.DifferentialCorrections`),
+    subtracted here, the one place every source's satellite measurements pass."""
     if not table.t.size:
         return np.zeros(0, records.RECORD_DTYPE)
+    if corrections is not None:
+        table = corrections.apply(table)
     aux = satellite_aux(table, f_b_avg[latest_sample(imu, table.t)], nav.layout)
     if model.observable(table.KIND).reads_specific_force:   # the Doppler-rate's (input_noise.py)
         R = doppler_rate_variance(table.sigma, f_b_span_s, params, nav)

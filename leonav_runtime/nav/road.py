@@ -10,7 +10,8 @@
   fix epoch, `gnss_table.fix_table` rows -> `inputs.fix_records`; for every Doppler-rate
   measurement, a `DopplerRateTable` row -> `inputs.satellite_records` with the specific force
   averaged over the IMU samples up to it (`inputs.averaged_specific_force` on the last
-  `ROLLING_IMU_S` of samples). A measurement is released once an IMU sample at or after its
+  `ROLLING_IMU_S` of samples), corrected there by a base's differential corrections when given
+  (`inputs.corrections`, as every source's). A measurement is released once an IMU sample at or after its
   time has arrived (the road's rule: measurements inside the IMU span), earlier than the start
   it is dropped and counted.
 """
@@ -56,8 +57,11 @@ class RoadConfig:
 class StreamingRoad:
     """Feed `add_gnss`, `add_imu`, `add_doppler_rate`; take the filter's records with `take()`."""
 
-    def __init__(self, cfg: RoadConfig, nav: navfuncs.NavFunctions | None = None) -> None:
+    def __init__(self, cfg: RoadConfig, nav: navfuncs.NavFunctions | None = None, corrections=None) -> None:
+        """corrections: a base's differential corrections (`inputs.corrections.DifferentialCorrections`,
+        filled by `base.client.CorrectionsClient`), applied to the Doppler-rate as it is released."""
         self.cfg = cfg
+        self.corrections = corrections
         self.nav = nav or navfuncs.NavFunctions()
         self.tmap = StreamingTimeMap(cfg.gnss_baud, latency_given_s(cfg.gnss_latency_s))
         self.timing = OnlineImuTiming(cfg.imu_baud)
@@ -196,7 +200,8 @@ class StreamingRoad:
             else:
                 roll = self._roll_table()
                 f_b, span = averaged_specific_force(roll.dvel_b, roll.dt)
-                self._out.append(satellite_records(table, roll, f_b, span, self.params, self.nav))
+                self._out.append(satellite_records(table, roll, f_b, span, self.params, self.nav,
+                                                   corrections=self.corrections))
             self.counts[f"{stream}_released"] += 1
 
     @property
@@ -252,6 +257,8 @@ class StreamingRoad:
         else:
             origin = (first.lat_rad, first.lon_rad, fix_height_m(first))
         self.epoch_unix, self.origin = epoch, origin
+        if self.corrections is not None:
+            self.corrections.epoch_unix = epoch
         fixes = self._fix_table(self._pre_epochs, count=False)
         later = fixes.t >= t[0] - 0.2
         if not later.any():
