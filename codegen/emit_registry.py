@@ -29,7 +29,8 @@ def _reads(o: R.Observable) -> dict:
     ref = any(ca.depends_on(h, aux[S.AUX[n].slice]) for n in ("r_ref_ecef", "v_ref_ecef", "a_ref_ecef"))
     params = tuple(q.name for q in S.PARAMS if ca.depends_on(h, p[S.P[q.name].offset]))
     return {"reads": blocks, "reads_orbit": reads_orbit(h, aux), "reads_ref": ref,
-            "reads_specific_force": ca.depends_on(h, aux[S.AUX["f_b"].slice]), "reads_params": params}
+            "reads_specific_force": ca.depends_on(h, aux[S.AUX["f_b"].slice]), "reads_params": params,
+            "reads_interval": ca.depends_on(h, aux[S.AUX["dt_phase"].slice])}
 
 
 def streams() -> tuple[str, ...]:
@@ -53,7 +54,8 @@ def registry_py(banner: str) -> str:
              'Param = namedtuple("Param", "name offset unit default example scenario lo hi doc")',
              'Noise = namedtuple("Noise", "section key default lo hi doc")',
              'Observable = namedtuple("Observable", "kind name suffix unit source token stream table constellation '
-             'paper rate_hz noise reads reads_orbit reads_ref reads_specific_force reads_params doc")', "",
+             'paper rate_hz noise reads reads_orbit reads_ref reads_specific_force reads_params doc input_noise '
+             'reads_interval", defaults=(False, False))', "",
              "STATES = ("]
     for s in S.STATES:
         x, dx = S.X[s.name], S.DX[s.error_name]
@@ -77,7 +79,7 @@ def registry_py(banner: str) -> str:
         lines.append(f"    Observable({o.kind_id}, {o.name!r}, {o.suffix!r}, {o.unit!r}, {o.source!r}, {o.token!r}, "
                      f"{o.stream!r}, {o.table!r}, {o.constellation!r}, {o.paper!r}, {o.rate_hz!r}, {noise}, "
                      f"{r['reads']!r}, {r['reads_orbit']!r}, {r['reads_ref']!r}, {r['reads_specific_force']!r}, "
-                     f"{r['reads_params']!r}, {o.doc!r}),")
+                     f"{r['reads_params']!r}, {o.doc!r}, {o.input_noise!r}, {r['reads_interval']!r}),")
     lines += [")", "",
               f"STREAMS = {streams()!r}",
               '"""Record streams in merge order (at equal t: the IMU first, then this order)."""',

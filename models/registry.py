@@ -191,7 +191,9 @@ class Observable:
     sensor table kind it is read from; `noise`: its sigma key (None: the sigma comes with the
     data); `constellation`: the simulated satellites it uses (satellite observables);
     `paper`: one of the paper's observables; `kind_id`: its record kind, stable (a new
-    observable takes the next free one); `rate_hz`: default rate of a simulated local sensor."""
+    observable takes the next free one); `rate_hz`: default rate of a simulated local sensor;
+    `input_noise`: R is the generated `leonav_doppler_rate_variance` (the beacon's sigma plus the
+    accelerometer noise its h reads through aux f_b, models/input_noise.py), not sigma^2."""
 
     name: str
     suffix: str
@@ -208,6 +210,7 @@ class Observable:
     paper: bool = False
     dim: int = 1
     rate_hz: float = 10.0
+    input_noise: bool = False
 
 
 @dataclass(frozen=True)

@@ -109,6 +109,9 @@ AUX_BLOCKS = _blocks([
     # GNSS fix and velocity: the measurement's tag is this long after the state's time (the latest
     # IMU sample); zero for every other observable
     ("dt_tag", 1, "s", "time from the state (latest IMU sample) to the measurement's tag, >= 0"),
+    # carrier phase: the span of its time difference; zeros for every other observable
+    ("dt_phase", 1, "s", "interval of a time-differenced carrier phase, (t - dt_phase, t]"),
+    ("r_S_prev_ecef", 3, "m", "satellite position at t - dt_phase, ECEF (the same ephemeris as r_S_ecef)"),
 ])
 # IMU input u
 U_BLOCKS = _blocks([

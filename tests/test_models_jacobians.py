@@ -44,6 +44,8 @@ def _aux(rng, r_sat_m):
     aux[L.AUX_T_SOD], aux[L.AUX_IONO_SCALE], aux[L.AUX_TROPO_SCALE] = 40000.0 + 9000 * rng.random(), 1.0, 1.0
     aux[L.AUX_ISB_SELECT_SLICE] = [1.0, 0.0]
     aux[L.AUX_KLOBUCHAR_SLICE] = [1.118e-08, 1.49e-08, -5.96e-08, -5.96e-08, 8.806e04, 1.638e04, -1.966e05, -1.311e05]
+    aux[L.AUX_DT_PHASE] = 0.1   # a 10 Hz carrier-phase difference, the satellite 0.1 s earlier
+    aux[L.AUX_R_S_PREV_ECEF_SLICE] = r_s - 0.1 * v
     return aux
 
 

@@ -17,6 +17,7 @@ import pytest
 from leonav.codegen import observability as ob
 from leonav_runtime.core import compiled, model
 from leonav_runtime import observability as ro
+from leonav_runtime.gen import state_layout as L
 from leonav.models import frames
 from leonav.models import state as S
 from leonav.models.measurements import models as measurement_models
@@ -285,7 +286,7 @@ def test_command_writes_table_figures_and_json(tmp_path, capsys):
     table = [line for line in text.splitlines() if line.startswith(("mode ", ro.GNSS_FIX_MODE + " "))]
     assert table[0].split()[:6] == ["mode", "motion", "rank", "weak", "steps", "gap"] and len(table) == 3
     end = table[0].index(" rank") + len(" rank")   # the ranks right-aligned under their header
-    assert [line[:end].split()[-1] for line in table[1:]] == ["12/22", "16/22"]
+    assert [line[:end].split()[-1] for line in table[1:]] == [f"12/{L.NDX}", f"16/{L.NDX}"]
     assert "gap: sigma_r / sigma_(r+1)" in " ".join(text.split())   # the columns explained under the table
     with open(tmp_path / "structural.csv") as fh:
         rows = list(csv.DictReader(fh))

@@ -92,7 +92,8 @@ def test_analysis_matches_the_information_matrix_in_physical_units():
     np.testing.assert_allclose(out["singular_values"] ** 2, ref["eig"], rtol=1e-6, atol=1e-9 * ref["eig"].max())
     fin = out["sigma_info"] <= 10 * scales   # well-determined components (the rest: ill-conditioned inverse)
     assert fin[-1].sum() >= 6
-    np.testing.assert_allclose(out["sigma_info"][fin], ref["sigma"][fin], rtol=1e-5)
+    # two inverses of one ill-conditioned matrix (the SVD of its root against eigh): ~1e-5 apart
+    np.testing.assert_allclose(out["sigma_info"][fin], ref["sigma"][fin], rtol=1e-4)
     r = int(out["rank"][-1])
     sv = np.sqrt(np.clip(ref["eig"][-1], 0, None))
     assert out["condition_observable"][-1] == pytest.approx(sv[0] / sv[r - 1], rel=1e-3)

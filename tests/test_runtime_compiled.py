@@ -90,8 +90,8 @@ def test_layout_mismatch_is_reported():
         compiled.check_layout(lib.lib, wrong)
     wrong.NAUX -= 1
     Observable = type(wrong.MEAS_TABLE[0])
-    wrong.MEAS_TABLE = tuple(wrong.MEAS_TABLE) + (Observable(len(wrong.MEAS_TABLE), "carrier_phase", 1, "CARRIER_PHASE", "m"),)
-    with pytest.raises(compiled.LayoutMismatchError, match="leonav_h_carrier_phase: missing"):
+    wrong.MEAS_TABLE = tuple(wrong.MEAS_TABLE) + (Observable(len(wrong.MEAS_TABLE), "future_sensor", 1, "FUTURE_SENSOR", "m"),)
+    with pytest.raises(compiled.LayoutMismatchError, match="leonav_h_future_sensor: missing"):
         compiled.check_layout(lib.lib, wrong)
 
 

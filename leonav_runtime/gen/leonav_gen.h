@@ -73,6 +73,9 @@
 #include "c/leonav_h_mag_sin.h"
 #include "c/leonav_update_mag_sin.h"
 #include "c/leonav_pcrb_info_mag_sin.h"
+#include "c/leonav_h_carrier_phase.h"
+#include "c/leonav_update_carrier_phase.h"
+#include "c/leonav_pcrb_info_carrier_phase.h"
 #include "c/leonav_pcrb_update.h"
 #include "c/leonav_boxplus.h"
 #include "c/leonav_boxminus.h"
@@ -93,5 +96,6 @@
 #include "c/leonav_orbit_jac_ofdm_range_diff.h"
 #include "c/leonav_orbit_jac_gnss_pseudorange.h"
 #include "c/leonav_orbit_jac_gnss_range_rate.h"
+#include "c/leonav_orbit_jac_carrier_phase.h"
 
 #endif  /* LEONAV_GEN_H */

@@ -3,10 +3,10 @@
 #ifndef LEONAV_STATE_LAYOUT_H
 #define LEONAV_STATE_LAYOUT_H
 
-#define LEONAV_NX 23
-#define LEONAV_NDX 22
-#define LEONAV_NP 18
-#define LEONAV_NAUX 40
+#define LEONAV_NX 24
+#define LEONAV_NDX 23
+#define LEONAV_NP 19
+#define LEONAV_NAUX 44
 #define LEONAV_NU 6
 #define LEONAV_NNAV 9  /* the 9D navigation error (dp, dv, dtheta) = dx[0:NNAV] */
 
@@ -32,6 +32,8 @@
 #define LEONAV_X_ISB_SIZE 2
 #define LEONAV_X_B_BARO 22  /* m: barometric height bias */
 #define LEONAV_X_B_BARO_SIZE 1
+#define LEONAV_X_S_CLK 23  /* -: SDR sample-clock fractional frequency error (+1e-6: 1 ppm fast) */
+#define LEONAV_X_S_CLK_SIZE 1
 
 #define LEONAV_DX_DP 0  /* m: position error, ENU */
 #define LEONAV_DX_DP_SIZE 3
@@ -55,6 +57,8 @@
 #define LEONAV_DX_DISB_SIZE 2
 #define LEONAV_DX_DB_BARO 21  /* m: barometric height bias error */
 #define LEONAV_DX_DB_BARO_SIZE 1
+#define LEONAV_DX_DS_CLK 22  /* -: sample-clock fractional frequency error */
+#define LEONAV_DX_DS_CLK_SIZE 1
 
 #define LEONAV_AUX_R_S_ECEF 0  /* m: satellite position, ECEF (pseudorange: at transmit time, ECEF of transmit epoch) */
 #define LEONAV_AUX_R_S_ECEF_SIZE 3
@@ -86,6 +90,10 @@
 #define LEONAV_AUX_W_B_SIZE 3
 #define LEONAV_AUX_DT_TAG 39  /* s: time from the state (latest IMU sample) to the measurement's tag, >= 0 */
 #define LEONAV_AUX_DT_TAG_SIZE 1
+#define LEONAV_AUX_DT_PHASE 40  /* s: interval of a time-differenced carrier phase, (t - dt_phase, t] */
+#define LEONAV_AUX_DT_PHASE_SIZE 1
+#define LEONAV_AUX_R_S_PREV_ECEF 41  /* m: satellite position at t - dt_phase, ECEF (the same ephemeris as r_S_ecef) */
+#define LEONAV_AUX_R_S_PREV_ECEF_SIZE 3
 
 #define LEONAV_U_DTHETA_B 0  /* rad: gyro angle increment over dt, body FLU */
 #define LEONAV_U_DTHETA_B_SIZE 3
@@ -110,6 +118,7 @@
 #define LEONAV_P_DT_FIX_RW 15  /* s/sqrt(s): fix latency random walk (0: frozen; the runtime sets it when estimating) */
 #define LEONAV_P_BARO_BIAS_RW 16  /* m/sqrt(s): barometer bias random walk (weather: ~8 m in 3 h) */
 #define LEONAV_P_MAG_DECLINATION_RAD 17  /* rad: magnetic declination at the site (positive East) */
+#define LEONAV_P_Q_SCLK 18  /* 1/s: SDR sample-clock fractional frequency random-walk PSD (warm TCXO: 1 ppm over hours) */
 
 #define LEONAV_MEAS_IMU (-1)  /* record kind of an IMU interval */
 #define LEONAV_KIND_CV (-2)  /* record kind of a constant-velocity predict over dt (no IMU) */
@@ -133,7 +142,8 @@
 #define LEONAV_MEAS_BARO_HEIGHT 17  /* m */
 #define LEONAV_MEAS_MAG_COS 18  /* - */
 #define LEONAV_MEAS_MAG_SIN 19  /* - */
-#define LEONAV_NMEAS 20
+#define LEONAV_MEAS_CARRIER_PHASE 20  /* cyc */
+#define LEONAV_NMEAS 21
 
 /* Observables: X(kind id, function suffix, dimension of z, name, unit of z), in kind-id order.
  * The driver builds its dispatch table from this list (leonav_h_<suffix>, leonav_update_<suffix>),
@@ -158,12 +168,13 @@
     X(LEONAV_MEAS_ZUPT_U, zupt_u, 1, "ZUPT_U", "m/s") \
     X(LEONAV_MEAS_BARO_HEIGHT, baro_height, 1, "BARO_HEIGHT", "m") \
     X(LEONAV_MEAS_MAG_COS, mag_cos, 1, "MAG_COS", "-") \
-    X(LEONAV_MEAS_MAG_SIN, mag_sin, 1, "MAG_SIN", "-")
+    X(LEONAV_MEAS_MAG_SIN, mag_sin, 1, "MAG_SIN", "-") \
+    X(LEONAV_MEAS_CARRIER_PHASE, carrier_phase, 1, "CARRIER_PHASE", "cyc")
 
 #define LEONAV_NORBIT 12  /* columns of leonav_orbit_jac_<k>: dh/d[r_S, v_S, r_ref, v_ref] */
 /* Observables with a generated leonav_orbit_jac_<suffix> (h reads a satellite state from aux):
  * X(kind id, function suffix). The consider term of ephemeris error (leonav_orbit_jacobian_many). */
-#define LEONAV_ORBIT_JAC_TABLE(X) X(LEONAV_MEAS_PSEUDORANGE, pseudorange) X(LEONAV_MEAS_DOPPLER_RATE, doppler_rate) X(LEONAV_MEAS_DOPPLER, doppler) X(LEONAV_MEAS_OFDM_RANGE_DIFF, ofdm_range_diff) X(LEONAV_MEAS_GNSS_PSEUDORANGE, gnss_pseudorange) X(LEONAV_MEAS_GNSS_RANGE_RATE, gnss_range_rate)
+#define LEONAV_ORBIT_JAC_TABLE(X) X(LEONAV_MEAS_PSEUDORANGE, pseudorange) X(LEONAV_MEAS_DOPPLER_RATE, doppler_rate) X(LEONAV_MEAS_DOPPLER, doppler) X(LEONAV_MEAS_OFDM_RANGE_DIFF, ofdm_range_diff) X(LEONAV_MEAS_GNSS_PSEUDORANGE, gnss_pseudorange) X(LEONAV_MEAS_GNSS_RANGE_RATE, gnss_range_rate) X(LEONAV_MEAS_CARRIER_PHASE, carrier_phase)
 
 /* Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome,
  * < 0 an error (codegen/driver_codes.py). */

@@ -3,10 +3,10 @@
 """State, parameter, aux and observable layout, driver codes (twin of state_layout.h). No casadi."""
 from collections import namedtuple
 
-NX = 23
-NDX = 22
-NP = 18
-NAUX = 40
+NX = 24
+NDX = 23
+NP = 19
+NAUX = 44
 NU = 6
 NNAV = 9  # the 9D navigation error (dp, dv, dtheta) = dx[DX_NAV9_SLICE]
 
@@ -43,6 +43,9 @@ X_ISB_SLICE = slice(20, 22)
 X_B_BARO = 22  # m: barometric height bias
 X_B_BARO_SIZE = 1
 X_B_BARO_SLICE = slice(22, 23)
+X_S_CLK = 23  # -: SDR sample-clock fractional frequency error (+1e-6: 1 ppm fast)
+X_S_CLK_SIZE = 1
+X_S_CLK_SLICE = slice(23, 24)
 
 DX_DP = 0  # m: position error, ENU
 DX_DP_SIZE = 3
@@ -77,6 +80,9 @@ DX_DISB_SLICE = slice(19, 21)
 DX_DB_BARO = 21  # m: barometric height bias error
 DX_DB_BARO_SIZE = 1
 DX_DB_BARO_SLICE = slice(21, 22)
+DX_DS_CLK = 22  # -: sample-clock fractional frequency error
+DX_DS_CLK_SIZE = 1
+DX_DS_CLK_SLICE = slice(22, 23)
 
 AUX_R_S_ECEF = 0  # m: satellite position, ECEF (pseudorange: at transmit time, ECEF of transmit epoch)
 AUX_R_S_ECEF_SIZE = 3
@@ -123,6 +129,12 @@ AUX_W_B_SLICE = slice(36, 39)
 AUX_DT_TAG = 39  # s: time from the state (latest IMU sample) to the measurement's tag, >= 0
 AUX_DT_TAG_SIZE = 1
 AUX_DT_TAG_SLICE = slice(39, 40)
+AUX_DT_PHASE = 40  # s: interval of a time-differenced carrier phase, (t - dt_phase, t]
+AUX_DT_PHASE_SIZE = 1
+AUX_DT_PHASE_SLICE = slice(40, 41)
+AUX_R_S_PREV_ECEF = 41  # m: satellite position at t - dt_phase, ECEF (the same ephemeris as r_S_ecef)
+AUX_R_S_PREV_ECEF_SIZE = 3
+AUX_R_S_PREV_ECEF_SLICE = slice(41, 44)
 
 U_DTHETA_B = 0  # rad: gyro angle increment over dt, body FLU
 U_DTHETA_B_SIZE = 3
@@ -150,6 +162,7 @@ P_GYRO_BIAS_BETA = 14  # 1/s: gyro bias Gauss-Markov rate 1/tau (0: random walk)
 P_DT_FIX_RW = 15  # s/sqrt(s): fix latency random walk (0: frozen; the runtime sets it when estimating)
 P_BARO_BIAS_RW = 16  # m/sqrt(s): barometer bias random walk (weather: ~8 m in 3 h)
 P_MAG_DECLINATION_RAD = 17  # rad: magnetic declination at the site (positive East)
+P_Q_SCLK = 18  # 1/s: SDR sample-clock fractional frequency random-walk PSD (warm TCXO: 1 ppm over hours)
 
 MEAS_IMU = -1  # record kind of an IMU interval
 KIND_CV = -2  # record kind of a constant-velocity predict over dt (no IMU)
@@ -173,7 +186,8 @@ MEAS_ZUPT_U = 16  # m/s
 MEAS_BARO_HEIGHT = 17  # m
 MEAS_MAG_COS = 18  # -
 MEAS_MAG_SIN = 19  # -
-NMEAS = 20
+MEAS_CARRIER_PHASE = 20  # cyc
+NMEAS = 21
 
 # Observables in kind-id order (twin of LEONAV_MEAS_TABLE): kind id, function suffix
 # (leonav_h_<suffix>, leonav_update_<suffix>), dimension of z, name, unit.
@@ -199,12 +213,13 @@ MEAS_TABLE = (
     Observable(MEAS_BARO_HEIGHT, 'baro_height', 1, 'BARO_HEIGHT', 'm'),
     Observable(MEAS_MAG_COS, 'mag_cos', 1, 'MAG_COS', '-'),
     Observable(MEAS_MAG_SIN, 'mag_sin', 1, 'MAG_SIN', '-'),
+    Observable(MEAS_CARRIER_PHASE, 'carrier_phase', 1, 'CARRIER_PHASE', 'cyc'),
 )
-P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz', 'lever_x_m', 'lever_y_m', 'lever_z_m', 'gyro_bias_beta', 'dt_fix_rw', 'baro_bias_rw', 'mag_declination_rad']
+P_NAMES = ['lat0_rad', 'lon0_rad', 'h0_m', 'vrw', 'arw', 'acc_bias_rw', 'gyro_bias_rw', 'q_cdt', 'q_cddt', 'q_blo', 'f_c_hz', 'lever_x_m', 'lever_y_m', 'lever_z_m', 'gyro_bias_beta', 'dt_fix_rw', 'baro_bias_rw', 'mag_declination_rad', 'q_sclk']
 
 NORBIT = 12  # columns of leonav_orbit_jac_<k>: dh/d[r_S, v_S, r_ref, v_ref] (ECEF)
 # kind ids of the observables with a generated leonav_orbit_jac_<suffix> (twin of LEONAV_ORBIT_JAC_TABLE)
-ORBIT_JAC_KINDS = (MEAS_PSEUDORANGE, MEAS_DOPPLER_RATE, MEAS_DOPPLER, MEAS_OFDM_RANGE_DIFF, MEAS_GNSS_PSEUDORANGE, MEAS_GNSS_RANGE_RATE, )
+ORBIT_JAC_KINDS = (MEAS_PSEUDORANGE, MEAS_DOPPLER_RATE, MEAS_DOPPLER, MEAS_OFDM_RANGE_DIFF, MEAS_GNSS_PSEUDORANGE, MEAS_GNSS_RANGE_RATE, MEAS_CARRIER_PHASE, )
 
 # Return codes of every leonav_driver.h function: 0 success, > 0 a step's other outcome, < 0 an error.
 OK = 0  # success: the step was applied / the value computed

@@ -124,6 +124,10 @@ def satellite_aux(table: SatelliteTable, f_b: np.ndarray, layout) -> np.ndarray:
             for name, cols in zip(names, (SAT_R_M, SAT_V_MPS, SAT_A_MPS2)):
                 aux[:, getattr(L, f"AUX_{name}_SLICE")] = state[:, cols]
     aux[:, L.AUX_F_B_SLICE] = f_b
+    if table.interval_s is not None:
+        aux[:, L.AUX_DT_PHASE] = table.interval_s
+    if table.sat_prev_r_m is not None:
+        aux[:, L.AUX_R_S_PREV_ECEF_SLICE] = table.sat_prev_r_m
     return aux
 
 
@@ -139,7 +143,7 @@ def satellite_records(table: SatelliteTable, imu: ImuTable, f_b_avg: np.ndarray,
     if corrections is not None:
         table = corrections.apply(table)
     aux = satellite_aux(table, f_b_avg[latest_sample(imu, table.t)], nav.layout)
-    if model.observable(table.KIND).reads_specific_force:   # the Doppler-rate's (input_noise.py)
+    if model.observable(table.KIND).input_noise:   # the Doppler-rate's (models/input_noise.py)
         R = doppler_rate_variance(table.sigma, f_b_span_s, params, nav)
     else:
         R = np.asarray(table.sigma) ** 2 if np.ndim(table.sigma) else table.sigma ** 2

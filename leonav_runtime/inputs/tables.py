@@ -202,7 +202,9 @@ class SatelliteTable:
     state at t, columns `SAT_R_M` (m), `SAT_V_MPS` (m/s, Earth-relative), `SAT_A_MPS2`
     (m/s^2) (pseudorange: at transmit time, in the ECEF frame of the transmit epoch);
     ref_ecef (n, 9) or None: the reference satellite of a differenced observable, same
-    columns (zeros in the records when None).
+    columns (zeros in the records when None); interval_s (n,) or a scalar, and sat_prev_r_m
+    (n, 3), or None: a time-differenced observable's span (t - interval_s, t] (s, > 0) and the
+    satellite's ECEF position (m) at its start (aux `dt_phase`, `r_S_prev_ecef`).
     """
 
     t: np.ndarray
@@ -211,6 +213,8 @@ class SatelliteTable:
     sigma: np.ndarray | float
     sat_ecef: np.ndarray
     ref_ecef: np.ndarray | None = None
+    interval_s: np.ndarray | float | None = None
+    sat_prev_r_m: np.ndarray | None = None
 
     KIND: ClassVar[str] = ""
     UNIT: ClassVar[str] = ""
@@ -226,7 +230,10 @@ class SatelliteTable:
     def select(self, mask) -> "SatelliteTable":
         sig = self.sigma if np.ndim(self.sigma) == 0 else np.asarray(self.sigma)[mask]
         ref = None if self.ref_ecef is None else self.ref_ecef[mask]
-        return type(self)(self.t[mask], self.sat_id[mask], self.z[mask], sig, self.sat_ecef[mask], ref)
+        span = self.interval_s if self.interval_s is None or np.ndim(self.interval_s) == 0 else \
+            np.asarray(self.interval_s)[mask]
+        prev = None if self.sat_prev_r_m is None else self.sat_prev_r_m[mask]
+        return type(self)(self.t[mask], self.sat_id[mask], self.z[mask], sig, self.sat_ecef[mask], ref, span, prev)
 
     def check(self) -> "SatelliteTable":
         n = np.shape(self.t)[0] if np.ndim(self.t) == 1 else -1
@@ -239,6 +246,11 @@ class SatelliteTable:
         check_column(name, "sat_ecef", self.sat_ecef, (n, 9), unit="m, m/s, m/s^2")
         if self.ref_ecef is not None:
             check_column(name, "ref_ecef", self.ref_ecef, (n, 9), unit="m, m/s, m/s^2")
+        if self.interval_s is not None:
+            check_column(name, "interval_s", self.interval_s, () if np.ndim(self.interval_s) == 0 else (n,),
+                         positive=True, unit="s")
+        if self.sat_prev_r_m is not None:
+            check_column(name, "sat_prev_r_m", self.sat_prev_r_m, (n, 3), unit="m")
         return self
 
 
@@ -246,12 +258,15 @@ def _satellite_table(o) -> type:
     """The table class of satellite observable `o` (registry entry); one that reads a reference
     satellite (a differenced observable) requires `ref_ecef`."""
     def check(self):
-        if self.ref_ecef is None:
+        if o.reads_ref and self.ref_ecef is None:
             raise _bad(self.name, "ref_ecef", "missing", "the reference satellite's state (n, 9)")
+        if o.reads_interval and (self.interval_s is None or self.sat_prev_r_m is None):
+            raise _bad(self.name, "interval_s" if self.interval_s is None else "sat_prev_r_m", "missing",
+                       "the interval (s) each time difference spans and the satellite's position (m) at its start")
         return SatelliteTable.check(self)
 
     body = {"KIND": o.suffix, "UNIT": o.unit, "__doc__": f"{o.doc} ({o.unit}); see SatelliteTable."}
-    if o.reads_ref:
+    if o.reads_ref or o.reads_interval:
         body["check"] = check
     return type(f"{o.suffix.title().replace('_', '')}Table", (SatelliteTable,), body)
 
@@ -263,6 +278,7 @@ PseudorangeTable = SATELLITE_TABLES["pseudorange"]
 DopplerRateTable = SATELLITE_TABLES["doppler_rate"]
 DopplerTable = SATELLITE_TABLES["doppler"]
 OfdmRangeDiffTable = SATELLITE_TABLES["ofdm_range_diff"]
+CarrierPhaseTable = SATELLITE_TABLES["carrier_phase"]
 
 
 @dataclasses.dataclass

@@ -98,6 +98,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "selection_seed": Field(int, "-", 0, 2**63 - 1, default=0,
                                 doc="seed of the `random` rule's satellite priorities"),
         "lo_offset_hz": Field(float, "Hz", -5e6, 5e6, default=120e3, doc="true LNB LO offset"),
+        "sample_clock_error": Field(float, "-", -1e-3, 1e-3, default=0.5e-6,
+                                    doc="true SDR sample-clock fractional frequency error (0.5e-6: an RTL-SDR V3 TCXO)"),
     },
     "elements": {
         "source": Field(str, "-", default="builtin", choices=("builtin", "files"),

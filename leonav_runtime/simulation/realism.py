@@ -103,6 +103,11 @@ def _moved_aux(setup, kind_name: str, rows: np.ndarray, d_sat: np.ndarray, d_ref
     sat_block, ref_block, _ = aux_blocks(layout)
     aux = s.aux[rows].copy()
     aux[:, sat_block] = perturb_states(s.sat_ecef[rows], d_sat)
+    if s.sat_prev_r_m is not None:   # a time difference: its start flies the same true orbit
+        T = s.interval_s[rows][:, None]
+        v, a = s.sat_ecef[rows, 3:6], s.sat_ecef[rows, 6:9]
+        prev = np.concatenate([s.sat_prev_r_m[rows], v - a * T, a], axis=1)
+        aux[:, layout.AUX_R_S_PREV_ECEF_SLICE] = perturb_states(prev, d_sat)[:, 0:3]
     if d_ref is not None:
         aux[:, ref_block] = perturb_states(s.ref_ecef[rows], d_ref)
     return aux

@@ -19,6 +19,7 @@ from leonav_runtime.core import model
 from leonav_runtime.gen import state_layout
 from leonav_runtime.inputs import SATELLITE_TABLES, satellite_aux, states_from_aux
 from leonav_runtime.scenarios.load import Scenario
+from leonav_runtime.simulation import carrier_truth
 from leonav_runtime.simulation.visibility import _receiver_ecef, _visible_ranked
 
 
@@ -40,6 +41,9 @@ class SatSeries:
     H: np.ndarray
     rank: np.ndarray
     has_ref: bool = False   # rows carry a reference satellite (Starlink's: the epoch's highest)
+    interval_s: np.ndarray | None = None   # a time-differenced observable's span per row (s)
+    k_prev: np.ndarray | None = None       # the IMU sample its span starts at
+    sat_prev_r_m: np.ndarray | None = None  # and the satellite's ECEF position there (m)
     sat_ecef: np.ndarray = field(init=False, repr=False)
     ref_ecef: np.ndarray = field(init=False, repr=False)
 
@@ -58,21 +62,31 @@ def epochs(scn: Scenario, rate_hz: float, t_imu: np.ndarray) -> np.ndarray:
     return np.arange(step, t_imu.size, step)
 
 
-def series(nav, kind_name, rows, x_true, f_b) -> SatSeries:
+def series(nav, kind_name, rows, x_true, f_b, scn: Scenario | None = None) -> SatSeries:
     """Rows (module doc) as a series: aux as the road builds it (`inputs.satellite_aux`, f_b of
-    sample k), h and H at the truth."""
+    sample k), h and H at the truth. A time-differenced observable (registry `reads_interval`)
+    keeps the rows whose satellite was tracked at the previous epoch too, and its noise-free
+    value is the exact phase change (carrier_truth.py), not its h."""
+    differenced = model.observable(kind_name).reads_interval
+    if differenced:
+        rows, k_prev, sat_prev = carrier_truth.differenced_rows(rows)
     n, L = len(rows), nav.layout
     k = np.array([r[0] for r in rows], int)
     sat = np.array([r[3] for r in rows]).reshape(n, 9)
     ref = np.array([r[4] for r in rows]).reshape(n, 9) if n and rows[0][4] is not None else None
+    interval = (k - k_prev) / scn.imu_rate_hz if differenced else None
     table = SATELLITE_TABLES[kind_name](np.array([r[1] for r in rows], float), np.array([r[2] for r in rows],
-                                        np.int32), np.zeros(n), 1.0, sat, ref)
+                                        np.int32), np.zeros(n), 1.0, sat, ref, interval,
+                                        sat_prev[:, 0:3] if differenced else None)
     aux = satellite_aux(table, f_b[k], L)
     kind = nav.kind_id(kind_name)
-    z, H = np.empty(n), np.empty((n, L.NDX))
-    for i in range(n):
-        z[i], H[i] = nav.h(kind, x_true[k[i]], aux[i])
-    return SatSeries(kind, table.t, table.sat_id, aux, z, H, np.array([r[5] for r in rows], np.int32), ref is not None)
+    z, H = nav.h_many(kind, x_true[k], aux) if n else (np.empty(0), np.empty((0, L.NDX)))
+    if differenced:
+        p_enu = x_true[:, L.X_P_ENU_SLICE]
+        z = carrier_truth.geometric_cycles(nav.params[L.P_F_C_HZ], sat, sat_prev, _receiver_ecef(scn, p_enu[k]),
+                                           _receiver_ecef(scn, p_enu[k_prev]))
+    return SatSeries(kind, table.t, table.sat_id, aux, z, H, np.array([r[5] for r in rows], np.int32), ref is not None,
+                     interval, k_prev if differenced else None, sat_prev[:, 0:3] if differenced else None)
 
 
 def gps_rows(scn, nav, es, t_imu, x_true, notes):

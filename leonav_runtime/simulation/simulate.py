@@ -43,7 +43,7 @@ from leonav_runtime.core.params import IMU_PROFILES
 from leonav_runtime.inputs import (F_B_AVERAGE_S, SATELLITE_TABLES, ImuTable, LocalSensorTable, Prior, assemble,
                                    averaged_specific_force, filter_params, prior_sigmas)
 from leonav_runtime.scenarios.load import Scenario, mode_of
-from leonav_runtime.simulation import realism, satellites
+from leonav_runtime.simulation import carrier_truth, realism, satellites
 from leonav_runtime.simulation.satellites import SatSeries
 from leonav_runtime.simulation.sensor_errors import (bias_walks, draw_truth_many, measured_increments,
                                                      measured_increments_many, own_stream)
@@ -146,7 +146,7 @@ def prepare(scn: Scenario, nav: navfuncs.NavFunctions | None = None) -> Setup:
             f"{scn.source}: only {visible['gps']} GPS satellites above the mask at some epoch (need >= 4)"
         )
     series = {o.suffix: satellites.series(nav, o.suffix, satellites.observable_rows(o, rows[o.constellation]),
-                                          x_true, f_b) for o in satellites.satellite_observables()}
+                                          x_true, f_b, scn) for o in satellites.satellite_observables()}
     local_k = {token: satellites.epochs(scn, scn.local[token]["rate_hz"], t_imu) for token in _used_local_sensors(scn)}
     return Setup(scn, params, t_imu, x_true, u_true, series, visible, prior_covariance(scn, profile, nav.layout),
                  profile, notes, local_k, f_b)
@@ -270,6 +270,8 @@ def block_draws(setup: Setup, parsed, count: int, rngs: list[np.random.Generator
                 for j in range(b.size):
                     value = errors[b.name][:, k, j] if b.name in errors else setup.x_true[k, b.offset + j]
                     z += s.H[rows, b.error_offset + j] * value
+        if o.reads_interval:   # a time-differenced phase: its exact truth, not h's linear terms
+            z = carrier_truth.trial_values(s.z_true[rows], k, s.k_prev[rows], errors, setup.x_true, dt)
         z += g * sigma * noise[:, rows]
         parts.append([o.suffix, rows, z, sigma])
 
@@ -330,4 +332,6 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
 def satellite_table(kind_name: str, s: SatSeries, rows: np.ndarray, z: np.ndarray, sigma: float):
     """The measurements of `rows` of a series as the road's satellite table of that kind."""
     return SATELLITE_TABLES[kind_name](s.t_s[rows], s.sat_id[rows], z, sigma, s.sat_ecef[rows],
-                                       s.ref_ecef[rows] if s.has_ref else None)
+                                       s.ref_ecef[rows] if s.has_ref else None,
+                                       None if s.interval_s is None else s.interval_s[rows],
+                                       None if s.sat_prev_r_m is None else s.sat_prev_r_m[rows])

@@ -27,7 +27,7 @@ def h(x, aux, p):
 
 OBSERVABLES = (
     R.Observable("DOPPLER_RATE", "doppler_rate", 7, h, "Hz/s", source="leo", token="alpha", stream="doppler_rate",
-                 table="satellite", constellation="starlink", paper=True,
+                 table="satellite", constellation="starlink", paper=True, input_noise=True,
                  # the paper's five matched beacons: median |d alpha| 0.8 Hz/s -> sigma = 0.8/0.6745 = 1.19
                  noise=R.Noise("starlink.doppler_rate_sigma_hz_s", 1.2, 1e-4, 1e3, "beacon Doppler-rate noise"),
                  doc="Starlink beacon Doppler-rate, paper eqs. 3-4 (receiver acceleration included)"),

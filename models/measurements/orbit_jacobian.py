@@ -20,13 +20,21 @@ NORBIT = sum(AUX[name].size for name in ORBIT_BLOCKS)
 
 
 def orbit_jacobian(h_value, aux):
-    """(1, NORBIT) d h / d [r_S, v_S, r_ref, v_ref] of a scalar SX expression of symbolic aux."""
-    return ca.horzcat(*(ca.jacobian(h_value, aux[AUX[name].slice]) for name in ORBIT_BLOCKS))
+    """(1, NORBIT) d h / d [r_S, v_S, r_ref, v_ref] of a scalar SX expression of symbolic aux.
+
+    A time-differenced observable also reads the satellite's position T = aux `dt_phase` earlier
+    (`r_S_prev_ecef`), from the same orbit: an orbit error (dr, dv) at t moves it by dr - T dv,
+    so its derivative is folded into the r_S and v_S columns."""
+    J = [ca.jacobian(h_value, aux[AUX[name].slice]) for name in ORBIT_BLOCKS]
+    J_prev = ca.jacobian(h_value, aux[AUX["r_S_prev_ecef"].slice])
+    J[0] = J[0] + J_prev
+    J[1] = J[1] - aux[AUX["dt_phase"].offset] * J_prev
+    return ca.horzcat(*J)
 
 
 def reads_orbit(h_value, aux) -> bool:
     """Whether the expression depends on a satellite's position or velocity in aux."""
-    return any(ca.depends_on(h_value, aux[AUX[name].slice]) for name in ORBIT_BLOCKS)
+    return any(ca.depends_on(h_value, aux[AUX[name].slice]) for name in ORBIT_BLOCKS + ("r_S_prev_ecef",))
 
 
 def orbit_observables() -> tuple[str, ...]:

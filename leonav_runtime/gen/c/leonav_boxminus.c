@@ -72,10 +72,10 @@ CASADI_SYMBOL_EXPORT void leonav_boxminus_casadi_version(int* major, int* minor,
 CASADI_SYMBOL_EXPORT int leonav_boxminus_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int leonav_boxminus_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {23, 1, 1};
-static const casadi_int casadi_s1[3] = {22, 1, 1};
+static const casadi_int casadi_s0[3] = {24, 1, 1};
+static const casadi_int casadi_s1[3] = {23, 1, 1};
 
-/* leonav_boxminus:(x1[23],x0[23])->(dx[22]) */
+/* leonav_boxminus:(x1[24],x0[24])->(dx[23]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15;
@@ -241,6 +241,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a00=arg[1]? arg[1][22] : 0;
   a07=(a07-a00);
   if (res[0]!=0) res[0][21]=a07;
+  a07=arg[0]? arg[0][23] : 0;
+  a00=arg[1]? arg[1][23] : 0;
+  a07=(a07-a00);
+  if (res[0]!=0) res[0][22]=a07;
   return 0;
 }
 

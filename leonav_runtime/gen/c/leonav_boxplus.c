@@ -72,10 +72,10 @@ CASADI_SYMBOL_EXPORT void leonav_boxplus_casadi_version(int* major, int* minor, 
 CASADI_SYMBOL_EXPORT int leonav_boxplus_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int leonav_boxplus_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {23, 1, 1};
-static const casadi_int casadi_s1[3] = {22, 1, 1};
+static const casadi_int casadi_s0[3] = {24, 1, 1};
+static const casadi_int casadi_s1[3] = {23, 1, 1};
 
-/* leonav_boxplus:(x[23],dx[22])->(x_out[23]) */
+/* leonav_boxplus:(x[24],dx[23])->(x_out[24]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14;
@@ -233,6 +233,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a12=arg[1]? arg[1][21] : 0;
   a00=(a00+a12);
   if (res[0]!=0) res[0][22]=a00;
+  a00=arg[0]? arg[0][23] : 0;
+  a12=arg[1]? arg[1][22] : 0;
+  a00=(a00+a12);
+  if (res[0]!=0) res[0][23]=a00;
   return 0;
 }
 

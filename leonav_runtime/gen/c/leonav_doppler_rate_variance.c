@@ -63,9 +63,9 @@ CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance_casadi_int_size(void) { re
 CASADI_SYMBOL_EXPORT int leonav_doppler_rate_variance_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {1, 1, 1};
-static const casadi_int casadi_s1[3] = {18, 1, 1};
+static const casadi_int casadi_s1[3] = {19, 1, 1};
 
-/* leonav_doppler_rate_variance:(sigma_hz_s,f_b_span_s,p[18])->(R) */
+/* leonav_doppler_rate_variance:(sigma_hz_s,f_b_span_s,p[19])->(R) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=arg[0]? arg[0][0] : 0;

@@ -59,10 +59,10 @@ CASADI_SYMBOL_EXPORT void leonav_earth_rate_enu_casadi_version(int* major, int* 
 CASADI_SYMBOL_EXPORT int leonav_earth_rate_enu_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int leonav_earth_rate_enu_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {18, 1, 1};
+static const casadi_int casadi_s0[3] = {19, 1, 1};
 static const casadi_int casadi_s1[3] = {3, 1, 1};
 
-/* leonav_earth_rate_enu:(p[18])->(w_ie_enu[3]) */
+/* leonav_earth_rate_enu:(p[19])->(w_ie_enu[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=0.;

@@ -63,9 +63,9 @@ CASADI_SYMBOL_EXPORT int leonav_gravity_enu_casadi_int_size(void) { return (int)
 CASADI_SYMBOL_EXPORT int leonav_gravity_enu_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {3, 1, 1};
-static const casadi_int casadi_s1[3] = {18, 1, 1};
+static const casadi_int casadi_s1[3] = {19, 1, 1};
 
-/* leonav_gravity_enu:(p_enu[3],p[18])->(g_enu[3]) */
+/* leonav_gravity_enu:(p_enu[3],p[19])->(g_enu[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;

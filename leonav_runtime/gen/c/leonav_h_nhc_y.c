@@ -65,13 +65,13 @@ CASADI_SYMBOL_EXPORT void leonav_h_nhc_y_casadi_version(int* major, int* minor, 
 CASADI_SYMBOL_EXPORT int leonav_h_nhc_y_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int leonav_h_nhc_y_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {23, 1, 1};
-static const casadi_int casadi_s1[3] = {40, 1, 1};
-static const casadi_int casadi_s2[3] = {18, 1, 1};
+static const casadi_int casadi_s0[3] = {24, 1, 1};
+static const casadi_int casadi_s1[3] = {44, 1, 1};
+static const casadi_int casadi_s2[3] = {19, 1, 1};
 static const casadi_int casadi_s3[3] = {1, 1, 1};
-static const casadi_int casadi_s4[3] = {1, 22, 1};
+static const casadi_int casadi_s4[3] = {1, 23, 1};
 
-/* leonav_h_nhc_y:(x[23],aux[40],p[18])->(h,H[1x22]) */
+/* leonav_h_nhc_y:(x[24],aux[44],p[19])->(h,H[1x23]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14;
@@ -172,6 +172,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][19]=a06;
   if (res[1]!=0) res[1][20]=a06;
   if (res[1]!=0) res[1][21]=a06;
+  if (res[1]!=0) res[1][22]=a06;
   return 0;
 }
 

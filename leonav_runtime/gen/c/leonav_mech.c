@@ -74,12 +74,12 @@ CASADI_SYMBOL_EXPORT void leonav_mech_casadi_version(int* major, int* minor, int
 CASADI_SYMBOL_EXPORT int leonav_mech_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int leonav_mech_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {23, 1, 1};
+static const casadi_int casadi_s0[3] = {24, 1, 1};
 static const casadi_int casadi_s1[3] = {6, 1, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
-static const casadi_int casadi_s3[3] = {18, 1, 1};
+static const casadi_int casadi_s3[3] = {19, 1, 1};
 
-/* leonav_mech:(x[23],u[6],dt,p[18])->(x_next[23]) */
+/* leonav_mech:(x[24],u[6],dt,p[19])->(x_next[24]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
@@ -672,6 +672,8 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][21]=a28;
   a28=arg[0]? arg[0][22] : 0;
   if (res[0]!=0) res[0][22]=a28;
+  a28=arg[0]? arg[0][23] : 0;
+  if (res[0]!=0) res[0][23]=a28;
   return 0;
 }
 

@@ -118,13 +118,13 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_doppler_rate_casadi_int_size(void) { r
 CASADI_SYMBOL_EXPORT int leonav_pcrb_info_doppler_rate_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 CASADI_SYMBOL_EXPORT int leonav_pcrb_info_doppler_rate_max_num_threads(void) { return CASADI_MAX_NUM_THREADS; }
 
-static const casadi_int casadi_s0[3] = {22, 22, 1};
-static const casadi_int casadi_s1[3] = {23, 1, 1};
-static const casadi_int casadi_s2[3] = {40, 1, 1};
-static const casadi_int casadi_s3[3] = {18, 1, 1};
+static const casadi_int casadi_s0[3] = {23, 23, 1};
+static const casadi_int casadi_s1[3] = {24, 1, 1};
+static const casadi_int casadi_s2[3] = {44, 1, 1};
+static const casadi_int casadi_s3[3] = {19, 1, 1};
 static const casadi_int casadi_s4[3] = {1, 1, 1};
 
-static const casadi_real casadi_zeros[484] = 
+static const casadi_real casadi_zeros[529] = 
   {0.};
 
 /* External functions */
@@ -135,7 +135,7 @@ void leonav_h_doppler_rate_incref(void);
 void leonav_h_doppler_rate_release(int mem);
 
 
-/* leonav_h_doppler_rate:(x[23],aux[40],p[18])->(h,H[1x22]) */
+/* leonav_h_doppler_rate:(x[24],aux[44],p[19])->(h,H[1x23]) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (leonav_h_doppler_rate(arg, res, iw, w, mem)) return 1;
   return 0;
@@ -157,14 +157,14 @@ void casadi_f1_decref(void) {
   leonav_h_doppler_rate_decref();
 }
 
-/* leonav_pcrb_info_doppler_rate:(J[22x22],x[23],aux[40],p[18],R)->(J_next[22x22]) */
+/* leonav_pcrb_info_doppler_rate:(J[23x23],x[24],aux[44],p[19],R)->(J_next[23x23]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
-  casadi_real **res1=res+1, *rr, *w0=w+22, *w1=w+506, *w5=w+990, *w6=w+1012, w7;
+  casadi_real **res1=res+1, *rr, *w0=w+23, *w1=w+552, *w5=w+1081, *w6=w+1104, w7;
   const casadi_real **arg1=arg+5, *cr, *cs, *wr0, *wr2, *wr3, *wr4;
   int flag, mid;
   wr0 = arg[0] ? arg[0] : casadi_zeros;
-  casadi_clear(w1, 484);
+  casadi_clear(w1, 529);
   wr2 = arg[1] ? arg[1] : casadi_zeros;
   wr3 = arg[2] ? arg[2] : casadi_zeros;
   wr4 = arg[3] ? arg[3] : casadi_zeros;
@@ -178,12 +178,12 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   flag = casadi_f1(arg1, res1, iw, w, mid);
   casadi_f1_release(mid);
   if (flag) return 1;
-  casadi_copy(w5, 22, w6);
-  casadi_mtimes_dense(w6, 22, 1, w5, 22, w1, 0);
+  casadi_copy(w5, 23, w6);
+  casadi_mtimes_dense(w6, 23, 1, w5, 23, w1, 0);
   w7 = arg[4] ? arg[4][0] : 0;
-  for (i=0, rr=w1; i<484; ++i) (*rr++) /= w7;
-  for (i=0, rr=w0, cr=wr0, cs=w1; i<484; ++i) (*rr++)  = ((*cr++)+(*cs++));
-  casadi_copy(w0, 484, res[0]);
+  for (i=0, rr=w1; i<529; ++i) (*rr++) /= w7;
+  for (i=0, rr=w0, cr=wr0, cs=w1; i<529; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  casadi_copy(w0, 529, res[0]);
   return 0;
 }
 
@@ -264,7 +264,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_doppler_rate_work(casadi_int *sz_arg, 
   if (sz_arg) *sz_arg = 11;
   if (sz_res) *sz_res = 5;
   if (sz_iw) *sz_iw = 0;
-  if (sz_w) *sz_w = 1034;
+  if (sz_w) *sz_w = 1127;
   return 0;
 }
 
@@ -272,7 +272,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_doppler_rate_work_bytes(casadi_int *sz
   if (sz_arg) *sz_arg = 11*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 5*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
-  if (sz_w) *sz_w = 1034*sizeof(casadi_real);
+  if (sz_w) *sz_w = 1127*sizeof(casadi_real);
   return 0;
 }
 

@@ -36,7 +36,7 @@ int leonav_pcrb_info_nhc_y_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, ca
 #define leonav_pcrb_info_nhc_y_SZ_ARG 11
 #define leonav_pcrb_info_nhc_y_SZ_RES 5
 #define leonav_pcrb_info_nhc_y_SZ_IW 0
-#define leonav_pcrb_info_nhc_y_SZ_W 1034
+#define leonav_pcrb_info_nhc_y_SZ_W 1127
 void leonav_pcrb_info_nhc_y_casadi_version(int* major, int* minor, int* patch);
 int leonav_pcrb_info_nhc_y_casadi_int_size(void);
 int leonav_pcrb_info_nhc_y_casadi_real_size(void);

@@ -36,7 +36,7 @@ int leonav_pcrb_info_zupt_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, c
 #define leonav_pcrb_info_zupt_u_SZ_ARG 11
 #define leonav_pcrb_info_zupt_u_SZ_RES 5
 #define leonav_pcrb_info_zupt_u_SZ_IW 0
-#define leonav_pcrb_info_zupt_u_SZ_W 1034
+#define leonav_pcrb_info_zupt_u_SZ_W 1127
 void leonav_pcrb_info_zupt_u_casadi_version(int* major, int* minor, int* patch);
 int leonav_pcrb_info_zupt_u_casadi_int_size(void);
 int leonav_pcrb_info_zupt_u_casadi_real_size(void);

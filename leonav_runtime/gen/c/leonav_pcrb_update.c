@@ -104,31 +104,31 @@ CASADI_SYMBOL_EXPORT void leonav_pcrb_update_casadi_version(int* major, int* min
 CASADI_SYMBOL_EXPORT int leonav_pcrb_update_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int leonav_pcrb_update_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {22, 22, 1};
-static const casadi_int casadi_s1[3] = {1, 22, 1};
+static const casadi_int casadi_s0[3] = {23, 23, 1};
+static const casadi_int casadi_s1[3] = {1, 23, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
 
-static const casadi_real casadi_zeros[484] = 
+static const casadi_real casadi_zeros[529] = 
   {0.};
 
-/* leonav_pcrb_update:(B[22x22],H[1x22],R)->(B_next[22x22],S) */
+/* leonav_pcrb_update:(B[23x23],H[1x23],R)->(B_next[23x23],S) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
-  casadi_real *rr, *w0=w+22, *w1=w+506, *w2=w+990, *w4=w+1012, w5;
+  casadi_real *rr, *w0=w+23, *w1=w+552, *w2=w+1081, *w4=w+1104, w5;
   const casadi_real *cr, *cs, *wr0, *wr3, *wr4;
   wr0 = arg[0] ? arg[0] : casadi_zeros;
-  casadi_clear(w1, 484);
-  casadi_clear(w2, 22);
+  casadi_clear(w1, 529);
+  casadi_clear(w2, 23);
   wr3 = arg[1] ? arg[1] : casadi_zeros;
   wr4 = wr3;
-  casadi_mtimes_dense(wr0, 22, 22, wr4, 1, w2, 0);
-  casadi_copy(w2, 22, w4);
-  casadi_mtimes_dense(w2, 22, 1, w4, 22, w1, 0);
+  casadi_mtimes_dense(wr0, 23, 23, wr4, 1, w2, 0);
+  casadi_copy(w2, 23, w4);
+  casadi_mtimes_dense(w2, 23, 1, w4, 23, w1, 0);
   w5 = arg[2] ? arg[2][0] : 0;
-  casadi_mtimes_dense(wr3, 1, 22, w2, 1, (&w5), 0);
-  for (i=0, rr=w1; i<484; ++i) (*rr++) /= w5;
-  for (i=0, rr=w0, cr=wr0, cs=w1; i<484; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  casadi_copy(w0, 484, res[0]);
+  casadi_mtimes_dense(wr3, 1, 23, w2, 1, (&w5), 0);
+  for (i=0, rr=w1; i<529; ++i) (*rr++) /= w5;
+  for (i=0, rr=w0, cr=wr0, cs=w1; i<529; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  casadi_copy(w0, 529, res[0]);
   if (res[1]) res[1][0] = w5;
   return 0;
 }
@@ -198,7 +198,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_update_work(casadi_int *sz_arg, casadi_int*
   if (sz_arg) *sz_arg = 6;
   if (sz_res) *sz_res = 3;
   if (sz_iw) *sz_iw = 0;
-  if (sz_w) *sz_w = 1034;
+  if (sz_w) *sz_w = 1127;
   return 0;
 }
 
@@ -206,7 +206,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_update_work_bytes(casadi_int *sz_arg, casad
   if (sz_arg) *sz_arg = 6*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 3*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
-  if (sz_w) *sz_w = 1034*sizeof(casadi_real);
+  if (sz_w) *sz_w = 1127*sizeof(casadi_real);
   return 0;
 }
 

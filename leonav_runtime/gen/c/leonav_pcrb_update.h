@@ -36,7 +36,7 @@ int leonav_pcrb_update_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi
 #define leonav_pcrb_update_SZ_ARG 6
 #define leonav_pcrb_update_SZ_RES 3
 #define leonav_pcrb_update_SZ_IW 0
-#define leonav_pcrb_update_SZ_W 1034
+#define leonav_pcrb_update_SZ_W 1127
 void leonav_pcrb_update_casadi_version(int* major, int* minor, int* patch);
 int leonav_pcrb_update_casadi_int_size(void);
 int leonav_pcrb_update_casadi_real_size(void);

@@ -22,21 +22,21 @@ int leonav_predict_pre_covariance_2(const casadi_real** arg, casadi_real** res, 
 int leonav_predict_pre_covariance_3(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 int leonav_predict_project(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);
 
-static const casadi_int leonav_predict_s_in0[3] = {23, 1, 1};
-static const casadi_int leonav_predict_s_in1[3] = {22, 22, 1};
+static const casadi_int leonav_predict_s_in0[3] = {24, 1, 1};
+static const casadi_int leonav_predict_s_in1[3] = {23, 23, 1};
 static const casadi_int leonav_predict_s_in2[3] = {6, 1, 1};
 static const casadi_int leonav_predict_s_in3[3] = {1, 1, 1};
-static const casadi_int leonav_predict_s_in4[3] = {18, 1, 1};
-static const casadi_int leonav_predict_s_out0[3] = {23, 1, 1};
-static const casadi_int leonav_predict_s_out1[3] = {22, 22, 1};
-static const casadi_int leonav_predict_s_out2[3] = {22, 22, 1};
-static const casadi_int leonav_predict_s_out3[3] = {22, 22, 1};
-static const casadi_int leonav_predict_dense_F[122] = {0, 1, 2, 3, 4, 5, 22, 23, 24, 25, 26, 27, 44, 45, 46, 47, 48, 49, 66, 67, 68, 69, 70, 71, 88, 89, 90, 91, 92, 93, 110, 111, 112, 113, 114, 115, 132, 133, 134, 135, 136, 137, 138, 139, 140, 154, 155, 156, 157, 158, 159, 160, 161, 162, 176, 177, 178, 179, 180, 181, 182, 183, 184, 198, 199, 200, 201, 202, 203, 207, 220, 221, 222, 223, 224, 225, 230, 242, 243, 244, 245, 246, 247, 253, 264, 265, 266, 267, 268, 269, 270, 271, 272, 276, 286, 287, 288, 289, 290, 291, 292, 293, 294, 299, 308, 309, 310, 311, 312, 313, 314, 315, 316, 322, 345, 367, 368, 391, 414, 437, 460, 483};
+static const casadi_int leonav_predict_s_in4[3] = {19, 1, 1};
+static const casadi_int leonav_predict_s_out0[3] = {24, 1, 1};
+static const casadi_int leonav_predict_s_out1[3] = {23, 23, 1};
+static const casadi_int leonav_predict_s_out2[3] = {23, 23, 1};
+static const casadi_int leonav_predict_s_out3[3] = {23, 23, 1};
+static const casadi_int leonav_predict_dense_F[123] = {0, 1, 2, 3, 4, 5, 23, 24, 25, 26, 27, 28, 46, 47, 48, 49, 50, 51, 69, 70, 71, 72, 73, 74, 92, 93, 94, 95, 96, 97, 115, 116, 117, 118, 119, 120, 138, 139, 140, 141, 142, 143, 144, 145, 146, 161, 162, 163, 164, 165, 166, 167, 168, 169, 184, 185, 186, 187, 188, 189, 190, 191, 192, 207, 208, 209, 210, 211, 212, 216, 230, 231, 232, 233, 234, 235, 240, 253, 254, 255, 256, 257, 258, 264, 276, 277, 278, 279, 280, 281, 282, 283, 284, 288, 299, 300, 301, 302, 303, 304, 305, 306, 307, 312, 322, 323, 324, 325, 326, 327, 328, 329, 330, 336, 360, 383, 384, 408, 432, 456, 480, 504, 528};
 
 CASADI_SYMBOL_EXPORT int leonav_predict(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   const casadi_real* a[5];
   casadi_real* r[4];
-  casadi_real* ws = w + 528;  /* the stages' own work, after the values passed between them */
+  casadi_real* ws = w + 555;  /* the stages' own work, after the values passed between them */
   casadi_int k;
   (void) mem;
   a[0] = arg[0];
@@ -45,39 +45,39 @@ CASADI_SYMBOL_EXPORT int leonav_predict(const casadi_real** arg, casadi_real** r
   a[3] = arg[4];
   r[0] = res[0];
   r[1] = w + 0;
-  r[2] = w + 122;
+  r[2] = w + 123;
   if (leonav_predict_transition(a, r, iw, ws, 0)) return 1;
   a[0] = arg[1];
   a[1] = w + 0;
-  a[2] = w + 122;
+  a[2] = w + 123;
   a[3] = arg[3];
   a[4] = arg[4];
-  r[0] = w + 167;
+  r[0] = w + 168;
   if (leonav_predict_pre_covariance_1(a, r, iw, ws, 0)) return 1;
   a[0] = arg[1];
   a[1] = w + 0;
-  a[2] = w + 122;
+  a[2] = w + 123;
   a[3] = arg[3];
   a[4] = arg[4];
-  r[0] = w + 277;
+  r[0] = w + 266;
   if (leonav_predict_pre_covariance_2(a, r, iw, ws, 0)) return 1;
   a[0] = arg[1];
   a[1] = w + 0;
-  a[2] = w + 122;
+  a[2] = w + 123;
   a[3] = arg[3];
   a[4] = arg[4];
-  r[0] = w + 492;
+  r[0] = w + 519;
   if (leonav_predict_pre_covariance_3(a, r, iw, ws, 0)) return 1;
-  a[0] = w + 167;
-  a[1] = w + 492;
+  a[0] = w + 168;
+  a[1] = w + 519;
   a[2] = arg[3];
   a[3] = arg[4];
   r[0] = res[1];
   r[1] = res[3];
   if (leonav_predict_project(a, r, iw, ws, 0)) return 1;
   if (res[2]) {
-    for (k = 0; k < 484; ++k) res[2][k] = 0;
-    for (k = 0; k < 122; ++k) res[2][leonav_predict_dense_F[k]] = w[0 + k];
+    for (k = 0; k < 529; ++k) res[2][k] = 0;
+    for (k = 0; k < 123; ++k) res[2][leonav_predict_dense_F[k]] = w[0 + k];
   }
   return 0;
 }
@@ -136,7 +136,7 @@ CASADI_SYMBOL_EXPORT int leonav_predict_work(casadi_int *sz_arg, casadi_int* sz_
   if (sz_arg) *sz_arg = 5;
   if (sz_res) *sz_res = 4;
   if (sz_iw) *sz_iw = 0;
-  if (sz_w) *sz_w = 528;
+  if (sz_w) *sz_w = 555;
   return 0;
 }
 
@@ -144,7 +144,7 @@ CASADI_SYMBOL_EXPORT int leonav_predict_work_bytes(casadi_int *sz_arg, casadi_in
   if (sz_arg) *sz_arg = 5*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 4*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
-  if (sz_w) *sz_w = 528*sizeof(casadi_real);
+  if (sz_w) *sz_w = 555*sizeof(casadi_real);
   return 0;
 }
 

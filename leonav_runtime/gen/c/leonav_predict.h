@@ -28,7 +28,7 @@ int leonav_predict_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int
 #define leonav_predict_SZ_ARG 5
 #define leonav_predict_SZ_RES 4
 #define leonav_predict_SZ_IW 0
-#define leonav_predict_SZ_W 528
+#define leonav_predict_SZ_W 555
 
 #ifdef __cplusplus
 } /* extern "C" */

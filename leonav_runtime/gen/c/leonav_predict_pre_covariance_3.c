@@ -66,29 +66,29 @@ CASADI_SYMBOL_EXPORT void leonav_predict_pre_covariance_3_casadi_version(int* ma
 CASADI_SYMBOL_EXPORT int leonav_predict_pre_covariance_3_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int leonav_predict_pre_covariance_3_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {22, 22, 1};
-static const casadi_int casadi_s1[147] = 
-  {22, 22, 0, 6, 12, 18, 24, 30,
+static const casadi_int casadi_s0[3] = {23, 23, 1};
+static const casadi_int casadi_s1[149] = 
+  {23, 23, 0, 6, 12, 18, 24, 30,
   36, 45, 54, 63, 70, 77, 84, 94,
   104, 114, 115, 117, 118, 119, 120, 121,
-  122, 0, 1, 2, 3, 4, 5, 0,
-  1, 2, 3, 4, 5, 0, 1, 2,
-  3, 4, 5, 0, 1, 2, 3, 4,
-  5, 0, 1, 2, 3, 4, 5, 0,
-  1, 2, 3, 4, 5, 0, 1, 2,
-  3, 4, 5, 6, 7, 8, 0, 1,
+  122, 123, 0, 1, 2, 3, 4, 5,
+  0, 1, 2, 3, 4, 5, 0, 1,
+  2, 3, 4, 5, 0, 1, 2, 3,
+  4, 5, 0, 1, 2, 3, 4, 5,
+  0, 1, 2, 3, 4, 5, 0, 1,
   2, 3, 4, 5, 6, 7, 8, 0,
   1, 2, 3, 4, 5, 6, 7, 8,
-  0, 1, 2, 3, 4, 5, 9, 0,
-  1, 2, 3, 4, 5, 10, 0, 1,
-  2, 3, 4, 5, 11, 0, 1, 2,
-  3, 4, 5, 6, 7, 8, 12, 0,
-  1, 2, 3, 4, 5, 6, 7, 8,
-  13, 0, 1, 2, 3, 4, 5, 6,
-  7, 8, 14, 15, 15, 16, 17, 18,
-  19, 20, 21};
+  0, 1, 2, 3, 4, 5, 6, 7,
+  8, 0, 1, 2, 3, 4, 5, 9,
+  0, 1, 2, 3, 4, 5, 10, 0,
+  1, 2, 3, 4, 5, 11, 0, 1,
+  2, 3, 4, 5, 6, 7, 8, 12,
+  0, 1, 2, 3, 4, 5, 6, 7,
+  8, 13, 0, 1, 2, 3, 4, 5,
+  6, 7, 8, 14, 15, 15, 16, 17,
+  18, 19, 20, 21, 22};
 static const casadi_int casadi_s2[54] = 
-  {22, 6, 0, 9, 18, 27, 33, 39,
+  {23, 6, 0, 9, 18, 27, 33, 39,
   45, 0, 1, 2, 3, 4, 5, 6,
   7, 8, 0, 1, 2, 3, 4, 5,
   6, 7, 8, 0, 1, 2, 3, 4,
@@ -96,10 +96,10 @@ static const casadi_int casadi_s2[54] =
   4, 5, 0, 1, 2, 3, 4, 5,
   0, 1, 2, 3, 4, 5};
 static const casadi_int casadi_s3[3] = {1, 1, 1};
-static const casadi_int casadi_s4[3] = {18, 1, 1};
+static const casadi_int casadi_s4[3] = {19, 1, 1};
 static const casadi_int casadi_s5[3] = {36, 1, 1};
 
-/* leonav_predict_pre_covariance_3:(P[22x22],F[22x22,122nz],G[22x6,45nz],dt,p[18])->(Q_pre_nz_0[36]) */
+/* leonav_predict_pre_covariance_3:(P[23x23],F[23x23,123nz],G[23x6,45nz],dt,p[19])->(Q_pre_nz_0[36]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;

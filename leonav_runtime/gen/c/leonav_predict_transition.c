@@ -76,32 +76,32 @@ CASADI_SYMBOL_EXPORT void leonav_predict_transition_casadi_version(int* major, i
 CASADI_SYMBOL_EXPORT int leonav_predict_transition_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int leonav_predict_transition_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {23, 1, 1};
+static const casadi_int casadi_s0[3] = {24, 1, 1};
 static const casadi_int casadi_s1[3] = {6, 1, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
-static const casadi_int casadi_s3[3] = {18, 1, 1};
-static const casadi_int casadi_s4[147] = 
-  {22, 22, 0, 6, 12, 18, 24, 30,
+static const casadi_int casadi_s3[3] = {19, 1, 1};
+static const casadi_int casadi_s4[149] = 
+  {23, 23, 0, 6, 12, 18, 24, 30,
   36, 45, 54, 63, 70, 77, 84, 94,
   104, 114, 115, 117, 118, 119, 120, 121,
-  122, 0, 1, 2, 3, 4, 5, 0,
-  1, 2, 3, 4, 5, 0, 1, 2,
-  3, 4, 5, 0, 1, 2, 3, 4,
-  5, 0, 1, 2, 3, 4, 5, 0,
-  1, 2, 3, 4, 5, 0, 1, 2,
-  3, 4, 5, 6, 7, 8, 0, 1,
+  122, 123, 0, 1, 2, 3, 4, 5,
+  0, 1, 2, 3, 4, 5, 0, 1,
+  2, 3, 4, 5, 0, 1, 2, 3,
+  4, 5, 0, 1, 2, 3, 4, 5,
+  0, 1, 2, 3, 4, 5, 0, 1,
   2, 3, 4, 5, 6, 7, 8, 0,
   1, 2, 3, 4, 5, 6, 7, 8,
-  0, 1, 2, 3, 4, 5, 9, 0,
-  1, 2, 3, 4, 5, 10, 0, 1,
-  2, 3, 4, 5, 11, 0, 1, 2,
-  3, 4, 5, 6, 7, 8, 12, 0,
-  1, 2, 3, 4, 5, 6, 7, 8,
-  13, 0, 1, 2, 3, 4, 5, 6,
-  7, 8, 14, 15, 15, 16, 17, 18,
-  19, 20, 21};
+  0, 1, 2, 3, 4, 5, 6, 7,
+  8, 0, 1, 2, 3, 4, 5, 9,
+  0, 1, 2, 3, 4, 5, 10, 0,
+  1, 2, 3, 4, 5, 11, 0, 1,
+  2, 3, 4, 5, 6, 7, 8, 12,
+  0, 1, 2, 3, 4, 5, 6, 7,
+  8, 13, 0, 1, 2, 3, 4, 5,
+  6, 7, 8, 14, 15, 15, 16, 17,
+  18, 19, 20, 21, 22};
 static const casadi_int casadi_s5[54] = 
-  {22, 6, 0, 9, 18, 27, 33, 39,
+  {23, 6, 0, 9, 18, 27, 33, 39,
   45, 0, 1, 2, 3, 4, 5, 6,
   7, 8, 0, 1, 2, 3, 4, 5,
   6, 7, 8, 0, 1, 2, 3, 4,
@@ -109,7 +109,7 @@ static const casadi_int casadi_s5[54] =
   4, 5, 0, 1, 2, 3, 4, 5,
   0, 1, 2, 3, 4, 5};
 
-/* leonav_predict_transition:(x[23],u[6],dt,p[18])->(x_next[23],F[22x22,122nz],G[22x6,45nz]) */
+/* leonav_predict_transition:(x[24],u[6],dt,p[19])->(x_next[24],F[23x23,123nz],G[23x6,45nz]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;
@@ -712,6 +712,8 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[0]!=0) res[0][21]=a027;
   a027=arg[0]? arg[0][22] : 0;
   if (res[0]!=0) res[0][22]=a027;
+  a027=arg[0]? arg[0][23] : 0;
+  if (res[0]!=0) res[0][23]=a027;
   a027=(2.*a082);
   a030=(a027*a076);
   a023=(2.*a079);
@@ -3665,6 +3667,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (res[1]!=0) res[1][119]=a002;
   if (res[1]!=0) res[1][120]=a002;
   if (res[1]!=0) res[1][121]=a002;
+  if (res[1]!=0) res[1][122]=a002;
   if (res[2]!=0) res[2][0]=a097;
   if (res[2]!=0) res[2][1]=a076;
   if (res[2]!=0) res[2][2]=a055;

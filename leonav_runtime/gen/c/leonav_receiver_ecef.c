@@ -63,11 +63,11 @@ CASADI_SYMBOL_EXPORT void leonav_receiver_ecef_casadi_version(int* major, int* m
 CASADI_SYMBOL_EXPORT int leonav_receiver_ecef_casadi_int_size(void) { return (int) sizeof(casadi_int); }
 CASADI_SYMBOL_EXPORT int leonav_receiver_ecef_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
-static const casadi_int casadi_s0[3] = {23, 1, 1};
-static const casadi_int casadi_s1[3] = {18, 1, 1};
+static const casadi_int casadi_s0[3] = {24, 1, 1};
+static const casadi_int casadi_s1[3] = {19, 1, 1};
 static const casadi_int casadi_s2[3] = {3, 1, 1};
 
-/* leonav_receiver_ecef:(x[23],p[18])->(r_ecef[3],v_ecef[3]) */
+/* leonav_receiver_ecef:(x[24],p[19])->(r_ecef[3],v_ecef[3]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15;

@@ -36,7 +36,7 @@ int leonav_update_baro_height_work_bytes(casadi_int *sz_arg, casadi_int* sz_res,
 #define leonav_update_baro_height_SZ_ARG 16
 #define leonav_update_baro_height_SZ_RES 9
 #define leonav_update_baro_height_SZ_IW 0
-#define leonav_update_baro_height_SZ_W 567
+#define leonav_update_baro_height_SZ_W 614
 void leonav_update_baro_height_casadi_version(int* major, int* minor, int* patch);
 int leonav_update_baro_height_casadi_int_size(void);
 int leonav_update_baro_height_casadi_real_size(void);

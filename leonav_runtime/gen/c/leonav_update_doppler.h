@@ -36,7 +36,7 @@ int leonav_update_doppler_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, cas
 #define leonav_update_doppler_SZ_ARG 16
 #define leonav_update_doppler_SZ_RES 9
 #define leonav_update_doppler_SZ_IW 0
-#define leonav_update_doppler_SZ_W 553
+#define leonav_update_doppler_SZ_W 600
 void leonav_update_doppler_casadi_version(int* major, int* minor, int* patch);
 int leonav_update_doppler_casadi_int_size(void);
 int leonav_update_doppler_casadi_real_size(void);

@@ -36,7 +36,7 @@ int leonav_update_mag_cos_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, cas
 #define leonav_update_mag_cos_SZ_ARG 16
 #define leonav_update_mag_cos_SZ_RES 9
 #define leonav_update_mag_cos_SZ_IW 0
-#define leonav_update_mag_cos_SZ_W 546
+#define leonav_update_mag_cos_SZ_W 593
 void leonav_update_mag_cos_casadi_version(int* major, int* minor, int* patch);
 int leonav_update_mag_cos_casadi_int_size(void);
 int leonav_update_mag_cos_casadi_real_size(void);

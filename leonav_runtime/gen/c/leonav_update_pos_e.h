@@ -36,7 +36,7 @@ int leonav_update_pos_e_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casad
 #define leonav_update_pos_e_SZ_ARG 16
 #define leonav_update_pos_e_SZ_RES 9
 #define leonav_update_pos_e_SZ_IW 0
-#define leonav_update_pos_e_SZ_W 549
+#define leonav_update_pos_e_SZ_W 596
 void leonav_update_pos_e_casadi_version(int* major, int* minor, int* patch);
 int leonav_update_pos_e_casadi_int_size(void);
 int leonav_update_pos_e_casadi_real_size(void);

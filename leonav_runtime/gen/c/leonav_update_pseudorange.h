@@ -36,7 +36,7 @@ int leonav_update_pseudorange_work_bytes(casadi_int *sz_arg, casadi_int* sz_res,
 #define leonav_update_pseudorange_SZ_ARG 16
 #define leonav_update_pseudorange_SZ_RES 9
 #define leonav_update_pseudorange_SZ_IW 0
-#define leonav_update_pseudorange_SZ_W 551
+#define leonav_update_pseudorange_SZ_W 598
 void leonav_update_pseudorange_casadi_version(int* major, int* minor, int* patch);
 int leonav_update_pseudorange_casadi_int_size(void);
 int leonav_update_pseudorange_casadi_real_size(void);

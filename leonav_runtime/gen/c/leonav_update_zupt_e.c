@@ -91,13 +91,13 @@ CASADI_SYMBOL_EXPORT int leonav_update_zupt_e_casadi_int_size(void) { return (in
 CASADI_SYMBOL_EXPORT int leonav_update_zupt_e_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 CASADI_SYMBOL_EXPORT int leonav_update_zupt_e_max_num_threads(void) { return CASADI_MAX_NUM_THREADS; }
 
-static const casadi_int casadi_s0[3] = {23, 1, 1};
-static const casadi_int casadi_s1[3] = {22, 22, 1};
+static const casadi_int casadi_s0[3] = {24, 1, 1};
+static const casadi_int casadi_s1[3] = {23, 23, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
-static const casadi_int casadi_s3[3] = {40, 1, 1};
-static const casadi_int casadi_s4[3] = {18, 1, 1};
+static const casadi_int casadi_s3[3] = {44, 1, 1};
+static const casadi_int casadi_s4[3] = {19, 1, 1};
 
-static const casadi_real casadi_zeros[484] = 
+static const casadi_real casadi_zeros[529] = 
   {0.};
 
 /* External functions */
@@ -108,128 +108,133 @@ void leonav_joseph_incref(void);
 void leonav_joseph_release(int mem);
 
 
-/* leonav_innovation_zupt_e:(i0[23],i1[22x22],i2,i3,i4[40],i5[18])->(o0,o1[22],o2) */
+/* leonav_innovation_zupt_e:(i0[24],i1[23x23],i2,i3,i4[44],i5[19])->(o0,o1[23],o2) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3;
   a0=arg[2]? arg[2][0] : 0;
   a1=arg[0]? arg[0][3] : 0;
   a0=(a0-a1);
   if (res[0]!=0) res[0][0]=a0;
-  a0=arg[1]? arg[1][66] : 0;
+  a0=arg[1]? arg[1][69] : 0;
   a1=arg[1]? arg[1][3] : 0;
   a0=(a0+a1);
   a1=2.;
   a0=(a0/a1);
   if (res[1]!=0) res[1][0]=a0;
-  a0=arg[1]? arg[1][67] : 0;
-  a2=arg[1]? arg[1][25] : 0;
+  a0=arg[1]? arg[1][70] : 0;
+  a2=arg[1]? arg[1][26] : 0;
   a0=(a0+a2);
   a0=(a0/a1);
   if (res[1]!=0) res[1][1]=a0;
-  a0=arg[1]? arg[1][68] : 0;
-  a2=arg[1]? arg[1][47] : 0;
+  a0=arg[1]? arg[1][71] : 0;
+  a2=arg[1]? arg[1][49] : 0;
   a0=(a0+a2);
   a0=(a0/a1);
   if (res[1]!=0) res[1][2]=a0;
-  a0=arg[1]? arg[1][69] : 0;
+  a0=arg[1]? arg[1][72] : 0;
   if (res[1]!=0) res[1][3]=a0;
-  a2=arg[1]? arg[1][91] : 0;
-  a3=arg[1]? arg[1][70] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][4]=a2;
-  a2=arg[1]? arg[1][113] : 0;
-  a3=arg[1]? arg[1][71] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][5]=a2;
-  a2=arg[1]? arg[1][135] : 0;
-  a3=arg[1]? arg[1][72] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][6]=a2;
-  a2=arg[1]? arg[1][157] : 0;
+  a2=arg[1]? arg[1][95] : 0;
   a3=arg[1]? arg[1][73] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][7]=a2;
-  a2=arg[1]? arg[1][179] : 0;
+  if (res[1]!=0) res[1][4]=a2;
+  a2=arg[1]? arg[1][118] : 0;
   a3=arg[1]? arg[1][74] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][8]=a2;
-  a2=arg[1]? arg[1][201] : 0;
+  if (res[1]!=0) res[1][5]=a2;
+  a2=arg[1]? arg[1][141] : 0;
   a3=arg[1]? arg[1][75] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][9]=a2;
-  a2=arg[1]? arg[1][223] : 0;
+  if (res[1]!=0) res[1][6]=a2;
+  a2=arg[1]? arg[1][164] : 0;
   a3=arg[1]? arg[1][76] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][10]=a2;
-  a2=arg[1]? arg[1][245] : 0;
+  if (res[1]!=0) res[1][7]=a2;
+  a2=arg[1]? arg[1][187] : 0;
   a3=arg[1]? arg[1][77] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][11]=a2;
-  a2=arg[1]? arg[1][267] : 0;
+  if (res[1]!=0) res[1][8]=a2;
+  a2=arg[1]? arg[1][210] : 0;
   a3=arg[1]? arg[1][78] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][12]=a2;
-  a2=arg[1]? arg[1][289] : 0;
+  if (res[1]!=0) res[1][9]=a2;
+  a2=arg[1]? arg[1][233] : 0;
   a3=arg[1]? arg[1][79] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][13]=a2;
-  a2=arg[1]? arg[1][311] : 0;
+  if (res[1]!=0) res[1][10]=a2;
+  a2=arg[1]? arg[1][256] : 0;
   a3=arg[1]? arg[1][80] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][14]=a2;
-  a2=arg[1]? arg[1][333] : 0;
+  if (res[1]!=0) res[1][11]=a2;
+  a2=arg[1]? arg[1][279] : 0;
   a3=arg[1]? arg[1][81] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][15]=a2;
-  a2=arg[1]? arg[1][355] : 0;
+  if (res[1]!=0) res[1][12]=a2;
+  a2=arg[1]? arg[1][302] : 0;
   a3=arg[1]? arg[1][82] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][16]=a2;
-  a2=arg[1]? arg[1][377] : 0;
+  if (res[1]!=0) res[1][13]=a2;
+  a2=arg[1]? arg[1][325] : 0;
   a3=arg[1]? arg[1][83] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][17]=a2;
-  a2=arg[1]? arg[1][399] : 0;
+  if (res[1]!=0) res[1][14]=a2;
+  a2=arg[1]? arg[1][348] : 0;
   a3=arg[1]? arg[1][84] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][18]=a2;
-  a2=arg[1]? arg[1][421] : 0;
+  if (res[1]!=0) res[1][15]=a2;
+  a2=arg[1]? arg[1][371] : 0;
   a3=arg[1]? arg[1][85] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][19]=a2;
-  a2=arg[1]? arg[1][443] : 0;
+  if (res[1]!=0) res[1][16]=a2;
+  a2=arg[1]? arg[1][394] : 0;
   a3=arg[1]? arg[1][86] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][20]=a2;
-  a2=arg[1]? arg[1][465] : 0;
+  if (res[1]!=0) res[1][17]=a2;
+  a2=arg[1]? arg[1][417] : 0;
   a3=arg[1]? arg[1][87] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
+  if (res[1]!=0) res[1][18]=a2;
+  a2=arg[1]? arg[1][440] : 0;
+  a3=arg[1]? arg[1][88] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][19]=a2;
+  a2=arg[1]? arg[1][463] : 0;
+  a3=arg[1]? arg[1][89] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][20]=a2;
+  a2=arg[1]? arg[1][486] : 0;
+  a3=arg[1]? arg[1][90] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
   if (res[1]!=0) res[1][21]=a2;
+  a2=arg[1]? arg[1][509] : 0;
+  a3=arg[1]? arg[1][91] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][22]=a2;
   a2=arg[3]? arg[3][0] : 0;
   a0=(a0+a2);
   if (res[2]!=0) res[2][0]=a0;
   return 0;
 }
 
-/* leonav_joseph:(x[23],P[22x22],y,b[22],S)->(x_post[23],P_post[22x22]) */
+/* leonav_joseph:(x[24],P[23x23],y,b[23],S)->(x_post[24],P_post[23x23]) */
 static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (leonav_joseph(arg, res, iw, w, mem)) return 1;
   return 0;
@@ -251,9 +256,9 @@ void casadi_f2_decref(void) {
   leonav_joseph_decref();
 }
 
-/* leonav_update_zupt_e:(x[23],P[22x22],z,R,aux[40],p[18])->(x_post[23],P_post[22x22],y,S,nis) */
+/* leonav_update_zupt_e:(x[24],P[23x23],z,R,aux[44],p[19])->(x_post[24],P_post[23x23],y,S,nis) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real **res1=res+5, w02, w03, w06, *w07=w+4, w08, *w09=w+26, *w10=w+49;
+  casadi_real **res1=res+5, w02, w03, w06, *w07=w+4, w08, *w09=w+27, *w10=w+51;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
   int flag, mid;
   wr00 = arg[0] ? arg[0] : casadi_zeros;
@@ -284,8 +289,8 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   flag = casadi_f2(arg1, res1, iw, w, mid);
   casadi_f2_release(mid);
   if (flag) return 1;
-  casadi_copy(w09, 23, res[0]);
-  casadi_copy(w10, 484, res[1]);
+  casadi_copy(w09, 24, res[0]);
+  casadi_copy(w10, 529, res[1]);
   if (res[2]) res[2][0] = w06;
   if (res[3]) res[3][0] = w08;
   w06 = casadi_sq( w06 );
@@ -381,7 +386,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_zupt_e_work(casadi_int *sz_arg, casadi_in
   if (sz_arg) *sz_arg = 16;
   if (sz_res) *sz_res = 9;
   if (sz_iw) *sz_iw = 0;
-  if (sz_w) *sz_w = 533;
+  if (sz_w) *sz_w = 580;
   return 0;
 }
 
@@ -389,7 +394,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_zupt_e_work_bytes(casadi_int *sz_arg, cas
   if (sz_arg) *sz_arg = 16*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 9*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
-  if (sz_w) *sz_w = 533*sizeof(casadi_real);
+  if (sz_w) *sz_w = 580*sizeof(casadi_real);
   return 0;
 }
 

@@ -91,13 +91,13 @@ CASADI_SYMBOL_EXPORT int leonav_update_zupt_n_casadi_int_size(void) { return (in
 CASADI_SYMBOL_EXPORT int leonav_update_zupt_n_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 CASADI_SYMBOL_EXPORT int leonav_update_zupt_n_max_num_threads(void) { return CASADI_MAX_NUM_THREADS; }
 
-static const casadi_int casadi_s0[3] = {23, 1, 1};
-static const casadi_int casadi_s1[3] = {22, 22, 1};
+static const casadi_int casadi_s0[3] = {24, 1, 1};
+static const casadi_int casadi_s1[3] = {23, 23, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
-static const casadi_int casadi_s3[3] = {40, 1, 1};
-static const casadi_int casadi_s4[3] = {18, 1, 1};
+static const casadi_int casadi_s3[3] = {44, 1, 1};
+static const casadi_int casadi_s4[3] = {19, 1, 1};
 
-static const casadi_real casadi_zeros[484] = 
+static const casadi_real casadi_zeros[529] = 
   {0.};
 
 /* External functions */
@@ -108,128 +108,133 @@ void leonav_joseph_incref(void);
 void leonav_joseph_release(int mem);
 
 
-/* leonav_innovation_zupt_n:(i0[23],i1[22x22],i2,i3,i4[40],i5[18])->(o0,o1[22],o2) */
+/* leonav_innovation_zupt_n:(i0[24],i1[23x23],i2,i3,i4[44],i5[19])->(o0,o1[23],o2) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3;
   a0=arg[2]? arg[2][0] : 0;
   a1=arg[0]? arg[0][4] : 0;
   a0=(a0-a1);
   if (res[0]!=0) res[0][0]=a0;
-  a0=arg[1]? arg[1][88] : 0;
+  a0=arg[1]? arg[1][92] : 0;
   a1=arg[1]? arg[1][4] : 0;
   a0=(a0+a1);
   a1=2.;
   a0=(a0/a1);
   if (res[1]!=0) res[1][0]=a0;
-  a0=arg[1]? arg[1][89] : 0;
-  a2=arg[1]? arg[1][26] : 0;
+  a0=arg[1]? arg[1][93] : 0;
+  a2=arg[1]? arg[1][27] : 0;
   a0=(a0+a2);
   a0=(a0/a1);
   if (res[1]!=0) res[1][1]=a0;
-  a0=arg[1]? arg[1][90] : 0;
-  a2=arg[1]? arg[1][48] : 0;
+  a0=arg[1]? arg[1][94] : 0;
+  a2=arg[1]? arg[1][50] : 0;
   a0=(a0+a2);
   a0=(a0/a1);
   if (res[1]!=0) res[1][2]=a0;
-  a0=arg[1]? arg[1][91] : 0;
-  a2=arg[1]? arg[1][70] : 0;
+  a0=arg[1]? arg[1][95] : 0;
+  a2=arg[1]? arg[1][73] : 0;
   a0=(a0+a2);
   a0=(a0/a1);
   if (res[1]!=0) res[1][3]=a0;
-  a0=arg[1]? arg[1][92] : 0;
+  a0=arg[1]? arg[1][96] : 0;
   if (res[1]!=0) res[1][4]=a0;
-  a2=arg[1]? arg[1][114] : 0;
-  a3=arg[1]? arg[1][93] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][5]=a2;
-  a2=arg[1]? arg[1][136] : 0;
-  a3=arg[1]? arg[1][94] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][6]=a2;
-  a2=arg[1]? arg[1][158] : 0;
-  a3=arg[1]? arg[1][95] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][7]=a2;
-  a2=arg[1]? arg[1][180] : 0;
-  a3=arg[1]? arg[1][96] : 0;
-  a2=(a2+a3);
-  a2=(a2/a1);
-  if (res[1]!=0) res[1][8]=a2;
-  a2=arg[1]? arg[1][202] : 0;
+  a2=arg[1]? arg[1][119] : 0;
   a3=arg[1]? arg[1][97] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][9]=a2;
-  a2=arg[1]? arg[1][224] : 0;
+  if (res[1]!=0) res[1][5]=a2;
+  a2=arg[1]? arg[1][142] : 0;
   a3=arg[1]? arg[1][98] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][10]=a2;
-  a2=arg[1]? arg[1][246] : 0;
+  if (res[1]!=0) res[1][6]=a2;
+  a2=arg[1]? arg[1][165] : 0;
   a3=arg[1]? arg[1][99] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][11]=a2;
-  a2=arg[1]? arg[1][268] : 0;
+  if (res[1]!=0) res[1][7]=a2;
+  a2=arg[1]? arg[1][188] : 0;
   a3=arg[1]? arg[1][100] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][12]=a2;
-  a2=arg[1]? arg[1][290] : 0;
+  if (res[1]!=0) res[1][8]=a2;
+  a2=arg[1]? arg[1][211] : 0;
   a3=arg[1]? arg[1][101] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][13]=a2;
-  a2=arg[1]? arg[1][312] : 0;
+  if (res[1]!=0) res[1][9]=a2;
+  a2=arg[1]? arg[1][234] : 0;
   a3=arg[1]? arg[1][102] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][14]=a2;
-  a2=arg[1]? arg[1][334] : 0;
+  if (res[1]!=0) res[1][10]=a2;
+  a2=arg[1]? arg[1][257] : 0;
   a3=arg[1]? arg[1][103] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][15]=a2;
-  a2=arg[1]? arg[1][356] : 0;
+  if (res[1]!=0) res[1][11]=a2;
+  a2=arg[1]? arg[1][280] : 0;
   a3=arg[1]? arg[1][104] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][16]=a2;
-  a2=arg[1]? arg[1][378] : 0;
+  if (res[1]!=0) res[1][12]=a2;
+  a2=arg[1]? arg[1][303] : 0;
   a3=arg[1]? arg[1][105] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][17]=a2;
-  a2=arg[1]? arg[1][400] : 0;
+  if (res[1]!=0) res[1][13]=a2;
+  a2=arg[1]? arg[1][326] : 0;
   a3=arg[1]? arg[1][106] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][18]=a2;
-  a2=arg[1]? arg[1][422] : 0;
+  if (res[1]!=0) res[1][14]=a2;
+  a2=arg[1]? arg[1][349] : 0;
   a3=arg[1]? arg[1][107] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][19]=a2;
-  a2=arg[1]? arg[1][444] : 0;
+  if (res[1]!=0) res[1][15]=a2;
+  a2=arg[1]? arg[1][372] : 0;
   a3=arg[1]? arg[1][108] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
-  if (res[1]!=0) res[1][20]=a2;
-  a2=arg[1]? arg[1][466] : 0;
+  if (res[1]!=0) res[1][16]=a2;
+  a2=arg[1]? arg[1][395] : 0;
   a3=arg[1]? arg[1][109] : 0;
   a2=(a2+a3);
   a2=(a2/a1);
+  if (res[1]!=0) res[1][17]=a2;
+  a2=arg[1]? arg[1][418] : 0;
+  a3=arg[1]? arg[1][110] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][18]=a2;
+  a2=arg[1]? arg[1][441] : 0;
+  a3=arg[1]? arg[1][111] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][19]=a2;
+  a2=arg[1]? arg[1][464] : 0;
+  a3=arg[1]? arg[1][112] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][20]=a2;
+  a2=arg[1]? arg[1][487] : 0;
+  a3=arg[1]? arg[1][113] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
   if (res[1]!=0) res[1][21]=a2;
+  a2=arg[1]? arg[1][510] : 0;
+  a3=arg[1]? arg[1][114] : 0;
+  a2=(a2+a3);
+  a2=(a2/a1);
+  if (res[1]!=0) res[1][22]=a2;
   a2=arg[3]? arg[3][0] : 0;
   a0=(a0+a2);
   if (res[2]!=0) res[2][0]=a0;
   return 0;
 }
 
-/* leonav_joseph:(x[23],P[22x22],y,b[22],S)->(x_post[23],P_post[22x22]) */
+/* leonav_joseph:(x[24],P[23x23],y,b[23],S)->(x_post[24],P_post[23x23]) */
 static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (leonav_joseph(arg, res, iw, w, mem)) return 1;
   return 0;
@@ -251,9 +256,9 @@ void casadi_f2_decref(void) {
   leonav_joseph_decref();
 }
 
-/* leonav_update_zupt_n:(x[23],P[22x22],z,R,aux[40],p[18])->(x_post[23],P_post[22x22],y,S,nis) */
+/* leonav_update_zupt_n:(x[24],P[23x23],z,R,aux[44],p[19])->(x_post[24],P_post[23x23],y,S,nis) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real **res1=res+5, w02, w03, w06, *w07=w+4, w08, *w09=w+26, *w10=w+49;
+  casadi_real **res1=res+5, w02, w03, w06, *w07=w+4, w08, *w09=w+27, *w10=w+51;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
   int flag, mid;
   wr00 = arg[0] ? arg[0] : casadi_zeros;
@@ -284,8 +289,8 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   flag = casadi_f2(arg1, res1, iw, w, mid);
   casadi_f2_release(mid);
   if (flag) return 1;
-  casadi_copy(w09, 23, res[0]);
-  casadi_copy(w10, 484, res[1]);
+  casadi_copy(w09, 24, res[0]);
+  casadi_copy(w10, 529, res[1]);
   if (res[2]) res[2][0] = w06;
   if (res[3]) res[3][0] = w08;
   w06 = casadi_sq( w06 );
@@ -381,7 +386,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_zupt_n_work(casadi_int *sz_arg, casadi_in
   if (sz_arg) *sz_arg = 16;
   if (sz_res) *sz_res = 9;
   if (sz_iw) *sz_iw = 0;
-  if (sz_w) *sz_w = 533;
+  if (sz_w) *sz_w = 580;
   return 0;
 }
 
@@ -389,7 +394,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_zupt_n_work_bytes(casadi_int *sz_arg, cas
   if (sz_arg) *sz_arg = 16*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 9*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
-  if (sz_w) *sz_w = 533*sizeof(casadi_real);
+  if (sz_w) *sz_w = 580*sizeof(casadi_real);
   return 0;
 }
 

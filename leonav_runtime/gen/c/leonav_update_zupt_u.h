@@ -36,7 +36,7 @@ int leonav_update_zupt_u_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casa
 #define leonav_update_zupt_u_SZ_ARG 16
 #define leonav_update_zupt_u_SZ_RES 9
 #define leonav_update_zupt_u_SZ_IW 0
-#define leonav_update_zupt_u_SZ_W 533
+#define leonav_update_zupt_u_SZ_W 580
 void leonav_update_zupt_u_casadi_version(int* major, int* minor, int* patch);
 int leonav_update_zupt_u_casadi_int_size(void);
 int leonav_update_zupt_u_casadi_real_size(void);

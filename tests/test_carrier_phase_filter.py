@@ -1,0 +1,124 @@
+"""The time-differenced carrier phase (models/measurements/carrier_phase.py) against a truth
+that is not its model (simulation/carrier_truth.py), its orbit Jacobian against finite
+differences of a common orbit error, and the filter on it against truth and the PCRB."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.conftest import short_paper_scenario
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.gen import state_layout as L
+from leonav_runtime.inputs import SATELLITE_TABLES
+from leonav_runtime.scenarios.load import load_scenario
+from leonav_runtime.simulation import carrier_truth
+from leonav_runtime.sweep import montecarlo as mc
+
+DRIVE = {"kind": "maneuvers", "attitude_deg": [0.0, 0.0, 90.0], "speed_mps": 15.0,
+         "maneuvers": [[4.0, 0.0, 0.0], [6.0, 0.5, 8.0], [6.0, -0.5, -8.0]]}
+
+
+def _scn(duration_s=16.0, counts=(10,), trajectory=None, position_sigma_m=10.0):
+    paper = load_scenario("paper").raw
+    sections = {"starlink": {**paper["starlink"], "rate_hz": 10.0},
+                "filter": {**paper["filter"], "initial_position_sigma_m": position_sigma_m}}
+    if trajectory:
+        sections["trajectory"] = trajectory
+    return short_paper_scenario(duration_s, list(counts), "<carrier phase test>", modes=("leo-phase+imu",), **sections)
+
+
+@pytest.fixture(scope="module", params=["static", "drive"])
+def prepared(request):
+    return mc.setup_for(_scn(trajectory=DRIVE if request.param == "drive" else None))
+
+
+def test_model_matches_the_exact_light_time_truth(prepared):
+    """h at the truth against the exact phase change of the simulator: the second-order receiver
+    step, the light-time solution and the Sagnac term of the model must hold to a few um (a
+    wrong sign of either is ~1 cycle; leaving out the satellite's start position ~0.04)."""
+    setup, nav = prepared
+    s = setup.series["carrier_phase"]
+    k = np.rint(s.t_s * setup.scn.imu_rate_hz).astype(int)
+    h, _ = nav.h_many("carrier_phase", setup.x_true[k], s.aux, jacobian=False)
+    assert s.t_s.size > 1000
+    assert np.all(np.abs(s.z_true) > 1.0) and np.all(np.abs(s.z_true) < 11.4e9 / 3e8 * 8e3 * 0.1)
+    # cycles: 5 um at rest; moving, the receiver's jerk (step changes of acceleration and turn
+    # rate here) leaves up to 0.1 mm in the second-order step back, still 1/8 of the noise
+    tol = 2e-4 if setup.scn.trajectory["kind"] == "static" else 5e-3
+    assert np.max(np.abs(s.z_true - h)) < tol
+
+
+def test_each_satellite_difference_spans_its_previous_epoch(prepared):
+    setup, _ = prepared
+    s = setup.series["carrier_phase"]
+    assert np.allclose(s.interval_s, 0.1) and np.all(s.k_prev == np.rint((s.t_s - 0.1) * 100).astype(int))
+    first = {}
+    for t, i in zip(s.t_s, s.sat_id):
+        first.setdefault(i, t)
+    # no satellite has a difference at the first epoch it was tracked
+    dr = setup.series["doppler_rate"]
+    for i, t0 in first.items():
+        assert t0 > dr.t_s[dr.sat_id == i].min()
+
+
+def test_front_end_states_enter_as_the_truth_makes_them(prepared):
+    """The truth's sample-clock scale and LO integral against the model's s_clk and b_lo terms."""
+    setup, nav = prepared
+    s = setup.series["carrier_phase"]
+    k = np.rint(s.t_s * setup.scn.imu_rate_hz).astype(int)
+    n = setup.x_true.shape[0]
+    b_lo = 2.0e4 + 3.0 * setup.t_imu            # Hz, drifting 3 Hz/s
+    errors = {"b_lo": b_lo.reshape(1, n, 1), "s_clk": np.full((1, n, 1), 80e-6)}
+    z = carrier_truth.trial_values(s.z_true, k, s.k_prev, errors, setup.x_true, 1.0 / setup.scn.imu_rate_hz)[0]
+    x = setup.x_true[k].copy()
+    x[:, L.X_B_LO] = b_lo[k] - 0.5 * 3.0 * s.interval_s    # the interval's mean frequency
+    x[:, L.X_S_CLK] = 80e-6
+    h, _ = nav.h_many("carrier_phase", x, s.aux, jacobian=False)
+    h0, _ = nav.h_many("carrier_phase", setup.x_true[k], s.aux, jacobian=False)
+    assert np.max(np.abs((z - h) - (s.z_true - h0))) < 1e-3   # the geometry's own residual aside
+    # and they matter: 80 ppm of a 0.1 s interval at tens of kHz is far above the noise
+    assert np.max(np.abs(z - s.z_true)) > 100.0
+
+
+def test_orbit_jacobian_is_that_of_one_orbit_error_at_both_ends(prepared):
+    setup, nav = prepared
+    s = setup.series["carrier_phase"]
+    rows = np.arange(0, s.t_s.size, max(1, s.t_s.size // 40))
+    k = np.rint(s.t_s[rows] * setup.scn.imu_rate_hz).astype(int)
+    J = nav.orbit_jacobian_many("carrier_phase", setup.x_true[k], s.aux[rows])
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        dr, dv = rng.normal(size=3) * 50.0, rng.normal(size=3) * 0.05
+        aux = s.aux[rows].copy()
+        aux[:, L.AUX_R_S_ECEF_SLICE] += dr
+        aux[:, L.AUX_V_S_ECEF_SLICE] += dv
+        aux[:, L.AUX_R_S_PREV_ECEF_SLICE] += dr - s.interval_s[rows][:, None] * dv
+        moved, _ = nav.h_many("carrier_phase", setup.x_true[k], aux, jacobian=False)
+        base, _ = nav.h_many("carrier_phase", setup.x_true[k], s.aux[rows], jacobian=False)
+        predicted = J[:, 0:3] @ dr + J[:, 3:6] @ dv
+        assert np.allclose(moved - base, predicted, rtol=1e-3, atol=2e-3)   # second order: < 0.05 mm
+
+
+def test_table_without_its_span_is_one_line_naming_the_field():
+    table = SATELLITE_TABLES["carrier_phase"](np.zeros(2), np.array([1, 2]), np.zeros(2), 0.04, np.ones((2, 9)))
+    with pytest.raises(UserInputError, match="carrier_phase table: interval_s: missing"):
+        table.check()
+    with pytest.raises(UserInputError, match="sat_prev_r_m"):
+        SATELLITE_TABLES["carrier_phase"](np.zeros(2), np.array([1, 2]), np.zeros(2), 0.04, np.ones((2, 9)),
+                                          None, 0.1).check()
+
+
+def test_filter_on_carrier_phase_reaches_its_bound_with_true_orbits():
+    """leo-phase+imu, 10 satellites, 16 s at 10 Hz, perfect orbits: the final position error is
+    at its sqrt(PCRB) (a model/truth mismatch of 1 mm per epoch leaves a bias many times the
+    bound) and the NEES inside a wide band."""
+    scn = _scn(position_sigma_m=30.0)
+    results = [mc.run_trial(scn, "leo-phase+imu", 10, i) for i in range(6)]
+    bound = mc.pcrb_curve(scn, "leo-phase+imu", 10)
+    err = np.array([r.err[-1, L.DX_DP_SLICE] for r in results])
+    rmse = float(np.sqrt(np.mean(np.sum(err**2, axis=1))))
+    sqrt_pcrb = float(bound["position"][-1])   # sqrt(trace) of the position block
+    assert 0.4 < rmse / sqrt_pcrb < 2.2, (rmse, sqrt_pcrb)
+    assert sqrt_pcrb < 0.1 * 30.0           # the phase, not the prior, sets the bound
+    nees = np.mean([r.nees[-1] for r in results])
+    assert 2.0 < nees < 25.0, nees
