@@ -16,7 +16,7 @@ candidate satellite s (predicted D_s(t_k), alpha_s(t_k)), given the common drift
   Doppler uncertainty (lo_floor_hz, and |alpha_s| * prediction_time_sigma_s for an
   along-track timing error of the element set) with the sigma of b0. The floors stand for
   what the prediction cannot know exactly: J <= 1 means "fits as well as the model can tell".
-Joint LO fit (alternation): assign (scipy linear_sum_assignment, costs above `max_cost`
+Joint LO fit (alternation): assign (minimum-cost assignment, `assignment`; costs above `max_cost`
 forbidden, so two combs never take one satellite); estimate (b0 mod spacing, b1) robustly
 from the assigned combs (`lo_fit`), each comb's own b0/b1 leave-one-out from the *other*
 combs so it cannot confirm itself; recompute costs; repeat until the assignment is stable.
@@ -39,8 +39,8 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
+from leonav_runtime.beacons.assignment import linear_sum_assignment
 from leonav_runtime.beacons.comb import Comb, CombConfig, group_combs
 from leonav_runtime.beacons.doppler import RidgeMeasurements
 from leonav_runtime.beacons.lo_fit import LoEstimate, circular_offset, comb_residual, robust_mean, wrap

@@ -78,16 +78,17 @@ class Predictions:
     rate_hz_s: np.ndarray      # (nsat, nt)
     elevation_rad: np.ndarray  # (nsat, nt)
     sat_index: np.ndarray      # index of each candidate in the element set
+    _splines: tuple | None = dataclasses.field(default=None, init=False, repr=False, compare=False)
 
     def at(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Curves interpolated (cubic) at times t_s: (nsat, len(t_s)) each."""
-        from scipy.interpolate import CubicSpline
-
+        """Curves interpolated (cubic, not-a-knot: `spline`) at times t_s: (nsat, len(t_s)) each."""
         if self.t_s.size < 4:
             raise ValueError("prediction grid too short for interpolation")
-        d = CubicSpline(self.t_s, self.doppler_hz, axis=1)(t_s)
-        r = CubicSpline(self.t_s, self.rate_hz_s, axis=1)(t_s)
-        return d, r
+        if self._splines is None:   # built once: every comb and iteration of the association asks
+            from leonav_runtime.beacons.spline import NotAKnotSpline
+
+            self._splines = (NotAKnotSpline(self.t_s, self.doppler_hz), NotAKnotSpline(self.t_s, self.rate_hz_s))
+        return self._splines[0](t_s), self._splines[1](t_s)
 
 
 def _element_meta(elements, index: np.ndarray) -> tuple[list[str], np.ndarray]:

@@ -174,7 +174,7 @@ def _progress(total: int, desc: str):
 
 
 def run(args: argparse.Namespace) -> int:
-    from leonav_runtime.beacons import capture_io, pipeline, synth
+    from leonav_runtime.beacons import capture_io, pipeline
     from leonav_runtime.beacons.predict import Site
 
     _check_range("--lat", args.lat, -90.0, 90.0, "deg")
@@ -213,6 +213,8 @@ def run(args: argparse.Namespace) -> int:
                              "association needs them (or use --simulate)")
 
     if args.simulate:
+        from leonav_runtime.beacons import synth   # SciPy's interpolation: only to synthesize
+
         if start is None:
             newest = max(elements.epochs_utc)
             start = newest.replace(microsecond=0) + _dt.timedelta(seconds=1)
