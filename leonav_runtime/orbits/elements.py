@@ -11,6 +11,11 @@ it is read (a TLE entry costs about 1.3 kB of memory once loaded, so 64 MB of 3L
 about 400,000 satellites and 0.6 GB). Fields that decode to NaN or infinity are rejected
 with the field named; deeply nested JSON/XML and unreadable CSV rows are rejected and
 counted (see `omm`).
+
+`load_elements` keeps what it parsed of a large TLE/3LE file in the user's cache
+(`element_cache`: keyed by the file's bytes and the parser's source; `LEONAV_ELEMENT_CACHE=off`
+turns it off), so the next load rebuilds the SGP4 records from checked lines instead of
+checking every field again (the same ElementSet, warnings included).
 """
 from __future__ import annotations
 
@@ -25,6 +30,7 @@ import numpy as np
 from sgp4.api import WGS72, Satrec, SatrecArray
 
 from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.orbits import element_cache as _cache
 from leonav_runtime.orbits import omm as _omm
 from leonav_runtime.orbits import tle as _tle
 from leonav_runtime.orbits.element_checks import (DEFAULT_MAX_ELEMENT_MB, MAX_ELEMENT_MB_ENV,  # noqa: F401
@@ -231,8 +237,9 @@ def _parse_tle_text(text: str, source: str, strict_checksum: bool = True
             else:
                 if not strict_checksum and (_tle.checksum(l1) != int(l1[68]) or _tle.checksum(line) != int(line[68])):
                     checksum_only.append(l1_no)
+                # the two checked lines and line 1's number follow: what the element cache keeps
                 entries.append((name or str(fields.norad_id), fields.norad_id, fields.epoch_utc, satrec,
-                                f"{source}:{l1_no}"))
+                                f"{source}:{l1_no}", l1[:69], line[:69], l1_no))
             name = ""
         else:
             if pending is not None:
@@ -290,6 +297,12 @@ def parse_elements_text(
     entries whose checksum is wrong but are otherwise valid (hand-edited test sets such as
     Vallado's SGP4-VER.TLE), with a warning listing their lines.
     """
+    entries, rejected, kind = _parse_text(text, source, strict_checksum)
+    return _element_set(entries, rejected, kind, source, stale_after_days, constellation, stacklevel=4)
+
+
+def _parse_text(text: str, source: str, strict_checksum: bool) -> tuple[list[tuple], list[RejectedEntry], str]:
+    """(entries, rejected, 'TLE/3LE' or 'OMM ...') of element text, auto-detected."""
     limit = max_element_bytes()
     if len(text) > limit:
         raise _too_large(source, len(text), limit)
@@ -298,10 +311,14 @@ def parse_elements_text(
     fmt = _omm.detect_omm_format(text)
     if fmt is None:
         entries, rejected = _parse_tle_text(text, source, strict_checksum)
-        kind = "TLE/3LE"
-    else:
-        entries, rejected = _parse_omm_text(text, fmt, source)
-        kind = f"OMM {fmt.upper()}"
+        return entries, rejected, "TLE/3LE"
+    entries, rejected = _parse_omm_text(text, fmt, source)
+    return entries, rejected, f"OMM {fmt.upper()}"
+
+
+def _element_set(entries: list[tuple], rejected: list[RejectedEntry], kind: str, source: str,
+                 stale_after_days: float, constellation: str | None, stacklevel: int) -> ElementSet:
+    """The ElementSet of parsed entries; warns about rejected ones (`stacklevel` counted from here)."""
     if not entries:
         detail = "; ".join(str(r) for r in rejected[:3]) or "no element lines found"
         more = f" (and {len(rejected) - 3} more)" if len(rejected) > 3 else ""
@@ -310,7 +327,7 @@ def parse_elements_text(
         lines = ", ".join(str(r.line) for r in rejected[:20]) + (" ..." if len(rejected) > 20 else "")
         message = (f"{source}: rejected {len(rejected)} of {len(rejected) + len(entries)} entries "
                    f"(lines {lines}); first: {rejected[0].reason}")
-        warnings.warn(message, RejectedElementsWarning, stacklevel=3)
+        warnings.warn(message, RejectedElementsWarning, stacklevel=stacklevel)
     names = [e[0] for e in entries]
     if constellation is not None and constellation not in CONSTELLATIONS:
         raise UserInputError(f"constellation {constellation!r}: expected one of {', '.join(CONSTELLATIONS)}")
@@ -348,10 +365,24 @@ def load_elements(
         raise UserInputError(f"{path}: is a directory, expected a TLE/3LE/OMM file") from None
     if len(data) > limit:
         raise _too_large(str(path), len(data), limit)
+    source = str(path)
+    # a TLE/3LE file parsed before (same bytes, same parser) comes from the element cache; not with
+    # strict_checksum=False, whose entries with a bad checksum are announced at every load
+    key = _cache.cache_key(data, {"strict_checksum": True}) if strict_checksum and _cache.wanted(len(data)) else None
+    hit = _cache.lookup(key) if key else None
+    if hit is not None:
+        cached, cached_rejected = hit
+        entries = [(name, norad, epoch, satrec, f"{source}:{line}") for name, norad, epoch, satrec, line in cached]
+        rejected = [RejectedEntry(source, line, name, reason) for line, name, reason in cached_rejected]
+        return _element_set(entries, rejected, "TLE/3LE", source, stale_after_days, constellation, stacklevel=3)
     text = data.decode("utf-8", errors="replace")  # bad bytes become U+FFFD: their entries are rejected
     del data
-    return parse_elements_text(text, str(path), stale_after_days=stale_after_days, constellation=constellation,
-                               strict_checksum=strict_checksum)
+    entries, rejected, kind = _parse_text(text, source, strict_checksum)
+    es = _element_set(entries, rejected, kind, source, stale_after_days, constellation, stacklevel=3)
+    if key and kind == "TLE/3LE":
+        _cache.store(key, [(e[0], e[1], e[2], e[5], e[6], e[7]) for e in entries],
+                     [(r.line, r.name, r.reason) for r in rejected])
+    return es
 
 
 def load_element_files(paths: Sequence[str | Path], option: str = "--tle") -> ElementSet | None:
