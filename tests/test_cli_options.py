@@ -191,6 +191,38 @@ def test_help_still_prints_the_usage(capsys):
     assert exc.value.code == 0 and out.startswith("usage: leonav sweep") and "--counts" in out
 
 
+def test_the_recorded_version_is_pyprojects_and_the_installed_one():
+    """provenance.version() reads leonav_runtime.__version__ (no importlib.metadata on a command's
+    path): it must be the version pyproject.toml declares and the installed metadata reports."""
+    import re
+    from importlib import metadata
+
+    declared = re.search(r'(?m)^version = "([^"]+)"', (REPO / "pyproject.toml").read_text()).group(1)
+    assert provenance.version() == declared == metadata.version("leonav")
+
+
+def test_git_commit_dirty_follows_the_tracked_files(tmp_path):
+    import shutil
+
+    if shutil.which("git") is None:
+        pytest.skip("git is not installed")
+    env = {"GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t",
+           "GIT_COMMITTER_EMAIL": "t@t", "HOME": str(tmp_path), "PATH": "/usr/bin:/bin"}
+    own = tmp_path / "own"
+    (own / "leonav_runtime").mkdir(parents=True)
+    (own / "pyproject.toml").write_text('[project]\nname = "leonav"\n')
+    subprocess.run(["git", "init", "-q"], cwd=own, check=True, env=env, capture_output=True)
+    assert provenance.git_commit_of(own / "leonav_runtime") is None          # no commit yet
+    for args in (["add", "-A"], ["commit", "-q", "-m", "x"]):
+        subprocess.run(["git", *args], cwd=own, check=True, env=env, capture_output=True)
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=own, check=True, capture_output=True,
+                          text=True).stdout.strip()
+    (own / "untracked.txt").write_text("x")                                   # untracked: still clean
+    assert provenance.git_commit_of(own / "leonav_runtime") == {"commit": head, "dirty": False}
+    (own / "pyproject.toml").write_text('[project]\nname = "leonav"\nversion = "9"\n')
+    assert provenance.git_commit_of(own / "leonav_runtime") == {"commit": head, "dirty": True}
+
+
 def test_git_commit_only_for_leonavs_own_tree(tmp_path):
     import shutil
 
