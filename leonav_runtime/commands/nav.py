@@ -67,6 +67,11 @@ def register(subparsers) -> None:
     f.add_argument("--lag", type=float, default=3.5, metavar="S",
                    help="how late a measurement may arrive and still be put in its place (default 3.5 s: a Doppler-rate epoch comes up to ~2.7 s after its time)")
     f.add_argument("--tle", action="append", default=[], metavar="FILE", help="Starlink element sets (beacons)")
+    f.add_argument("--corrections", metavar="HOST:PORT", default=None,
+                   help="a base's differential corrections (`leonav base`), applied to the Doppler-rate; "
+                        "reconnects when the base goes away (docs/corrections.md)")
+    f.add_argument("--corrections-max-age", type=float, default=None, metavar="S",
+                   help="oldest correction used (s, default 10); older: the measurement goes uncorrected")
     o = p.add_argument_group("outputs")
     o.add_argument("--nmea-port", default="10110", metavar="PORT|auto",
                    help="NMEA TCP server port (default 10110; auto: a free port, printed at the start and in "
@@ -113,6 +118,26 @@ def _nmea_port(text: str) -> int | str:
     return port
 
 
+def _corrections_address(args: argparse.Namespace) -> tuple[str, int] | None:
+    from leonav_runtime.base.client import parse_address
+
+    if args.corrections is None:
+        if args.corrections_max_age is not None:
+            raise UserInputError("--corrections-max-age: only with --corrections HOST:PORT")
+        return None
+    try:
+        return parse_address(args.corrections)
+    except ValueError as exc:
+        raise UserInputError(str(exc)) from None
+
+
+def _max_age(args: argparse.Namespace) -> float | None:
+    v = args.corrections_max_age
+    if v is not None and not (math.isfinite(v) and v > 0):
+        raise UserInputError(f"--corrections-max-age {v}: expected a positive number of seconds")
+    return v
+
+
 def options_from_args(args: argparse.Namespace):
     from leonav_runtime.nav.navigator import NavConfig
     from leonav_runtime.nav.road import RoadConfig
@@ -147,7 +172,8 @@ def options_from_args(args: argparse.Namespace):
         record=not args.no_record, tcp=None if port == 0 else (args.nmea_host, 0 if port == "auto" else port),
         nmea_max_clients=args.nmea_max_clients,
         pty_link=args.nmea_pty, mavlink=args.mavlink, json_lines=not args.no_json,
-        status=False if args.quiet else None, tle_files=tuple(args.tle))
+        status=False if args.quiet else None, tle_files=tuple(args.tle),
+        corrections=_corrections_address(args), corrections_max_age_s=_max_age(args))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -30,6 +30,11 @@ def register(subparsers) -> None:
     p.add_argument("--tle", action="append", default=[], metavar="FILE",
                    help="Starlink element sets (TLE/3LE/OMM) of the session's day, repeatable (default: the built-in "
                         "Walker constellation, only right for synthetic sessions)")
+    p.add_argument("--corrections", default=None, metavar="FILE",
+                   help="a base's differential corrections as recorded by `leonav base --record FILE`, applied to "
+                        "the Doppler-rate (docs/corrections.md)")
+    p.add_argument("--corrections-max-age", type=float, default=None, metavar="S",
+                   help="oldest correction used (s, default 10)")
     p.add_argument("--operator-ephemerides", default=None, metavar="DIR",
                    help="folder of Starlink operator ephemerides (MANIFEST.txt and MEME_*.txt): satellites with a "
                         "file over their measurement times take their states from it instead of their element "
@@ -85,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
                                    use_truth=not args.no_truth, gnss_latency_s=parse_latency(str(args.gnss_latency)),
                                    nav_paths=tuple(args.nav), elevation_mask_deg=args.elevation_mask,
                                    reference_file=reference_options(args),
-                                   operator_ephemerides=args.operator_ephemerides)
+                                   operator_ephemerides=args.operator_ephemerides, corrections=args.corrections,
+                                   corrections_max_age_s=args.corrections_max_age)
     if args.origin:
         lat, lon, h = args.origin
         if not (abs(lat) <= 90 and abs(lon) <= 360 and -11_000 <= h <= 1e5):

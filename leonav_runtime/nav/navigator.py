@@ -25,7 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from leonav.hardware.session_files import LostWrites
+from leonav_runtime.common.output import write_csv
 from leonav_runtime.core import filter as lfilter
+from leonav_runtime.inputs.corrections import LOG_COLUMNS
 from leonav_runtime.core import navfuncs, records
 from leonav_runtime.nav.outputs import COLUMNS_TEXT, Decimator, LiveOutputs, TrajectoryWriter, solution_of
 from leonav_runtime.nav.road import RoadConfig, StreamingRoad
@@ -53,11 +55,15 @@ class NavConfig:
 class Navigator:
     def __init__(self, cfg: NavConfig, out_dir: Path, outputs: LiveOutputs | None = None,
                  status: StatusLine | None = None, nav: navfuncs.NavFunctions | None = None,
-                 lost: LostWrites | None = None) -> None:
+                 lost: LostWrites | None = None, corrections=None) -> None:
+        """corrections: a `base.client.CorrectionsClient` (--corrections): its store goes to the road,
+        its state to the status line, events and nav.json; it is started here and stopped in finish."""
         self.cfg = cfg
         cfg.road.streams = replay_mode(cfg.mode).streams
         self.nav = nav or navfuncs.NavFunctions()
-        self.road = StreamingRoad(cfg.road, self.nav)
+        self.corrections = corrections
+        self.road = StreamingRoad(cfg.road, self.nav, corrections.store if corrections is not None else None)
+        self._corr_state = "waiting"
         self.outputs = outputs or LiveOutputs()
         self.status = status or StatusLine(enabled=False)
         self.out_dir = Path(out_dir)
@@ -84,6 +90,9 @@ class Navigator:
         self._out_due = Decimator(1.0 / cfg.output_rate_hz if cfg.output_rate_hz > 0 else 0.0)
         self.last_imu_stamp = math.inf
         self.last_solution = None
+        if corrections is not None:
+            corrections.on_event = lambda text, kind: self.event(text, kind)
+            corrections.start()
 
     # -- events in
     def event(self, text: str, kind: str = "info") -> None:
@@ -201,6 +210,11 @@ class Navigator:
             if "imu" not in self.faults and idle > self.cfg.imu_timeout_s:
                 self.faults["imu"] = "IMU SILENT: not predicting"
                 self.event(f"no IMU sample for {self.cfg.imu_timeout_s:g} s: not predicting", "imu_lost")
+        if self.corrections is not None and self.corrections.store.state != self._corr_state:
+            self._corr_state = self.corrections.store.state
+            self.event({"applied": "corrections applied to the Doppler-rate",
+                        "fallback": "no usable corrections: Doppler-rate uncorrected (fallback)"}.get(
+                self._corr_state, self._corr_state), f"corrections_{self._corr_state}")
         if self.status.due():
             self.status.update(format_status(self.snapshot()), force=True)
 
@@ -230,7 +244,15 @@ class Navigator:
         mode = self.cfg.mode if self.gnss_ok() or "fix" not in self.cfg.road.streams else "dead reckoning"
         return s | {"mode": mode, "sigma_3d_m": float(np.linalg.norm(sp)), "sigma_h_m": float(np.hypot(sp[0], sp[1])),
                     "gnss_1s": n_fix, "leo_10s": n_dr, "leo_sats": n_sats,
-                    "latency_ms": self.latency_percentiles(1.0)}
+                    "latency_ms": self.latency_percentiles(1.0),
+                    "corrections": None if self.corrections is None else self.corrections.status_text()}
+
+    def _write_corrections_log(self) -> None:
+        """corrections.csv: every Doppler-rate measurement released, the correction it took and its age."""
+        try:
+            write_csv(self.out_dir / "corrections.csv", LOG_COLUMNS, self.corrections.store.log_rows())
+        except OSError as exc:
+            self.event(f"corrections.csv not written ({exc.strerror or exc})", "lost_write")
 
     def finish(self) -> dict:
         """Apply what can still be applied, settle every record, close the trajectory; returns a summary."""
@@ -241,6 +263,11 @@ class Navigator:
             if settled is not None:
                 self._settled(settled)
         self.trajectory.close()
+        corrections = None
+        if self.corrections is not None:
+            self.corrections.stop()
+            corrections = self.corrections.describe()
+            self._write_corrections_log()
         r = self.road
         lat = self.latency_percentiles()
         out = {
@@ -258,6 +285,8 @@ class Navigator:
             "notes": sorted(r.notes) + ([] if r.inputs is None else list(r.inputs.notes)),
             "initialization": None if r.inputs is None else r.inputs.init,
         }
+        if corrections is not None:
+            out["corrections"] = corrections
         if self.stepper is not None and r.cfg.gnss_latency_s == "estimate":
             x, P = self.stepper.head()
             L = self.nav.layout

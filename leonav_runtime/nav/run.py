@@ -79,6 +79,8 @@ class NavOptions:
     json_lines: bool = True
     status: bool | None = None            # None: on when stderr is a terminal (else a line every 10 s)
     tle_files: tuple = ()
+    corrections: tuple[str, int] | None = None     # --corrections HOST:PORT
+    corrections_max_age_s: float | None = None     # None: inputs.corrections.DEFAULT_MAX_AGE_S
 
 
 class _Signals:
@@ -272,7 +274,7 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
         beacons, cfg.road.f_c_hz, f_c_source = _beacons(opts, record_dir)
         # the devices first: one that cannot be opened stops the run before any output file is written
         source = _source(opts, record_dir, beacons, lost)
-        navigator = Navigator(cfg, out, outputs, status, nav, lost)
+        navigator = Navigator(cfg, out, outputs, status, nav, lost, corrections=_corrections(opts))
         prov = preload(opts, beacons)
         outputs.start()     # serving from here on: nothing more is imported or opened for the first time
         if opts.tcp is not None and opts.tcp[1] == 0 and outputs.tcp_address:    # --nmea-port auto
@@ -321,6 +323,17 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
         print(f"leonav nav: warning: nav.json not written ({exc.strerror or exc}); {lost_text(lost.counts)}",
               file=sys.stderr, flush=True)
     return result
+
+
+def _corrections(opts: NavOptions):
+    """The differential-corrections store and its reader (--corrections), or None."""
+    if opts.corrections is None:
+        return None
+    from leonav_runtime.base.client import CorrectionsClient
+    from leonav_runtime.inputs.corrections import DEFAULT_MAX_AGE_S, DifferentialCorrections
+
+    store = DifferentialCorrections(opts.corrections_max_age_s or DEFAULT_MAX_AGE_S)
+    return CorrectionsClient(*opts.corrections, store)
 
 
 def lost_text(counts: dict[str, int]) -> str:

@@ -65,4 +65,5 @@ def format_status(s: dict) -> str:
     lat_txt = f"{lat[0]:.1f}/{lat[1]:.1f} ms" if lat else "-"
     return (f"[nav {s['elapsed_s']:6.1f} s] {s['mode']} | sigma {sig:.2f} m (h {s['sigma_h_m']:.2f}) | "
             f"GNSS {s['gnss_1s']}/s | Starlink {s['leo_10s']}/10s ({s['leo_sats']} sats) | latency {lat_txt} | "
-            f"junk {s['junk_bytes']} B" + (f" | {s['faults']}" if s["faults"] else ""))
+            f"junk {s['junk_bytes']} B" + (f" | {s['corrections']}" if s.get("corrections") else "")
+            + (f" | {s['faults']}" if s["faults"] else ""))

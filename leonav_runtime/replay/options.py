@@ -93,6 +93,8 @@ class ReplayOptions:
     elevation_mask_deg: float = GNSS_MASK_DEG   # pseudorange modes: satellites below are not used
     reference_file: dict | None = None   # --reference: path and how to read it (commands/run.reference_options)
     operator_ephemerides: str | None = None   # --operator-ephemerides: folder of operator files (docs/ephemerides.md)
+    corrections: str | None = None            # --corrections: a base's recorded line stream (docs/corrections.md)
+    corrections_max_age_s: float | None = None  # None: inputs.corrections.DEFAULT_MAX_AGE_S
 
 
 def canonical_modes(modes) -> tuple[tuple[str, ...], list[str]]:

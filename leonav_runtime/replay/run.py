@@ -83,16 +83,41 @@ def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurem
 
         provider = OperatorCovariance(operator, epoch_utc, names_by_id(elements.norad_ids, elements.names))
         orbit_consider = OrbitConsider({}, covariance={"doppler_rate": provider})
+    corrections = recorded_corrections(options, epoch_utc)
     inputs = assemble(imu, filter_params(origin, profile, f_c_hz, latency_values(options.gnss_latency_s)),
                       replay_prior(options, profile),
                       fixes=fixes, satellites=[doppler_rate], nav=nav, notes=notes, epoch_utc=epoch_utc,
-                      origin=origin, gnss=gnss, orbit_consider=orbit_consider)
+                      origin=origin, gnss=gnss, orbit_consider=orbit_consider, corrections=corrections)
+    if corrections is not None:
+        d = corrections.describe()
+        inputs.counts["corrections"] = d
+        inputs.notes.append(f"corrections: {d['counts'].get('doppler_rate_applied', 0)} Doppler-rate records "
+                            f"corrected, {d['counts'].get('doppler_rate_stale', 0)} stale, "
+                            f"{d['counts'].get('doppler_rate_none', 0)} without; "
+                            f"{sum(v for k, v in d['counts'].items() if k.startswith('rejected_'))} lines refused")
     if provider is not None:
         inputs.notes.append(f"beacons: Doppler-rate R + J P J^T of the operator covariance; "
                             f"{provider.uncovered_records} records without it")
     out = SessionInputs.of(inputs, beacon_measurements=meas)
     out.counts["doppler_rate_satellites"] = int(np.unique(out.doppler_rate.sat_id).size)
     return out
+
+
+def recorded_corrections(options: ReplayOptions, epoch_utc):
+    """The store of `--corrections FILE` (a base's recorded lines), or None."""
+    if not options.corrections:
+        return None
+    from leonav_runtime.base.client import feed_lines
+    from leonav_runtime.inputs.corrections import DEFAULT_MAX_AGE_S, DifferentialCorrections
+
+    try:
+        data = Path(options.corrections).read_bytes()
+    except OSError as exc:
+        raise UserInputError(f"--corrections {options.corrections}: {exc.strerror or exc}") from None
+    store = DifferentialCorrections(options.corrections_max_age_s or DEFAULT_MAX_AGE_S,
+                                    epoch_unix=epoch_utc.timestamp())
+    feed_lines(store, data.split(b"\n"))
+    return store
 
 
 def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: Path | None = None,
