@@ -17,6 +17,7 @@ the next one.
 from __future__ import annotations
 
 import logging
+import functools
 import math
 import warnings
 from collections import Counter
@@ -153,6 +154,19 @@ def _epoch(line: str, v3: bool) -> tuple[str, int, list]:
 _ZERO_ROW = {name: np.zeros((), EPH_DTYPE)[name].item() for name in EPH_DTYPE.names}
 
 
+@functools.lru_cache(maxsize=None)
+def _field_plan(system: str, start: int) -> tuple[tuple[int, int, int, str, float, float], ...]:
+    """(line, first column, end column, field, low, high) of each orbit field of a record, in
+    reading order (the physical range, or unbounded)."""
+    plan = []
+    for i, names in enumerate(ORBIT_FIELDS[system], start=1):
+        for k, name in enumerate(names):
+            if name is not None:
+                lo, hi = RANGES.get(name, (-math.inf, math.inf))
+                plan.append((i, start + 19 * k, start + 19 * (k + 1), name, lo, hi))
+    return tuple(plan)
+
+
 def _parse_record(lines: list[str], v3: bool, system: str, prn: int, epoch: list) -> tuple:
     """One Keplerian record (8 lines) -> an EPH_DTYPE row as a tuple; raises _Bad. (The row is a
     dict until then: setting the fields of a NumPy record one by one cost a third of the reader.)"""
@@ -164,19 +178,22 @@ def _parse_record(lines: list[str], v3: bool, system: str, prn: int, epoch: list
         _check_range(clock[name], 0, name, CLOCK_RANGES)
     start = 4 if v3 else 3
     values: dict[str, float] = {}
-    for i, names in enumerate(ORBIT_FIELDS[system], start=1):
-        line = lines[i]
-        for k, name in enumerate(names):
-            if name is None:
-                continue
-            text = line[start + 19 * k:start + 19 * (k + 1)]
+    for i, a, b, name, lo, hi in _field_plan(system, start):
+        text = lines[i][a:b]
+        try:   # the common case in one step; anything else (blank, 'd', not finite, out of range)
+            value = float(text.replace("D", "E"))   # goes through the checks below for its message
+            ok = lo <= value <= hi and value - value == 0.0
+        except ValueError:
+            ok = False
+        if not ok:
             optional = name in OPTIONAL or (i == 7 and name == "transmit_sow")
-            values[name] = _number(text, i, DISPLAY.get(name, name), optional=optional)
+            value = _number(text, i, DISPLAY.get(name, name), optional=optional)
             if name in RANGES:
                 try:
-                    _check_range(values[name], i, name, RANGES)
+                    _check_range(value, i, name, RANGES)
                 except _Bad as bad:
                     raise _Bad(i, DISPLAY.get(name, name), bad.reason) from None
+        values[name] = value
     try:
         toc_sys = gtime.calendar_to_seconds(*epoch)
     except ValueError as exc:
