@@ -3,6 +3,7 @@ and peak memory of full-rate captures, and association accuracy versus C/N0.
 
     python benchmarks/bench_beacons.py                 # 5, 20, 60 s at 2.4 MS/s (RTL-SDR cu8)
     python benchmarks/bench_beacons.py --durations 5 20 --repeat 3
+    python benchmarks/bench_beacons.py --durations 5 20 --repeat 3 --baseline ../leonav-before
     python benchmarks/bench_beacons.py --snr-table     # + accuracy vs C/N0 (reduced rate, 10 trials each)
     python benchmarks/bench_beacons.py --lo-table      # + joint LO offset/drift error and combs (20 trials)
 
@@ -84,10 +85,10 @@ def child_process(capture: str, out_dir: str, figures: bool) -> None:
                       "duration_s": info.duration_s, "bytes": info.path.stat().st_size}))
 
 
-def _timed(argv: list[str], env: dict) -> dict:
+def _timed(argv: list[str], env: dict, cwd: str | None = None) -> dict:
     """CPU, wall and peak RSS of one child process (os.wait4 gives that child's own rusage)."""
     w0 = time.perf_counter()
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, cwd=cwd)
     out = proc.stdout.read()
     err = proc.stderr.read()
     _, status, ru = os.wait4(proc.pid, 0)
@@ -97,6 +98,13 @@ def _timed(argv: list[str], env: dict) -> dict:
         raise SystemExit(f"{' '.join(map(str, argv))} failed ({proc.returncode}):\n{err.decode().strip()}")
     return {"cpu": ru.ru_utime + ru.ru_stime, "wall": wall, "peak_rss_mb": ru.ru_maxrss / 1024,
             "out": out.decode()}
+
+
+def _summary(folder: Path) -> dict:
+    """summary.json without its provenance (the command lines differ)."""
+    s = json.loads((folder / "summary.json").read_text())
+    s.pop("provenance", None)
+    return s
 
 
 def _best(runs: list[dict]) -> dict:
@@ -121,8 +129,10 @@ def synthesize(path: Path, duration_s: float) -> tuple[object, float]:
     return truth, time.process_time() - t0
 
 
-def startup_and_real_time(durations: list[float], repeat: int) -> None:
-    """Command and in-process CPU per capture length; fixed cost, cost per second, real-time factor."""
+def startup_and_real_time(durations: list[float], repeat: int, baseline: Path | None = None) -> None:
+    """Command and in-process CPU per capture length; fixed cost, cost per second, real-time factor.
+    With `baseline` (another checkout of leonav), its `leonav beacons --no-figures` is timed right
+    after this tree's in every repeat and its outputs compared byte for byte."""
     _quiet()
     load = os.getloadavg()
     with tempfile.TemporaryDirectory() as tmp:
@@ -138,19 +148,30 @@ def startup_and_real_time(durations: list[float], repeat: int) -> None:
         leonav = [sys.executable, "-m", "leonav_runtime.cli", "beacons"]
         tle = ["--tle", str(TLE)]
         _timed(leonav + [str(caps[durations[0]])] + tle + ["--out", str(tmp / "warm")], env)  # writes the .pyc
+        base = str(baseline) if baseline else None
+        if base:
+            _timed(leonav + [str(caps[durations[0]])] + tle + ["--no-figures", "--out", str(tmp / "bwarm")], env, base)
         rows = {}
         for d in durations:
-            r = {"cmd": [], "cmd_fig": [], "inproc": []}
+            r = {"cmd": [], "cmd_fig": [], "inproc": [], "base": []}
             for k in range(repeat):
                 r["cmd"].append(_timed(leonav + [str(caps[d])] + tle + ["--no-figures", "--out", str(tmp / f"n{d}")], env))
+                if base:
+                    r["base"].append(_timed(leonav + [str(caps[d])] + tle + ["--no-figures", "--out", str(tmp / f"b{d}")],
+                                            env, base))
                 r["cmd_fig"].append(_timed(leonav + [str(caps[d])] + tle + ["--out", str(tmp / f"f{d}")], env))
                 ip = _timed([sys.executable, __file__, "--child", str(caps[d]), str(tmp / f"i{d}")], env)
                 ip.update(json.loads(ip["out"].strip().splitlines()[-1]))
                 r["inproc"].append(ip)
-            rows[d] = {k: _best(v) for k, v in r.items()}
+            rows[d] = {k: _best(v) for k, v in r.items() if v}
             same = all((tmp / f"n{d}" / f).read_bytes() == (tmp / f"f{d}" / f).read_bytes()
                        for f in ("associations.csv", "doppler_rate_measurements.csv"))
             rows[d]["same"] = same and not (tmp / f"n{d}" / "waterfall.png").exists()
+            if base:
+                rows[d]["same_as_base"] = all(
+                    (tmp / f"n{d}" / f).read_bytes() == (tmp / f"b{d}" / f).read_bytes()
+                    for f in ("associations.csv", "doppler_rate_measurements.csv",
+                              "doppler_rate_measurements.columns.txt")) and _summary(tmp / f"n{d}") == _summary(tmp / f"b{d}")
         cold = _timed(leonav + [str(caps[durations[0]])] + tle + ["--no-figures", "--out", str(tmp / "cold")],
                       {**env, "PYTHONDONTWRITEBYTECODE": "1", "PYTHONPYCACHEPREFIX": str(tmp / "empty")})
     print(f"\nCPU seconds (user + system, all threads; best of {repeat}), load average at start "
@@ -177,6 +198,19 @@ def startup_and_real_time(durations: list[float], repeat: int) -> None:
               f"{i0['elements']:.2f} s; the figure {np.mean([rows[d]['inproc']['figure'] for d in ds]):.2f} s")
     print(f"  every module compiled from source (PYTHONDONTWRITEBYTECODE=1), {durations[0]:g} s capture: "
           f"{cold['cpu']:.2f} s CPU against {rows[durations[0]]['cmd']['cpu']:.2f} s with cached bytecode")
+    if base:
+        print(f"\nside by side with {base} (its `leonav beacons --no-figures` timed right after this tree's, "
+              f"every repeat; best of {repeat}):")
+        print(" capture s | before: CPU  wall  RSS MB  x real time | now: CPU  x real time | now/before CPU | "
+              "outputs identical")
+        for d in ds:
+            b, c = rows[d]["base"], rows[d]["cmd"]
+            print(f" {d:9g} | {b['cpu']:12.2f} {b['wall']:5.2f} {b['peak_rss_mb']:7.0f} {d / b['cpu']:9.1f}x | "
+                  f"{c['cpu']:8.2f} {d / c['cpu']:9.1f}x | {c['cpu'] / b['cpu']:14.2f} | {rows[d]['same_as_base']}")
+        if len(ds) >= 2:
+            for label, key in (("before", "base"), ("now", "cmd")):
+                a, b = _line(ds, [rows[d][key]["cpu"] for d in ds])
+                print(f"  {label:6s} fixed {a:5.2f} s, {b * 1e3:5.1f} ms CPU per second of capture")
     rss = ", ".join(f"{rows[d]['cmd']['peak_rss_mb']:.0f}" for d in ds)
     print(f"  peak RSS {rss} MB for {', '.join(f'{d:g}' for d in ds)} s captures (command, --no-figures); "
           f"ridges of the longest: {rows[max(rows)]['inproc']['counts']}")
@@ -279,12 +313,15 @@ if __name__ == "__main__":
     ap.add_argument("--lo-table", action="store_true", help="also print the joint LO fit table")
     ap.add_argument("--tones", type=int, default=1, help="tones per satellite in the full-rate captures")
     ap.add_argument("--trials", type=int, default=10)
+    ap.add_argument("--baseline", type=Path, default=None, metavar="TREE",
+                    help="another leonav checkout (e.g. the code before a change): its command is timed side by "
+                         "side and its outputs compared")
     a = ap.parse_args()
     if a.child:
         child_process(a.child[0], a.child[1], figures=True)
     else:
         TONES = a.tones
-        startup_and_real_time(sorted(a.durations), max(1, a.repeat))
+        startup_and_real_time(sorted(a.durations), max(1, a.repeat), a.baseline)
         if a.lo_table:
             lo_table(2 * a.trials)
         if a.snr_table:

@@ -24,7 +24,7 @@ Child processes run with byte-code caching on (PYTHONDONTWRITEBYTECODE removed, 
 PYTHONPYCACHEPREFIX warmed by one untimed run), as after an install. The machine's load
 (os.getloadavg) is printed before and after.
 
-Run: `python benchmarks/bench_spp.py [--repeats N] [--out DIR]` (needs ../shared/data and
+Run: `python benchmarks/bench_spp.py [--repeats N] [--out DIR] [--baseline TREE]` (needs ../shared/data and
 rnx2rtkp on PATH). Prints figures and ratios; writes bench_spp.json with --out.
 """
 from __future__ import annotations
@@ -56,10 +56,10 @@ def _child_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def run_process(argv: list[str]) -> tuple[float, float]:
+def run_process(argv: list[str], cwd: str | None = None) -> tuple[float, float]:
     """(CPU s of the child and its children, wall s) of one run of a command."""
     c0, w0 = _child_cpu(), time.perf_counter()
-    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=CHILD_ENV)
+    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=CHILD_ENV, cwd=cwd)
     return _child_cpu() - c0, time.perf_counter() - w0
 
 
@@ -72,7 +72,7 @@ def rtklib_argv(tmp: Path, atmosphere: bool) -> list[list[str]]:
 
 def leonav_argv(tmp: Path, atmosphere: bool, entry: str, files: dict[str, tuple[Path, Path]]) -> list[str]:
     head = ([sys.executable, "-c", "import sys; from leonav_runtime.cli import main; sys.exit(main(sys.argv[1:]))",
-             "spp"] if entry == "cli" else [sys.executable, "-m", "leonav_runtime.commands.spp"])
+             "spp"] if entry.startswith("cli") else [sys.executable, "-m", "leonav_runtime.commands.spp"])
     atm = [] if atmosphere else ["--iono", "off", "--tropo", "off"]
     return [*head, *(str(files[st][0]) for st in STATIONS), "--nav", *(str(files[st][1]) for st in STATIONS),
             "--systems", "G", *atm, "--out", str(tmp / f"out_{entry}")]
@@ -111,7 +111,7 @@ class InProcess:
         return time.process_time() - c0, time.perf_counter() - w0
 
 
-def paired(repeats: int, tmp: Path, atmosphere: bool, compressed: dict | None) -> dict:
+def paired(repeats: int, tmp: Path, atmosphere: bool, compressed: dict | None, baseline: Path | None = None) -> dict:
     """{variant: {"cpu": [...], "wall": [...]}} with rnx2rtkp timed right before each variant."""
     plain = {st: (DATA / f"{st}0920.05o", DATA / f"{st}0920.05n") for st in STATIONS}
     rtk = rtklib_argv(tmp, atmosphere)
@@ -119,8 +119,12 @@ def paired(repeats: int, tmp: Path, atmosphere: bool, compressed: dict | None) -
                 "leonav_cli": leonav_argv(tmp, atmosphere, "cli", plain)}
     if compressed:
         commands["leonav_cli_compressed"] = leonav_argv(tmp, atmosphere, "cli", compressed)
-    for argv in [*rtk, *commands.values()]:   # untimed: byte-code cache filled, files in the page cache
-        run_process(argv)
+    cwd = {}
+    if baseline:   # the same command line run from another checkout (its own package first on sys.path)
+        commands["leonav_cli_baseline"] = leonav_argv(tmp, atmosphere, "cli_baseline", plain)
+        cwd["leonav_cli_baseline"] = str(baseline)
+    for name, argv in [*(("rtk", a) for a in rtk), *commands.items()]:   # untimed: byte-code cache, page cache
+        run_process(argv, cwd.get(name))
     inproc = InProcess(tmp, atmosphere)
     out: dict[str, dict[str, list[float]]] = {}
 
@@ -141,7 +145,7 @@ def paired(repeats: int, tmp: Path, atmosphere: bool, compressed: dict | None) -
         add("leonav_in_process", *inproc.run())
         for name, argv in commands.items():
             rtklib_pair()
-            add(name, *run_process(argv))
+            add(name, *run_process(argv, cwd.get(name)))
     return out
 
 
@@ -157,7 +161,8 @@ def report(label: str, res: dict, floor: tuple[float, float], repeats: int) -> d
     names = {"leonav_in_process": "leonav spp (a) in-process",
              "leonav_process_lean": "leonav spp (b) python -m ...commands.spp",
              "leonav_cli": "leonav spp (c) leonav command line",
-             "leonav_cli_compressed": "leonav spp (d) as (c), .YYd.gz/.gz inputs"}
+             "leonav_cli_compressed": "leonav spp (d) as (c), .YYd.gz/.gz inputs",
+             "leonav_cli_baseline": "leonav spp (c) of --baseline TREE"}
     for k, (name, title) in enumerate((n, t) for n, t in names.items() if n in res):
         ref = [rtk["cpu"][r * per + k] for r in range(len(res[name]["cpu"]))]
         ref_w = [rtk["wall"][r * per + k] for r in range(len(res[name]["wall"]))]
@@ -176,6 +181,9 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--out", default=None)
+    ap.add_argument("--baseline", type=Path, default=None, metavar="TREE",
+                    help="another leonav checkout (e.g. the code before a change): its (c) is timed in the same "
+                         "pairs and its .pos files compared with this tree's")
     args = ap.parse_args()
     if shutil.which("rnx2rtkp") is None or not DATA.is_dir():
         print("needs rnx2rtkp on PATH and ../shared/data/gnss_rinex", file=sys.stderr)
@@ -198,8 +206,14 @@ def main() -> int:
         floor = (min(c for c, _ in floors), min(w for _, w in floors))
         for atmosphere in (False, True):
             label = "Klobuchar + Saastamoinen" if atmosphere else "no atmosphere terms (rnx2rtkp -p 0 defaults)"
-            res = paired(args.repeats, tmp, atmosphere, compressed)
+            res = paired(args.repeats, tmp, atmosphere, compressed, args.baseline)
             results[label] = report(label, res, floor, args.repeats)
+            if args.baseline:
+                same = all((tmp / "out_cli" / f"{st}0920_05o{ext}").read_bytes() ==
+                           (tmp / "out_cli_baseline" / f"{st}0920_05o{ext}").read_bytes()
+                           for st in STATIONS for ext in (".pos", ".csv"))
+                print(f"  .pos and .csv of (c) byte-identical to the baseline's: {same}")
+                results[label]["same_as_baseline"] = same
     load1 = os.getloadavg()
     results["load_after"] = load1
     print(f"\nload average after: {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}")
