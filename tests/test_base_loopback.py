@@ -1,0 +1,170 @@
+"""`leonav base` + `leonav nav` over loopback with a simulated pair sharing one ephemeris error:
+corrections applied, their age reported, the error against truth smaller with them, and a clean
+fallback when the base process is killed."""
+from __future__ import annotations
+
+import json
+import math
+import re
+import signal
+import subprocess
+import sys
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+CLI = [sys.executable, "-c", "import sys; from leonav_runtime.cli import main; sys.exit(main(sys.argv[1:]))"]
+SECONDS = 12.0
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    from leonav_runtime.base.simulated import write_pair
+
+    warnings.simplefilter("ignore")
+    folder = tmp_path_factory.mktemp("basepair")
+    doc = write_pair(folder / "p", seconds=SECONDS)
+    return folder, doc
+
+
+def _start_base(folder, *extra):
+    base = subprocess.Popen(CLI + ["base", "--simulate", str(folder / "p"), "--listen", "127.0.0.1:0", *extra],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    line = base.stdout.readline()
+    m = re.search(r"tcp://(127\.0\.0\.1:\d+)", line)
+    assert m, (line, base.stderr.read() if base.poll() is not None else "")
+    return base, m.group(1)
+
+
+def _nav(folder, out, *extra, timeout=120):
+    r = subprocess.run(CLI + ["nav", "--from", str(folder / "p" / "rover"), "--out", str(out), "--mode",
+                              "leo-alpha+imu", "--nmea-port", "0", *extra],
+                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=timeout)
+    return r, json.loads((out / "nav.json").read_text())
+
+
+def _errors_against_truth(rows, doc):
+    """Per Doppler-rate measurement: (uncorrected, corrected) error (Hz/s) against the value the true
+    orbit gives at the rover's true (static) position; corrected only where a correction was applied."""
+    from leonav_runtime.base import compute
+    from leonav_runtime.base.simulated import true_elements
+    from leonav_runtime.core import navfuncs
+    from leonav_runtime.inputs import DopplerRateTable
+    from leonav_runtime.orbits import propagate_ecef
+    from leonav_runtime.simulation.session_synth import builtin_starlink
+    from leonav_runtime.gen.constants import STARLINK_BEACON_HZ     # the synthetic capture's carrier
+    from leonav_runtime.replay.timebase import utc_of
+
+    nav = navfuncs.NavFunctions()
+    t = np.array([float(r["t_utc_s"]) for r in rows])
+    sat_id = np.array([int(r["norad_id"]) for r in rows])
+    z = np.array([float(r["z"]) for r in rows])
+    c = np.array([float(r["correction"]) if r["status"] == "applied" else 0.0 for r in rows])
+    epoch = utc_of(float(t.min()))
+    nominal = builtin_starlink(epoch)
+    index = {int(i): k for k, i in enumerate(nominal.norad_ids.tolist())}
+    d = np.zeros(len(nominal))
+    for sid, err in doc["along_track_error_m"].items():
+        d[index[int(sid)]] = err
+    lat, lon, h = doc["rover_site_deg_m"]
+    origin = (math.radians(lat), math.radians(lon), h)
+    err_raw, err_cor = [], []
+    for sid in np.unique(sat_id):
+        sel = sat_id == sid
+        k = [index[int(sid)]]
+        st = {}
+        for name, el in (("true", true_elements(nominal.select(k), d[k])), ("nominal", nominal.select(k))):
+            s = propagate_ecef(el, epoch, t[sel] - epoch.timestamp())
+            st[name] = np.hstack([s.r_ecef_m[0], s.v_ecef_mps[0], s.a_ecef_mps2[0]])
+        pred = compute.predicted(DopplerRateTable(t[sel], sat_id[sel], z[sel], 1.0, st["nominal"]), origin,
+                                 STARLINK_BEACON_HZ, nav)
+        truth = compute.predicted(DopplerRateTable(t[sel], sat_id[sel], z[sel], 1.0, st["true"]), origin,
+                                  STARLINK_BEACON_HZ, nav)
+        assert np.all(np.abs(truth - pred) > 0) or not np.any(d[k])
+        # the filter, at the true position, compares z (or z - c) with the element-set prediction:
+        # what is left is its error (noise, plus the orbit error's effect when uncorrected)
+        err_raw.append(z[sel] - pred)
+        err_cor.append(z[sel] - c[sel] - pred)
+    return np.concatenate(err_raw), np.concatenate(err_cor)
+
+
+def _csv_rows(path):
+    import csv
+
+    with open(path) as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_corrections_applied_over_loopback_reduce_the_error_against_truth(pair, tmp_path):
+    folder, doc = pair
+    base, address = _start_base(folder, "--pace", "fast", "--record", str(tmp_path / "rec.txt"))
+    try:
+        r, res = _nav(folder, tmp_path / "nav", "--corrections", address)
+    finally:
+        base.send_signal(signal.SIGINT)
+        base.wait(timeout=10)
+    assert r.returncode == 0, r.stderr[-2000:]
+    corr = res["corrections"]
+    assert corr["counts"]["doppler_rate_applied"] > 0 and corr["link"]["connects"] == 1
+    assert corr["age"]["applied"] == corr["counts"]["doppler_rate_applied"]
+    assert abs(corr["age"]["median_s"]) <= 1.0                # base and rover epochs 1 s apart at most
+    assert "corr age" in r.stderr and "corrections applied" in r.stderr
+    rows = _csv_rows(tmp_path / "nav" / "corrections.csv")
+    applied = [row for row in rows if row["status"] == "applied"]
+    assert len(applied) == corr["counts"]["doppler_rate_applied"]
+    raw, cor = _errors_against_truth(applied, doc)
+    rms_raw, rms_cor = float(np.sqrt(np.mean(raw ** 2))), float(np.sqrt(np.mean(cor ** 2)))
+    print(f"Doppler-rate error against the nominal orbit at the true position: uncorrected RMS {rms_raw:.3f} Hz/s, "
+          f"corrected {rms_cor:.3f} Hz/s ({len(applied)} records)")
+    assert rms_cor < 0.5 * rms_raw
+
+
+def test_replay_position_error_smaller_with_recorded_corrections(pair, tmp_path):
+    from leonav_runtime.replay import ReplayOptions, replay_session
+
+    folder, _ = pair
+    base, address = _start_base(folder, "--pace", "fast", "--record", str(tmp_path / "rec.txt"), "--seconds", "0.5")
+    base.wait(timeout=30)
+    # one damaged line and one for another constellation in the recording: refused, counted, the rest used
+    with open(tmp_path / "rec.txt", "a") as fh:
+        fh.write("LNVC 1 COR starlink 1 doppler_rate 1.0 0.1 Hz/s 0.1*00\n")
+        from leonav_runtime.base import protocol
+        fh.write(protocol.correction_line(protocol.Correction("oneweb", 5, "doppler_rate", 1.77e9, 1.0, 0.2)))
+    out = {}
+    for name, corr in (("without", None), ("with", str(tmp_path / "rec.txt"))):
+        m = replay_session(folder / "p" / "rover", tmp_path / name,
+                           ReplayOptions(modes=("leo-alpha+imu",), corrections=corr))
+        out[name] = m
+    e0 = out["without"]["modes"]["leo-alpha+imu"]["rmse_position_m"]
+    e1 = out["with"]["modes"]["leo-alpha+imu"]["rmse_position_m"]
+    c = out["with"]["counts"]["corrections"]["counts"]
+    print(f"replay leo-alpha+imu position RMSE: {e0:.2f} m without, {e1:.2f} m with corrections; refused {c}")
+    assert c["rejected_garbled"] == 1 and c["rejected_other_constellation"] == 1 and c["doppler_rate_applied"] > 0
+    assert e1 < e0
+
+
+@pytest.mark.slow
+def test_rover_falls_back_cleanly_when_the_base_is_killed(pair, tmp_path):
+    folder, _ = pair
+    base, address = _start_base(folder, "--pace", "realtime")
+    nav = subprocess.Popen(CLI + ["nav", "--from", str(folder / "p" / "rover"), "--realtime", "--out",
+                                  str(tmp_path / "nav"), "--mode", "leo-alpha+imu", "--nmea-port", "0",
+                                  "--corrections", address, "--corrections-max-age", "2"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(5.5)
+    base.kill()                                       # no goodbye: the stream just stops
+    base.wait(timeout=10)
+    out, err = nav.communicate(timeout=120)
+    assert nav.returncode == 0, err[-2000:]
+    res = json.loads((tmp_path / "nav" / "nav.json").read_text())
+    corr = res["corrections"]
+    n = corr["counts"]
+    print(f"fallback run: {n}; link {corr['link']}")
+    assert n.get("doppler_rate_applied", 0) > 0
+    assert n.get("doppler_rate_stale", 0) + n.get("doppler_rate_none", 0) > 0
+    assert corr["state"] == "fallback" and corr["link"]["disconnects"] >= 1
+    assert corr["link"]["connect_failures"] >= 1             # it kept trying
+    assert "went away" in err and "fallback" in err
+    assert res["trajectory_rows"] > 0
