@@ -3,6 +3,9 @@ that is not its model (simulation/carrier_truth.py), its orbit Jacobian against 
 differences of a common orbit error, and the filter on it against truth and the PCRB."""
 from __future__ import annotations
 
+import copy
+import math
+
 import numpy as np
 import pytest
 
@@ -11,7 +14,7 @@ from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.inputs import SATELLITE_TABLES
 from leonav_runtime.scenarios.load import load_scenario
-from leonav_runtime.simulation import carrier_truth
+from leonav_runtime.simulation import carrier_truth, front_end
 from leonav_runtime.sweep import montecarlo as mc
 
 DRIVE = {"kind": "maneuvers", "attitude_deg": [0.0, 0.0, 90.0], "speed_mps": 15.0,
@@ -122,3 +125,72 @@ def test_filter_on_carrier_phase_reaches_its_bound_with_true_orbits():
     assert sqrt_pcrb < 0.1 * 30.0           # the phase, not the prior, sets the bound
     nees = np.mean([r.nees[-1] for r in results])
     assert 2.0 < nees < 25.0, nees
+
+
+# ---- front end (simulation/front_end.py) ---------------------------------------------------
+
+def _front_end(**cfg):
+    base = {"enabled": True, "cn0_dbhz": [20.0, 35.0], "pll_bandwidth_hz": 10.0, "lo_phase_noise_dbc_hz": -50.0,
+            "lo_phase_noise_offset_hz": 1000.0, "slip_below_dbhz": 25.0, "slip_probability": 0.0,
+            "slips_detected": 0.95, "compensate": False}
+    return {**base, **cfg}
+
+
+def _with_front_end(setup, cfg):
+    """A copy of the (shared) setup whose scenario has this [front_end] section."""
+    scn = copy.copy(setup.scn)
+    scn.realism = {**setup.scn.realism, "front_end": cfg}
+    out = copy.copy(setup)
+    out.scn = scn
+    return out
+
+
+def _carrier_part(setup, cfg):
+    s = setup.series["carrier_phase"]
+    rows = np.arange(s.t_s.size)
+    return s, ["carrier_phase", rows, np.zeros(rows.size), 1e3]   # a nominal sigma no record's exceeds
+
+
+def test_lo_phase_noise_is_common_to_an_epoch_and_a_wiener_increment(prepared):
+    cfg = _front_end()
+    setup = _with_front_end(prepared[0], cfg)
+    s, part = _carrier_part(setup, cfg)
+    front_end.apply(setup, np.random.default_rng(5), part, s)
+    z, t = part[2], s.t_s[part[1]]
+    epochs = np.unique(t)
+    per_epoch = np.array([z[t == e] for e in epochs], dtype=object)
+    assert all(np.ptp(v) == 0.0 for v in per_epoch)          # one LO for every tone of the epoch
+    first = np.array([v[0] for v in per_epoch])
+    expected = math.sqrt(front_end.lo_frequency_psd(cfg) * 0.1 / 2.0)   # cycles over 0.1 s: 1 cycle here
+    assert expected == pytest.approx(1.0, rel=1e-9)
+    assert np.std(first) == pytest.approx(expected, rel=0.15)
+    assert abs(np.corrcoef(first[1:], first[:-1])[0, 1]) < 0.2   # independent from epoch to epoch
+
+
+def test_weak_tones_slip_and_the_tracker_flags_the_detected_ones(prepared):
+    cfg = _front_end(lo_phase_noise_dbc_hz=-200.0, slip_below_dbhz=100.0, slip_probability=1.0, slips_detected=0.5)
+    setup = _with_front_end(prepared[0], cfg)
+    s, part = _carrier_part(setup, cfg)
+    n = part[1].size
+    counts = front_end.apply(setup, np.random.default_rng(6), part, s)
+    assert counts["slips"] == n and counts["epochs_dropped"] == n - part[1].size
+    assert 0.45 < counts["slips_detected"] / n < 0.55
+    assert np.allclose(np.abs(part[2]), 1.0, atol=1e-6)      # each kept slip is a whole cycle
+
+
+def test_record_sigma_follows_the_tones_c_n0_by_elevation(prepared):
+    cfg = _front_end(lo_phase_noise_dbc_hz=-200.0)
+    setup = _with_front_end(prepared[0], cfg)
+    s, part = _carrier_part(setup, cfg)
+    part[3] = 1e-6
+    elevation = front_end.elevation_rad(setup, part[1], s)
+    front_end.apply(setup, np.random.default_rng(7), part, s)
+    sigma = part[3]
+    high, low = elevation > np.percentile(elevation, 80), elevation < np.percentile(elevation, 20)
+    assert sigma[high].mean() < sigma[low].mean()
+    # B_n / (C/N0) at the ends of the range, sqrt(2) in a difference (with the 1 ms squaring loss)
+    assert front_end.difference_sigma_cyc(35.0, 10.0) == pytest.approx(0.0136, rel=0.01)
+    assert front_end.difference_sigma_cyc(20.0, 10.0) == pytest.approx(
+        math.sqrt(2 * 10 / 100 * (1 + 1 / 0.2)) / (2 * math.pi), rel=1e-9)
+    assert sigma.min() >= front_end.difference_sigma_cyc(35.0, 10.0) - 1e-12
+    assert sigma.max() <= front_end.difference_sigma_cyc(20.0, 10.0) + 1e-12

@@ -240,7 +240,7 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
                                  f"within duration_s = {duration:g} s; expected a rate >= {1 / duration:g} Hz")
 
     return Scenario(
-        realism=_realism(source, values["ephemeris_error"], values["imu_errors"], base),
+        realism=_realism(source, values["ephemeris_error"], values["imu_errors"], base, values["front_end"]),
         name=values[""]["name"],
         description=values[""]["description"],
         lat_rad=math.radians(values["site"]["lat_deg"]),
@@ -277,8 +277,8 @@ def _scenario_params(values: dict[str, dict[str, Any]]) -> dict[str, float]:
     return out
 
 
-def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any], base: Path | None = None
-             ) -> dict[str, dict[str, Any]]:
+def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any], base: Path | None = None,
+             front_end: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
     """The realism sections in SI: sigmas (m), rad, m/s^2 and rad/s per degC, rates; the
     operator-ephemeris folder as a path from `base` (the scenario file's folder)."""
     eph = dict(eph)
@@ -310,7 +310,14 @@ def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any], base: Path |
               "temperature_rate_c_per_s": imu["temperature_rate_c_per_s"],
               "accel_bias_tempco_mps2_per_c": 1e-3 * g0 * imu["accel_bias_tempco_mg_per_c"],
               "gyro_bias_tempco_rad_s_per_c": math.radians(imu["gyro_bias_tempco_deg_s_per_c"])}
-    return {"ephemeris": eph, "imu": imu_si}
+    out = {"ephemeris": eph, "imu": imu_si}
+    if front_end is not None:
+        lo, hi = check_numbers(source, "front_end", "cn0_dbhz", front_end["cn0_dbhz"], 2, "dB-Hz", limit=100.0)
+        if not 0 < lo <= hi:
+            raise UserInputError(f"{source}: [front_end] cn0_dbhz = {show_value(front_end['cn0_dbhz'])}: expected "
+                                 "[at the mask, at the zenith] with 0 < the first <= the second")
+        out["front_end"] = {**front_end, "cn0_dbhz": [lo, hi]}
+    return out
 
 
 def load_scenario(path: str | Path) -> Scenario:

@@ -138,6 +138,20 @@ SCHEMA: dict[str, dict[str, Field]] = {
                                      "relative to the scenario file) instead of the Starlink sigmas; "
                                      "docs/ephemerides.md"),
     },
+    "front_end": {
+        "enabled": Field(bool, "-", default=False, doc="carrier phase: C/N0 by elevation, LO phase noise, cycle slips "
+                         "(simulation/front_end.py)"),
+        "cn0_dbhz": Field(list, "dB-Hz", default=[20.0, 35.0], doc="tone C/N0 at the Starlink mask and at the zenith"),
+        "pll_bandwidth_hz": Field(float, "Hz", 0.1, 1000, default=10.0, doc="the tracking loop's noise bandwidth"),
+        "lo_phase_noise_dbc_hz": Field(float, "dBc/Hz", -200, 0, default=-50.0,
+                                       doc="LNB LO SSB phase noise at lo_phase_noise_offset_hz (white FM)"),
+        "lo_phase_noise_offset_hz": Field(float, "Hz", 1, 1e7, default=1000.0, doc="offset of that figure"),
+        "slip_below_dbhz": Field(float, "dB-Hz", 0, 60, default=25.0, doc="tones weaker than this can slip"),
+        "slip_probability": Field(float, "-", 0, 1, default=1e-3, doc="per epoch of a weak tone"),
+        "slips_detected": Field(float, "-", 0, 1, default=0.95, doc="fraction the tracker flags (epoch dropped)"),
+        "compensate": Field(bool, "-", default=False,
+                            doc="filter: the LO random walk q_blo that follows the LO's white FM at the epoch rate"),
+    },
     "imu_errors": {
         "enabled": Field(bool, "-", default=False, doc="IMU errors the filter does not model"),
         # 1-sigma = a third of the InvenSense MPU-9250 spec tolerances (consumer MEMS)

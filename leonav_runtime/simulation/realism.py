@@ -1,6 +1,7 @@
 """Realism switches: the simulated truth differs from what the filter assumes.
 
-Each switch is a scenario section (`[ephemeris_error]`, `[imu_errors]`), off by default.
+Each switch is a scenario section (`[ephemeris_error]`, `[imu_errors]`, `[front_end]`: the carrier
+phase's C/N0, LO phase noise and cycle slips, front_end.py), off by default.
 `enabled` changes the truth the sensors see; the compensation keys change only the filter,
 so "errors on, no compensation", "errors on, compensated" and "compensation alone" can
 all be run. Draws come from the trial's stream after every draw of the ideal simulation,
@@ -33,6 +34,7 @@ import numpy as np
 from leonav_runtime.core import model
 from leonav_runtime.inputs.consider import OrbitConsider, rac_axes
 from leonav_runtime.inputs.measurements import aux_blocks
+from leonav_runtime.simulation import front_end
 
 
 
@@ -209,12 +211,22 @@ def apply(setup, nav, rng: np.random.Generator, u: np.ndarray, parts: list) -> t
     if imu.get("enabled"):
         dt = 1.0 / scn.imu_rate_hz
         u = u + imu_error_increments(rng, imu, setup.u_true, setup.t_imu[:-1], dt, L)
-    return u, (filter_params(setup.params, imu, L) if imu else setup.params)
+    params = filter_params(setup.params, imu, L) if imu else setup.params
+    fe = scn.realism.get("front_end", {})
+    if fe.get("enabled"):
+        for part in parts:
+            if model.observable(part[0]).reads_interval:
+                front_end.apply(setup, rng, part, setup.series[part[0]])
+    if fe.get("compensate"):
+        params = params.copy()
+        params[L.P_Q_BLO] = max(params[L.P_Q_BLO], front_end.filter_q_blo(fe, 1.0 / scn.starlink["rate_hz"]))
+    return u, params
 
 
 def active(scn) -> bool:
     """Whether any switch or compensation changes a trial of `scn`."""
     eph, imu = scn.realism.get("ephemeris", {}), scn.realism.get("imu", {})
+    fe = scn.realism.get("front_end", {})
     return bool(eph.get("enabled") or eph.get("compensate", "none") != "none" or imu.get("enabled")
-                or imu.get("process_noise_inflation", 1.0) != 1.0)
+                or imu.get("process_noise_inflation", 1.0) != 1.0 or fe.get("enabled") or fe.get("compensate"))
 
