@@ -240,7 +240,8 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
                                  f"within duration_s = {duration:g} s; expected a rate >= {1 / duration:g} Hz")
 
     return Scenario(
-        realism=_realism(source, values["ephemeris_error"], values["imu_errors"], base, values["front_end"]),
+        realism=_realism(source, values["ephemeris_error"], values["imu_errors"], base, values["front_end"],
+                         values["base"]),
         name=values[""]["name"],
         description=values[""]["description"],
         lat_rad=math.radians(values["site"]["lat_deg"]),
@@ -278,7 +279,8 @@ def _scenario_params(values: dict[str, dict[str, Any]]) -> dict[str, float]:
 
 
 def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any], base: Path | None = None,
-             front_end: dict[str, Any] | None = None) -> dict[str, dict[str, Any]]:
+             front_end: dict[str, Any] | None = None, station: dict[str, Any] | None = None
+             ) -> dict[str, dict[str, Any]]:
     """The realism sections in SI: sigmas (m), rad, m/s^2 and rad/s per degC, rates; the
     operator-ephemeris folder as a path from `base` (the scenario file's folder)."""
     eph = dict(eph)
@@ -317,6 +319,12 @@ def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any], base: Path |
             raise UserInputError(f"{source}: [front_end] cn0_dbhz = {show_value(front_end['cn0_dbhz'])}: expected "
                                  "[at the mask, at the zenith] with 0 < the first <= the second")
         out["front_end"] = {**front_end, "cn0_dbhz": [lo, hi]}
+    if station is not None:
+        offset = check_numbers(source, "base", "offset_enu_m", station["offset_enu_m"], 3, "m", limit=1e6)
+        if station["enabled"] and not eph["enabled"]:
+            raise UserInputError(f"{source}: [base] enabled = true corrects the orbit error: it needs "
+                                 "[ephemeris_error] enabled = true")
+        out["base"] = {**station, "offset_enu_m": list(offset)}
     return out
 
 

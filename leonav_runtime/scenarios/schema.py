@@ -138,6 +138,12 @@ SCHEMA: dict[str, dict[str, Field]] = {
                                      "relative to the scenario file) instead of the Starlink sigmas; "
                                      "docs/ephemerides.md"),
     },
+    "base": {
+        "enabled": Field(bool, "-", default=False, doc="a base station's differential corrections (ephemeris method 3): "
+                         "the same true orbits seen at a known position, applied to every Starlink observable"),
+        "offset_enu_m": Field(list, "m", default=[20000.0, 0.0, 0.0],
+                              doc="the base's position from the site, East North Up (at rest)"),
+    },
     "front_end": {
         "enabled": Field(bool, "-", default=False, doc="carrier phase: C/N0 by elevation, LO phase noise, cycle slips "
                          "(simulation/front_end.py)"),

@@ -35,6 +35,7 @@ from leonav_runtime.core import model
 from leonav_runtime.inputs.consider import OrbitConsider, rac_axes
 from leonav_runtime.inputs.measurements import aux_blocks
 from leonav_runtime.simulation import front_end
+from leonav_runtime.simulation.sensor_errors import own_stream
 
 
 
@@ -115,22 +116,49 @@ def _moved_aux(setup, kind_name: str, rows: np.ndarray, d_sat: np.ndarray, d_ref
     return aux
 
 
-def ephemeris_delta(setup, nav, kind_name: str, rows: np.ndarray, errors: dict) -> np.ndarray:
+def ephemeris_delta(setup, nav, kind_name: str, rows: np.ndarray, errors: dict,
+                    x_at: np.ndarray | None = None) -> np.ndarray:
     """Change (measurement unit) of each row's noise-free value when its satellite (and its
-    reference) fly their true orbits instead of the element orbits."""
+    reference) fly their true orbits instead of the element orbits; x_at (NX,): evaluated for
+    a receiver at this state instead of the truth (a base station)."""
     s, constellation = setup.series[kind_name], model.observable(kind_name).constellation
     d_sat = _offsets(errors[constellation], s.sat_id[rows])
     d_ref = _offsets(errors[constellation], _ref_ids(setup, kind_name, rows)) if s.has_ref else None
     aux = _moved_aux(setup, kind_name, rows, d_sat, d_ref, nav.layout)
-    return _model(setup, nav, kind_name, rows, aux) - s.z_true[rows]
+    if x_at is None:
+        return _model(setup, nav, kind_name, rows, aux) - s.z_true[rows]
+    moved, _ = nav.h_many(kind_name, x_at, aux, params=setup.params, jacobian=False)
+    element, _ = nav.h_many(kind_name, x_at, s.aux[rows], params=setup.params, jacobian=False)
+    return moved - element
 
 
-def ephemeris_sigma(setup, nav, kind_name: str, rows: np.ndarray) -> np.ndarray:
+def base_corrections(setup, nav, rng: np.random.Generator, part: list, errors: dict) -> np.ndarray:
+    """A base station's corrections (measurement unit) for one part [kind_name, rows, z, sigma]:
+    what the orbit error does to the same observable at the base's known position (`[base]`
+    offset from the site, at rest), plus the base's own noise (the part's sigma, its own
+    stream), minus its mean over each epoch's satellites (the base's LO and clock are common to
+    an epoch; the rover's own states take up what that removes). The rover subtracts them and
+    adds their variance to R (simulation: corrections of the rover's epoch, age 0)."""
+    kind_name, rows = part[0], part[1]
+    delta = ephemeris_delta(setup, nav, kind_name, rows, errors, x_at=base_state(setup))
+    sigma = np.broadcast_to(np.asarray(part[3], float), delta.shape)
+    corr = delta + sigma * own_stream(rng, f"base:{kind_name}").standard_normal(delta.size)
+    t = setup.series[kind_name].t_s[rows]
+    _, index = np.unique(t, return_inverse=True)
+    mean = np.bincount(index, corr) / np.bincount(index)
+    return corr - mean[index]
+
+
+def ephemeris_sigma(setup, nav, kind_name: str, rows: np.ndarray, x_base: np.ndarray | None = None) -> np.ndarray:
     """1-sigma (measurement unit) the orbit error adds to each row: the model's change with
-    the satellite (and, independently, the reference) moved one sigma along each axis."""
+    the satellite (and, independently, the reference) moved one sigma along each axis; with
+    x_base (NX,), what is left after a base station at that state corrects it (the change at
+    the receiver minus the change at the base)."""
     s = setup.series[kind_name]
     sig = sigma_rac(setup.scn.realism["ephemeris"], model.observable(kind_name).constellation)
     base = s.z_true[rows]
+    at_base = None if x_base is None else nav.h_many(kind_name, x_base, s.aux[rows], params=setup.params,
+                                                     jacobian=False)[0]
     var = np.zeros(rows.size)
     for moved in (("sat", "ref") if s.has_ref else ("sat",)):
         for axis in range(3):
@@ -139,8 +167,19 @@ def ephemeris_sigma(setup, nav, kind_name: str, rows: np.ndarray) -> np.ndarray:
             zero = np.zeros_like(d)
             aux = _moved_aux(setup, kind_name, rows, d if moved == "sat" else zero,
                              (d if moved == "ref" else zero) if s.has_ref else None, nav.layout)
-            var += (_model(setup, nav, kind_name, rows, aux) - base) ** 2
+            change = _model(setup, nav, kind_name, rows, aux) - base
+            if x_base is not None:
+                change -= nav.h_many(kind_name, x_base, aux, params=setup.params, jacobian=False)[0] - at_base
+            var += change**2
     return np.sqrt(var)
+
+
+def base_state(setup) -> np.ndarray:
+    """The base station's state (NX,): at rest at its `[base]` offset from the site."""
+    x_base = setup.x_true[0].copy()
+    x_base[0:3] = setup.scn.realism["base"]["offset_enu_m"]
+    x_base[3:6] = 0.0
+    return x_base
 
 
 def orbit_consider(scn) -> OrbitConsider | None:
@@ -199,15 +238,18 @@ def apply(setup, nav, rng: np.random.Generator, u: np.ndarray, parts: list) -> t
     changed in place; returns the measured increments and the filter's parameters."""
     scn, L = setup.scn, nav.layout
     eph, imu = scn.realism.get("ephemeris", {}), scn.realism.get("imu", {})
+    base = scn.realism.get("base", {})
     if eph.get("enabled"):
         errors = draw_orbit_errors(rng, setup)
         for part in parts:
             if model.observable(part[0]).constellation in eph["apply_to"]:
                 part[2] = part[2] + ephemeris_delta(setup, nav, part[0], part[1], errors)
-    if eph.get("compensate") == "inflate-r":
+    if eph.get("compensate") == "inflate-r":   # with a base: what its corrections leave (below)
         for part in parts:
             if model.observable(part[0]).constellation in eph["apply_to"]:
-                part[3] = np.sqrt(part[3] ** 2 + ephemeris_sigma(setup, nav, part[0], part[1]) ** 2)
+                x_base = base_state(setup) if base.get("enabled") and \
+                    model.observable(part[0]).constellation == "starlink" else None
+                part[3] = np.sqrt(part[3] ** 2 + ephemeris_sigma(setup, nav, part[0], part[1], x_base) ** 2)
     if imu.get("enabled"):
         dt = 1.0 / scn.imu_rate_hz
         u = u + imu_error_increments(rng, imu, setup.u_true, setup.t_imu[:-1], dt, L)
@@ -217,6 +259,11 @@ def apply(setup, nav, rng: np.random.Generator, u: np.ndarray, parts: list) -> t
         for part in parts:
             if model.observable(part[0]).reads_interval:
                 front_end.apply(setup, rng, part, setup.series[part[0]])
+    if base.get("enabled"):   # the base sees the same true orbits: its corrections, applied
+        for part in parts:
+            if model.observable(part[0]).constellation == "starlink":
+                part[2] = part[2] - base_corrections(setup, nav, rng, part, errors)
+                part[3] = np.sqrt(2.0) * np.asarray(part[3], float)   # the base's noise beside the rover's
     if fe.get("compensate"):
         params = params.copy()
         params[L.P_Q_BLO] = max(params[L.P_Q_BLO], front_end.filter_q_blo(fe, 1.0 / scn.starlink["rate_hz"]))
@@ -226,7 +273,7 @@ def apply(setup, nav, rng: np.random.Generator, u: np.ndarray, parts: list) -> t
 def active(scn) -> bool:
     """Whether any switch or compensation changes a trial of `scn`."""
     eph, imu = scn.realism.get("ephemeris", {}), scn.realism.get("imu", {})
-    fe = scn.realism.get("front_end", {})
-    return bool(eph.get("enabled") or eph.get("compensate", "none") != "none" or imu.get("enabled")
+    fe, base = scn.realism.get("front_end", {}), scn.realism.get("base", {})
+    return bool(base.get("enabled") or eph.get("enabled") or eph.get("compensate", "none") != "none" or imu.get("enabled")
                 or imu.get("process_noise_inflation", 1.0) != 1.0 or fe.get("enabled") or fe.get("compensate"))
 
