@@ -45,6 +45,7 @@ TERM_TOL = _TERM_TOL
 DT_S = 1.0           # analysis step: one IMU interval of the filter's model (s)
 N_STEPS = 30         # steps along the motion (measurements at steps 0..N_STEPS)
 N_SATS = 6           # satellites per satellite observable (generic geometry)
+PHASE_INTERVAL_S = 0.1  # a time-differenced carrier phase spans one tracker epoch before its step (s)
 SEED = 20260223
 SITE = (math.radians(43.0848638), math.radians(-77.6786127), 170.0)  # the paper's site (rad, rad, m)
 GNSS_OBSERVABLES = tuple(m.suffix for m in S.MEASUREMENTS if m.source == "gnss")

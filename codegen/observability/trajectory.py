@@ -10,7 +10,7 @@ import casadi as ca
 import numpy as np
 
 from leonav.codegen.observability.settings import (DT_S, GNSS_OBSERVABLES, GNSS_RADIUS_M, LEO_RADIUS_M,
-                                                  MIN_ELEVATION_RAD, MOTIONS, N_SATS, N_STEPS, SEED,
+                                                  MIN_ELEVATION_RAD, MOTIONS, N_SATS, N_STEPS, PHASE_INTERVAL_S, SEED,
                                                   UNIT_SCALES, analysis_params)
 from leonav.codegen.observability.symbolic import Symbolic, symbolic
 from leonav.models import state as S
@@ -175,8 +175,11 @@ def trajectory(motion: str, observables: Sequence[str], seed: int = SEED, draw: 
         radius = GNSS_RADIUS_M if constellation == "gnss" else LEO_RADIUS_M
         sats = _satellites(_stream(seed, motion, draw, constellation), r_site, C, radius, n_sats)
         uses_ref = _depends_on(sym, suffix, S.AUX["r_ref_ecef"].slice)
+        # a time difference (carrier phase) spans one tracker epoch before each step
+        span = PHASE_INTERVAL_S if _depends_on(sym, suffix, S.AUX["dt_phase"].slice) else 0.0
         for k in range(n_steps + 1):
             r, vs, a = sats(t[k])
+            r_prev = sats(t[k] - span)[0] if span else None
             for j in range(1 if uses_ref else 0, n_sats):
                 aux = np.zeros(S.NAUX)
                 aux[S.AUX["r_S_ecef"].slice], aux[S.AUX["v_S_ecef"].slice] = r[j], vs[j]
@@ -184,6 +187,8 @@ def trajectory(motion: str, observables: Sequence[str], seed: int = SEED, draw: 
                 aux[S.AUX["r_ref_ecef"].slice], aux[S.AUX["v_ref_ecef"].slice] = r[0], vs[0]
                 aux[S.AUX["a_ref_ecef"].slice] = a[0]
                 aux[S.AUX["f_b"].slice] = f_b[k]
+                if span:
+                    aux[S.AUX["dt_phase"].slice], aux[S.AUX["r_S_prev_ecef"].slice] = span, r_prev[j]
                 traj.measurements.append((k, suffix, aux, j))
     return traj
 
