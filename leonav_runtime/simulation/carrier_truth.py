@@ -6,8 +6,9 @@ tones do: the received phase at t is the phase the satellite sent at t - tau, wi
 light time, solved by iteration with the satellite moved back along its ECEF Taylor expansion
 and the Earth's rotation during the flight applied as a rotation (not the Sagnac series); the
 change is the difference of the two ranges, each at its own receiver and satellite state; the
-front end's offset is the true LO frequency integrated over the interval, and the sample clock
-scales the whole (truth of s_clk and b_lo from the trial's sensor-error draws).
+front end's offset is the true LO frequency (as the SDR measures it) integrated over the
+interval, and the sample clock scales the geometry's part (truth of s_clk and b_lo from the
+trial's sensor-error draws).
 """
 from __future__ import annotations
 
@@ -68,8 +69,8 @@ def geometric_cycles(f_c_hz: float, sat: np.ndarray, sat_prev: np.ndarray, r_U: 
 
 def trial_values(z_geometry: np.ndarray, k: np.ndarray, k_prev: np.ndarray, errors: dict[str, np.ndarray],
                  x_base: np.ndarray, dt_imu: float) -> np.ndarray:
-    """(B, n) true phase changes (cycles) of B trials: (1 - s_clk(t)) (geometry + integral of
-    b_lo over the interval), s_clk and b_lo from the trial's sensor-error truth `errors`
+    """(B, n) true phase changes (cycles) of B trials: (1 - s_clk(t)) geometry + the integral of
+    b_lo over the interval, s_clk and b_lo from the trial's sensor-error truth `errors`
     ((B, samples, 1) each; absent: the base truth x_base's value), the integral by the trapezoid
     over the IMU samples k_prev .. k (the truth's own resolution)."""
     def truth_of(name):
@@ -81,4 +82,4 @@ def trial_values(z_geometry: np.ndarray, k: np.ndarray, k_prev: np.ndarray, erro
     cum = np.concatenate([np.zeros((b_lo.shape[0], 1)), np.cumsum(0.5 * (b_lo[:, 1:] + b_lo[:, :-1]), axis=1)],
                          axis=1) * dt_imu
     lo_cycles = cum[:, k] - cum[:, k_prev]
-    return (1.0 - s_clk[:, k]) * (z_geometry[None, :] + lo_cycles)
+    return (1.0 - s_clk[:, k]) * z_geometry[None, :] + lo_cycles

@@ -3,16 +3,19 @@
 The carrier tracker (leonav_runtime/beacons/carrier*.py) gives each tone's accumulated carrier
 phase Phi (cycles) per epoch; its rate is the baseband frequency the SDR sees,
 
-    dPhi/dt = (1 - s_clk) (-(f_c/c) rho_dot + b_lo),
+    dPhi/dt = -(1 - s_clk) (f_c/c) rho_dot + b_lo,
 
-with rho the range to the satellite (ECEF), b_lo the front end's common frequency offset at
-baseband (LNB LO + tuner, Hz: the Doppler model's state) and s_clk the SDR sample clock's
-fractional frequency error (a clock fast by s counts an interval T of its samples in
-T / (1 + s) true seconds, so every frequency it measures is scaled by 1 - s to first order).
+with rho the range to the satellite (ECEF), s_clk the SDR sample clock's fractional frequency
+error (a clock fast by s counts an interval T of its samples in T / (1 + s) true seconds, so
+every frequency it measures is scaled by 1 - s to first order) and b_lo the front end's common
+frequency offset at baseband as the SDR measures it (LNB LO + tuner, Hz: the Doppler model's
+state, whose own scale error it absorbs). Scaling b_lo by 1 - s as well would make h bilinear in
+two states with wide priors (1e-4 x 5 kHz per epoch = 0.5 cycles, 40 sigma: a first update from
+the prior would lock in that error); as written h is linear in both.
 The measurement is the difference over one epoch interval T = aux `dt_phase`:
 
     z = Phi(t) - Phi(t - T),
-    h = (1 - s_clk) (-(f_c/c) (rho(t) - rho(t - T)) + T b_lo),
+    h = -(1 - s_clk) (f_c/c) (rho(t) - rho(t - T)) + T b_lo,
 
 with rho the one-way light-time range of each end: the phase received at t left the satellite
 at t - tau, so rho = |r_tx - r_U| + the Sagnac term (w_ie/c)(x_tx y_U - y_tx x_U), r_tx the
@@ -74,7 +77,7 @@ def h(x, aux, p):
     rho_prev = light_time_range(aux[AUX["r_S_prev_ecef"].slice], v_S - a_S * T, a_S,
                                 r_U - v_U * T + 0.5 * a_U * T**2)
     f_c = p[P["f_c_hz"].offset]
-    return (1 - x[X["s_clk"].offset]) * (-(f_c / C_LIGHT_MPS) * (rho - rho_prev) + T * x[X["b_lo"].offset])
+    return -(1 - x[X["s_clk"].offset]) * (f_c / C_LIGHT_MPS) * (rho - rho_prev) + T * x[X["b_lo"].offset]
 
 
 OBSERVABLES = (

@@ -179,10 +179,10 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a23=(a23+a40);
   a23=(a23-a24);
   a40=(2.*a23);
-  a41=arg[2]? arg[2][10] : 0;
-  a41=(a41/a14);
-  a42=arg[0]? arg[0][23] : 0;
-  a42=(a03-a42);
+  a41=arg[0]? arg[0][23] : 0;
+  a41=(a03-a41);
+  a42=arg[2]? arg[2][10] : 0;
+  a42=(a42/a14);
   a41=(a41*a42);
   a42=(a01*a28);
   a00=(a00-a42);
