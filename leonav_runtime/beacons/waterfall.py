@@ -97,14 +97,21 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
     # windowed frames go into one reused buffer: a fresh array per block costs page faults
     frames = np.empty((slices_per_block, n), np.complex64)
     any_notch = bool(notch.any())
+    # the kept bins are one or two runs of consecutive FFT bins (negative frequencies, then 0 and
+    # positive): |X|^2 is computed from those slices of the spectrum in place of a gathered copy
+    cut = np.flatnonzero(np.diff(idx) != 1) + 1
+    runs = [(int(r[0]), int(r[-1]) + 1, int(o)) for r, o in zip(np.split(idx, cut), np.r_[0, cut]) if r.size]
 
     def emit(b: np.ndarray, start: int) -> SpectrumBlock:
         ns = 1 + (b.size - n) // hop
         fr = frames[:ns]
         np.multiply(np.lib.stride_tricks.sliding_window_view(b, n)[::hop][:ns], window, out=fr)
-        spec = scipy.fft.fft(fr, axis=1, workers=workers)[:, idx]
-        p = np.square(spec.real)  # float32, as |X|^2 of the complex64 spectrum
-        p += np.square(spec.imag)
+        spec = scipy.fft.fft(fr, axis=1, workers=workers)
+        p = np.empty((ns, idx.size), np.float32)   # |X|^2 of the complex64 spectrum, float32
+        for lo, hi, at in runs:
+            part = p[:, at:at + hi - lo]
+            np.square(spec[:, lo:hi].real, out=part)
+            part += np.square(spec[:, lo:hi].imag)
         if any_notch:
             p[:, notch] = 0.0
         sub = p[:, ::floor_step]
