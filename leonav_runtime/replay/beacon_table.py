@@ -12,6 +12,15 @@ beacon to baseband 0); without a readable Ku-band value, `STARLINK_BEACON_HZ` wi
 measurement times and floors the sigma (`ReplayOptions.doppler_rate_sigma_floor_hz_s`); with
 operator ephemerides (`--operator-ephemerides`, docs/ephemerides.md) a satellite whose file
 covers its measurement times takes its states from the file instead.
+
+Carrier phase (a mode with the `phase` word): `beacon_measurements(..., track_phase=True)` also
+runs the carrier tracker (`carrier_hook.track_result`) on the processed capture and turns
+its epochs into time differences (`inputs.carrier_phase.phase_differences`, breaks counted);
+`carrier_phase_table` adds the satellite's state at t and its position at t - interval (the
+same propagation as the Doppler-rate table) and refers each tone to the channel centre
+(`inputs.carrier_phase.tone_to_centre`: tone index x the comb spacing of the association).
+A tone whose comb index is unknown (offset known only modulo the spacing) is left out, its
+epochs counted.
 """
 from __future__ import annotations
 
@@ -26,7 +35,8 @@ import numpy as np
 
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.gen.constants import KU_DOWNLINK_MAX_HZ, KU_DOWNLINK_MIN_HZ, STARLINK_BEACON_HZ
-from leonav_runtime.inputs import SAT_A_MPS2, SAT_R_M, SAT_V_MPS, DopplerRateTable
+from leonav_runtime.inputs import SAT_A_MPS2, SAT_R_M, SAT_V_MPS, CarrierPhaseTable, DopplerRateTable
+from leonav_runtime.inputs.carrier_phase import PhaseDifferences, phase_differences, tone_to_centre
 from leonav_runtime.replay.timebase import utc_of
 
 KU_DOWNLINK_HZ = (KU_DOWNLINK_MIN_HZ, KU_DOWNLINK_MAX_HZ)  # a capture RF centre outside is not a beacon carrier
@@ -42,11 +52,68 @@ class BeaconMeasurements:
     sat_index: np.ndarray
     z_hz_s: np.ndarray
     sigma_hz_s: np.ndarray
+    phase: "PhaseMeasurements | None" = None    # the tracked carrier phase, when asked for
 
     @classmethod
     def empty(cls) -> "BeaconMeasurements":
         z = np.zeros(0)
         return cls(z, z.astype(int), z.astype(int), z, z)
+
+
+@dataclasses.dataclass
+class PhaseMeasurements:
+    """Carrier-phase time differences of the capture's tones, before satellite states: diffs
+    (t s on the replay axis, raw tone phase z, not yet referred to the centre), sat_index (n,)
+    row in the element set, tone_offset_hz (n,) the tone minus the channel centre (Hz), and
+    counts (tones tracked and left out, epochs of tones without a comb index, differences,
+    breaks by reason)."""
+
+    diffs: PhaseDifferences
+    sat_index: np.ndarray
+    tone_offset_hz: np.ndarray
+    counts: dict
+
+    @classmethod
+    def empty(cls, reason: str) -> "PhaseMeasurements":
+        z = np.zeros(0)
+        counts = {"tones_tracked": 0, "differences": 0, "reason_empty": reason}
+        return cls(PhaseDifferences(z, z, z.astype(int), z.astype(int), z, z, {}), z.astype(int), z, counts)
+
+
+def phase_measurements(res, t0: float, spacing_hz: float, cfg=None, progress=None) -> PhaseMeasurements:
+    """Track the carrier of the associated tones of pipeline result `res` and difference it
+    (module doc); t0 (s): the capture's first sample on the replay axis."""
+    from leonav_runtime.beacons.carrier import CarrierConfig
+    from leonav_runtime.beacons.carrier_hook import track_result
+
+    cfg = cfg or CarrierConfig()
+    skipped: list[str] = []
+    tracked = track_result(res, cfg, progress=progress, skipped=skipped)
+    cols: dict[str, list] = {k: [] for k in ("t", "sat", "tone", "phi", "sig", "lk", "arc")}
+    offset_of, index_of = {}, {}
+    no_index_tones = no_index_epochs = 0
+    for ridge, a, tr in tracked:
+        if a.tone_index is None:          # offset known modulo the spacing only: T df unknown
+            no_index_tones += 1
+            no_index_epochs += int(tr.t_s.size)
+            continue
+        offset_of[ridge.ridge_id] = a.tone_index * spacing_hz
+        index_of[ridge.ridge_id] = int(res.predictions.sat_index[a.sat_row])
+        n = tr.t_s.size
+        for key, v in (("t", t0 + tr.t_s), ("sat", np.full(n, a.norad_id)), ("tone", np.full(n, ridge.ridge_id)),
+                       ("phi", tr.phase_cycles), ("sig", tr.sigma_cycles), ("lk", tr.locked), ("arc", tr.arc)):
+            cols[key].append(np.asarray(v))
+    cat = {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in cols.items()}
+    diffs = phase_differences(cat["t"], cat["sat"], cat["tone"], cat["phi"], cat["sig"], cat["lk"], cat["arc"],
+                              cfg.epoch_s)
+    counts = {"tones_tracked": len(tracked), "tones_left_out": len(skipped), "left_out": skipped,
+              "tones_without_comb_index": no_index_tones, "epochs_without_comb_index": no_index_epochs,
+              "epochs": diffs.counts["epochs"], "pairs": diffs.counts["pairs"],
+              "differences": diffs.counts["differences"], "breaks": diffs.counts["breaks"],
+              "epoch_s": cfg.epoch_s}
+    sat_index = np.array([index_of[int(r)] for r in diffs.tone_id], int)
+    offsets = np.array([offset_of[int(r)] for r in diffs.tone_id], float)
+    return PhaseMeasurements(diffs, sat_index, offsets, counts)
 
 
 def _sigmf_mono_start(folder: Path) -> float | None:
@@ -91,10 +158,12 @@ def default_elements(start_utc: _dt.datetime, notes: list[str]):
 
 
 def beacon_measurements(folder: Path, out_dir: Path | None, to_utc, time_source_ok: bool, epoch: float, origin,
-                        elements, notes: list[str], progress=None) -> tuple[BeaconMeasurements, dict, object]:
+                        elements, notes: list[str], progress=None,
+                        track_phase: bool = False) -> tuple[BeaconMeasurements, dict, object]:
     """Run the beacon pipeline on the session's capture; returns (measurements, summary, elements).
 
-    summary["f_c_hz"], ["f_c_source"]: the carrier f_c (`capture_carrier`, else the default)."""
+    summary["f_c_hz"], ["f_c_source"]: the carrier f_c (`capture_carrier`, else the default).
+    track_phase: also track the tones' carrier phase (measurements.phase, summary["carrier_phase"])."""
     from leonav_runtime.beacons import capture_io, pipeline
     from leonav_runtime.beacons.predict import Site
 
@@ -144,11 +213,18 @@ def beacon_measurements(folder: Path, out_dir: Path | None, to_utc, time_source_
         for k in range(m.t_s.size):
             rows.append((t0 + m.t_s[k], a.norad_id, idx, m.rate_hz_s[k], m.sigma_rate_hz_s[k]))
     rows.sort()
+    phase = None
+    if track_phase:
+        phase = phase_measurements(res, t0, cfg.association.comb.spacing_hz)
+        summary["carrier_phase"] = phase.counts
     if not rows:
-        return BeaconMeasurements.empty(), summary, elements
-    arr = list(zip(*rows))
-    return (BeaconMeasurements(np.array(arr[0]), np.array(arr[1], int), np.array(arr[2], int), np.array(arr[3]),
-                               np.array(arr[4])), summary, elements)
+        out = BeaconMeasurements.empty()
+    else:
+        arr = list(zip(*rows))
+        out = BeaconMeasurements(np.array(arr[0]), np.array(arr[1], int), np.array(arr[2], int), np.array(arr[3]),
+                                 np.array(arr[4]))
+    out.phase = phase
+    return out, summary, elements
 
 
 def doppler_rate_table(meas: BeaconMeasurements, elements, epoch_utc: _dt.datetime,
@@ -179,3 +255,48 @@ def doppler_rate_table(meas: BeaconMeasurements, elements, epoch_utc: _dt.dateti
         notes.append(f"beacons: {from_files} of {n_sat} satellites' states from operator ephemerides, "
                      f"{n_sat - from_files} from their element sets (no file, or not over their measurement times)")
     return DopplerRateTable(meas.t, meas.norad_id, meas.z_hz_s, np.maximum(meas.sigma_hz_s, sigma_floor_hz_s), sat)
+
+
+def _states(elements, idx: int, epoch_utc: _dt.datetime, t: np.ndarray, operator):
+    """States (r, v, a ECEF) of element-set row idx at t (s since epoch_utc), and whether the
+    operator's file gave them (the Doppler-rate table's rule)."""
+    from leonav_runtime.orbits import propagate_ecef
+
+    one = elements.select([int(idx)])
+    if operator is not None:
+        from leonav_runtime.orbits.operator_states import operator_sat_states
+        st, used = operator_sat_states(operator, one, epoch_utc, t)
+        return st, bool(used[0])
+    return propagate_ecef(one, epoch_utc, t), False
+
+
+def carrier_phase_table(pm: PhaseMeasurements, elements, epoch_utc: _dt.datetime, origin_ecef_m,
+                        operator=None, notes: list[str] | None = None) -> CarrierPhaseTable:
+    """The phase differences with each satellite's ECEF state at t and position at
+    t - interval (SGP4, or the operator's file where it covers both: `doppler_rate_table`'s
+    propagation), each tone referred to the channel centre with the range change predicted
+    for a receiver at origin_ecef_m (3,) m (`inputs.carrier_phase.tone_to_centre`)."""
+    d = pm.diffs
+    n = d.t.size
+    sat = np.zeros((n, 9))
+    prev = np.zeros((n, 3))
+    from_files = 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")     # staleness is reported by the beacon step
+        for idx in np.unique(pm.sat_index):
+            sel = pm.sat_index == idx
+            both = np.concatenate([d.t[sel], d.t_prev[sel]])
+            st, used = _states(elements, int(idx), epoch_utc, both, operator)
+            from_files += int(used)
+            m = int(sel.sum())
+            sat[sel, SAT_R_M], sat[sel, SAT_V_MPS], sat[sel, SAT_A_MPS2] = (st.r_ecef_m[0][:m], st.v_ecef_mps[0][:m],
+                                                                           st.a_ecef_mps2[0][:m])
+            prev[sel] = st.r_ecef_m[0][m:]
+    if operator is not None and notes is not None:
+        n_sat = int(np.unique(pm.sat_index).size)
+        notes.append(f"beacons: carrier phase: {from_files} of {n_sat} satellites' states from operator "
+                     f"ephemerides, {n_sat - from_files} from their element sets")
+    r0 = np.asarray(origin_ecef_m, float)
+    drho = np.linalg.norm(sat[:, SAT_R_M] - r0, axis=1) - np.linalg.norm(prev - r0, axis=1)
+    z = tone_to_centre(d.z_cycles, d.interval_s, pm.tone_offset_hz, drho)
+    return CarrierPhaseTable(d.t, d.norad_id, z, d.sigma_cycles, sat, None, d.interval_s, prev)

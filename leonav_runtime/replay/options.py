@@ -27,8 +27,14 @@ ALL_MODES = MODES + ("pseudorange+imu", "pseudorange+leo-alpha+imu")
 
 def replayable(o) -> bool:
     """What a recorded session gives the filter: GNSS fixes, the raw GNSS observations of
-    RXM-RAWX (tightly coupled modes) and the beacon capture's Doppler-rates."""
-    return o.stream == "fix" or o.table == "gnss_obs" or o.stream == "doppler_rate"
+    RXM-RAWX (tightly coupled modes), the beacon capture's Doppler-rates and its tones'
+    tracked carrier phase (time-differenced)."""
+    return o.stream in ("fix", "doppler_rate", "carrier_phase") or o.table == "gnss_obs"
+
+
+def uses_carrier_phase(modes) -> bool:
+    """Whether any of the modes fuses the tracked carrier phase (the `phase` word)."""
+    return any("carrier_phase" in replay_mode(m).streams for m in modes)
 
 
 def replay_mode(name: str, where: str = "--modes:") -> model.Mode:

@@ -17,13 +17,13 @@ from leonav_runtime.core import filter as lfilter
 from leonav_runtime.core import navfuncs
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.inputs import DopplerRateTable, FilterInputs, FirstFixPrior, FixTable, assemble, filter_params
-from leonav_runtime.replay.beacon_table import (BeaconMeasurements, beacon_measurements, default_carrier,
-                                                doppler_rate_table)
+from leonav_runtime.replay.beacon_table import (BeaconMeasurements, beacon_measurements, carrier_phase_table,
+                                                default_carrier, doppler_rate_table)
 from leonav_runtime.replay.gnss_raw import RawGnss, raw_gnss
 from leonav_runtime.replay.gnss_table import fix_height_m, fix_table, usable_fix
 from leonav_runtime.replay.options import (LATENCY_PRIOR_SIGMA_S, ReplayOptions, canonical_modes, check_options,
                                            latency_estimate, latency_given_s, latency_values, replay_mode,
-                                           uses_raw_gnss)
+                                           uses_carrier_phase, uses_raw_gnss)
 from leonav_runtime.replay.timebase import device_baud, filter_profile, imu_table, mono_to_utc_function, utc_of
 
 WITMOTION_ATTITUDE = "WitMotion angle output"
@@ -64,13 +64,22 @@ def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurem
     """The road into the filter for one session's tables (also used by the direct simulation);
     spp: the single-point pass of the session's RXM-RAWX (pseudorange modes), or None."""
     operator = None
-    if options.operator_ephemerides and meas.t.size:
+    phase = meas.phase
+    measured = np.unique(np.concatenate([meas.sat_index, phase.sat_index if phase is not None else []]).astype(int))
+    if options.operator_ephemerides and measured.size:
         from leonav_runtime.orbits.operator_ephemeris import load_folder
 
         # only the files of the satellites measured (a full folder holds ~10,000)
-        wanted = sorted({str(elements.names[int(i)]).strip() for i in np.unique(meas.sat_index)})
+        wanted = sorted({str(elements.names[int(i)]).strip() for i in measured})
         operator = load_folder(options.operator_ephemerides, names=wanted)
     doppler_rate = doppler_rate_table(meas, elements, epoch_utc, options.doppler_rate_sigma_floor_hz_s, operator, notes)
+    satellites = [doppler_rate]
+    if phase is not None:
+        from leonav_runtime.orbits.geometry import geodetic_to_ecef
+
+        satellites.append(carrier_phase_table(phase, elements, epoch_utc, geodetic_to_ecef(*origin), operator, notes))
+        c = phase.counts
+        notes.append(carrier_phase_note(c))
     gnss = None
     if spp is not None:
         from leonav_runtime.gnss.coupled import observation_table
@@ -86,7 +95,7 @@ def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurem
     corrections = recorded_corrections(options, epoch_utc)
     inputs = assemble(imu, filter_params(origin, profile, f_c_hz, latency_values(options.gnss_latency_s)),
                       replay_prior(options, profile),
-                      fixes=fixes, satellites=[doppler_rate], nav=nav, notes=notes, epoch_utc=epoch_utc,
+                      fixes=fixes, satellites=satellites, nav=nav, notes=notes, epoch_utc=epoch_utc,
                       origin=origin, gnss=gnss, orbit_consider=orbit_consider, corrections=corrections)
     if corrections is not None:
         d = corrections.describe()
@@ -100,7 +109,20 @@ def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurem
                             f"{provider.uncovered_records} records without it")
     out = SessionInputs.of(inputs, beacon_measurements=meas)
     out.counts["doppler_rate_satellites"] = int(np.unique(out.doppler_rate.sat_id).size)
+    if phase is not None:
+        out.counts["carrier_phase"] = phase.counts
     return out
+
+
+def carrier_phase_note(c: dict) -> str:
+    """One line of the tracker's counts: tones, differences and breaks by reason."""
+    if c.get("reason_empty"):
+        return f"carrier phase: no tone tracked ({c['reason_empty']})"
+    b = c["breaks"]
+    return (f"carrier phase: {c['tones_tracked']} tone(s) tracked ({c['tones_left_out']} left out, "
+            f"{c['tones_without_comb_index']} without a comb index: {c['epochs_without_comb_index']} epochs "
+            f"unused), {c['differences']} differences of {c['pairs']} epoch pairs; breaks: "
+            + ", ".join(f"{k} {v}" for k, v in b.items()))
 
 
 def recorded_corrections(options: ReplayOptions, epoch_utc):
@@ -177,7 +199,8 @@ def decode_inputs(folder: Path, options: ReplayOptions, elements=None, out_dir: 
         notes.append("GNSS: no position fix in gnss.raw: the single-point solutions of the RXM-RAWX pseudoranges "
                      f"are the fixes ({fixes.t.size}; they start the filter and are the fix modes' measurements)")
     meas, bsum, elements = (beacon_measurements(folder, out_dir, to_utc, dec.time_map.valid, epoch, origin, elements,
-                                                notes, progress) if origin else
+                                                notes, progress, track_phase=uses_carrier_phase(options.modes))
+                            if origin else
                             (BeaconMeasurements.empty(), {"reason_empty": "no position to predict satellites from "
                                                           "(no GNSS fix; give --origin)"}
                              | default_carrier("no beacon processing"), elements))
@@ -255,6 +278,10 @@ def skip_reasons(inputs: SessionInputs, modes) -> dict[str, str]:
         elif "doppler_rate" in replay_mode(mode).streams and inputs.records["doppler_rate"].size == 0:
             out[mode] = "no associated Doppler-rate measurement: " + str(
                 inputs.beacons.get("reason_empty") or "no ridge was associated with a satellite")
+        elif "carrier_phase" in replay_mode(mode).streams and np.size(inputs.records.get("carrier_phase", ())) == 0:
+            out[mode] = "no carrier-phase difference inside the IMU time span: " + str(
+                inputs.beacons.get("reason_empty") or "no associated tone held lock over two epochs with a "
+                "known comb index")
     return out
 
 

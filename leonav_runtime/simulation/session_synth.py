@@ -191,9 +191,10 @@ def builtin_starlink(epoch_utc: _dt.datetime):
     return parse_elements_text(starlink_walker_tle(minute), "<leonav starlink walker>", constellation="starlink")
 
 
-def _write_iq(folder: Path, cfg: SynthSessionConfig, elements, progress) -> tuple[SdrOutput, dict]:
-    """sdr.cu8 with the beacon tones (`beacons.synth`); returns what the recorder's metadata needs and the
-    capture's truth."""
+def capture_config(cfg: SynthSessionConfig):
+    """What the session's capture is synthesized from: (SdrSettings, beacons.synth.SynthConfig,
+    Site, start UTC); `beacons.synth.build_truth(elements, site, start, synth_cfg)` gives its
+    truth again (the tones' baseband frequency, hence their phase)."""
     from leonav_runtime.beacons import synth
     from leonav_runtime.beacons.predict import Site
 
@@ -206,6 +207,15 @@ def _write_iq(folder: Path, cfg: SynthSessionConfig, elements, progress) -> tupl
                              lo_offset_hz=cfg.lo_offset_hz,
                              n_satellites=cfg.n_satellites, seed=cfg.seed)
     site = Site(math.radians(cfg.lat_deg), math.radians(cfg.lon_deg), cfg.alt_m)
+    return settings, scfg, site, start
+
+
+def _write_iq(folder: Path, cfg: SynthSessionConfig, elements, progress) -> tuple[SdrOutput, dict]:
+    """sdr.cu8 with the beacon tones (`beacons.synth`); returns what the recorder's metadata needs and the
+    capture's truth."""
+    from leonav_runtime.beacons import synth
+
+    settings, scfg, site, start = capture_config(cfg)
     data = folder / "sdr.cu8"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")   # stale-element warnings: the replay reports them

@@ -1,0 +1,166 @@
+"""The road from the tracker's carrier phase to the filter for recorded data (`leo-phase` replay).
+
+The differencing (`inputs.carrier_phase`) on hand-made epochs, the tone-offset reference to
+the channel centre against an exact pass, and a replay of a synthetic session whose capture
+tones are the exact integral of their baseband frequency (`beacons.synth`), checked against
+that truth. (The synthesizer's Doppler has no light time and no per-tone scaling, so the
+filter's model is not checked against it here: tests/test_carrier_phase_filter.py does that
+against `simulation/carrier_truth.py`.)
+"""
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from scipy.interpolate import CubicSpline
+
+from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.gen.constants import C_LIGHT_MPS, COMB_SPACING_HZ, STARLINK_BEACON_HZ
+from leonav_runtime.inputs import BREAK_REASONS, phase_differences, tone_to_centre
+
+
+def _epochs():
+    """Two tones; tone (7, 10) has one break of each reason, tone (8, 11) none. Returned shuffled."""
+    t = np.round(np.arange(10) * 0.1, 10)
+    t[8:] += 0.15                          # epochs 7 -> 8: 0.25 s apart (a gap)
+    phi = 1000.0 + 37.25 * np.arange(10) ** 2
+    sig = 0.01 + 0.001 * np.arange(10)
+    locked = np.ones(10, bool)
+    locked[3] = False                      # pairs (2,3) and (3,4): unlocked
+    phi[5] = np.nan                        # pairs (4,5) and (5,6): non-finite
+    arc = np.zeros(10, int)
+    arc[7:] = 1                            # pair (6,7): new arc; (7,8): gap; (8,9): good
+    a = dict(t=t, sat=np.full(10, 7), tone=np.full(10, 10), phi=phi, sig=sig, lk=locked, arc=arc)
+    tb = np.round(np.arange(4) * 0.1 + 0.003, 10)   # 3 ms off the grid: inside the 5 ms tolerance
+    b = dict(t=tb, sat=np.full(4, 8), tone=np.full(4, 11), phi=np.array([5.0, 4.0, 2.5, -1.0]),
+             sig=np.full(4, 0.02), lk=np.ones(4, bool), arc=np.full(4, 3))
+    cols = {k: np.concatenate([a[k], b[k]]) for k in a}
+    order = np.random.default_rng(0).permutation(14)
+    return {k: v[order] for k, v in cols.items()}, a, b
+
+
+def test_differences_are_exact_and_every_break_is_counted():
+    e, a, b = _epochs()
+    d = phase_differences(e["t"], e["sat"], e["tone"], e["phi"], e["sig"], e["lk"], e["arc"], epoch_s=0.1)
+    c = d.counts
+    assert c["tones"] == 2 and c["epochs"] == 14 and c["pairs"] == 12
+    assert c["breaks"] == {"unlocked": 2, "non_finite": 2, "new_arc": 1, "gap": 1}
+    assert set(c["breaks"]) == set(BREAK_REASONS)
+    assert c["differences"] + sum(c["breaks"].values()) == c["pairs"]
+    # tone A: pairs (0,1), (1,2), (8,9); tone B: all three
+    good_a = [(0, 1), (1, 2), (8, 9)]
+    want_t = [a["t"][k] for _, k in good_a] + list(b["t"][1:])
+    want_z = [a["phi"][k] - a["phi"][j] for j, k in good_a] + list(np.diff(b["phi"]))
+    want_s = [math.hypot(a["sig"][k], a["sig"][j]) for j, k in good_a] + [math.hypot(0.02, 0.02)] * 3
+    want_dt = [a["t"][k] - a["t"][j] for j, k in good_a] + list(np.diff(b["t"]))
+    np.testing.assert_array_equal(d.t, want_t)
+    np.testing.assert_array_equal(d.z_cycles, want_z)
+    np.testing.assert_allclose(d.sigma_cycles, want_s, rtol=1e-15)
+    np.testing.assert_allclose(d.interval_s, want_dt, rtol=1e-12)
+    np.testing.assert_allclose(d.t_prev, d.t - d.interval_s)
+    np.testing.assert_array_equal(d.norad_id, [7, 7, 7, 8, 8, 8])
+    np.testing.assert_array_equal(d.tone_id, [10, 10, 10, 11, 11, 11])
+
+
+def test_tolerance_and_a_zero_sigma_are_breaks_and_bad_columns_one_line():
+    t = np.array([0.0, 0.1, 0.2, 0.3])
+    one = dict(norad_id=np.ones(4, int), tone_id=np.ones(4, int), phase_cycles=np.arange(4.0),
+               locked=np.ones(4, bool), arc=np.zeros(4, int))
+    d = phase_differences(t + np.array([0, 0, 0.006, 0]), sigma_phase_cycles=np.full(4, 0.01), epoch_s=0.1, **one)
+    assert d.counts["breaks"]["gap"] == 2 and d.counts["differences"] == 1      # 6 ms off: outside 5 ms
+    d = phase_differences(t, sigma_phase_cycles=np.array([0.01, 0.0, 0.01, 0.01]), epoch_s=0.1, **one)
+    assert d.counts["breaks"]["non_finite"] == 2 and d.counts["differences"] == 1
+    with pytest.raises(UserInputError, match="phase_cycles: shape \\(3,\\), expected \\(4,\\)"):
+        phase_differences(t, sigma_phase_cycles=np.full(4, 0.01), epoch_s=0.1,
+                          **(one | {"phase_cycles": np.zeros(3)}))
+    with pytest.raises(UserInputError, match="epoch_s"):
+        phase_differences(t, sigma_phase_cycles=np.full(4, 0.01), epoch_s=0.0, **one)
+
+
+def test_an_outer_tone_referred_to_the_centre_holds_to_3e_3_cycles():
+    """An exact pass: tone k = 4 at f_c + 4 x spacing, a receiver driving at 30 m/s, an LO
+    offset of 2 MHz; the centre's phase change recovered from the tone's with the range change
+    predicted for a receiver at rest at the origin."""
+    from leonav_runtime.orbits import propagate_ecef
+    from leonav_runtime.orbits.geometry import geodetic_to_ecef
+    from leonav_runtime.simulation.session_synth import PAPER_EPOCH, builtin_starlink
+
+    es = builtin_starlink(PAPER_EPOCH)
+    r0 = geodetic_to_ecef(math.radians(43.08), math.radians(-77.68), 170.0)
+    T, f_c, b_lo, df = 0.1, STARLINK_BEACON_HZ, 2e6, 4 * COMB_SPACING_HZ
+    t = np.arange(0.0, 60.0, T)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        st = propagate_ecef(es, PAPER_EPOCH, t)
+    up = r0 / np.linalg.norm(r0)
+    elev = np.einsum("ijk,k->ij", (st.r_ecef_m - r0) / np.linalg.norm(st.r_ecef_m - r0, axis=2)[..., None], up)
+    i = int(np.argmax(elev.min(axis=1)))            # a satellite above the horizon all minute
+    east = np.cross([0.0, 0.0, 1.0], up)
+    r_u = r0 + 30.0 * t[:, None] * east / np.linalg.norm(east)
+    rho = np.linalg.norm(st.r_ecef_m[i] - r_u, axis=1)
+    phase_tone = (df + b_lo) * t - (f_c + df) / C_LIGHT_MPS * rho
+    centre = np.diff(b_lo * t - f_c / C_LIGHT_MPS * rho)
+    drho_pred = np.diff(np.linalg.norm(st.r_ecef_m[i] - r0, axis=1))
+    got = tone_to_centre(np.diff(phase_tone), np.diff(t), df, drho_pred)
+    assert np.max(np.abs(got - centre)) < 3e-3
+    # what is corrected matters: the offset alone leaves (df/c) drho, and rescaling z by
+    # f_c/(f_c + df) leaves T b_lo df/f_c
+    assert np.max(np.abs(np.diff(phase_tone) - T * df - centre)) > 0.1
+    assert np.max(np.abs(np.diff(phase_tone - df * t) * f_c / (f_c + df) - centre)) > 1.0
+
+
+@pytest.fixture(scope="module")
+def phase_replay(tmp_path_factory):
+    from leonav_runtime.replay import ReplayOptions, replay_session
+    from leonav_runtime.replay.run import decode_inputs
+    from leonav_runtime.simulation import session_synth as ss
+
+    cfg = ss.SynthSessionConfig(seconds=6.0, seed=4, imu_rate_hz=50.0, imu_baud=115200, n_satellites=4)
+    base = tmp_path_factory.mktemp("phase")
+    synth = ss.write_synthetic_session(base / "s", cfg)
+    opts = ReplayOptions(modes=("leo-phase+imu", "leo-phase+alpha+imu"), gnss_latency_s=cfg.gnss_latency_s)
+    inputs = decode_inputs(synth.folder, opts, synth.elements, base / "out")
+    metrics = replay_session(synth.folder, base / "out", opts, synth.elements, inputs=inputs)
+    return synth, inputs, metrics
+
+
+def test_replay_table_is_the_capture_truth_phase_difference(phase_replay):
+    from leonav_runtime.beacons import synth as bs
+    from leonav_runtime.simulation import session_synth as ss
+
+    synth, inputs, _ = phase_replay
+    tab = inputs.satellites["carrier_phase"]
+    _, scfg, site, start = ss.capture_config(synth.cfg)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        truth = bs.build_truth(synth.elements, site, start, scfg)
+    t0 = (inputs.beacons["capture_start_utc"] - inputs.epoch_utc).total_seconds()   # capture time = t - t0
+    assert set(np.unique(tab.sat_id)) == set(truth.norad_ids.tolist())
+    for i, nid in enumerate(truth.norad_ids):
+        sel = tab.sat_id == nid
+        phi = CubicSpline(truth.t_grid_s, truth.baseband_hz[i]).antiderivative()
+        tau = tab.t[sel] - t0
+        resid = tab.z[sel] - (phi(tau) - phi(tau - tab.interval_s[sel]))
+        assert sel.sum() > 40
+        assert np.sqrt(np.mean(resid ** 2)) < 0.02 and abs(resid.mean()) < 0.004        # tracker noise ~0.01
+        assert 0.5 < np.std(resid / tab.sigma[sel]) < 2.0
+    np.testing.assert_allclose(tab.interval_s, 0.1, atol=0.005)
+    # the satellite at both ends is the SGP4 state of its element set: 0.1 s of its flight apart
+    step = np.linalg.norm(tab.sat_ecef[:, :3] - tab.sat_prev_r_m, axis=1) / tab.interval_s
+    np.testing.assert_allclose(step, np.linalg.norm(tab.sat_ecef[:, 3:6], axis=1), rtol=2e-3)
+
+
+def test_replay_runs_the_phase_modes_and_reports_the_counts(phase_replay):
+    _, inputs, metrics = phase_replay
+    c = inputs.counts["carrier_phase"]
+    assert c["tones_tracked"] == 4 and c["tones_without_comb_index"] == 0
+    assert c["pairs"] == c["epochs"] - c["tones_tracked"]
+    assert c["differences"] + sum(c["breaks"].values()) == c["pairs"]
+    assert c["differences"] == inputs.satellites["carrier_phase"].t.size > 150
+    assert any(n.startswith("carrier phase: 4 tone(s) tracked") for n in metrics["notes"])
+    assert metrics["beacons"]["carrier_phase"]["differences"] == c["differences"]
+    assert set(metrics["modes"]) == {"leo-phase+imu", "leo-phase+alpha+imu"}
+    assert inputs.records["carrier_phase"].size > 0
+    assert not metrics["skipped_modes"]
