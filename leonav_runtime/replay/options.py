@@ -4,7 +4,9 @@ Modes name what the filter fuses with the IMU: `fix+imu` (GNSS position fixes),
 `leo-alpha+imu` (Starlink Doppler-rate, the paper's name), `fix+leo-alpha+imu` (both), and
 the tightly coupled `pseudorange+imu` (the receiver's RXM-RAWX code pseudoranges and Doppler
 range rates) and `pseudorange+leo-alpha+imu` (those and the Doppler-rate). The default runs
-the first three; the pseudorange modes are asked for with `--modes`.
+the first three; the pseudorange modes are asked for with `--modes`, and so are the carrier-phase
+modes `leo-phase+imu` and `leo-phase+alpha+imu` (the tones' tracked phase, time-differenced:
+docs/carrier.md).
 `gps+imu` means GPS *pseudoranges* everywhere else (scenarios, sweeps), so the replay's
 position-fix modes say `fix`; the old names `gps+imu` and `gps+leo-alpha+imu` are
 accepted as aliases with a note.
@@ -21,7 +23,7 @@ from leonav_runtime.core import model
 
 MODES = ("fix+imu", "leo-alpha+imu", "fix+leo-alpha+imu")
 """The modes a replay runs by default."""
-ALL_MODES = MODES + ("pseudorange+imu", "pseudorange+leo-alpha+imu")
+ALL_MODES = MODES + ("pseudorange+imu", "pseudorange+leo-alpha+imu", "leo-phase+imu", "leo-phase+alpha+imu")
 """The replay's modes as listed in help and completion; any mode of `replayable` words is accepted."""
 
 
