@@ -91,18 +91,19 @@ def test_an_outer_tone_referred_to_the_centre_holds_to_3e_3_cycles():
     r0 = geodetic_to_ecef(math.radians(43.08), math.radians(-77.68), 170.0)
     T, f_c, b_lo, df = 0.1, STARLINK_BEACON_HZ, 2e6, 4 * COMB_SPACING_HZ
     t = np.arange(0.0, 60.0, T)
+    up = r0 / np.linalg.norm(r0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        st = propagate_ecef(es, PAPER_EPOCH, t)
-    up = r0 / np.linalg.norm(r0)
-    elev = np.einsum("ijk,k->ij", (st.r_ecef_m - r0) / np.linalg.norm(st.r_ecef_m - r0, axis=2)[..., None], up)
-    i = int(np.argmax(elev.min(axis=1)))            # a satellite above the horizon all minute
+        coarse = propagate_ecef(es, PAPER_EPOCH, t[::100]).r_ecef_m - r0
+        elev = np.einsum("ijk,k->ij", coarse / np.linalg.norm(coarse, axis=2)[..., None], up)
+        i = int(np.argmax(elev.min(axis=1)))        # the satellite highest over the whole minute
+        r_s = propagate_ecef(es.select([i]), PAPER_EPOCH, t).r_ecef_m[0]
     east = np.cross([0.0, 0.0, 1.0], up)
     r_u = r0 + 30.0 * t[:, None] * east / np.linalg.norm(east)
-    rho = np.linalg.norm(st.r_ecef_m[i] - r_u, axis=1)
+    rho = np.linalg.norm(r_s - r_u, axis=1)
     phase_tone = (df + b_lo) * t - (f_c + df) / C_LIGHT_MPS * rho
     centre = np.diff(b_lo * t - f_c / C_LIGHT_MPS * rho)
-    drho_pred = np.diff(np.linalg.norm(st.r_ecef_m[i] - r0, axis=1))
+    drho_pred = np.diff(np.linalg.norm(r_s - r0, axis=1))
     got = tone_to_centre(np.diff(phase_tone), np.diff(t), df, drho_pred)
     assert np.max(np.abs(got - centre)) < 3e-3
     # what is corrected matters: the offset alone leaves (df/c) drho, and rescaling z by
@@ -164,3 +165,18 @@ def test_replay_runs_the_phase_modes_and_reports_the_counts(phase_replay):
     assert set(metrics["modes"]) == {"leo-phase+imu", "leo-phase+alpha+imu"}
     assert inputs.records["carrier_phase"].size > 0
     assert not metrics["skipped_modes"]
+
+
+def test_phase_mode_without_a_capture_is_skipped_with_its_reason(phase_replay, tmp_path):
+    import shutil
+
+    from leonav_runtime.replay import ReplayOptions
+    from leonav_runtime.replay.run import decode_inputs
+
+    synth, _, _ = phase_replay
+    folder = tmp_path / "s"
+    shutil.copytree(synth.folder, folder, ignore=shutil.ignore_patterns("sdr.cu8"))
+    inputs = decode_inputs(folder, ReplayOptions(modes=("leo-phase+imu", "fix+imu")), synth.elements)
+    assert inputs.skipped == {"leo-phase+imu": "no carrier-phase difference inside the IMU time span: "
+                                               "no sdr.cu8 in the session"}
+    assert "carrier_phase" not in inputs.counts
