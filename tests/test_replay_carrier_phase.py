@@ -180,3 +180,54 @@ def test_phase_mode_without_a_capture_is_skipped_with_its_reason(phase_replay, t
     assert inputs.skipped == {"leo-phase+imu": "no carrier-phase difference inside the IMU time span: "
                                                "no sdr.cu8 in the session"}
     assert "carrier_phase" not in inputs.counts
+
+
+def test_the_phase_table_takes_both_ends_from_operator_files_and_refers_tones_to_the_centre():
+    """Satellite 0 has an operator file 1 km ahead of its element set, satellite 1 none; the
+    second record is a tone 4 comb steps above the centre."""
+    from leonav_runtime.inputs import PhaseDifferences
+    from leonav_runtime.orbits import default_elements, propagate_ecef
+    from leonav_runtime.orbits.geometry import geodetic_to_ecef
+    from leonav_runtime.orbits.operator_states import ephemerides_from_elements
+    from leonav_runtime.replay.beacon_table import PhaseMeasurements, carrier_phase_table
+    from leonav_runtime.simulation.session_synth import PAPER_EPOCH
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        es = default_elements(PAPER_EPOCH)["starlink"]
+        lead = 1000.0 / 7600.0
+        made = ephemerides_from_elements(es.select([0]), PAPER_EPOCH + _timedelta(lead),
+                                         np.arange(-120.0, 241.0, 60.0), np.diag([1.0, 1, 1, 1e-6, 1e-6, 1e-6]))
+    for e in made.ephemerides.values():
+        e.start_utc, e.stop_utc = e.start_utc - _timedelta(lead), e.stop_utc - _timedelta(lead)
+    t = np.array([1.0, 2.0, 1.5])
+    dt_s = np.full(3, 0.1)
+    z_raw = np.array([-2000.0, -2000.0 + 0.1 * 4 * COMB_SPACING_HZ, -1500.0])
+    d = PhaseDifferences(t, dt_s, es.norad_ids[[0, 0, 1]], np.array([1, 2, 3]), z_raw, np.full(3, 0.01), {})
+    pm = PhaseMeasurements(d, np.array([0, 0, 1]), np.array([0.0, 4 * COMB_SPACING_HZ, 0.0]), {})
+    r0 = geodetic_to_ecef(math.radians(43.08), math.radians(-77.68), 170.0)
+    notes: list[str] = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with_files = carrier_phase_table(pm, es, PAPER_EPOCH, r0, made, notes)
+        plain = carrier_phase_table(pm, es, PAPER_EPOCH, r0)
+        sgp4_prev = propagate_ecef(es.select([1]), PAPER_EPOCH, [1.4]).r_ecef_m[0, 0]
+    moved = np.linalg.norm(with_files.sat_ecef[:, :3] - plain.sat_ecef[:, :3], axis=1)
+    moved_prev = np.linalg.norm(with_files.sat_prev_r_m - plain.sat_prev_r_m, axis=1)
+    assert np.abs(moved[:2] - 1000.0).max() < 5.0 and np.abs(moved_prev[:2] - 1000.0).max() < 5.0
+    np.testing.assert_array_equal(with_files.sat_ecef[2], plain.sat_ecef[2])
+    np.testing.assert_allclose(plain.sat_prev_r_m[2], sgp4_prev, atol=1e-6)
+    assert notes == ["beacons: carrier phase: 1 of 2 satellites' states from operator ephemerides, "
+                     "1 from their element sets"]
+    # the centre tone and the other satellite unchanged; tone 4: minus T df plus (df/c) x drho
+    np.testing.assert_array_equal(plain.z[[0, 2]], z_raw[[0, 2]])
+    drho = np.linalg.norm(plain.sat_ecef[1, :3] - r0) - np.linalg.norm(plain.sat_prev_r_m[1] - r0)
+    assert plain.z[1] == pytest.approx(-2000.0 + 4 * COMB_SPACING_HZ / C_LIGHT_MPS * drho, abs=1e-9)
+    assert abs(plain.z[1] + 2000.0) > 0.01            # the Doppler-scaling term: 0.046 cycles here
+    plain.check()
+
+
+def _timedelta(seconds: float):
+    import datetime as dt
+
+    return dt.timedelta(seconds=seconds)
