@@ -13,14 +13,25 @@ file in the same format can be given with `LEONAV_EOP_FILE` or `EopTable.load(pa
 Between the daily rows the values are interpolated linearly in time; a leap second
 (a 1 s jump of UT1-UTC between two days) is unwrapped before interpolation and put back
 after, so the day of a leap second is exact. Units: UT1-UTC in s, polar motion in rad.
+
+Parsing the 20,000 rows costs about 50 ms of CPU, paid by every command that propagates; the
+parsed table is kept in the user's cache as a NumPy `.npz` (`$LEONAV_EOP_CACHE`, `off` turns it
+off, else `$XDG_CACHE_HOME/leonav/eop`, else `~/.cache/leonav/eop`), keyed by the SHA-256 of the
+file's bytes and of this module's source, so an edited table (whatever its time stamp) or parser
+is a miss. An entry that cannot be read or does not check out (key, shapes, types, increasing
+MJD) is ignored and rewritten (temporary name, then renamed); at most `CACHE_MAX_ENTRIES` are
+kept, the least recently used removed first; files under `CACHE_MIN_BYTES` are parsed directly.
 """
 from __future__ import annotations
 
 import datetime as _dt
 import functools
+import hashlib
+import logging
 import math
 import os
 import warnings
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,6 +43,11 @@ ARCSEC_RAD = math.pi / (180.0 * 3600.0)
 MJD_UNIX_EPOCH = 40587.0          # MJD of 1970-01-01T00:00:00 UTC
 PREDICTION_STALE_DAYS = 30.0      # warn when the values used are predictions this far ahead of the last measurement
 ENV_FILE = "LEONAV_EOP_FILE"
+CACHE_ENV = "LEONAV_EOP_CACHE"
+CACHE_FORMAT = 1
+CACHE_MAX_ENTRIES = 4
+CACHE_MIN_BYTES = 64 * 1024
+_log = logging.getLogger("leonav.orbits")
 
 
 class StaleEopWarning(UserWarning):
@@ -68,10 +84,19 @@ class EopTable:
         table of the installed `astropy-iers-data`)."""
         path = Path(path) if path is not None else default_path()
         try:
-            text = path.read_bytes().decode("ascii", errors="replace")
+            data = path.read_bytes()
         except OSError as exc:
             raise UserInputError(f"{path}: cannot read the EOP table ({exc.strerror or exc})") from None
-        return cls.parse(text, str(path))
+        folder = cache_dir() if len(data) >= CACHE_MIN_BYTES else None
+        key = cache_key(data) if folder is not None else ""
+        if folder is not None:
+            table = _cache_lookup(folder, key, str(path))
+            if table is not None:
+                return table
+        table = cls.parse(data.decode("ascii", errors="replace"), str(path))
+        if folder is not None:
+            _cache_store(folder, key, table)
+        return table
 
     @classmethod
     def parse(cls, text: str, source: str) -> "EopTable":
@@ -161,6 +186,73 @@ def default_path() -> Path:
         raise UserInputError("no EOP table: install astropy-iers-data or set LEONAV_EOP_FILE to a "
                              "finals2000A.all file") from None
     return Path(astropy_iers_data.IERS_A_FILE)
+
+
+def cache_dir() -> Path | None:
+    """The parsed-table cache folder, or None when `$LEONAV_EOP_CACHE` is `off`."""
+    env = os.environ.get(CACHE_ENV, "")
+    if env.lower() in ("off", "0", "no", "false"):
+        return None
+    if env:
+        return Path(env)
+    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(root) / "leonav" / "eop"
+
+
+def cache_key(data: bytes) -> str:
+    """SHA-256 (hex) of the cache format, this module's source (the parser) and the table's bytes."""
+    h = hashlib.sha256(f"eop-cache {CACHE_FORMAT}\0".encode())
+    h.update(Path(__file__).read_bytes() + b"\0")
+    h.update(data)
+    return h.hexdigest()
+
+
+_CACHED_FIELDS = ("mjd", "ut1_utc_s", "xp_arcsec", "yp_arcsec")
+
+
+def _cache_lookup(folder: Path, key: str, source: str) -> EopTable | None:
+    """The table parsed before from the same bytes by the same parser, or None (miss or not valid)."""
+    path = folder / f"{key}.npz"
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if str(z["key"]) != key:
+                raise ValueError("key differs")
+            arrays = [np.array(z[name]) for name in _CACHED_FIELDS]
+            measured, rejected = np.array(z["measured"]), int(z["rejected_lines"])
+        n = arrays[0].shape
+        if len(n) != 1 or n[0] < 2 or any(a.shape != n or a.dtype != np.float64 for a in arrays) \
+                or measured.shape != n or measured.dtype != np.bool_ or not np.all(np.diff(arrays[0]) > 0):
+            raise ValueError("arrays do not form a table")
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        _log.debug("EOP cache entry %s ignored: %s", path, exc)
+        return None
+    try:
+        os.utime(path)   # recently used: pruned last
+    except OSError:
+        pass
+    return EopTable(*arrays, measured, source, rejected)
+
+
+def _cache_store(folder: Path, key: str, table: EopTable) -> None:
+    path = folder / f"{key}.npz"
+    tmp = folder / f".{key}.{os.getpid()}.tmp"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with open(tmp, "wb") as fh:
+            np.savez(fh, key=np.array(key), measured=table.measured, rejected_lines=np.array(table.rejected_lines),
+                     **{name: getattr(table, name) for name in _CACHED_FIELDS})
+        os.replace(tmp, path)
+        entries = sorted(folder.glob("*.npz"), key=lambda p: p.stat().st_mtime_ns, reverse=True)
+        for old in entries[CACHE_MAX_ENTRIES:]:
+            old.unlink(missing_ok=True)
+    except OSError as exc:
+        _log.debug("EOP cache not written (%s): %s", path, exc)
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
 
 
 @functools.lru_cache(maxsize=4)
