@@ -45,8 +45,8 @@ def load_scenario(name_or_path: str | Path = "paper", *, modes: Sequence[str] | 
                   counts: Sequence[int] | None = None, seed: int | None = None,
                   trials: int | None = None) -> Scenario:
     """A built-in scenario by name (`paper`, `paper-hardware`, `maritime-outage`,
-    `passive-phase-static`, `passive-phase-drive`) or a TOML file, with optional changes
-    validated like the file's values (modes, Starlink counts, seed, trials)."""
+    `passive-phase-static`, `passive-phase-drive`, `passive-phase-base`) or a TOML file, with
+    optional changes validated like the file's values (modes, Starlink counts, seed, trials)."""
     from leonav_runtime.scenarios.overrides import apply_overrides
 
     scn, _ = apply_overrides(_load_scenario(name_or_path), modes=modes, counts=counts, seed=seed, trials=trials,
