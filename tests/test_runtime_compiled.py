@@ -10,7 +10,7 @@ import types
 
 import pytest
 
-from leonav_runtime.core import compiled
+from leonav_runtime.core import compiled, key_memo
 
 NO_CASADI_SCRIPT = r"""
 import sys
@@ -169,7 +169,7 @@ def _rewrite_same_size(path, old: bytes, new: bytes, before_ctime_ns: int):
 
 
 def test_key_memo_gives_the_content_keys_and_a_warm_lookup_reads_no_file(tmp_path, monkeypatch):
-    monkeypatch.setattr(compiled, "RACY_NS", 0)
+    monkeypatch.setattr(key_memo, "RACY_NS", 0)
     gen, csrc, _, out = _copy_sources(tmp_path)
     version = compiled.compiler_version(compiled.compiler())
     plain = _content_keys(gen, csrc, version)
@@ -183,13 +183,13 @@ def test_key_memo_gives_the_content_keys_and_a_warm_lookup_reads_no_file(tmp_pat
     assert _memo_keys(gen, csrc, version, out) == plain
     # another compiler version or flag set is another memo, not this one's keys
     monkeypatch.undo()
-    monkeypatch.setattr(compiled, "RACY_NS", 0)
+    monkeypatch.setattr(key_memo, "RACY_NS", 0)
     assert _memo_keys(gen, csrc, version + "x", out)[0] == _content_keys(gen, csrc, version + "x")[0] != plain[0]
     assert len(list(out.glob("keymemo-*.json"))) == 2
 
 
 def test_same_size_edit_with_the_mtime_put_back_is_rehashed(tmp_path, monkeypatch):
-    monkeypatch.setattr(compiled, "RACY_NS", 0)
+    monkeypatch.setattr(key_memo, "RACY_NS", 0)
     gen, csrc, _, out = _copy_sources(tmp_path)
     version = compiled.compiler_version(compiled.compiler())
     srcs = compiled.sources(gen, csrc)
@@ -214,7 +214,7 @@ def test_same_size_edit_with_the_mtime_put_back_is_rehashed(tmp_path, monkeypatc
 
 
 def test_added_shadowing_header_or_source_changes_the_keys(tmp_path, monkeypatch):
-    monkeypatch.setattr(compiled, "RACY_NS", 0)
+    monkeypatch.setattr(key_memo, "RACY_NS", 0)
     gen, csrc, _, out = _copy_sources(tmp_path)
     version = compiled.compiler_version(compiled.compiler())
     before = _memo_keys(gen, csrc, version, out)
@@ -229,7 +229,7 @@ def test_added_shadowing_header_or_source_changes_the_keys(tmp_path, monkeypatch
 
 
 def test_corrupt_or_altered_memo_is_ignored_and_rewritten(tmp_path, monkeypatch):
-    monkeypatch.setattr(compiled, "RACY_NS", 0)
+    monkeypatch.setattr(key_memo, "RACY_NS", 0)
     gen, csrc, _, out = _copy_sources(tmp_path)
     version = compiled.compiler_version(compiled.compiler())
     plain = _content_keys(gen, csrc, version)
@@ -251,7 +251,7 @@ def test_files_changed_just_now_are_not_memoized(tmp_path, monkeypatch):
     assert _memo_keys(gen, csrc, version, out) == _content_keys(gen, csrc, version)
     assert not list(out.glob("keymemo-*.json"))
     monkeypatch.setenv(compiled.MEMO_ENV, "off")
-    monkeypatch.setattr(compiled, "RACY_NS", 0)
+    monkeypatch.setattr(key_memo, "RACY_NS", 0)
     assert _memo_keys(gen, csrc, version, out) == _content_keys(gen, csrc, version)
     assert not list(out.glob("keymemo-*.json"))
 
@@ -259,8 +259,8 @@ def test_files_changed_just_now_are_not_memoized(tmp_path, monkeypatch):
 MEMO_SCRIPT = r"""
 import sys
 from pathlib import Path
-from leonav_runtime.core import compiled
-compiled.RACY_NS = 0
+from leonav_runtime.core import compiled, key_memo
+key_memo.RACY_NS = 0
 gen, csrc, out = map(Path, sys.argv[1:4])
 keys = compiled.source_keys(compiled.sources(gen, csrc), [gen, csrc], compiled.cflags(),
                             compiled.compiler_version(compiled.compiler()), out)
@@ -269,7 +269,7 @@ print(keys[1], ",".join(keys[0]))
 
 
 def test_processes_starting_at_once_agree_and_leave_a_valid_memo(tmp_path, monkeypatch):
-    monkeypatch.setattr(compiled, "RACY_NS", 0)
+    monkeypatch.setattr(key_memo, "RACY_NS", 0)
     gen, csrc, _, out = _copy_sources(tmp_path)
     out.mkdir()
     (out / "keymemo-0.json").write_text("{")   # an unrelated corrupt memo is left alone by readers
@@ -282,7 +282,7 @@ def test_processes_starting_at_once_agree_and_leave_a_valid_memo(tmp_path, monke
     assert {r[0] for r in results} == {f"{plain[1]} {','.join(plain[0])}\n"}
     memo = next(p for p in out.glob("keymemo-*.json") if p.name != "keymemo-0.json")
     body = json.loads(memo.read_text())
-    assert body["check"] == compiled._memo_check(body) and body["object_keys"] == plain[0]
+    assert body["check"] == key_memo._memo_check(body) and body["object_keys"] == plain[0]
     assert not list(out.glob("*.tmp"))
 
 

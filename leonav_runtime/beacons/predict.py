@@ -17,6 +17,7 @@ import functools
 
 import numpy as np
 
+from leonav_runtime.beacons.spline import NotAKnotSpline
 from leonav_runtime.orbits.geometry import Site
 from leonav_runtime.core.navfuncs import NavFunctions
 from leonav_runtime.core.params import params_array
@@ -85,8 +86,6 @@ class Predictions:
         if self.t_s.size < 4:
             raise ValueError("prediction grid too short for interpolation")
         if self._splines is None:   # built once: every comb and iteration of the association asks
-            from leonav_runtime.beacons.spline import NotAKnotSpline
-
             self._splines = (NotAKnotSpline(self.t_s, self.doppler_hz), NotAKnotSpline(self.t_s, self.rate_hz_s))
         return self._splines[0](t_s), self._splines[1](t_s)
 

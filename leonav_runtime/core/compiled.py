@@ -14,28 +14,16 @@ them, so `LEONAV_CFLAGS=-march=native` opts in to this CPU's instructions, and `
 the level). Faults: see
 `build_cache.py` (CompilerError, exit 4; a prebuilt library loads without a compiler).
 
-Key memo: computing the keys means reading and hashing every source and header (about 60 ms
-of CPU in every process). `source_keys` keeps them in `keymemo-<id>.json` in the cache, beside
-the stat of every file it hashed (device, inode, size, mtime_ns, ctime_ns) and of the folders
-it searched: a process whose files all stat the same takes the keys from the memo, any other
-rehashes the files and rewrites it. The keys are still the content keys. ctime cannot be set
-back by a user (an edit that keeps the size and restores the mtime still changes it), and a
-file changed within `RACY_NS` of being hashed is not memoized (a file system's time stamps
-are coarse: two writes in one clock tick can carry the same times). A memo that cannot be read,
-parsed or checked is ignored and rewritten (written under a temporary name and renamed, so
-processes starting at once each read a whole memo, old or new). `$LEONAV_KEY_MEMO=off` turns
-it off (every process hashes, as before).
+Key memo: the keys are kept in the cache with the stat of every file hashed (key_memo.py);
+`$LEONAV_KEY_MEMO=off` hashes every time.
 
 This module never imports casadi: the compiled library is all the filter needs.
 """
 from __future__ import annotations
 
 import ctypes
-import functools
 import hashlib
-import json
 import os
-import re
 import shlex
 import shutil
 import subprocess
@@ -52,6 +40,7 @@ from leonav_runtime.core.build_cache import (CompilerError, atomic_output, build
                                          prebuilt_library, prepare_writes, record_prebuilt, split_setting,
                                          version_line)
 from leonav_runtime.core import layout_check
+from leonav_runtime.core.key_memo import _file, _recording, _stat, included_headers, memoized_keys  # noqa: F401
 from leonav_runtime.core.layout_check import LayoutMismatchError, check_layout, expected_shapes, measurement_ids  # noqa: F401
 from leonav_runtime.gen import state_layout as _codes  # driver return codes (same in every layout)
 
@@ -121,52 +110,6 @@ def sources(gen_dir: Path = GEN_DIR, csrc_dir: Path = CSRC_DIR) -> list[Path]:
             f"no generated C in {Path(gen_dir) / 'c'}: run `python -m leonav.codegen` to generate it"
         )
     return gen + sorted(Path(csrc_dir).glob("*.c"))
-
-
-_INCLUDE = re.compile(rb'^\s*#\s*include\s+"([^"]+)"', re.M)
-
-
-@functools.lru_cache(maxsize=None)
-def _read(path: str, stat: tuple[int, ...]) -> tuple[bytes, tuple[str, ...]]:
-    """A file's bytes and the names it `#include "..."`s, read once per process and version
-    (every command computes the cache keys of ~180 sources: this halves the reads)."""
-    data = Path(path).read_bytes()
-    return data, tuple(m.decode(errors="replace") for m in _INCLUDE.findall(data))
-
-
-def _stat(path: str | Path) -> tuple[int, ...]:
-    """(device, inode, size, mtime_ns, ctime_ns): what changes when a file is replaced or written."""
-    st = os.stat(path)
-    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns
-
-
-_recording = threading.local()   # .hashed: path -> the stat its bytes were read under (source_keys' memo)
-
-
-def _file(path: Path) -> tuple[bytes, tuple[str, ...]]:
-    stat = _stat(path)
-    hashed = getattr(_recording, "hashed", None)
-    if hashed is not None:
-        hashed[str(path)] = stat
-    return _read(str(path), stat)
-
-
-def included_headers(source: Path, include_dirs: list[Path]) -> list[Path]:
-    """The project headers `source` includes, transitively (`#include "..."` found beside the
-    including file or in `include_dirs`; system headers are the compiler's)."""
-    seen: dict[Path, None] = {}
-    todo = [Path(source)]
-    while todo:
-        current = todo.pop()
-        for name in _file(current)[1]:
-            for folder in [current.parent, *include_dirs]:
-                path = (Path(folder) / name).resolve()
-                if path.is_file():
-                    if path not in seen:
-                        seen[path] = None
-                        todo.append(path)
-                    break
-    return sorted(seen)
 
 
 def object_key(source: Path, include_dirs: list[Path], flags: list[str], cc_version: str) -> str:
@@ -252,93 +195,23 @@ def build(gen_dir: Path = GEN_DIR, csrc_dir: Path = CSRC_DIR, out_dir: Path | No
 
 
 MEMO_ENV = "LEONAV_KEY_MEMO"
-MEMO_FORMAT = 1
-MEMO_MAX_FILES = 32        # memo files kept per cache folder (one per sources/flags/compiler), newest first
-RACY_NS = 2_000_000_000    # a file changed this recently (ctime) is hashed again next time, not memoized
-
-
-def _memo_id(include_dirs: list[Path], flags: list[str], cc_version: str) -> str:
-    text = json.dumps([MEMO_FORMAT, [os.path.abspath(d) for d in include_dirs], flags, cc_version,
-                       list(LDFLAGS) + list(LIBS)])
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-def _memo_check(body: dict) -> str:
-    """SHA-256 of a memo's fields (its `check`): a memo altered or half-written is not trusted."""
-    fields = {k: v for k, v in body.items() if k != "check"}
-    return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()
-
-
-def _read_memo(path: Path, srcs: list[Path]) -> tuple[list[str], str] | None:
-    """(object keys, sources key) of a memo whose every file and folder stats as recorded, else None."""
-    try:
-        body = json.loads(path.read_text(encoding="utf-8"))
-        if body.get("format") != MEMO_FORMAT or body.get("check") != _memo_check(body):
-            return None
-        if body["sources"] != [os.path.abspath(s) for s in srcs]:
-            return None
-        for name, stat in list(body["dirs"].items()) + list(body["files"].items()):
-            if list(_stat(name)) != stat:
-                return None
-        keys, sources_key = [str(k) for k in body["object_keys"]], str(body["sources_key"])
-    except (OSError, ValueError, TypeError, KeyError, AttributeError):
-        return None   # missing, unreadable, corrupt or stale: the keys are computed again
-    return (keys, sources_key) if len(keys) == len(srcs) else None
-
-
-def _write_memo(path: Path, body: dict) -> None:
-    body["check"] = _memo_check(body)
-    try:
-        atomic_output(path, lambda tmp: tmp.write_text(json.dumps(body), encoding="utf-8"))
-        memos = sorted(path.parent.glob("keymemo-*.json"), key=lambda p: p.stat().st_mtime_ns, reverse=True)
-        for old in memos[MEMO_MAX_FILES:]:
-            old.unlink(missing_ok=True)
-    except (CompilerError, OSError):
-        pass   # a read-only or shared cache: the keys are only computed again next time
-
-
 def source_keys(srcs: list[Path], include_dirs: list[Path], flags: list[str], cc_version: str,
                 out: Path | None = None) -> tuple[list[str], str]:
     """The object key of each source (`object_key`) and the sources key without the compiler
-    (`_sources_key`), from the memo in `out` when no file it names has changed (module
-    docstring), else hashed and memoized. `out=None` or `$LEONAV_KEY_MEMO=off`: always hashed."""
-    use_memo = out is not None and os.environ.get(MEMO_ENV, "").lower() not in ("off", "0", "no", "false")
-    path = Path(out) / f"keymemo-{_memo_id(include_dirs, flags, cc_version)[:20]}.json" if use_memo else None
-    if path is not None:
-        known = _read_memo(path, srcs)
-        if known is not None:
-            return known
-    # the folders first: a file added, removed or renamed in one of them (a header that now
-    # shadows another, say) changes the folder's stat
-    folders = sorted({os.path.abspath(d) for d in include_dirs} | {os.path.abspath(Path(s).parent) for s in srcs})
-    try:
-        dirs_before = {d: _stat(d) for d in folders}
-    except OSError:   # e.g. no driver folder: nothing to memoize against
-        path = None
-    _recording.hashed = {}
-    try:
-        keys = [object_key(s, include_dirs, flags, cc_version) for s in srcs]
-        sources_key = library_key([object_key(s, include_dirs, flags, "") for s in srcs], list(LDFLAGS) + list(LIBS))
-        hashed = {os.path.abspath(p): stat for p, stat in _recording.hashed.items()}
-    finally:
-        _recording.hashed = None
-    if path is None:
-        return keys, sources_key
-    folders = sorted(set(folders) | {os.path.dirname(p) for p in hashed})
-    try:
-        dirs = {d: _stat(d) for d in folders}
-        now_ns = time.time_ns()
-        settled = all(_stat(p) == stat for p, stat in hashed.items()) and \
-            all(dirs_before.get(d, stat) == stat for d, stat in dirs.items()) and \
-            all(stat[4] < now_ns - RACY_NS for stat in list(hashed.values()) + list(dirs.values()))
-    except OSError:
-        settled = False
-    if settled:   # else a file is being written now: hash it again next time rather than trust its stat
-        _write_memo(path, {"format": MEMO_FORMAT, "sources": [os.path.abspath(s) for s in srcs],
-                           "object_keys": keys, "sources_key": sources_key,
-                           "files": {p: list(v) for p, v in sorted(hashed.items())},
-                           "dirs": {d: list(v) for d, v in dirs.items()}})
-    return keys, sources_key
+    (`_sources_key`), memoized in `out` (key_memo.py); `$LEONAV_KEY_MEMO=off`: always hashed."""
+    link = list(LDFLAGS) + list(LIBS)
+
+    def compute():
+        _recording.hashed = {}
+        try:
+            keys = [object_key(s, include_dirs, flags, cc_version) for s in srcs]
+            return keys, library_key([object_key(s, include_dirs, flags, "") for s in srcs], link), \
+                dict(_recording.hashed)
+        finally:
+            _recording.hashed = None
+
+    off = os.environ.get(MEMO_ENV, "").lower() in ("off", "0", "no", "false")
+    return memoized_keys(srcs, include_dirs, (flags, cc_version, link), None if off else out, compute, _stat)
 
 
 def _sources_key(srcs: list[Path], include_dirs: list[Path], flags: list[str]) -> str:

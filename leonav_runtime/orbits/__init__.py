@@ -14,8 +14,8 @@ from leonav_runtime.common.lazy_exports import lazy_exports
 # names per module, imported on first use (lazy_exports.py): broadcast-ephemeris users
 # (`leonav spp`) do not import SGP4, the element readers or the HTTP client
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
-    "constellations": ("default_elements", "gps_walker_tle", "starlink_walker_tle"),
-    "elements": ("ElementSet", "RejectedElementsWarning", "RejectedEntry", "group_by_constellation",
+    "constellations": ("default_elements", "gps_walker_tle", "group_by_constellation", "starlink_walker_tle"),
+    "elements": ("ElementSet", "RejectedElementsWarning", "RejectedEntry",
                  "load_element_files", "load_elements", "parse_elements_text"),
     "fetch": ("FetchError", "fetch_group"),
     "propagate": ("SatStates", "StaleElementsWarning", "acceleration_ecef_mps2", "gravity_ecef_mps2",

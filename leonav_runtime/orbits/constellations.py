@@ -169,3 +169,12 @@ def default_elements(epoch_utc: _dt.datetime) -> dict[str, ElementSet]:
         "starlink": parse_elements_text(starlink_walker_tle(epoch_utc), "<leonav starlink walker>",
                                         constellation="starlink"),
     }
+
+
+def group_by_constellation(element_sets: list[ElementSet]) -> dict[str, ElementSet]:
+    """Concatenate element sets per constellation ("starlink", "gps", "unknown"), in order."""
+    out: dict[str, ElementSet] = {}
+    for es in element_sets:
+        name = (es.constellation or "unknown").lower()
+        out[name] = out[name].concat(es) if name in out else es
+    return out

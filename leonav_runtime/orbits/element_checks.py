@@ -1,6 +1,8 @@
 """Checks of element files: the size limit and finite decoded TLE fields."""
 from __future__ import annotations
 
+from typing import Sequence
+
 import math
 import os
 
@@ -52,3 +54,15 @@ def _check_finite(fields: "_tle.TLEFields") -> None:
         if not math.isfinite(value):
             raise _tle.TLEFieldError(f"field {label} (line {which}, columns {cols}) is {value!r}; "
                                      "expected a finite number", which)
+
+
+def guess_constellation(names: Sequence[str]) -> str:
+    """'starlink' / 'gps' when at least 90 % of the names say so, else 'unknown'."""
+    if not names:
+        return "unknown"
+    upper = [n.upper() for n in names]
+    for label, keys in (("starlink", ("STARLINK",)), ("gps", ("GPS", "NAVSTAR"))):
+        hits = sum(any(k in n for k in keys) for n in upper)
+        if hits >= 0.9 * len(upper):
+            return label
+    return "unknown"

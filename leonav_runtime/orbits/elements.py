@@ -34,7 +34,8 @@ from leonav_runtime.orbits import element_cache as _cache
 from leonav_runtime.orbits import omm as _omm
 from leonav_runtime.orbits import tle as _tle
 from leonav_runtime.orbits.element_checks import (DEFAULT_MAX_ELEMENT_MB, MAX_ELEMENT_MB_ENV,  # noqa: F401
-                                                  _check_finite, _too_large, max_element_bytes)
+                                                  _check_finite, _too_large, guess_constellation,
+                                                  max_element_bytes)
 
 
 DEFAULT_STALE_AFTER_DAYS = 3.0
@@ -62,18 +63,6 @@ class RejectedEntry:
     def __str__(self) -> str:
         label = f" ({self.name})" if self.name else ""
         return f"{self.source}:{self.line}{label}: {self.reason}"
-
-
-def guess_constellation(names: Sequence[str]) -> str:
-    """'starlink' / 'gps' when at least 90 % of the names say so, else 'unknown'."""
-    if not names:
-        return "unknown"
-    upper = [n.upper() for n in names]
-    for label, keys in (("starlink", ("STARLINK",)), ("gps", ("GPS", "NAVSTAR"))):
-        hits = sum(any(k in n for k in keys) for n in upper)
-        if hits >= 0.9 * len(upper):
-            return label
-    return "unknown"
 
 
 @dataclass
@@ -401,11 +390,3 @@ def load_element_files(paths: Sequence[str | Path], option: str = "--tle") -> El
         raise UserInputError(f"{option}: no usable element sets in {', '.join(map(str, paths))}")
     return es
 
-
-def group_by_constellation(element_sets: Sequence[ElementSet]) -> dict[str, ElementSet]:
-    """Concatenate element sets per constellation ("starlink", "gps", "unknown"), in order."""
-    out: dict[str, ElementSet] = {}
-    for es in element_sets:
-        name = (es.constellation or "unknown").lower()
-        out[name] = out[name].concat(es) if name in out else es
-    return out
