@@ -196,3 +196,15 @@ def test_record_sigma_follows_the_tones_c_n0_by_elevation(prepared):
         math.sqrt(2 * 10 / 100 * (1 + 1 / 0.2)) / (2 * math.pi), rel=1e-9)
     assert sigma.min() >= front_end.difference_sigma_cyc(35.0, 10.0) - 1e-12
     assert sigma.max() <= front_end.difference_sigma_cyc(20.0, 10.0) + 1e-12
+
+
+def test_a_zero_orbit_error_leaves_the_exact_phase_truth_unchanged(prepared):
+    """The ephemeris realism measures an orbit change through the model against the model at the
+    truth, never against the exact truth (that would add the model's own residual to the truth)."""
+    from leonav_runtime.simulation import realism
+
+    setup, nav = prepared
+    s = setup.series["carrier_phase"]
+    rows = np.arange(s.t_s.size)
+    zero = {"starlink": {int(i): np.zeros(3) for i in np.unique(s.sat_id)}}
+    assert np.all(realism.ephemeris_delta(setup, nav, "carrier_phase", rows, zero) == 0.0)

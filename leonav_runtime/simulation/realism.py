@@ -126,7 +126,7 @@ def ephemeris_delta(setup, nav, kind_name: str, rows: np.ndarray, errors: dict,
     d_ref = _offsets(errors[constellation], _ref_ids(setup, kind_name, rows)) if s.has_ref else None
     aux = _moved_aux(setup, kind_name, rows, d_sat, d_ref, nav.layout)
     if x_at is None:
-        return _model(setup, nav, kind_name, rows, aux) - s.z_true[rows]
+        return _model(setup, nav, kind_name, rows, aux) - s.model_at_truth[rows]
     moved, _ = nav.h_many(kind_name, x_at, aux, params=setup.params, jacobian=False)
     element, _ = nav.h_many(kind_name, x_at, s.aux[rows], params=setup.params, jacobian=False)
     return moved - element
@@ -156,7 +156,7 @@ def ephemeris_sigma(setup, nav, kind_name: str, rows: np.ndarray, x_base: np.nda
     the receiver minus the change at the base)."""
     s = setup.series[kind_name]
     sig = sigma_rac(setup.scn.realism["ephemeris"], model.observable(kind_name).constellation)
-    base = s.z_true[rows]
+    base = s.model_at_truth[rows]
     at_base = None if x_base is None else nav.h_many(kind_name, x_base, s.aux[rows], params=setup.params,
                                                      jacobian=False)[0]
     var = np.zeros(rows.size)

@@ -28,7 +28,7 @@ class SatSeries:
     """Measurements of one observable over the run (one row per measurement).
 
     t_s, sat_id (NORAD id), aux (n, NAUX), z_true (noise-free, measurement-sensor states at
-    zero), H (n, NDX) at the truth, rank (elevation rank at its epoch, 0 = highest); sat_ecef,
+    zero; a differenced observable's is exact, its h at the truth in h_true), H (n, NDX) at the truth, rank (elevation rank at its epoch, 0 = highest); sat_ecef,
     ref_ecef: the satellite's and the reference's r, v, a of aux as contiguous (n, 9) blocks
     (`inputs.SAT_*` columns), what the trials' satellite tables are cut from.
     """
@@ -44,11 +44,18 @@ class SatSeries:
     interval_s: np.ndarray | None = None   # a time-differenced observable's span per row (s)
     k_prev: np.ndarray | None = None       # the IMU sample its span starts at
     sat_prev_r_m: np.ndarray | None = None  # and the satellite's ECEF position there (m)
+    h_true: np.ndarray | None = None       # the model's h at the truth where z_true is not it
     sat_ecef: np.ndarray = field(init=False, repr=False)
     ref_ecef: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.sat_ecef, self.ref_ecef = (np.ascontiguousarray(b) for b in states_from_aux(self.aux, state_layout))
+
+    @property
+    def model_at_truth(self) -> np.ndarray:
+        """The generated h at the truth (z_true itself, except for an exact differenced truth):
+        what a change of the aux satellite states is measured against through the model."""
+        return self.z_true if self.h_true is None else self.h_true
 
 
 def epochs(scn: Scenario, rate_hz: float, t_imu: np.ndarray) -> np.ndarray:
@@ -81,12 +88,13 @@ def series(nav, kind_name, rows, x_true, f_b, scn: Scenario | None = None) -> Sa
     aux = satellite_aux(table, f_b[k], L)
     kind = nav.kind_id(kind_name)
     z, H = nav.h_many(kind, x_true[k], aux) if n else (np.empty(0), np.empty((0, L.NDX)))
+    h_true = None
     if differenced:
-        p_enu = x_true[:, L.X_P_ENU_SLICE]
+        h_true, p_enu = z, x_true[:, L.X_P_ENU_SLICE]
         z = carrier_truth.geometric_cycles(nav.params[L.P_F_C_HZ], sat, sat_prev, _receiver_ecef(scn, p_enu[k]),
                                            _receiver_ecef(scn, p_enu[k_prev]))
     return SatSeries(kind, table.t, table.sat_id, aux, z, H, np.array([r[5] for r in rows], np.int32), ref is not None,
-                     interval, k_prev if differenced else None, sat_prev[:, 0:3] if differenced else None)
+                     interval, k_prev if differenced else None, sat_prev[:, 0:3] if differenced else None, h_true)
 
 
 def gps_rows(scn, nav, es, t_imu, x_true, notes):
