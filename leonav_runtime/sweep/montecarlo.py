@@ -175,8 +175,8 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     """The trials `indices` of (mode, count) from one block of records: (results, C loop CPU s)."""
     block = trial_block.trial_block(setup, mode, count, [trial_rng(scn.seed, i) for i in indices], nav)
     if block.trials is not None:   # streams of different lengths (a realism switch dropped records)
-        t0, w0 = time.thread_time(), time.perf_counter()
-        results = [trial_result(scn, setup, nav, t, i, t0, w0) for t, i in zip(block.trials, indices)]
+        results = [trial_result(scn, setup, nav, t, i, time.thread_time(), time.perf_counter())
+                   for t, i in zip(block.trials, indices)]
         return results, sum(r.c_seconds for r in results)
     gate = scn.filter["gate_nis"] or None
     buf = block.buffer()
