@@ -27,20 +27,20 @@ import math
 
 import numpy as np
 
+from leonav_runtime.orbits import geometry
 from leonav_runtime.simulation.sensor_errors import own_stream
 
 COHERENT_S = 1e-3   # the tracker's coherent integration (beacons/carrier_loop.py: 1 ms blocks)
 
 
 def elevation_rad(setup, rows: np.ndarray, series) -> np.ndarray:
-    """Elevation (rad) of each row's satellite above the truth receiver at its epoch."""
+    """Elevation (rad) of each row's satellite above the truth receiver at its epoch, as the
+    visibility mask measures it (geodetic horizon of the site)."""
     from leonav_runtime.simulation.visibility import _receiver_ecef
 
     k = np.rint(series.t_s[rows] * setup.scn.imu_rate_hz).astype(int)
     r_U = _receiver_ecef(setup.scn, setup.x_true[k, 0:3])
-    los = series.sat_ecef[rows, 0:3] - r_U
-    up = r_U / np.linalg.norm(r_U, axis=1, keepdims=True)   # geocentric up: within 0.2 deg of the normal
-    return np.arcsin(np.einsum("ni,ni->n", los, up) / np.linalg.norm(los, axis=1))
+    return geometry.az_el_range(series.sat_ecef[rows, 0:3], r_U, setup.scn.lat_rad, setup.scn.lon_rad)[1]
 
 
 def cn0_dbhz(cfg: dict, elevation: np.ndarray, mask_rad: float) -> np.ndarray:
