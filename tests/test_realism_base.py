@@ -7,17 +7,22 @@ import numpy as np
 import pytest
 
 from leonav_runtime.scenarios.load import load_scenario
-from leonav_runtime.simulation import realism
+from leonav_runtime.simulation import base_station, orbit_truth, realism
 from leonav_runtime.sweep import montecarlo as mc
 from tests.conftest import short_paper_scenario
 
 
-def _scn(offset_enu_m):
+def _scn(offset_enu_m, duration_s=6.0, corrections="measurement"):
     paper = load_scenario("paper").raw
     sections = {"starlink": {**paper["starlink"], "rate_hz": 10.0},
-                "ephemeris_error": {"enabled": True, "element_age_days": 0.25},
-                "base": {"enabled": True, "offset_enu_m": list(offset_enu_m)}}
-    return short_paper_scenario(6.0, [10], "<base test>", modes=("leo-phase+alpha+imu",), **sections)
+                "ephemeris_error": {"enabled": True, "element_age_days": 0.25, "compensate": "inflate-r"},
+                "base": {"enabled": True, "offset_enu_m": list(offset_enu_m), "corrections": corrections}}
+    return short_paper_scenario(duration_s, [10], "<base test>", modes=("leo-phase+alpha+imu",), **sections)
+
+
+def _epoch_demeaned(t, x):
+    _, index = np.unique(t, return_inverse=True)
+    return x - (np.bincount(index, x) / np.bincount(index))[index]
 
 
 @pytest.mark.parametrize("kind", ["carrier_phase", "doppler_rate"])
@@ -30,14 +35,14 @@ def test_corrections_remove_the_orbit_error_at_the_base_and_most_of_it_20_km_awa
         errors = realism.draw_orbit_errors(np.random.default_rng(9), setup)
         effect = realism.ephemeris_delta(setup, nav, kind, rows, errors)
         part = [kind, rows, np.zeros(rows.size), 1e-9]     # no base noise: the orbit part alone
-        corr = realism.base_corrections(setup, nav, rng, part, errors)
+        corr = base_station.base_corrections(setup, nav, rng, part, errors)
         t = setup.series[kind].t_s[rows]
         _, index = np.unique(t, return_inverse=True)
         left = effect - corr
         left -= (np.bincount(index, left) / np.bincount(index))[index]   # the epoch's common part: the rover's states
         out[name] = (np.sqrt(np.mean(effect**2)), np.sqrt(np.mean(left**2)))
         if name == "20 km":
-            sigma = realism.ephemeris_sigma(setup, nav, kind, rows, realism.base_state(setup))
+            sigma = realism.ephemeris_sigma(setup, nav, kind, rows, orbit_truth.base_state(setup))
             full = realism.ephemeris_sigma(setup, nav, kind, rows)
             assert np.median(sigma) < 0.2 * np.median(full)
     assert out["here"][1] < 1e-6 * out["here"][0]
@@ -49,3 +54,49 @@ def test_base_needs_the_orbit_error_it_corrects():
     with pytest.raises(Exception, match=r"\[base\] enabled = true corrects the orbit error"):
         short_paper_scenario(6.0, [10], "<base test>", base={"enabled": True, "offset_enu_m": [1.0, 0.0, 0.0]},
                              starlink=paper["starlink"])
+
+
+@pytest.mark.parametrize("kind, left_share", [("carrier_phase", 0.05), ("doppler_rate", 0.2)])
+def test_orbit_corrections_take_the_orbit_error_out_20_km_away(kind, left_share):
+    """The base's fitted offsets (20 s of its own rows) against the drawn ones: within their
+    covariance, and the rover's rows with its satellites moved by them keep a few % of the
+    orbit error's effect (measured: 1 % for the phase, 6 % for the Doppler-rate)."""
+    setup, nav = mc.setup_for(_scn((20000.0, 0.0, 0.0), 20.0, "orbit"))
+    s = setup.series[kind]
+    rows = np.flatnonzero(s.rank < 10)
+    errors = realism.draw_orbit_errors(np.random.default_rng(9), setup)
+    sigma = {"carrier_phase": setup.scn.starlink["carrier_phase_sigma_cyc"],
+             "doppler_rate": setup.scn.starlink["doppler_rate_sigma_hz_s"]}[kind]
+    fit = base_station.orbit_fit(setup, nav, np.random.default_rng(3), [[kind, rows, np.zeros(rows.size), sigma]],
+                                 errors)
+    err = fit.offsets_rac_m[-1] - orbit_truth.offsets(errors["starlink"], fit.sat_ids)
+    sd = np.sqrt(np.einsum("nii->ni", fit.cov_rac_m2[-1]))
+    assert np.all((0.5 < np.sqrt(np.mean((err / sd) ** 2, axis=0))) & (np.sqrt(np.mean((err / sd) ** 2, axis=0)) < 2.0))
+    effect = orbit_truth.ephemeris_delta(setup, nav, kind, rows, errors)
+    served = {"starlink": dict(zip(fit.sat_ids.tolist(), fit.offsets_rac_m[-1]))}
+    left = effect - orbit_truth.ephemeris_delta(setup, nav, kind, rows, served)
+    last = s.t_s[rows] > 15.0
+    rms = [np.sqrt(np.mean(_epoch_demeaned(s.t_s[rows], x)[last] ** 2)) for x in (effect, left)]
+    assert rms[1] < left_share * rms[0]
+
+
+def test_the_rover_flies_the_served_orbits():
+    """base_station.apply in orbit mode: each row's satellite states are moved by the offsets
+    served at or before its epoch, closer to the true orbit than the element orbit is; R grows
+    by what the served covariance does to the row."""
+    setup, nav = mc.setup_for(_scn((20000.0, 0.0, 0.0), 20.0, "orbit"))
+    kind = "carrier_phase"
+    s = setup.series[kind]
+    rows = np.flatnonzero(s.rank < 10)
+    errors = realism.draw_orbit_errors(np.random.default_rng(9), setup)
+    sigma = setup.scn.starlink["carrier_phase_sigma_cyc"]
+    part = [kind, rows, np.zeros(rows.size), sigma]
+    base_station.apply(setup, nav, np.random.default_rng(3), [part], errors, inflate=True)
+    sat9, prev = part[4]
+    true9 = orbit_truth.perturb_states(s.sat_ecef[rows], orbit_truth.offsets(errors["starlink"], s.sat_id[rows]))
+    late = s.t_s[rows] > 15.0
+    moved_off = np.linalg.norm(sat9[late, 0:3] - true9[late, 0:3], axis=1)
+    element_off = np.linalg.norm(s.sat_ecef[rows][late, 0:3] - true9[late, 0:3], axis=1)
+    assert np.median(moved_off) < 0.2 * np.median(element_off)
+    assert prev is not None and prev.shape == (rows.size, 3)
+    assert np.all(part[3] > sigma) and np.median(part[3][late]) < np.median(part[3][~late])   # the fit's covariance shrinks

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from leonav_runtime.sweep import montecarlo as mc
-from leonav_runtime.simulation import realism, simulate
+from leonav_runtime.simulation import orbit_truth, realism, simulate
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
@@ -43,7 +43,7 @@ def test_every_paper_mode_runs_with_the_ephemeris_error_on():
 def test_ofdm_reference_is_the_epochs_highest_satellite():
     setup, nav = mc.setup_for(_scn(modes=["leo-ofdm+imu"], duration_s=2.0))
     rows = simulate.selected_rows(setup, "ofdm_range_diff", 10)
-    ids = realism._ref_ids(setup, "ofdm_range_diff", rows)
+    ids = orbit_truth.ref_ids(setup, "ofdm_range_diff", rows)
     s, dr = setup.series["ofdm_range_diff"], setup.series["doppler_rate"]
     for t, i, ref_state in zip(s.t_s[rows], ids, s.ref_ecef[rows]):
         top = (dr.t_s == t) & (dr.rank == 0)
@@ -173,7 +173,7 @@ def _ofdm_setup():
 def test_ofdm_moves_with_its_reference_satellite_too():
     setup, nav, rows = _ofdm_setup()
     s = setup.series["ofdm_range_diff"]
-    refs = realism._ref_ids(setup, "ofdm_range_diff", rows)
+    refs = orbit_truth.ref_ids(setup, "ofdm_range_diff", rows)
     ids = np.unique(np.concatenate([setup.series["doppler_rate"].sat_id]))
     radial = np.array([1000.0, 0.0, 0.0])
     ref_only = {"starlink": {i: radial if i in set(refs.tolist()) else np.zeros(3) for i in ids.tolist()}}

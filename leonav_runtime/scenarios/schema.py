@@ -143,6 +143,13 @@ SCHEMA: dict[str, dict[str, Field]] = {
                          "the same true orbits seen at a known position, applied to every Starlink observable"),
         "offset_enu_m": Field(list, "m", default=[20000.0, 0.0, 0.0],
                               doc="the base's position from the site, East North Up (at rest)"),
+        "corrections": Field(str, "-", default="orbit", choices=("orbit", "measurement"),
+                             doc="orbit: each satellite's radial/along/cross offset fitted at the base and the "
+                                 "rover's satellite states moved by it; measurement: the orbit error's effect "
+                                 "at the base, subtracted (decays with the baseline); simulation/base_station.py"),
+        "serve_interval_s": Field(float, "s", 0.1, 60.0, default=1.0,
+                                  doc="orbit corrections: the base serves a new fit this often (each from its "
+                                      "measurements up to then)"),
     },
     "front_end": {
         "enabled": Field(bool, "-", default=False, doc="carrier phase: C/N0 by elevation, LO phase noise, cycle slips "

@@ -319,8 +319,7 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     if not noise_free and realism.active(scn):   # truth != filter; draws after all of the above
         u, params = realism.apply(setup, nav, rng, u, parts)
     imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
-    tables = [satellite_table(kind_name, setup.series[kind_name], rows, z, sigma)
-              for kind_name, rows, z, sigma in parts]
+    tables = [satellite_table(part[0], setup.series[part[0]], *part[1:]) for part in parts]
     local = [LocalSensorTable(token, setup.t_imu[setup.local_k[token]], z, sigma)
              for token, z, sigma in local_values(setup, nav, rng, parsed, x_true, g)]
     # the road every source takes: tables -> records (aux f_b averaged from these IMU increments)
@@ -329,9 +328,13 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     return Trial(inputs.merged(parsed.streams), d.x0[0], x_true, params)
 
 
-def satellite_table(kind_name: str, s: SatSeries, rows: np.ndarray, z: np.ndarray, sigma: float):
-    """The measurements of `rows` of a series as the road's satellite table of that kind."""
-    return SATELLITE_TABLES[kind_name](s.t_s[rows], s.sat_id[rows], z, sigma, s.sat_ecef[rows],
+def satellite_table(kind_name: str, s: SatSeries, rows: np.ndarray, z: np.ndarray, sigma: float,
+                    moved: tuple | None = None):
+    """The measurements of `rows` of a series as the road's satellite table of that kind; moved:
+    (satellite states (n, 9), start positions (n, 3) or None) in place of the element orbit's (a
+    base station's orbit corrections applied)."""
+    sat9, prev = (s.sat_ecef[rows], None if s.sat_prev_r_m is None else s.sat_prev_r_m[rows]) if moved is None \
+        else moved
+    return SATELLITE_TABLES[kind_name](s.t_s[rows], s.sat_id[rows], z, sigma, sat9,
                                        s.ref_ecef[rows] if s.has_ref else None,
-                                       None if s.interval_s is None else s.interval_s[rows],
-                                       None if s.sat_prev_r_m is None else s.sat_prev_r_m[rows])
+                                       None if s.interval_s is None else s.interval_s[rows], prev)
