@@ -21,7 +21,7 @@ def _tol(column: str) -> float:
 def test_golden_run_is_reproduced():
     expected = np.array(read_golden())
     got = np.array(golden_rows())
-    assert got.shape == expected.shape, f"row count changed; if intended: python -m tests.golden_run --update"
+    assert got.shape == expected.shape, "row count changed; if intended: python -m tests.golden_run --update"
     for j, name in enumerate(COLUMNS):
         diff = np.max(np.abs(got[:, j] - expected[:, j]))
         assert diff <= _tol(name), (

@@ -13,7 +13,7 @@ import serial
 
 from leonav.hardware.fakes import PtyDevice, split_bytes
 from leonav.hardware.imu import witmotion as wm
-from leonav.hardware.records import ImuSample, WitPacket
+from leonav.hardware.records import ImuSample
 from tests.conftest import shared_file
 
 G = wm.G_MPS2

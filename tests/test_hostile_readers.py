@@ -19,7 +19,7 @@ import pytest
 from leonav.hardware.gnss import nmea, ubx
 from leonav.hardware.gnss.reader import GnssDecoder, GnssReader
 from leonav.hardware.imu.witmotion import PACKET_LEN, ImuReader, SampleGrouper, WitMotionParser
-from leonav.hardware.records import GnssFix, GnssTimeTag, NmeaSentence, RxmRawx
+from leonav.hardware.records import GnssFix, GnssTimeTag, RxmRawx
 from leonav.hardware.session_decode import decode_session
 from tests.conftest import shared_file
 from tests.timebox import bounded

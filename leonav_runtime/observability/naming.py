@@ -1,12 +1,11 @@
 """Names of error-state components and of null-space directions (from the generated layout)."""
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
-from typing import Mapping, Sequence
+from typing import Sequence
 
 import numpy as np
 

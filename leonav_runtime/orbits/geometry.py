@@ -22,7 +22,7 @@ from typing import Mapping
 import numpy as np
 
 from leonav_runtime.common.errors import UserInputError
-from leonav_runtime.gen.constants import GNSS_MASK_DEG, STARLINK_MASK_DEG, WGS84_A_M, WGS84_B_M, WGS84_E2, WGS84_F
+from leonav_runtime.gen.constants import GNSS_MASK_DEG, STARLINK_MASK_DEG, WGS84_A_M, WGS84_E2
 
 
 # Elevation masks used by the paper (Sec. II): 10 deg for GPS (common GNSS practice),
