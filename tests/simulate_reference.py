@@ -170,7 +170,7 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     x0 = nav.boxplus(x_true[0], dx0)
     params = setup.params
     if not noise_free and realism.active(scn):   # truth != filter; draws after all of the above
-        u, params = realism.apply(setup, nav, rng, u, parts)
+        u, params, _ = realism.apply(setup, nav, rng, u, parts)
         imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
     tables = [satellite_table(kind_name, setup.series[kind_name], rows, z, sigma)
               for kind_name, rows, z, sigma in parts]

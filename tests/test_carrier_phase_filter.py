@@ -208,3 +208,22 @@ def test_a_zero_orbit_error_leaves_the_exact_phase_truth_unchanged(prepared):
     rows = np.arange(s.t_s.size)
     zero = {"starlink": {int(i): np.zeros(3) for i in np.unique(s.sat_id)}}
     assert np.all(realism.ephemeris_delta(setup, nav, "carrier_phase", rows, zero) == 0.0)
+
+
+def test_a_sweep_reports_the_front_ends_slips_and_dropped_epochs(tmp_path):
+    """What the front end drops (epochs of detected slips) is counted into metrics.json, per
+    (mode, count), summed over the trials: equal to the counts of the trials' own draws."""
+    import json
+
+    from leonav_runtime.simulation import simulate
+    from leonav_runtime.sweep.run import run_sweep
+    paper = load_scenario("paper").raw
+    fe = _front_end(slip_below_dbhz=60.0, slip_probability=0.01, slips_detected=0.5)
+    scn = short_paper_scenario(4.0, [10], "<slip counts>", modes=("leo-phase+imu",),
+                               starlink={**paper["starlink"], "rate_hz": 10.0, "counts": [10]}, front_end=fe)
+    run_sweep(scn, tmp_path, trials=3, workers=1, progress=False, figures=False)
+    entry = json.loads((tmp_path / "metrics.json").read_text())["results"][0]
+    setup, nav = mc.setup_for(scn)
+    own = [simulate.trial_records(setup, "leo-phase+imu", 10, mc.trial_rng(scn.seed, i), nav).counts for i in range(3)]
+    assert entry["front_end"] == {k: sum(c[k] for c in own) for k in own[0]}
+    assert entry["front_end"]["slips"] > 0 and entry["front_end"]["epochs_dropped"] == entry["front_end"]["slips_detected"]

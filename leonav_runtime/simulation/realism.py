@@ -96,9 +96,11 @@ def filter_params(params: np.ndarray, cfg: dict, layout) -> np.ndarray:
     return out
 
 
-def apply(setup, nav, rng: np.random.Generator, u: np.ndarray, parts: list) -> tuple[np.ndarray, np.ndarray]:
+def apply(setup, nav, rng: np.random.Generator, u: np.ndarray,
+          parts: list) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
     """Apply the scenario's switches to one trial: `parts` [kind_name, rows, z, sigma] are
-    changed in place; returns the measured increments and the filter's parameters."""
+    changed in place; returns the measured increments, the filter's parameters and the counts
+    of what the front end did (slips injected and detected, epochs dropped; summed over parts)."""
     scn, L = setup.scn, nav.layout
     eph, imu = scn.realism.get("ephemeris", {}), scn.realism.get("imu", {})
     base = scn.realism.get("base", {})
@@ -111,11 +113,12 @@ def apply(setup, nav, rng: np.random.Generator, u: np.ndarray, parts: list) -> t
         dt = 1.0 / scn.imu_rate_hz
         u = u + imu_error_increments(rng, imu, setup.u_true, setup.t_imu[:-1], dt, L)
     params = filter_params(setup.params, imu, L) if imu else setup.params
-    fe = scn.realism.get("front_end", {})
+    fe, counts = scn.realism.get("front_end", {}), {}
     if fe.get("enabled"):   # before R grows: the front end's sigma is the tone's own
         for part in parts:
             if model.observable(part[0]).reads_interval:
-                front_end.apply(setup, rng, part, setup.series[part[0]])
+                for key, n in front_end.apply(setup, rng, part, setup.series[part[0]]).items():
+                    counts[key] = counts.get(key, 0) + n
     inflate = eph.get("compensate") == "inflate-r"
     if base.get("enabled"):   # the base sees the same true orbits: its corrections, applied (base_station.py)
         base_station.apply(setup, nav, rng, parts, errors, inflate)
@@ -127,7 +130,7 @@ def apply(setup, nav, rng: np.random.Generator, u: np.ndarray, parts: list) -> t
     if fe.get("compensate"):
         params = params.copy()
         params[L.P_Q_BLO] = max(params[L.P_Q_BLO], front_end.filter_q_blo(fe, 1.0 / scn.starlink["rate_hz"]))
-    return u, params
+    return u, params, counts
 
 
 def active(scn) -> bool:

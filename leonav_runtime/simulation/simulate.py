@@ -182,6 +182,7 @@ class Trial:
     x0: np.ndarray
     x_true: np.ndarray   # (n+1, NX) truth including this trial's sensor errors
     params: np.ndarray | None = None   # the filter's parameters (realism compensation), else the setup's
+    counts: dict[str, int] = field(default_factory=dict)   # the front end's slips and dropped epochs
 
 
 def local_values(setup: Setup, nav, rng, mode, x_true: np.ndarray, g: float):
@@ -314,10 +315,10 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     g = 0.0 if noise_free else 1.0
     d = block_draws(setup, parsed, count, [rng], nav, g)
     x_true = with_errors(setup.x_true, d.errors, 1)[0]
-    u, params = d.u[0], setup.params
+    u, params, counts = d.u[0], setup.params, {}
     parts = [[kind_name, rows, z[0], sigma] for kind_name, rows, z, sigma in d.parts]
     if not noise_free and realism.active(scn):   # truth != filter; draws after all of the above
-        u, params = realism.apply(setup, nav, rng, u, parts)
+        u, params, counts = realism.apply(setup, nav, rng, u, parts)
     imu = ImuTable(setup.t_imu[1:], np.full(n, dt), u)
     tables = [satellite_table(part[0], setup.series[part[0]], *part[1:]) for part in parts]
     local = [LocalSensorTable(token, setup.t_imu[setup.local_k[token]], z, sigma)
@@ -325,7 +326,7 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     # the road every source takes: tables -> records (aux f_b averaged from these IMU increments)
     inputs = assemble(imu, params, Prior(d.x0[0], setup.P0), satellites=tables, nav=nav, local=local,
                       orbit_consider=None if noise_free else realism.orbit_consider(scn))
-    return Trial(inputs.merged(parsed.streams), d.x0[0], x_true, params)
+    return Trial(inputs.merged(parsed.streams), d.x0[0], x_true, params, counts)
 
 
 def satellite_table(kind_name: str, s: SatSeries, rows: np.ndarray, z: np.ndarray, sigma: float,

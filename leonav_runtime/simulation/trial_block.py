@@ -61,6 +61,7 @@ class TrialBlock:
     streams: np.ndarray | None = None  # (B, nrec) the streams themselves (road per trial: realism) ...
     x_true: np.ndarray | None = None   # ... and their truths (B, n+1, NX)
     trials: list | None = None         # the trials themselves when their streams differ in length
+    counts: list | None = None         # each trial's front-end counts (simulate.Trial.counts)
 
     def truth(self, k: np.ndarray | slice = slice(None)) -> np.ndarray:
         """(B, len(k), NX): each trial's truth, sensor errors included, at IMU samples k."""
@@ -157,7 +158,8 @@ def trial_block(setup: simulate.Setup, mode: str, count: int, rngs: list[np.rand
         if len({t.records.size for t in trials}) > 1:   # e.g. epochs of detected cycle slips dropped
             return TrialBlock(np.stack([t.x0 for t in trials]), np.stack([t.params for t in trials]), trials=trials)
         return TrialBlock(np.stack([t.x0 for t in trials]), np.stack([t.params for t in trials]),
-                          streams=np.stack([t.records for t in trials]), x_true=np.stack([t.x_true for t in trials]))
+                          streams=np.stack([t.records for t in trials]), x_true=np.stack([t.x_true for t in trials]),
+                          counts=[t.counts for t in trials])
     if not rngs:
         raise ValueError("trial_block: expected at least one random stream")
     tpl = template(setup, nav, mode, count)

@@ -19,7 +19,7 @@ import hashlib
 import json
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -106,6 +106,7 @@ class TrialResult:
     c_seconds: float
     seconds: float
     wall_seconds: float = 0.0
+    counts: dict = field(default_factory=dict)   # the front end's (simulate.Trial.counts)
 
 
 def run_trial(scn: Scenario, mode: str, count: int, index: int) -> TrialResult:
@@ -134,7 +135,7 @@ def trial_result(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunction
     nis_sum, nis_count = _nis_sums(_kind_masks(res.kind), res.nis, res.status)
     p_est = res.x[rows, L.X_P_ENU_SLICE].copy() if index == 0 else None
     return TrialResult(index, err, nees, nis_sum, nis_count, res.n_gated, res.n_failed, p_est,
-                       t_c, time.thread_time() - t0, time.perf_counter() - w0)
+                       t_c, time.thread_time() - t0, time.perf_counter() - w0, trial.counts)
 
 
 @dataclass
@@ -200,7 +201,7 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     for j, (index, ((nis_sum, nis_count), gated, failed)) in enumerate(zip(indices, runs)):
         p_est = x_est[j, :, L.X_P_ENU_SLICE].copy() if index == 0 else None
         results.append(TrialResult(index, err[j], nees[j], nis_sum, nis_count, gated, failed, p_est, c_seconds[j],
-                                   math.nan, math.nan))
+                                   math.nan, math.nan, block.counts[j] if block.counts else {}))
     return results, sum(c_seconds)
 
 
@@ -317,4 +318,5 @@ def summarize(results: list[TrialResult], bound: dict[str, np.ndarray], n_err: i
     out["nis"] = nis
     out["gated"] = int(sum(r.gated for r in results))
     out["failed"] = int(sum(r.failed for r in results))
+    out["front_end"] = {k: int(sum(r.counts.get(k, 0) for r in results)) for k in sorted({k for r in results for k in r.counts})}
     return out

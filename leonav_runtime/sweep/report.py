@@ -86,6 +86,7 @@ def metrics_dict(scn, res) -> dict:
     order = {m: i for i, m in enumerate(scn.modes)}
     for (mode, count), s in sorted(res.summaries.items(), key=lambda kv: (order.get(kv[0][0], len(order)), kv[0])):
         entry = {"mode": mode, "count": count, "trials": s["trials"], "gated": s["gated"], "failed": s["failed"],
+                 "front_end": s.get("front_end", {}),   # slips injected / detected, epochs dropped (all trials)
                  "nees": {k: v for k, v in s["nees"].items() if k != "nees_t"},
                  "nis": {str(k): v for k, v in s["nis"].items()}}
         for block in mc.BLOCKS:
