@@ -6,16 +6,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from leonav_runtime.inputs import consider
 from leonav_runtime.scenarios.load import load_scenario
 from leonav_runtime.simulation import base_station, orbit_truth, realism
 from leonav_runtime.sweep import montecarlo as mc
 from tests.conftest import short_paper_scenario
 
 
-def _scn(offset_enu_m, duration_s=6.0, corrections="measurement"):
+def _scn(offset_enu_m, duration_s=6.0, corrections="measurement", compensate="inflate-r", correlation_s=0.0):
     paper = load_scenario("paper").raw
     sections = {"starlink": {**paper["starlink"], "rate_hz": 10.0},
-                "ephemeris_error": {"enabled": True, "element_age_days": 0.25, "compensate": "inflate-r"},
+                "ephemeris_error": {"enabled": True, "element_age_days": 0.25, "compensate": compensate,
+                                    "consider_correlation_s": correlation_s},
                 "base": {"enabled": True, "offset_enu_m": list(offset_enu_m), "corrections": corrections}}
     return short_paper_scenario(duration_s, [10], "<base test>", modes=("leo-phase+alpha+imu",), **sections)
 
@@ -91,7 +93,7 @@ def test_the_rover_flies_the_served_orbits():
     errors = realism.draw_orbit_errors(np.random.default_rng(9), setup)
     sigma = setup.scn.starlink["carrier_phase_sigma_cyc"]
     part = [kind, rows, np.zeros(rows.size), sigma]
-    base_station.apply(setup, nav, np.random.default_rng(3), [part], errors, inflate=True)
+    base_station.apply(setup, nav, np.random.default_rng(3), [part], errors)   # inflate-r (_scn)
     sat9, prev = part[4]
     true9 = orbit_truth.perturb_states(s.sat_ecef[rows], orbit_truth.offsets(errors["starlink"], s.sat_id[rows]))
     late = s.t_s[rows] > 15.0
@@ -100,3 +102,23 @@ def test_the_rover_flies_the_served_orbits():
     assert np.median(moved_off) < 0.2 * np.median(element_off)
     assert prev is not None and prev.shape == (rows.size, 3)
     assert np.all(part[3] > sigma) and np.median(part[3][late]) < np.median(part[3][~late])   # the fit's covariance shrinks
+
+
+def test_under_consider_the_served_covariance_is_shared_by_a_satellites_records():
+    """compensate = "consider" with orbit corrections: a record's R grows by m times what the
+    served covariance does to it (m: its satellite's records within the correlation time), and
+    the road's consider term leaves the corrected kinds alone (no element-set term on top)."""
+    grown = {}
+    for compensate, corr in (("inflate-r", 0.0), ("consider", 2.0)):
+        setup, nav = mc.setup_for(_scn((20000.0, 0.0, 0.0), 6.0, "orbit", compensate, corr))
+        s = setup.series["carrier_phase"]
+        rows = np.flatnonzero(s.rank < 10)
+        errors = realism.draw_orbit_errors(np.random.default_rng(9), setup)
+        part = ["carrier_phase", rows, np.zeros(rows.size), 0.01]
+        base_station.apply(setup, nav, np.random.default_rng(3), [part], errors)
+        grown[compensate] = part[3] ** 2 - 0.01**2
+        if compensate == "consider":
+            kinds = realism.orbit_consider(setup.scn).sigma_rac_m
+            assert "carrier_phase" not in kinds and "doppler_rate" not in kinds and "ofdm_range_diff" in kinds
+            m = consider.records_per_satellite(s.sat_id[rows], s.t_s[rows], 2.0)
+    assert np.all(m > 1) and np.allclose(grown["consider"], m * grown["inflate-r"], rtol=1e-9)

@@ -17,6 +17,7 @@ import numpy as np
 
 from leonav_runtime.base.orbit_fit import OrbitFit, fit_orbit_offsets
 from leonav_runtime.core import model
+from leonav_runtime.inputs.consider import records_per_satellite
 from leonav_runtime.simulation.orbit_truth import (base_state, ephemeris_delta, ephemeris_sigma, moved_aux,
                                                    moved_states, sigma_rac)
 from leonav_runtime.simulation.sensor_errors import own_stream
@@ -108,12 +109,24 @@ def _orbit_variance(setup, nav, part: list, cov: np.ndarray, d_hat: np.ndarray) 
     return np.einsum("ni,nij,nj->n", A, cov, A)
 
 
-def apply(setup, nav, rng: np.random.Generator, parts: list, errors: dict, inflate: bool) -> None:
-    """The base's corrections on one trial's parts, in place (module doc); `inflate`: the
-    filter's R also grows by what the corrections leave (the scenario's inflate-r)."""
+def orbit_corrected(scn, kind_name: str) -> bool:
+    """Whether the scenario's base corrects this observable kind in the orbit domain (an
+    undifferenced Starlink observable, `[base] corrections = \"orbit\"`)."""
+    o, base = model.observable(kind_name), scn.realism.get("base", {})
+    return bool(base.get("enabled")) and base.get("corrections") == "orbit" and o.constellation == "starlink" \
+        and not o.reads_ref
+
+
+def apply(setup, nav, rng: np.random.Generator, parts: list, errors: dict) -> None:
+    """The base's corrections on one trial's parts, in place (module doc). With `[ephemeris_error]
+    compensate` the filter's R grows by what they leave: inflate-r, white; consider (orbit
+    corrections), the served covariance's term times the satellite's records within
+    `consider_correlation_s`, as the road's consider term treats an error its records share
+    (inputs/consider.py); measurement corrections under consider keep the road's term."""
+    eph = setup.scn.realism["ephemeris"]
+    inflate, consider = eph["compensate"] == "inflate-r", eph["compensate"] == "consider"
     starlink = _starlink(parts)
-    by_orbit = [p for p in starlink if setup.scn.realism["base"]["corrections"] == "orbit"
-                and not model.observable(p[0]).reads_ref]
+    by_orbit = [p for p in starlink if orbit_corrected(setup.scn, p[0])]
     for part in starlink:
         if any(part is p for p in by_orbit):
             continue
@@ -127,6 +140,7 @@ def apply(setup, nav, rng: np.random.Generator, parts: list, errors: dict, infla
     for part in by_orbit:
         s, rows = setup.series[part[0]], part[1]
         d_hat, cov = fit.at(s.sat_id[rows], s.t_s[rows])
-        if inflate:
-            part[3] = np.sqrt(np.asarray(part[3], float) ** 2 + _orbit_variance(setup, nav, part, cov, d_hat))
+        if inflate or consider:
+            m = records_per_satellite(s.sat_id[rows], s.t_s[rows], eph["consider_correlation_s"] if consider else 0.0)
+            part[3] = np.sqrt(np.asarray(part[3], float) ** 2 + m * _orbit_variance(setup, nav, part, cov, d_hat))
         part[4:] = [moved_states(s, rows, d_hat)]

@@ -51,7 +51,9 @@ def orbit_consider(scn) -> OrbitConsider | None:
     eph = scn.realism.get("ephemeris", {})
     if eph.get("compensate") != "consider":
         return None
-    kinds = {k: c for k, c in _satellite_constellations().items() if c in eph["apply_to"]}
+    # a kind the base corrects in the orbit domain has its served covariance's term already (base_station.py)
+    kinds = {k: c for k, c in _satellite_constellations().items()
+             if c in eph["apply_to"] and not base_station.orbit_corrected(scn, k)}
     covariance = {}
     if eph.get("operator_folder"):   # Starlink's P_sat from its operator ephemerides (docs/ephemerides.md)
         # imported on use: ERFA and the operator readers cost ~60 ms of import every sweep would pay
@@ -121,7 +123,7 @@ def apply(setup, nav, rng: np.random.Generator, u: np.ndarray,
                     counts[key] = counts.get(key, 0) + n
     inflate = eph.get("compensate") == "inflate-r"
     if base.get("enabled"):   # the base sees the same true orbits: its corrections, applied (base_station.py)
-        base_station.apply(setup, nav, rng, parts, errors, inflate)
+        base_station.apply(setup, nav, rng, parts, errors)
     if inflate:
         for part in parts:
             o = model.observable(part[0])
