@@ -129,7 +129,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
                                  doc="sigma ~ age^k (1 km at 6 h to 38 km at 7 d: k = 1.09)"),
         "compensate": Field(str, "-", default="none", choices=("none", "inflate-r", "consider"),
                             doc="filter: R plus the orbit error's effect on each measurement (inflate-r: "
-                                "one-sigma moves at the truth; consider: J P_sat J^T at the prior)"),
+                                "one-sigma moves at the truth; consider: J P_sat J^T at the prior); with [base] "
+                                "orbit corrections, what the served covariance does instead"),
         "consider_correlation_s": Field(float, "s", 0, 1e5, default=0.0,
                                         doc="consider: the term times the satellite's records within this "
                                             "time (its error is shared); 0 = white"),
