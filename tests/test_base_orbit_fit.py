@@ -95,3 +95,26 @@ def test_bad_input_is_named():
         _fit(dict(rows, residual=np.where(rows["t"] == 1.0, np.nan, rows["residual"])))
     with pytest.raises(ValueError, match="never measured"):
         _fit(rows).at(np.array([7]), np.array([10.0]))
+
+
+def test_satellites_out_of_view_leave_the_solve_without_losing_what_they_said():
+    """Half the satellites set at 30 s, the others rise then: retiring the first half after 5 s
+    without rows (their information about the common states kept, marginalized) serves the
+    satellites in view exactly what a fit that keeps every satellite in the solve serves; a
+    retired satellite's offsets stay as last fitted (a rover no longer sees it)."""
+    rows, _ = _rows(np.random.default_rng(5))
+    first = rows["sat_id"] < 103
+    keep = np.where(first, rows["t"] <= 30.0, rows["t"] > 30.0)
+    index = np.flatnonzero(keep)
+    linearize = rows["linearize"]
+    pass_rows = {k: (v[keep] if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
+    pass_rows["linearize"] = lambda i, d: linearize(index[i], d)
+    kept = _fit(pass_rows, retire_after_s=1e9)
+    retired = _fit(pass_rows, retire_after_s=5.0)
+    np.testing.assert_allclose(retired.offsets_rac_m[:, 3:], kept.offsets_rac_m[:, 3:], rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(retired.cov_rac_m2[:, 3:], kept.cov_rac_m2[:, 3:], rtol=1e-6, atol=1e-6)
+    # the set satellites: the same until they leave the solve (5 s after their last row), then frozen
+    before = retired.t_serve <= 35.0
+    np.testing.assert_allclose(retired.offsets_rac_m[before], kept.offsets_rac_m[before], rtol=1e-6, atol=1e-6)
+    k30 = np.searchsorted(retired.t_serve, 30.0)
+    np.testing.assert_array_equal(retired.offsets_rac_m[-1, :3], retired.offsets_rac_m[k30 + 2, :3])

@@ -21,6 +21,9 @@ removing each epoch's weighted mean from the rows and the columns. A Gaussian pr
 element-age sigmas, the receiver states' priors) keeps the system regular while a satellite has
 few rows.
 
+Satellites out of view leave the solve (marginalized, their information about c kept), so its
+size is that of the satellites in view, not of every satellite of a long run.
+
 The estimate is causal: at each serving time t_k the base solves with every row of t <= t_k, so
 a rover applying the correction served at or before its epoch uses no future data. Linear least
 squares, relinearized: the offsets are small against the ranges (~1 km against 500+ km), yet
@@ -76,10 +79,37 @@ def _group_means(group: np.ndarray, w: np.ndarray, cols: np.ndarray) -> np.ndarr
 Linearize = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
+def _retire(info: np.ndarray, rhs: np.ndarray, active: list[int], last_t: np.ndarray, before_s: float,
+            m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Marginalize out of (info, rhs) the active satellites last measured before `before_s`
+    (Schur complement: exact for the linear problem); `active` is updated in place."""
+    gone = [j for j, i in enumerate(active) if last_t[i] < before_s]
+    if not gone:
+        return info, rhs
+    out = np.concatenate([m + 3 * j + np.arange(3) for j in gone])
+    keep = np.setdiff1d(np.arange(info.shape[0]), out)
+    gain = info[np.ix_(keep, out)] @ np.linalg.inv(info[np.ix_(out, out)])
+    info_kept = info[np.ix_(keep, keep)] - gain @ info[np.ix_(out, keep)]
+    rhs_kept = rhs[keep] - gain @ rhs[out]
+    for j in reversed(gone):
+        del active[j]
+    return info_kept, rhs_kept
+
+
+def _enter(info: np.ndarray, rhs: np.ndarray, mean: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(info, rhs) with a satellite's 3 unknowns appended, its Gaussian prior (mean, cov)."""
+    n = info.shape[0]
+    prior_info = np.linalg.inv(cov)
+    grown = np.zeros((n + 3, n + 3))
+    grown[:n, :n] = info
+    grown[n:, n:] = prior_info
+    return grown, np.concatenate([rhs, prior_info @ mean])
+
+
 def fit_orbit_offsets(sat_id: np.ndarray, t: np.ndarray, group: np.ndarray, residual: np.ndarray,
                       sigma: np.ndarray, B: np.ndarray, linearize: Linearize, prior_sigma_rac_m: np.ndarray,
                       prior_sigma_common: np.ndarray, t_serve: np.ndarray, iterations: int = 3,
-                      tolerance_m: float = 30.0) -> OrbitFit:
+                      tolerance_m: float = 30.0, retire_after_s: float = 30.0) -> OrbitFit:
     """Causal least-squares orbit offsets (module doc).
 
     sat_id (n,) NORAD ids, t (n,) s, group (n,) int label of each row's epoch and kind (its
@@ -89,7 +119,11 @@ def fit_orbit_offsets(sat_id: np.ndarray, t: np.ndarray, group: np.ndarray, resi
     derivative there (per m), prior_sigma_rac_m (3,) m, prior_sigma_common (m,), t_serve (K,)
     increasing serving times (s); each serving time's new rows are relinearized about the new
     estimate until it moves their satellites by less than tolerance_m (m), at most `iterations`
-    times (an iterated sequential fit: a row keeps the linearization it entered with)."""
+    times (an iterated sequential fit: a row keeps the linearization it entered with). A
+    satellite without rows for retire_after_s (s) leaves the solve, its information about the
+    common states kept (marginalized out); its offsets stay served as last fitted, and if it
+    comes back it enters with them as its prior. So the solve holds the satellites in view,
+    not every satellite of the run."""
     sat_id, t, residual, sigma = (np.asarray(a) for a in (sat_id, t, residual, sigma))
     if not (sat_id.shape == t.shape == residual.shape == sigma.shape == group.shape) or B.shape[0] != t.size:
         raise ValueError("fit_orbit_offsets: rows of sat_id, t, group, residual, sigma, B must agree")
@@ -106,56 +140,53 @@ def fit_orbit_offsets(sat_id: np.ndarray, t: np.ndarray, group: np.ndarray, resi
         keep = left > 1e-9 * np.maximum(np.max(np.abs(B), axis=0), 1e-300)
         B, prior_sigma_common = B[:, keep], prior_sigma_common[keep]
     N, m = ids.size, B.shape[1]
-    n_par = 3 * N + m
+    prior_cov = np.diag(np.asarray(prior_sigma_rac_m, float) ** 2)
+    est, est_cov = np.zeros((N, 3)), np.broadcast_to(prior_cov, (N, 3, 3)).copy()   # latest per satellite
+    last_t = np.full(N, -np.inf)
+    # the solve's unknowns: the common states, then 3 per satellite in view (`active`, in order)
+    active: list[int] = []
+    info = np.diag(1.0 / prior_sigma_common**2)
+    rhs = np.zeros(m)
     order = np.argsort(t, kind="stable")
-    info = np.diag(np.concatenate([np.tile(1.0 / np.asarray(prior_sigma_rac_m, float) ** 2, N),
-                                   1.0 / np.asarray(prior_sigma_common, float) ** 2]))
-    rhs, theta = np.zeros(n_par), np.zeros(n_par)
     K = len(t_serve)
     offsets, covs = np.zeros((K, N, 3)), np.zeros((K, N, 3, 3))
     ends = np.searchsorted(t[order], t_serve, side="right")   # an epoch's rows share t: epochs enter whole
     start = 0
-    seen = np.zeros(N, bool)
-    prior_cov = np.diag(np.asarray(prior_sigma_rac_m, float) ** 2)
-    blocks = np.arange(N)[:, None] * 3 + np.arange(3)
     for k, end in enumerate(ends):
         rows = order[start:end]
+        start = end
         if rows.size:
-            seen[slot[rows]] = True
-            # a satellite not yet measured has no row coupling it to the rest: it keeps its prior, out of the solve
-            active = np.concatenate([blocks[seen].ravel(), 3 * N + np.arange(m)])
+            info, rhs = _retire(info, rhs, active, last_t, t_serve[k] - retire_after_s, m)
+            sats = np.unique(slot[rows])
+            for i in sats[~np.isin(sats, active)]:   # in view: enters with what is known of it (prior or last fit)
+                info, rhs = _enter(info, rhs, est[i], est_cov[i])
+                active.append(int(i))
+            last_t[sats] = t_serve[k]
+            position = {s_: j for j, s_ in enumerate(active)}
+            col = m + 3 * np.array([position[i] for i in slot[rows]])[:, None] + np.arange(3)
             _, gi = np.unique(g[rows], return_inverse=True)
-            info_k, rhs_k = info, rhs
-            d_new = theta[:3 * N].reshape(N, 3)[slot[rows]]
+            d_new = est[slot[rows]]
             for _ in range(iterations):
                 d = d_new
                 dh, A = linearize(rows, d)
                 y = residual[rows] - dh + np.einsum("ni,ni->n", A, d)   # a measurement of A d
-                # the design over this chunk's satellites and B, with the epoch's common term eliminated:
-                # each column minus its group's weighted mean
-                sats, local = np.unique(slot[rows], return_inverse=True)
-                cols = np.concatenate([blocks[sats].ravel(), 3 * N + np.arange(m)])
-                X = np.zeros((rows.size, cols.size))
-                X[np.arange(rows.size)[:, None], 3 * local[:, None] + np.arange(3)] = A
-                X[:, 3 * sats.size:] = B[rows]
+                # the design with the epoch's common term eliminated: each column minus its group's weighted mean
+                X = np.zeros((rows.size, info.shape[0]))
+                X[np.arange(rows.size)[:, None], col] = A
+                X[:, :m] = B[rows]
                 X -= _group_means(gi, w[rows], X)[gi]
                 y = y - _group_means(gi, w[rows], y[:, None])[gi, 0]
-                info_k, rhs_k = info.copy(), rhs.copy()
-                info_k[np.ix_(cols, cols)] += X.T @ (w[rows, None] * X)
-                rhs_k[cols] += X.T @ (w[rows] * y)
-                cov = np.linalg.inv(info_k[np.ix_(active, active)])
-                theta = np.zeros(n_par)
-                theta[active] = cov @ rhs_k[active]
-                d_new = theta[:3 * N].reshape(N, 3)[slot[rows]]
+                info_k = info + X.T @ (w[rows, None] * X)
+                rhs_k = rhs + X.T @ (w[rows] * y)
+                cov = np.linalg.inv(info_k)
+                theta = cov @ rhs_k
+                est[active] = theta[m:].reshape(-1, 3)
+                d_new = est[slot[rows]]
                 if np.max(np.abs(d_new - d)) < tolerance_m:
                     break
             info, rhs = info_k, rhs_k
-            n_seen = int(seen.sum())
-            cov_seen = cov[:3 * n_seen, :3 * n_seen].reshape(n_seen, 3, n_seen, 3)
-            cov_sat = np.broadcast_to(prior_cov, (N, 3, 3)).copy()
-            cov_sat[seen] = cov_seen[np.arange(n_seen), :, np.arange(n_seen), :]
-        start = end
-        offsets[k] = theta[:3 * N].reshape(N, 3)
-        covs[k] = cov_sat if seen.any() else prior_cov
+            j = np.arange(len(active))
+            est_cov[active] = cov[m:, m:].reshape(len(active), 3, len(active), 3)[j, :, j, :]
+        offsets[k], covs[k] = est, est_cov
     prior = np.broadcast_to(np.diag(np.asarray(prior_sigma_rac_m, float) ** 2), (N, 3, 3)).copy()
     return OrbitFit(ids, np.asarray(t_serve, float), offsets, covs, prior)
