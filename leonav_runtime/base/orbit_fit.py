@@ -51,7 +51,7 @@ class OrbitFit:
     t_serve: np.ndarray          # (K,) s
     offsets_rac_m: np.ndarray    # (K, N, 3) m
     cov_rac_m2: np.ndarray       # (K, N, 3, 3) m^2
-    prior_cov_rac_m2: np.ndarray  # (N, 3, 3) m^2
+    prior_cov_rac_m2: np.ndarray  # (3, 3) m^2, every satellite's before it is served
 
     def at(self, sat_id: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(n, 3) offsets (m) and (n, 3, 3) covariances (m^2) a rover holds at times t (s) for
@@ -61,7 +61,7 @@ class OrbitFit:
             raise ValueError("OrbitFit.at: a satellite the base never measured")
         k = np.searchsorted(self.t_serve, t, side="right") - 1
         off = np.zeros((i.size, 3))
-        cov = self.prior_cov_rac_m2[i].copy()
+        cov = np.broadcast_to(self.prior_cov_rac_m2, (i.size, 3, 3)).copy()
         served = k >= 0
         off[served] = self.offsets_rac_m[k[served], i[served]]
         cov[served] = self.cov_rac_m2[k[served], i[served]]
@@ -188,5 +188,4 @@ def fit_orbit_offsets(sat_id: np.ndarray, t: np.ndarray, group: np.ndarray, resi
             j = np.arange(len(active))
             est_cov[active] = cov[m:, m:].reshape(len(active), 3, len(active), 3)[j, :, j, :]
         offsets[k], covs[k] = est, est_cov
-    prior = np.broadcast_to(np.diag(np.asarray(prior_sigma_rac_m, float) ** 2), (N, 3, 3)).copy()
-    return OrbitFit(ids, np.asarray(t_serve, float), offsets, covs, prior)
+    return OrbitFit(ids, np.asarray(t_serve, float), offsets, covs, prior_cov)

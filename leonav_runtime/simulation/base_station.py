@@ -77,7 +77,7 @@ def orbit_fit(setup, nav, rng: np.random.Generator, parts: list, errors: dict) -
     for j, part in enumerate(parts):
         kind_name, rows = part[0], part[1]
         s = setup.series[kind_name]
-        element, H = nav.h_many(kind_name, x_base, s.aux[rows], params=setup.params)
+        _, H = nav.h_many(kind_name, x_base, s.aux[rows], params=setup.params)
         sigma = np.broadcast_to(np.asarray(part[3], float), rows.shape)
         noise = sigma * own_stream(rng, f"base:{kind_name}").standard_normal(rows.size)
         residual = ephemeris_delta(setup, nav, kind_name, rows, errors, x_at=x_base) + H[:, cols] @ c_true + noise
@@ -127,10 +127,8 @@ def apply(setup, nav, rng: np.random.Generator, parts: list, errors: dict) -> No
     inflate, consider = eph["compensate"] == "inflate-r", eph["compensate"] == "consider"
     starlink = _starlink(parts)
     by_orbit = [p for p in starlink if orbit_corrected(setup.scn, p[0])]
-    for part in starlink:
-        if any(part is p for p in by_orbit):
-            continue
-        x_base = base_state(setup)   # measurement domain: the effect at the base, subtracted
+    x_base = base_state(setup)
+    for part in (p for p in starlink if not orbit_corrected(setup.scn, p[0])):   # the effect at the base, subtracted
         left = ephemeris_sigma(setup, nav, part[0], part[1], x_base) if inflate else 0.0
         part[2] = part[2] - base_corrections(setup, nav, rng, part, errors)
         part[3] = np.sqrt(2.0 * np.asarray(part[3], float) ** 2 + left**2)   # the base's noise beside the rover's
