@@ -108,6 +108,6 @@ def test_replay_doppler_rate_r_carries_the_files_covariance(session, tmp_path):
     base, _ = alpha_r(None)
     r1, notes = alpha_r(str(tmp_path / "x1"))
     r4, _ = alpha_r(str(tmp_path / "x4"))
-    assert "beacons: Doppler-rate R + J P J^T of the operator covariance; 0 records without it" in notes
+    assert "beacons: doppler-rate R + J P J^T of the operator covariance; 0 records without it" in notes
     assert (r1 - base).min() > 0
     assert r4 - base == pytest.approx(4.0 * (r1 - base), rel=1e-6)      # R follows the files

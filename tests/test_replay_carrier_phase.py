@@ -231,3 +231,40 @@ def _timedelta(seconds: float):
     import datetime as dt
 
     return dt.timedelta(seconds=seconds)
+
+
+def test_replay_phase_r_carries_the_operator_files_covariance(phase_replay, tmp_path):
+    """With operator ephemerides the phase differences' R gets the files' orbit covariance too
+    (J P J^T, J the phase's orbit Jacobian with both ends of the difference): 4x the files'
+    covariance is 4x the added term, and the Doppler-rate's beside it."""
+    from leonav_runtime.orbits.operator_ephemeris import write_file
+    from leonav_runtime.orbits.operator_states import ephemerides_from_elements
+    from leonav_runtime.replay import ReplayOptions
+    from leonav_runtime.replay.run import decode_inputs
+    from leonav_runtime.simulation.session_synth import PAPER_EPOCH
+
+    synth = phase_replay[0]
+    es = synth.elements
+    es = es.select(np.flatnonzero(np.isin(es.norad_ids, synth.sdr_info["norad_ids"])))
+    big = np.diag([0.46, 0.78, 1.21, 2.0e-6, 5.2e-7, 5.4e-6]) * 1e4     # 100x a public file's sigmas
+    for name, cov in (("x1", big), ("x4", 4.0 * big)):
+        made = ephemerides_from_elements(es, PAPER_EPOCH, np.arange(-120.0, 241.0, 60.0), cov)
+        for k, e in enumerate(made.ephemerides.values()):
+            write_file(e, tmp_path / name, serial=k)
+
+    def records(folder):
+        opts = ReplayOptions(modes=("leo-phase+alpha+imu",), operator_ephemerides=folder,
+                             gnss_latency_s=synth.cfg.gnss_latency_s)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            inputs = decode_inputs(synth.folder, opts, synth.elements, tmp_path / "out")
+        return inputs.records, inputs.notes
+    base, _ = records(None)
+    r1, notes = records(str(tmp_path / "x1"))
+    r4, _ = records(str(tmp_path / "x4"))
+    assert "beacons: doppler-rate and carrier-phase R + J P J^T of the operator covariance; 0 records without it" \
+        in notes
+    for kind in ("carrier_phase", "doppler_rate"):
+        added = r1[kind]["R"] - base[kind]["R"]
+        assert added.min() > 0, kind
+        assert r4[kind]["R"] - base[kind]["R"] == pytest.approx(4.0 * added, rel=1e-6), kind

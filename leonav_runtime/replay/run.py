@@ -86,12 +86,12 @@ def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurem
 
         gnss = observation_table(spp, epoch_utc)
     orbit_consider = provider = None
-    if operator is not None:    # the files' covariance into the Doppler-rate R (consider term)
+    if operator is not None:    # the files' covariance into every beacon observable's R (consider term)
         from leonav_runtime.inputs.consider import OrbitConsider
         from leonav_runtime.orbits.operator_consider import OperatorCovariance, names_by_id
 
         provider = OperatorCovariance(operator, epoch_utc, names_by_id(elements.norad_ids, elements.names))
-        orbit_consider = OrbitConsider({}, covariance={"doppler_rate": provider})
+        orbit_consider = OrbitConsider({}, covariance={table.KIND: provider for table in satellites})
     corrections = recorded_corrections(options, epoch_utc)
     inputs = assemble(imu, filter_params(origin, profile, f_c_hz, latency_values(options.gnss_latency_s)),
                       replay_prior(options, profile),
@@ -105,7 +105,8 @@ def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurem
                             f"{d['counts'].get('doppler_rate_none', 0)} without; "
                             f"{sum(v for k, v in d['counts'].items() if k.startswith('rejected_'))} lines refused")
     if provider is not None:
-        inputs.notes.append(f"beacons: Doppler-rate R + J P J^T of the operator covariance; "
+        kinds = " and ".join(table.KIND.replace("_", "-") for table in satellites)
+        inputs.notes.append(f"beacons: {kinds} R + J P J^T of the operator covariance; "
                             f"{provider.uncovered_records} records without it")
     out = SessionInputs.of(inputs, beacon_measurements=meas)
     out.counts["doppler_rate_satellites"] = int(np.unique(out.doppler_rate.sat_id).size)
