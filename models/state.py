@@ -112,6 +112,8 @@ AUX_BLOCKS = _blocks([
     # carrier phase: the span of its time difference; zeros for every other observable
     ("dt_phase", 1, "s", "interval of a time-differenced carrier phase, (t - dt_phase, t]"),
     ("r_S_prev_ecef", 3, "m", "satellite position at t - dt_phase, ECEF (the same ephemeris as r_S_ecef)"),
+    ("df_tone", 1, "Hz", "carrier phase: the tone's offset from the channel centre its phase is referred to "
+     "(the sample clock scales it: s_clk T df_tone)"),
 ])
 # IMU input u
 U_BLOCKS = _blocks([

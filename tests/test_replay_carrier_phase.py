@@ -268,3 +268,59 @@ def test_replay_phase_r_carries_the_operator_files_covariance(phase_replay, tmp_
         added = r1[kind]["R"] - base[kind]["R"]
         assert added.min() > 0, kind
         assert r4[kind]["R"] - base[kind]["R"] == pytest.approx(4.0 * added, rel=1e-6), kind
+
+
+def test_the_sample_clock_scales_an_outer_tones_offset_and_h_carries_it():
+    """A static receiver, tone k = 4, an SDR clock 100 ppm fast: the SDR counts the tone's phase
+    on its own clock, (1 - s)(df t - ((f_c + df)/c) rho) + b_lo t. Referred to the centre, the
+    change s makes to z is the change it makes to the generated h through the table's
+    `tone_offset_hz` (aux `df_tone`): -s T df + s (f_c/c) drho, to 1e-3 cycles (2.5e-4 measured:
+    s (f_c/c) times the light-time and Sagnac part of drho, which this geometric truth leaves
+    out); h without the tone's offset misses by s T df = 1.76 cycles."""
+    from leonav_runtime.core import navfuncs
+    from leonav_runtime.gen import state_layout as L
+    from leonav_runtime.inputs import CarrierPhaseTable
+    from leonav_runtime.inputs.measurements import satellite_aux
+    from leonav_runtime.orbits import propagate_ecef
+    from leonav_runtime.orbits.geometry import geodetic_to_ecef
+    from leonav_runtime.simulation.session_synth import PAPER_EPOCH, builtin_starlink
+
+    from leonav_runtime.gen.registry import PARAMS
+
+    nav = navfuncs.NavFunctions()
+    p = np.array([q.example for q in sorted(PARAMS, key=lambda q: q.offset)], float)
+    r0 = geodetic_to_ecef(p[L.P_LAT0_RAD], p[L.P_LON0_RAD], p[L.P_H0_M])
+    T, f_c, b_lo, df, s = 0.1, p[L.P_F_C_HZ], 2e6, 4 * COMB_SPACING_HZ, 1e-4
+    t = np.arange(0.0, 30.0 + T / 2, T)
+    up = r0 / np.linalg.norm(r0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        es = builtin_starlink(PAPER_EPOCH)
+        coarse = propagate_ecef(es, PAPER_EPOCH, t[::50]).r_ecef_m - r0
+        elev = np.einsum("ijk,k->ij", coarse / np.linalg.norm(coarse, axis=2)[..., None], up)
+        i = int(np.argmax(elev.min(axis=1)))
+        st = propagate_ecef(es.select([i]), PAPER_EPOCH, t)
+    r_s = st.r_ecef_m[0]
+    rho = np.linalg.norm(r_s - r0, axis=1)
+
+    def road(scale):
+        phase = (1 - scale) * (df * t - (f_c + df) / C_LIGHT_MPS * rho) + b_lo * t
+        return tone_to_centre(np.diff(phase), np.diff(t), df, np.diff(rho))
+    sat = np.hstack([st.r_ecef_m[0], st.v_ecef_mps[0], st.a_ecef_mps2[0]])[1:]
+    n = t.size - 1
+    table = CarrierPhaseTable(t[1:], np.full(n, 7), road(s), 0.01, sat, None, np.diff(t), r_s[:-1], df).check()
+    aux = satellite_aux(table, np.zeros((n, 3)), L)
+    np.testing.assert_array_equal(aux[:, L.AUX_DF_TONE], df)
+    x = np.zeros(L.NX)
+    x[L.X_Q_NB] = 1.0
+    x[L.X_B_LO] = b_lo
+
+    def h(scale, aux_rows):
+        xs = x.copy()
+        xs[L.X_S_CLK] = scale
+        return nav.h_many("carrier_phase", xs, aux_rows, p, jacobian=False)[0]
+    want = road(s) - road(0.0)
+    assert np.max(np.abs((h(s, aux) - h(0.0, aux)) - want)) < 1e-3
+    centre = aux.copy()
+    centre[:, L.AUX_DF_TONE] = 0.0
+    assert np.min(np.abs((h(s, centre) - h(0.0, centre)) - want)) > 1.7

@@ -6,7 +6,7 @@
 #define LEONAV_NX 24
 #define LEONAV_NDX 23
 #define LEONAV_NP 19
-#define LEONAV_NAUX 44
+#define LEONAV_NAUX 45
 #define LEONAV_NU 6
 #define LEONAV_NNAV 9  /* the 9D navigation error (dp, dv, dtheta) = dx[0:NNAV] */
 
@@ -94,6 +94,8 @@
 #define LEONAV_AUX_DT_PHASE_SIZE 1
 #define LEONAV_AUX_R_S_PREV_ECEF 41  /* m: satellite position at t - dt_phase, ECEF (the same ephemeris as r_S_ecef) */
 #define LEONAV_AUX_R_S_PREV_ECEF_SIZE 3
+#define LEONAV_AUX_DF_TONE 44  /* Hz: carrier phase: the tone's offset from the channel centre its phase is referred to (the sample clock scales it: s_clk T df_tone) */
+#define LEONAV_AUX_DF_TONE_SIZE 1
 
 #define LEONAV_U_DTHETA_B 0  /* rad: gyro angle increment over dt, body FLU */
 #define LEONAV_U_DTHETA_B_SIZE 3

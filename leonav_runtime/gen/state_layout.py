@@ -6,7 +6,7 @@ from collections import namedtuple
 NX = 24
 NDX = 23
 NP = 19
-NAUX = 44
+NAUX = 45
 NU = 6
 NNAV = 9  # the 9D navigation error (dp, dv, dtheta) = dx[DX_NAV9_SLICE]
 
@@ -135,6 +135,9 @@ AUX_DT_PHASE_SLICE = slice(40, 41)
 AUX_R_S_PREV_ECEF = 41  # m: satellite position at t - dt_phase, ECEF (the same ephemeris as r_S_ecef)
 AUX_R_S_PREV_ECEF_SIZE = 3
 AUX_R_S_PREV_ECEF_SLICE = slice(41, 44)
+AUX_DF_TONE = 44  # Hz: carrier phase: the tone's offset from the channel centre its phase is referred to (the sample clock scales it: s_clk T df_tone)
+AUX_DF_TONE_SIZE = 1
+AUX_DF_TONE_SLICE = slice(44, 45)
 
 U_DTHETA_B = 0  # rad: gyro angle increment over dt, body FLU
 U_DTHETA_B_SIZE = 3

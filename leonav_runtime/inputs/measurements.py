@@ -128,6 +128,8 @@ def satellite_aux(table: SatelliteTable, f_b: np.ndarray, layout) -> np.ndarray:
         aux[:, L.AUX_DT_PHASE] = table.interval_s
     if table.sat_prev_r_m is not None:
         aux[:, L.AUX_R_S_PREV_ECEF_SLICE] = table.sat_prev_r_m
+    if table.tone_offset_hz is not None:
+        aux[:, L.AUX_DF_TONE] = table.tone_offset_hz
     return aux
 
 

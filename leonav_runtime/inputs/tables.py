@@ -204,7 +204,9 @@ class SatelliteTable:
     ref_ecef (n, 9) or None: the reference satellite of a differenced observable, same
     columns (zeros in the records when None); interval_s (n,) or a scalar, and sat_prev_r_m
     (n, 3), or None: a time-differenced observable's span (t - interval_s, t] (s, > 0) and the
-    satellite's ECEF position (m) at its start (aux `dt_phase`, `r_S_prev_ecef`).
+    satellite's ECEF position (m) at its start (aux `dt_phase`, `r_S_prev_ecef`); tone_offset_hz
+    (n,), a scalar or None (0): a carrier phase's tone offset from the channel centre, Hz (aux
+    `df_tone`).
     """
 
     t: np.ndarray
@@ -215,6 +217,7 @@ class SatelliteTable:
     ref_ecef: np.ndarray | None = None
     interval_s: np.ndarray | float | None = None
     sat_prev_r_m: np.ndarray | None = None
+    tone_offset_hz: np.ndarray | float | None = None
 
     KIND: ClassVar[str] = ""
     UNIT: ClassVar[str] = ""
@@ -233,7 +236,10 @@ class SatelliteTable:
         span = self.interval_s if self.interval_s is None or np.ndim(self.interval_s) == 0 else \
             np.asarray(self.interval_s)[mask]
         prev = None if self.sat_prev_r_m is None else self.sat_prev_r_m[mask]
-        return type(self)(self.t[mask], self.sat_id[mask], self.z[mask], sig, self.sat_ecef[mask], ref, span, prev)
+        df = self.tone_offset_hz if self.tone_offset_hz is None or np.ndim(self.tone_offset_hz) == 0 else \
+            np.asarray(self.tone_offset_hz)[mask]
+        return type(self)(self.t[mask], self.sat_id[mask], self.z[mask], sig, self.sat_ecef[mask], ref, span, prev,
+                          df)
 
     def check(self) -> "SatelliteTable":
         n = np.shape(self.t)[0] if np.ndim(self.t) == 1 else -1
@@ -251,6 +257,9 @@ class SatelliteTable:
                          positive=True, unit="s")
         if self.sat_prev_r_m is not None:
             check_column(name, "sat_prev_r_m", self.sat_prev_r_m, (n, 3), unit="m")
+        if self.tone_offset_hz is not None:
+            check_column(name, "tone_offset_hz", self.tone_offset_hz,
+                         () if np.ndim(self.tone_offset_hz) == 0 else (n,), unit="Hz")
         return self
 
 

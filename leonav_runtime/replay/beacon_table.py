@@ -299,4 +299,4 @@ def carrier_phase_table(pm: PhaseMeasurements, elements, epoch_utc: _dt.datetime
     r0 = np.asarray(origin_ecef_m, float)
     drho = np.linalg.norm(sat[:, SAT_R_M] - r0, axis=1) - np.linalg.norm(prev - r0, axis=1)
     z = tone_to_centre(d.z_cycles, d.interval_s, pm.tone_offset_hz, drho)
-    return CarrierPhaseTable(d.t, d.norad_id, z, d.sigma_cycles, sat, None, d.interval_s, prev)
+    return CarrierPhaseTable(d.t, d.norad_id, z, d.sigma_cycles, sat, None, d.interval_s, prev, pm.tone_offset_hz)

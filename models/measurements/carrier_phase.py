@@ -15,7 +15,7 @@ the prior would lock in that error); as written h is linear in both.
 The measurement is the difference over one epoch interval T = aux `dt_phase`:
 
     z = Phi(t) - Phi(t - T),
-    h = -(1 - s_clk) (f_c/c) (rho(t) - rho(t - T)) + T b_lo,
+    h = -(1 - s_clk) (f_c/c) (rho(t) - rho(t - T)) + T b_lo - s_clk T df,
 
 with rho the one-way light-time range of each end: the phase received at t left the satellite
 at t - tau, so rho = |r_tx - r_U| + the Sagnac term (w_ie/c)(x_tx y_U - y_tx x_U), r_tx the
@@ -32,6 +32,13 @@ fixed size whatever the number of tracked passes (45 satellites would otherwise 
 to a dense 22-state covariance), and a cycle slip costs one epoch instead of a re-initialized
 state. The LO phase wander inside an epoch that b_lo's random walk does not follow is common
 to every satellite of the epoch; the filter's b_lo absorbs its mean over T.
+
+A tone df Hz off the channel centre (aux `df_tone`; an outer tone of the comb: k x 44 kHz) is
+referred to the centre by the road before it gets here (z - T df + (df/c) drho_pred,
+`inputs.carrier_phase.tone_to_centre`), but the SDR counts the tone's offset on its own clock,
+(1 - s_clk) df: the -s_clk T df left over is h's last term (1.8 cycles for k = 4 at 100 ppm,
+45 sigma; 0.018 cycles at a TCXO's 1 ppm). The reference's own s_clk (df/c) drho is below 1e-4
+cycles and left out. df_tone = 0 is the centre tone and the simulator's records.
 
 The sample clock is warm-TCXO class on an RTL-SDR V3 (<= 1 ppm) and up to ~100 ppm without;
 the time tags are taken as disciplined (the host clock restamps each capture block), so s_clk
@@ -77,7 +84,8 @@ def h(x, aux, p):
     rho_prev = light_time_range(aux[AUX["r_S_prev_ecef"].slice], v_S - a_S * T, a_S,
                                 r_U - v_U * T + 0.5 * a_U * T**2)
     f_c = p[P["f_c_hz"].offset]
-    return -(1 - x[X["s_clk"].offset]) * (f_c / C_LIGHT_MPS) * (rho - rho_prev) + T * x[X["b_lo"].offset]
+    s_clk, df = x[X["s_clk"].offset], aux[AUX["df_tone"].offset]
+    return -(1 - s_clk) * (f_c / C_LIGHT_MPS) * (rho - rho_prev) + T * x[X["b_lo"].offset] - s_clk * T * df
 
 
 OBSERVABLES = (

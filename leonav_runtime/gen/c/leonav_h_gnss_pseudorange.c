@@ -96,12 +96,12 @@ CASADI_SYMBOL_EXPORT int leonav_h_gnss_pseudorange_casadi_int_size(void) { retur
 CASADI_SYMBOL_EXPORT int leonav_h_gnss_pseudorange_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {24, 1, 1};
-static const casadi_int casadi_s1[3] = {44, 1, 1};
+static const casadi_int casadi_s1[3] = {45, 1, 1};
 static const casadi_int casadi_s2[3] = {19, 1, 1};
 static const casadi_int casadi_s3[3] = {1, 1, 1};
 static const casadi_int casadi_s4[3] = {1, 23, 1};
 
-/* leonav_h_gnss_pseudorange:(x[24],aux[44],p[19])->(h,H[1x23]) */
+/* leonav_h_gnss_pseudorange:(x[24],aux[45],p[19])->(h,H[1x23]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;

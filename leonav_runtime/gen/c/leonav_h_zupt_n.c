@@ -63,12 +63,12 @@ CASADI_SYMBOL_EXPORT int leonav_h_zupt_n_casadi_int_size(void) { return (int) si
 CASADI_SYMBOL_EXPORT int leonav_h_zupt_n_casadi_real_size(void) { return (int) sizeof(casadi_real); }
 
 static const casadi_int casadi_s0[3] = {24, 1, 1};
-static const casadi_int casadi_s1[3] = {44, 1, 1};
+static const casadi_int casadi_s1[3] = {45, 1, 1};
 static const casadi_int casadi_s2[3] = {19, 1, 1};
 static const casadi_int casadi_s3[3] = {1, 1, 1};
 static const casadi_int casadi_s4[3] = {1, 23, 1};
 
-/* leonav_h_zupt_n:(x[24],aux[44],p[19])->(h,H[1x23]) */
+/* leonav_h_zupt_n:(x[24],aux[45],p[19])->(h,H[1x23]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1;
   a0=arg[0]? arg[0][4] : 0;

@@ -120,7 +120,7 @@ CASADI_SYMBOL_EXPORT int leonav_pcrb_info_nhc_y_max_num_threads(void) { return C
 
 static const casadi_int casadi_s0[3] = {23, 23, 1};
 static const casadi_int casadi_s1[3] = {24, 1, 1};
-static const casadi_int casadi_s2[3] = {44, 1, 1};
+static const casadi_int casadi_s2[3] = {45, 1, 1};
 static const casadi_int casadi_s3[3] = {19, 1, 1};
 static const casadi_int casadi_s4[3] = {1, 1, 1};
 
@@ -135,7 +135,7 @@ void leonav_h_nhc_y_incref(void);
 void leonav_h_nhc_y_release(int mem);
 
 
-/* leonav_h_nhc_y:(x[24],aux[44],p[19])->(h,H[1x23]) */
+/* leonav_h_nhc_y:(x[24],aux[45],p[19])->(h,H[1x23]) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (leonav_h_nhc_y(arg, res, iw, w, mem)) return 1;
   return 0;
@@ -157,7 +157,7 @@ void casadi_f1_decref(void) {
   leonav_h_nhc_y_decref();
 }
 
-/* leonav_pcrb_info_nhc_y:(J[23x23],x[24],aux[44],p[19],R)->(J_next[23x23]) */
+/* leonav_pcrb_info_nhc_y:(J[23x23],x[24],aux[45],p[19],R)->(J_next[23x23]) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w0=w+23, *w1=w+552, *w5=w+1081, *w6=w+1104, w7;

@@ -36,7 +36,7 @@ int leonav_update_carrier_phase_work_bytes(casadi_int *sz_arg, casadi_int* sz_re
 #define leonav_update_carrier_phase_SZ_ARG 16
 #define leonav_update_carrier_phase_SZ_RES 9
 #define leonav_update_carrier_phase_SZ_IW 0
-#define leonav_update_carrier_phase_SZ_W 699
+#define leonav_update_carrier_phase_SZ_W 700
 void leonav_update_carrier_phase_casadi_version(int* major, int* minor, int* patch);
 int leonav_update_carrier_phase_casadi_int_size(void);
 int leonav_update_carrier_phase_casadi_real_size(void);

@@ -124,7 +124,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_gnss_pseudorange_max_num_threads(void) { 
 static const casadi_int casadi_s0[3] = {24, 1, 1};
 static const casadi_int casadi_s1[3] = {23, 23, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
-static const casadi_int casadi_s3[3] = {44, 1, 1};
+static const casadi_int casadi_s3[3] = {45, 1, 1};
 static const casadi_int casadi_s4[3] = {19, 1, 1};
 
 static const casadi_real casadi_zeros[529] = 
@@ -138,7 +138,7 @@ void leonav_joseph_incref(void);
 void leonav_joseph_release(int mem);
 
 
-/* leonav_innovation_gnss_pseudorange:(i0[24],i1[23x23],i2,i3,i4[44],i5[19])->(o0,o1[23],o2) */
+/* leonav_innovation_gnss_pseudorange:(i0[24],i1[23x23],i2,i3,i4[45],i5[19])->(o0,o1[23],o2) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;
@@ -1568,7 +1568,7 @@ void casadi_f2_decref(void) {
   leonav_joseph_decref();
 }
 
-/* leonav_update_gnss_pseudorange:(x[24],P[23x23],z,R,aux[44],p[19])->(x_post[24],P_post[23x23],y,S,nis) */
+/* leonav_update_gnss_pseudorange:(x[24],P[23x23],z,R,aux[45],p[19])->(x_post[24],P_post[23x23],y,S,nis) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+134, w08, *w09=w+157, *w10=w+181;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;

@@ -94,7 +94,7 @@ CASADI_SYMBOL_EXPORT int leonav_update_ofdm_range_diff_max_num_threads(void) { r
 static const casadi_int casadi_s0[3] = {24, 1, 1};
 static const casadi_int casadi_s1[3] = {23, 23, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
-static const casadi_int casadi_s3[3] = {44, 1, 1};
+static const casadi_int casadi_s3[3] = {45, 1, 1};
 static const casadi_int casadi_s4[3] = {19, 1, 1};
 
 static const casadi_real casadi_zeros[529] = 
@@ -108,7 +108,7 @@ void leonav_joseph_incref(void);
 void leonav_joseph_release(int mem);
 
 
-/* leonav_innovation_ofdm_range_diff:(i0[24],i1[23x23],i2,i3,i4[44],i5[19])->(o0,o1[23],o2) */
+/* leonav_innovation_ofdm_range_diff:(i0[24],i1[23x23],i2,i3,i4[45],i5[19])->(o0,o1[23],o2) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19;
@@ -635,7 +635,7 @@ void casadi_f2_decref(void) {
   leonav_joseph_decref();
 }
 
-/* leonav_update_ofdm_range_diff:(x[24],P[23x23],z,R,aux[44],p[19])->(x_post[24],P_post[23x23],y,S,nis) */
+/* leonav_update_ofdm_range_diff:(x[24],P[23x23],z,R,aux[45],p[19])->(x_post[24],P_post[23x23],y,S,nis) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real **res1=res+5, w02, w03, w06, *w07=w+20, w08, *w09=w+43, *w10=w+67;
   const casadi_real **arg1=arg+6, *wr00, *wr01, *wr04, *wr05;
