@@ -85,6 +85,24 @@ def moved_states(s, rows: np.ndarray, d_sat: np.ndarray) -> tuple[np.ndarray, np
     return sat9, perturb_states(prev, d_sat)[:, 0:3]
 
 
+def move_aux(aux: np.ndarray, d_sat: np.ndarray, layout) -> np.ndarray:
+    """Aux rows (n, NAUX) of satellite records with their satellite moved by radial/along/cross
+    offsets d_sat (n, 3) m (`perturb_states`); a time difference's start (aux `dt_phase` > 0)
+    moves along the same orbit, so both ends carry the one offset. From the records alone: what
+    a bound or a filter that estimates the offsets differentiates."""
+    sat_block, _, _ = aux_blocks(layout)
+    out = aux.copy()
+    sat9 = aux[:, sat_block]
+    out[:, sat_block] = perturb_states(sat9, d_sat)
+    T = aux[:, layout.AUX_DT_PHASE]
+    spans = np.flatnonzero(T > 0)
+    if spans.size:
+        v, a = sat9[spans, 3:6], sat9[spans, 6:9]
+        prev = np.concatenate([aux[spans, layout.AUX_R_S_PREV_ECEF_SLICE], v - a * T[spans, None], a], axis=1)
+        out[spans, layout.AUX_R_S_PREV_ECEF_SLICE] = perturb_states(prev, d_sat[spans])[:, 0:3]
+    return out
+
+
 def moved_aux(setup, kind_name: str, rows: np.ndarray, d_sat: np.ndarray, d_ref: np.ndarray | None,
                layout) -> np.ndarray:
     s = setup.series[kind_name]
