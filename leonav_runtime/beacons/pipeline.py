@@ -75,6 +75,7 @@ class PipelineConfig:
     tracker: TrackerConfig = dataclasses.field(default_factory=TrackerConfig)
     association: AssociationConfig = dataclasses.field(default_factory=AssociationConfig)
     max_duration_s: float = MAX_CAPTURE_S
+    waterfall_image: bool = True         # keep the down-sampled image waterfall.png is drawn from
 
 
 def _finite_in(value, lo: float, hi: float) -> bool:
@@ -152,7 +153,8 @@ def extract_ridges(info: capture_io.CaptureInfo, cfg: PipelineConfig,
     stft = StftConfig.for_rate(info.sample_rate_hz, cfg.band_hz, cfg.fft_size, cfg.overlap, cfg.dc_notch_hz)
     _, f_hz = band_bins(stft, info.sample_rate_hz)
     tracker = RidgeTracker(f_hz, cfg.tracker)
-    image = WaterfallImage(f_hz, total_rows=n_slices(info.n_samples, stft))  # memory flat in capture length
+    # memory flat in capture length; not kept when no figure will be drawn
+    image = WaterfallImage(f_hz, total_rows=n_slices(info.n_samples, stft)) if cfg.waterfall_image else None
 
     def blocks():
         for b in capture_io.iter_chunks(info, cfg.chunk_samples):
@@ -162,9 +164,11 @@ def extract_ridges(info: capture_io.CaptureInfo, cfg: PipelineConfig,
 
     for blk in iter_spectra(blocks(), stft, info.sample_rate_hz):
         tracker.add_block(blk)
-        image.add(blk)
+        if image is not None:
+            image.add(blk)
     ridges = tracker.finish()
-    return ridges, tracker.stats, stft, image.image()
+    no_image = (np.zeros(0), f_hz, np.zeros((0, f_hz.size), np.float32))
+    return ridges, tracker.stats, stft, image.image() if image is not None else no_image
 
 
 def process_capture(info: capture_io.CaptureInfo, elements, site: Site, cfg: PipelineConfig | None = None,

@@ -190,7 +190,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError(f"--start: {args.start!r} is outside 1900..2200; expected a time such as "
                              "2026-02-23T06:00:00Z")
     cfg = pipeline.PipelineConfig(f_c_hz=args.tone_freq, band_hz=args.band, fft_size=args.fft_size,
-                                  dc_notch_hz=args.dc_notch, meas_interval_s=args.interval, mask_deg=args.mask)
+                                  dc_notch_hz=args.dc_notch, meas_interval_s=args.interval, mask_deg=args.mask,
+                                  waterfall_image=not args.no_figures)
     cfg.association.remove_drift = not args.keep_drift
     pipeline.validate_config(cfg)  # option values, before any file is read or written
     if args.simulate:
