@@ -67,6 +67,10 @@ def register(subparsers) -> None:
     f.add_argument("--lag", type=float, default=3.5, metavar="S",
                    help="how late a measurement may arrive and still be put in its place (default 3.5 s: a Doppler-rate epoch comes up to ~2.7 s after its time)")
     f.add_argument("--tle", action="append", default=[], metavar="FILE", help="Starlink element sets (beacons)")
+    f.add_argument("--operator-ephemerides", default=None, metavar="DIR",
+                   help="folder of Starlink operator ephemerides (MANIFEST.txt and MEME_*.txt): a measured "
+                        "satellite with a file takes its states from it and the file's covariance enters the "
+                        "Doppler-rate's R (consider term); the others keep their element sets (docs/ephemerides.md)")
     f.add_argument("--corrections", metavar="HOST:PORT", default=None,
                    help="a base's differential corrections (`leonav base`), applied to the Doppler-rate; "
                         "reconnects when the base goes away (docs/corrections.md)")
@@ -173,7 +177,8 @@ def options_from_args(args: argparse.Namespace):
         nmea_max_clients=args.nmea_max_clients,
         pty_link=args.nmea_pty, mavlink=args.mavlink, json_lines=not args.no_json,
         status=False if args.quiet else None, tle_files=tuple(args.tle),
-        corrections=_corrections_address(args), corrections_max_age_s=_max_age(args))
+        corrections=_corrections_address(args), corrections_max_age_s=_max_age(args),
+        operator_ephemerides=args.operator_ephemerides)
 
 
 def run(args: argparse.Namespace) -> int:

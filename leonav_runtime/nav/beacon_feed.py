@@ -59,15 +59,29 @@ def cu8_to_complex(raw: bytes) -> np.ndarray:
     return f.view(np.complex64)
 
 
-def emitted_table(emitted: list, start_unix: float, epoch_unix: float, elements, sigma_floor_hz_s: float):
-    """`inputs.DopplerRateTable` of emitted measurements on the road's axis (t s since `epoch_unix`)."""
+def emitted_names(emitted: list, elements) -> dict[int, str]:
+    """{NORAD id: object name} of the satellites of emitted measurements (the element sets' names)."""
+    return {int(e.norad_id): str(elements.names[int(e.sat_index)]).strip() for e in emitted}
+
+
+def emitted_table(emitted: list, start_unix: float, epoch_unix: float, elements, sigma_floor_hz_s: float,
+                  operator=None, stats: dict | None = None):
+    """`inputs.DopplerRateTable` of emitted measurements on the road's axis (t s since `epoch_unix`);
+    operator: an `orbits.operator_folder.OperatorFolder` whose files give the states of the
+    satellites they cover (read as the satellites are first measured; counted in `stats`)."""
     t = np.array([start_unix + e.t_s - epoch_unix for e in emitted])
     meas = BeaconMeasurements(t, np.array([e.norad_id for e in emitted], int),
                               np.array([e.sat_index for e in emitted], int),
                               np.array([e.rate_hz_s for e in emitted]), np.array([e.sigma_hz_s for e in emitted]))
+    files = None
+    if operator is not None:
+        operator.ensure(emitted_names(emitted, elements))
+        files = operator.set if operator.set.ephemerides else None
+        if files is None and stats is not None:
+            stats["states_from_element_sets"] = stats.get("states_from_element_sets", 0) + int(t.size)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return doppler_rate_table(meas, elements, utc_of(epoch_unix), sigma_floor_hz_s)
+        return doppler_rate_table(meas, elements, utc_of(epoch_unix), sigma_floor_hz_s, files, stats=stats)
 
 
 class CaptureFile:
@@ -95,11 +109,15 @@ class CaptureFile:
 class BeaconFeed:
     """Fast playback: the session's capture through a `BeaconStream` in step with the serial chunks."""
 
-    def __init__(self, data_path: Path, meta: dict, f_c_hz: float, elements, sigma_floor_hz_s: float) -> None:
+    def __init__(self, data_path: Path, meta: dict, f_c_hz: float, elements, sigma_floor_hz_s: float,
+                 operator=None) -> None:
+        """operator: an `orbits.operator_folder.OperatorFolder` (--operator-ephemerides), shared with
+        the navigator's road (whose consider term reads the same files' covariance)."""
         self.data_path = Path(data_path)
         self.meta = meta
         self.elements = elements
         self.sigma_floor = sigma_floor_hz_s
+        self.operator = operator
         self.stream = BeaconStream(meta["sample_rate_hz"], meta["rf_center_hz"], f_c_hz, elements)
         self.capture = CaptureFile(self.data_path)
         self.notes: list[str] = []
@@ -134,7 +152,8 @@ class BeaconFeed:
         emitted = self.stream.take()
         road = navigator.road
         if emitted and road.started and math.isfinite(self.start_unix):
-            table = emitted_table(emitted, self.start_unix, road.epoch_unix, self.elements, self.sigma_floor)
+            table = emitted_table(emitted, self.start_unix, road.epoch_unix, self.elements, self.sigma_floor,
+                                  self.operator, self.counts)
             self.counts["tables"] += 1
             self.counts["measurements"] += int(table.t.size)
             navigator.on_doppler_rate(table)

@@ -26,9 +26,11 @@ IDLE_S = 0.02
 
 
 def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigma_floor: float,
-           inbox, outbox, recording_done, stop) -> None:
+           inbox, outbox, recording_done, stop, operator_folder: str | None = None) -> None:
     from leonav_runtime.beacons.predict import Site
-    from leonav_runtime.nav.beacon_feed import CHUNK_S, CaptureFile, capture_meta, emitted_table, stream_summary
+    from leonav_runtime.nav.beacon_feed import (CHUNK_S, CaptureFile, capture_meta, emitted_names, emitted_table,
+                                                stream_summary)
+    from leonav_runtime.orbits.operator_folder import OperatorFolder
     from leonav_runtime.nav.beacon_stream import BeaconStream
     from leonav_runtime.orbits.elements import load_element_files
     from leonav_runtime.replay.beacon_table import default_elements
@@ -40,6 +42,7 @@ def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigm
     start_unix = epoch_unix = math.nan
     try:
         elements = load_element_files(list(tle_files))
+        operator = OperatorFolder(operator_folder) if operator_folder else None
         meta = None
         while meta is None and not stop.is_set():
             try:
@@ -75,11 +78,11 @@ def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigm
             stream.push(z)
             emitted = stream.take()
             if emitted and math.isfinite(epoch_unix):
-                tab = emitted_table(emitted, start_unix, epoch_unix, elements, sigma_floor)
+                tab = emitted_table(emitted, start_unix, epoch_unix, elements, sigma_floor, operator, counts)
                 counts["tables"] += 1
                 counts["measurements"] += int(tab.t.size)
                 outbox.put(("table", tab.t, tab.sat_id, tab.z, np.broadcast_to(tab.sigma, tab.t.shape).copy(),
-                            tab.sat_ecef))
+                            tab.sat_ecef, emitted_names(emitted, elements)))
     except Exception as exc:      # the navigator goes on without Doppler-rate, and says why
         error = f"{type(exc).__name__}: {exc}"
     finally:
@@ -94,8 +97,12 @@ STOP_WAIT_S = 10.0
 class BeaconProcess:
     """The parent side (module doc)."""
 
-    def __init__(self, data_path: Path, f_c_hz: float, tle_files: tuple, sigma_floor_hz_s: float) -> None:
+    def __init__(self, data_path: Path, f_c_hz: float, tle_files: tuple, sigma_floor_hz_s: float,
+                 operator=None) -> None:
+        """operator: an `orbits.operator_folder.OperatorFolder`: the child reads the same folder for the
+        states, this side for the road's consider term (the names come with each table)."""
         self.data_path = Path(data_path)
+        self.operator = operator
         self.f_c_hz = f_c_hz
         self.tle_files = tuple(str(p) for p in tle_files)
         self.sigma_floor = sigma_floor_hz_s
@@ -115,7 +122,8 @@ class BeaconProcess:
         self._proc = self._ctx.Process(
             target=_child, name="leonav-beacons", daemon=True,
             args=(str(self.data_path), str(meta_path), self.f_c_hz, self.tle_files, self.sigma_floor,
-                  self._inbox, self._outbox, self._recording_done, self._stop))
+                  self._inbox, self._outbox, self._recording_done, self._stop,
+                  None if self.operator is None else str(self.operator.folder)))
         self._proc.start()
 
     def _send_site(self, navigator) -> None:
@@ -148,8 +156,10 @@ class BeaconProcess:
         if msg[0] == "summary":
             self._summary = msg[1]
             return
-        _, t, sat_id, z, sigma, sat_ecef = msg
+        _, t, sat_id, z, sigma, sat_ecef, names = msg
         self.tables += 1
+        if self.operator is not None:
+            self.operator.ensure(names)
         if navigator is not None:
             navigator.on_doppler_rate(DopplerRateTable(t, sat_id, z, sigma, sat_ecef))
 

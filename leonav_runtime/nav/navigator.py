@@ -55,14 +55,17 @@ class NavConfig:
 class Navigator:
     def __init__(self, cfg: NavConfig, out_dir: Path, outputs: LiveOutputs | None = None,
                  status: StatusLine | None = None, nav: navfuncs.NavFunctions | None = None,
-                 lost: LostWrites | None = None, corrections=None) -> None:
+                 lost: LostWrites | None = None, corrections=None, operator=None) -> None:
         """corrections: a `base.client.CorrectionsClient` (--corrections): its store goes to the road,
-        its state to the status line, events and nav.json; it is started here and stopped in finish."""
+        its state to the status line, events and nav.json; it is started here and stopped in finish.
+        operator: an `orbits.operator_folder.OperatorFolder` (--operator-ephemerides), to the road."""
         self.cfg = cfg
         cfg.road.streams = replay_mode(cfg.mode).streams
         self.nav = nav or navfuncs.NavFunctions()
         self.corrections = corrections
-        self.road = StreamingRoad(cfg.road, self.nav, corrections.store if corrections is not None else None)
+        self.operator = operator
+        self.road = StreamingRoad(cfg.road, self.nav, corrections.store if corrections is not None else None,
+                                  operator)
         self._corr_state = "waiting"
         self.outputs = outputs or LiveOutputs()
         self.status = status or StatusLine(enabled=False)
@@ -287,6 +290,10 @@ class Navigator:
         }
         if corrections is not None:
             out["corrections"] = corrections
+        if self.operator is not None:
+            op = self.operator
+            out["operator_ephemerides"] = {"folder": str(op.folder), **op.counts,
+                                           "refused": [f"{f}: {why}" for f, why in op.set.rejected]}
         if self.stepper is not None and r.cfg.gnss_latency_s == "estimate":
             x, P = self.stepper.head()
             L = self.nav.layout

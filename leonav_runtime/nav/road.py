@@ -21,6 +21,7 @@ import collections
 import dataclasses
 import datetime as _dt
 import math
+import warnings
 
 import numpy as np
 
@@ -57,11 +58,15 @@ class RoadConfig:
 class StreamingRoad:
     """Feed `add_gnss`, `add_imu`, `add_doppler_rate`; take the filter's records with `take()`."""
 
-    def __init__(self, cfg: RoadConfig, nav: navfuncs.NavFunctions | None = None, corrections=None) -> None:
+    def __init__(self, cfg: RoadConfig, nav: navfuncs.NavFunctions | None = None, corrections=None,
+                 operator=None) -> None:
         """corrections: a base's differential corrections (`inputs.corrections.DifferentialCorrections`,
-        filled by `base.client.CorrectionsClient`), applied to the Doppler-rate as it is released."""
+        filled by `base.client.CorrectionsClient`), applied to the Doppler-rate as it is released;
+        operator: an `orbits.operator_folder.OperatorFolder` (--operator-ephemerides) whose files'
+        covariance enters the Doppler-rate's R as the consider term (as in the replay)."""
         self.cfg = cfg
         self.corrections = corrections
+        self.operator = operator
         self.nav = nav or navfuncs.NavFunctions()
         self.tmap = StreamingTimeMap(cfg.gnss_baud, latency_given_s(cfg.gnss_latency_s))
         self.timing = OnlineImuTiming(cfg.imu_baud)
@@ -201,8 +206,25 @@ class StreamingRoad:
                 roll = self._roll_table()
                 f_b, span = averaged_specific_force(roll.dvel_b, roll.dt)
                 self._out.append(satellite_records(table, roll, f_b, span, self.params, self.nav,
+                                                   self._consider(table), self.inputs.x0,
                                                    corrections=self.corrections))
             self.counts[f"{stream}_released"] += 1
+
+    def _consider(self, table):
+        """The operator files' covariance as the table's consider term (None without files); records
+        whose satellite has no covering file keep their R and are counted."""
+        if self.operator is None or not self.operator.set.ephemerides:
+            return None
+        from leonav_runtime.inputs.consider import OrbitConsider
+        from leonav_runtime.orbits.operator_consider import OperatorCovariance
+
+        with warnings.catch_warnings():      # uncovered records are counted, not warned per table
+            warnings.simplefilter("ignore")
+            provider = OperatorCovariance(self.operator.set, self.epoch_utc, self.operator.ids_to_names)
+            covered = np.isin(table.sat_id, list(provider.ids_to_names))
+        self.counts["doppler_rate_operator_covariance"] += int(covered.sum())
+        self.counts["doppler_rate_without_operator_covariance"] += int((~covered).sum())
+        return OrbitConsider({}, covariance={table.KIND: provider})
 
     @property
     def pending(self) -> int:

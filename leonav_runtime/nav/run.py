@@ -81,6 +81,7 @@ class NavOptions:
     tle_files: tuple = ()
     corrections: tuple[str, int] | None = None     # --corrections HOST:PORT
     corrections_max_age_s: float | None = None     # None: inputs.corrections.DEFAULT_MAX_AGE_S
+    operator_ephemerides: str | None = None        # --operator-ephemerides DIR (docs/ephemerides.md)
 
 
 class _Signals:
@@ -164,8 +165,9 @@ def _realtime_playback(opts: NavOptions, record_dir: Path, beacons, lost: LostWr
                               lost=lost, **sdr)
 
 
-def _beacons(opts: NavOptions, record_dir: Path | None):
-    """(BeaconFeed or None, f_c Hz, where f_c came from) for the mode and the source."""
+def _beacons(opts: NavOptions, record_dir: Path | None, operator=None):
+    """(BeaconFeed or None, f_c Hz, where f_c came from) for the mode and the source; operator: the
+    `OperatorFolder` of --operator-ephemerides, or None."""
     from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
     from leonav_runtime.nav.beacon_feed import BeaconFeed, capture_meta, carrier
     from leonav_runtime.nav.beacon_process import BeaconProcess
@@ -184,12 +186,12 @@ def _beacons(opts: NavOptions, record_dir: Path | None):
         meta = capture_meta(meta_path)
         f_c, src = carrier(meta["rf_center_hz"])
         if not opts.realtime:
-            return BeaconFeed(Path(opts.session) / "sdr.cu8", meta, f_c, elements, floor), f_c, src
-        return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor), f_c, src
+            return BeaconFeed(Path(opts.session) / "sdr.cu8", meta, f_c, elements, floor, operator), f_c, src
+        return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor, operator), f_c, src
     if opts.sdr_index is None:
         raise UserInputError(f"--mode {opts.nav.mode}: needs --sdr INDEX (the Starlink capture)")
     f_c, src = carrier(opts.sdr_settings.rf_center_hz)
-    return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor), f_c, src
+    return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor, operator), f_c, src
 
 
 def preload(opts: NavOptions, beacons) -> dict:
@@ -205,6 +207,10 @@ def preload(opts: NavOptions, beacons) -> dict:
         import encodings.idna  # noqa: F401  (the first send to a host name encodes it)
     if beacons is None:
         return provenance()
+    if opts.operator_ephemerides:   # the road's consider term and the states from the files
+        import leonav_runtime.inputs.consider  # noqa: F401
+        import leonav_runtime.orbits.operator_consider  # noqa: F401
+        import leonav_runtime.orbits.operator_states  # noqa: F401
     if opts.session is not None and not opts.realtime:   # fast playback: the beacon stream runs in this
         from leonav_runtime.orbits import eop            # process, and its predictions read the EOP table
 
@@ -271,10 +277,12 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
     reason, session_info, beacons, f_c_source = "error", {}, None, ""
     started_utc = _dt.datetime.now(_dt.timezone.utc)
     try:
-        beacons, cfg.road.f_c_hz, f_c_source = _beacons(opts, record_dir)
+        operator = _operator(opts)
+        beacons, cfg.road.f_c_hz, f_c_source = _beacons(opts, record_dir, operator)
         # the devices first: one that cannot be opened stops the run before any output file is written
         source = _source(opts, record_dir, beacons, lost)
-        navigator = Navigator(cfg, out, outputs, status, nav, lost, corrections=_corrections(opts))
+        navigator = Navigator(cfg, out, outputs, status, nav, lost, corrections=_corrections(opts),
+                              operator=operator)
         prov = preload(opts, beacons)
         outputs.start()     # serving from here on: nothing more is imported or opened for the first time
         if opts.tcp is not None and opts.tcp[1] == 0 and outputs.tcp_address:    # --nmea-port auto
@@ -323,6 +331,19 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
         print(f"leonav nav: warning: nav.json not written ({exc.strerror or exc}); {lost_text(lost.counts)}",
               file=sys.stderr, flush=True)
     return result
+
+
+def _operator(opts: NavOptions):
+    """The operator-ephemeris folder (--operator-ephemerides), checked now, or None."""
+    if opts.operator_ephemerides is None:
+        return None
+    from leonav_runtime.orbits.operator_folder import OperatorFolder
+    from leonav_runtime.replay.options import replay_mode
+
+    if "doppler_rate" not in replay_mode(opts.nav.mode).streams:
+        raise UserInputError(f"--operator-ephemerides: mode {opts.nav.mode} measures no Starlink satellite "
+                             "(it needs a Doppler-rate mode such as fix+leo-alpha+imu)")
+    return OperatorFolder(opts.operator_ephemerides)
 
 
 def _corrections(opts: NavOptions):

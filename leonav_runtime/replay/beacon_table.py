@@ -228,11 +228,13 @@ def beacon_measurements(folder: Path, out_dir: Path | None, to_utc, time_source_
 
 
 def doppler_rate_table(meas: BeaconMeasurements, elements, epoch_utc: _dt.datetime,
-                       sigma_floor_hz_s: float, operator=None, notes: list[str] | None = None) -> DopplerRateTable:
+                       sigma_floor_hz_s: float, operator=None, notes: list[str] | None = None,
+                       stats: dict | None = None) -> DopplerRateTable:
     """The measurements with each satellite's SGP4 ECEF state and acceleration at their times
     (t s since `epoch_utc`) and 1-sigma max(fit sigma, floor) (Hz/s). operator: an
     `OperatorEphemerisSet`; a satellite it covers at all its times takes its states from it
-    (how many did goes to `notes`)."""
+    (how many did goes to `notes`; with `stats`, the measurements of each kind are added to its
+    `states_from_operator_files` and `states_from_element_sets`)."""
     from leonav_runtime.orbits import propagate_ecef
 
     sat = np.zeros((meas.t.size, 9))
@@ -246,6 +248,9 @@ def doppler_rate_table(meas: BeaconMeasurements, elements, epoch_utc: _dt.dateti
                 from leonav_runtime.orbits.operator_states import operator_sat_states
                 st, used = operator_sat_states(operator, one, epoch_utc, meas.t[sel])
                 from_files += int(used[0])
+                if stats is not None:
+                    key = "states_from_operator_files" if used[0] else "states_from_element_sets"
+                    stats[key] = stats.get(key, 0) + int(sel.sum())
             else:
                 st = propagate_ecef(one, epoch_utc, meas.t[sel])
             sat[sel, SAT_R_M], sat[sel, SAT_V_MPS], sat[sel, SAT_A_MPS2] = (st.r_ecef_m[0], st.v_ecef_mps[0],
