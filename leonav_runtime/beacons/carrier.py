@@ -72,17 +72,34 @@ class CarrierTrack:
 
 
 class _Tone:
-    def __init__(self, aiding: Aiding, fs: float, cfg: CarrierConfig):
+    """One tone's front end and loop. k0: the decimated sample its first fed sample starts (a tone
+    that joins a streaming capture later: the caller feeds from sample k0 * M on)."""
+
+    def __init__(self, aiding: Aiding, fs: float, cfg: CarrierConfig, k0: int = 0):
         self.front = FrontEnd(aiding, fs, cfg.sub_rate_hz)
+        self.front.k = k0
         self.loop = Loop(cfg.loop, self.front.sub_rate_hz)
-        self.y, self.phi_aid, self.f_aid = [], [], []
+        self.phi_aid, self.f_aid = [], []
+        self.k_first = k0   # decimated sample of phi_aid's first value
         self.buf = np.zeros(0, np.complex64)
-        self.buf0 = 0       # index of buf[0] among all decimated samples
-        self.pos = 0        # next decimated sample the loop will read
+        self.buf0 = k0      # index of buf[0] among all decimated samples
+        self.pos = k0       # next decimated sample the loop will read
+
+    def trim(self, k_keep: int) -> None:
+        """Forget the prompts starting before decimated sample k_keep and the aiding before it
+        (a streaming tracker's memory stays bounded)."""
+        rec = self.loop.rec
+        n = int(np.searchsorted(np.asarray(rec["i0"]), k_keep)) if rec["i0"] else 0
+        for v in rec.values():
+            del v[:n]
+        cut = max(0, min(k_keep, self.front.k) - self.k_first)
+        if cut and self.phi_aid:
+            self.phi_aid = [np.concatenate(self.phi_aid)[cut:]]
+            self.f_aid = [np.concatenate(self.f_aid)[cut:]]
+            self.k_first += cut
 
     def feed(self, x: np.ndarray) -> None:
         y, ph, f = self.front.feed(x)
-        self.y.append(y)
         self.phi_aid.append(ph)
         self.f_aid.append(f)
         self.buf = np.concatenate([self.buf, y])
@@ -152,7 +169,8 @@ def _step_slips(res_cycles: np.ndarray, ok: np.ndarray, arc: np.ndarray, half: i
     return np.asarray(out, int)
 
 
-def _epochs(tone: _Tone, cfg: CarrierConfig) -> CarrierTrack:
+def _epochs(tone: _Tone, cfg: CarrierConfig, e_first: int = 1, e_last: int | None = None) -> CarrierTrack:
+    """The tone's epochs e_first..e_last (epoch e ends at e * epoch_s; default: all its prompts give)."""
     loop, front = tone.loop, tone.front
     rec = {k: np.asarray(v) for k, v in loop.rec.items()}
     phi_aid = np.concatenate(tone.phi_aid) if tone.phi_aid else np.zeros(0)
@@ -171,8 +189,8 @@ def _epochs(tone: _Tone, cfg: CarrierConfig) -> CarrierTrack:
     centre = t0 + 0.5 * T
 
     def aid_phase(t):
-        k = np.clip((t / dt_sub).astype(int), 0, phi_aid.size - 1)
-        return phi_aid[k] + f_aid[k] * (t - k * dt_sub)
+        k = np.clip((t / dt_sub).astype(int) - tone.k_first, 0, phi_aid.size - 1)
+        return phi_aid[k] + f_aid[k] * (t - (k + tone.k_first) * dt_sub)
 
     ok = _retro_unlock(rec["mode"], rec["d"], cfg.loop.lock_window, cfg.loop.lock_on_d)
     arc = rec["arc"]
@@ -180,8 +198,10 @@ def _epochs(tone: _Tone, cfg: CarrierConfig) -> CarrierTrack:
     total_c = aid_phase(centre) + res
     half = max(4, int(round(cfg.slip_half_s / T)))
     steps = _step_slips(res, ok, arc, half, cfg.slip_threshold_cycles)
-    n_ep = int(np.floor((t0[-1] + T) / cfg.epoch_s + 1e-9))
-    t_e = cfg.epoch_s * np.arange(1, n_ep + 1)
+    last = int(np.floor((t0[-1] + T) / cfg.epoch_s + 1e-9))
+    e_last = last if e_last is None else min(e_last, last)
+    n_ep = max(0, e_last - e_first + 1)
+    t_e = cfg.epoch_s * np.arange(e_first, e_first + n_ep)
     out = {k: np.full(n_ep, np.nan) for k in ("phase", "sigma", "cn0", "freq", "rate")}
     locked = np.zeros(n_ep, bool)
     slip = np.zeros(n_ep, bool)

@@ -57,8 +57,10 @@ def register(subparsers) -> None:
     src.add_argument("--no-record", action="store_true",
                      help="fast playback only: do not copy the session (live runs always record)")
     f = p.add_argument_group("filter")
-    f.add_argument("--mode", default=None, choices=("fix+imu", "leo-alpha+imu", "fix+leo-alpha+imu"),
-                   help="observables fused with the IMU (default fix+leo-alpha+imu with an SDR or capture, else fix+imu)")
+    f.add_argument("--mode", default=None, metavar="MODE",
+                   help="observables fused with the IMU: GNSS fixes, Starlink Doppler-rate and tracked carrier phase, "
+                        "e.g. fix+imu, leo-alpha+imu, fix+leo-alpha+imu, leo-phase+imu, fix+leo-phase+imu, "
+                        "leo-phase+alpha+imu (default fix+leo-alpha+imu with an SDR or capture, else fix+imu)")
     f.add_argument("--origin", nargs=3, type=float, default=None, metavar=("LAT", "LON", "H"),
                    help="ENU origin, deg deg m (default: the first GNSS fix)")
     f.add_argument("--yaw-deg", type=float, default=None, help="initial heading, deg from East towards North")
@@ -145,7 +147,7 @@ def _max_age(args: argparse.Namespace) -> float | None:
 def options_from_args(args: argparse.Namespace):
     from leonav_runtime.nav.navigator import NavConfig
     from leonav_runtime.nav.road import RoadConfig
-    from leonav_runtime.nav.run import NavOptions
+    from leonav_runtime.nav.run import NavOptions, nav_mode
 
     if args.session is not None and (args.gnss or args.imu or args.sdr is not None):
         raise UserInputError("nav: --from SESSION plays back a session; do not give --gnss/--imu/--sdr with it")
@@ -164,6 +166,7 @@ def options_from_args(args: argparse.Namespace):
         raise UserInputError(f"--nmea-max-clients: {args.nmea_max_clients}: expected 1..1000")
     has_sdr = args.sdr is not None or (args.session is not None and (Path(args.session) / "sdr.cu8").exists())
     mode = args.mode or ("fix+leo-alpha+imu" if has_sdr else "fix+imu")
+    nav_mode(mode)
     road = RoadConfig(origin_deg=tuple(args.origin) if args.origin else None, yaw_deg=args.yaw_deg,
                       gnss_latency_s=parse_latency(str(args.gnss_latency)))
     cfg = NavConfig(mode=mode, road=road, lag_s=args.lag, output_rate_hz=args.rate,

@@ -84,6 +84,36 @@ def emitted_table(emitted: list, start_unix: float, epoch_unix: float, elements,
         return doppler_rate_table(meas, elements, utc_of(epoch_unix), sigma_floor_hz_s, files, stats=stats)
 
 
+def emitted_phase_table(diffs: list, tones: dict, start_unix: float, epoch_unix: float, elements, origin,
+                        operator=None):
+    """`inputs.CarrierPhaseTable` of streamed phase differences (`beacon_stream.BeaconStream.take_phase`)
+    on the road's axis: each tone referred to the channel centre and its satellite's states at both
+    ends of the interval, as the replay makes them (`replay.beacon_table.carrier_phase_table`);
+    tones: ridge id -> (NORAD id, element row, tone offset Hz); origin: the road's (lat, lon rad, h m)."""
+    from leonav_runtime.inputs import PhaseDifferences
+    from leonav_runtime.orbits.geometry import geodetic_to_ecef
+    from leonav_runtime.replay.beacon_table import PhaseMeasurements, carrier_phase_table
+
+    t = np.array([start_unix + d.t_s - epoch_unix for d in diffs])
+    pd = PhaseDifferences(t, np.array([d.interval_s for d in diffs]), np.array([d.norad_id for d in diffs], int),
+                          np.array([d.key for d in diffs], int), np.array([d.z_cycles for d in diffs]),
+                          np.array([d.sigma_cycles for d in diffs]), {})
+    rows = np.array([tones[d.key][1] for d in diffs], int)
+    pm = PhaseMeasurements(pd, rows, np.array([tones[d.key][2] for d in diffs], float), {})
+    files = None
+    if operator is not None:
+        operator.ensure({int(d.norad_id): str(elements.names[r]).strip() for d, r in zip(diffs, rows)})
+        files = operator.set if operator.set.ephemerides else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return carrier_phase_table(pm, elements, utc_of(epoch_unix), geodetic_to_ecef(*origin), files)
+
+
+def phase_names(diffs: list, tones: dict, elements) -> dict[int, str]:
+    """{NORAD id: object name} of streamed phase differences' satellites."""
+    return {int(d.norad_id): str(elements.names[tones[d.key][1]]).strip() for d in diffs}
+
+
 class CaptureFile:
     """A cu8 file read from the start in pieces, also while it is still being written."""
 
@@ -110,7 +140,7 @@ class BeaconFeed:
     """Fast playback: the session's capture through a `BeaconStream` in step with the serial chunks."""
 
     def __init__(self, data_path: Path, meta: dict, f_c_hz: float, elements, sigma_floor_hz_s: float,
-                 operator=None) -> None:
+                 operator=None, carrier_phase: bool = False) -> None:
         """operator: an `orbits.operator_folder.OperatorFolder` (--operator-ephemerides), shared with
         the navigator's road (whose consider term reads the same files' covariance)."""
         self.data_path = Path(data_path)
@@ -118,7 +148,8 @@ class BeaconFeed:
         self.elements = elements
         self.sigma_floor = sigma_floor_hz_s
         self.operator = operator
-        self.stream = BeaconStream(meta["sample_rate_hz"], meta["rf_center_hz"], f_c_hz, elements)
+        self.stream = BeaconStream(meta["sample_rate_hz"], meta["rf_center_hz"], f_c_hz, elements,
+                                   carrier_phase=carrier_phase)
         self.capture = CaptureFile(self.data_path)
         self.notes: list[str] = []
         self.start_unix = math.nan
@@ -157,6 +188,17 @@ class BeaconFeed:
             self.counts["tables"] += 1
             self.counts["measurements"] += int(table.t.size)
             navigator.on_doppler_rate(table)
+        self._phase(navigator)
+
+    def _phase(self, navigator) -> None:
+        diffs = self.stream.take_phase()
+        road = navigator.road
+        if diffs and road.started and math.isfinite(self.start_unix):
+            table = emitted_phase_table(diffs, self.stream.tones, self.start_unix, road.epoch_unix, self.elements,
+                                        road.origin, self.operator)
+            self.counts["phase_tables"] = self.counts.get("phase_tables", 0) + 1
+            self.counts["phase_differences"] = self.counts.get("phase_differences", 0) + int(table.t.size)
+            navigator.on_carrier_phase(table)
 
     def poll(self, navigator) -> None:
         """Nothing arrives on its own in fast playback (`advance_to` delivers)."""

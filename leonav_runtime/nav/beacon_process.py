@@ -26,10 +26,11 @@ IDLE_S = 0.02
 
 
 def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigma_floor: float,
-           inbox, outbox, recording_done, stop, operator_folder: str | None = None) -> None:
+           inbox, outbox, recording_done, stop, operator_folder: str | None = None,
+           carrier_phase: bool = False) -> None:
     from leonav_runtime.beacons.predict import Site
-    from leonav_runtime.nav.beacon_feed import (CHUNK_S, CaptureFile, capture_meta, emitted_names, emitted_table,
-                                                stream_summary)
+    from leonav_runtime.nav.beacon_feed import (CHUNK_S, CaptureFile, capture_meta, emitted_names,
+                                                emitted_phase_table, emitted_table, phase_names, stream_summary)
     from leonav_runtime.orbits.operator_folder import OperatorFolder
     from leonav_runtime.nav.beacon_stream import BeaconStream
     from leonav_runtime.orbits.elements import load_element_files
@@ -40,6 +41,7 @@ def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigm
     stream, capture, error, notes = None, None, "", []
     counts = {"samples": 0, "tables": 0, "measurements": 0}
     start_unix = epoch_unix = math.nan
+    site_origin = None
     try:
         elements = load_element_files(list(tle_files))
         operator = OperatorFolder(operator_folder) if operator_folder else None
@@ -54,7 +56,8 @@ def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigm
                     raise RuntimeError("the SDR recording ended before its metadata was written")
                 time.sleep(0.05)
         if meta is not None:
-            stream = BeaconStream(meta["sample_rate_hz"], meta["rf_center_hz"], f_c_hz, elements)
+            stream = BeaconStream(meta["sample_rate_hz"], meta["rf_center_hz"], f_c_hz, elements,
+                                  carrier_phase=carrier_phase)
             stream.t_mono_start = meta.get("t_mono_start_s")
             capture = CaptureFile(Path(data_path))
             chunk = int(CHUNK_S * meta["sample_rate_hz"])
@@ -65,6 +68,7 @@ def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigm
                 msg = None
             if msg is not None and msg[0] == "site":
                 _, origin, start_unix, epoch_unix = msg
+                site_origin = origin
                 if elements is None:
                     elements = stream.elements = default_elements(utc_of(start_unix), notes)
                 stream.set_site(Site(*origin), utc_of(start_unix))
@@ -83,6 +87,11 @@ def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigm
                 counts["measurements"] += int(tab.t.size)
                 outbox.put(("table", tab.t, tab.sat_id, tab.z, np.broadcast_to(tab.sigma, tab.t.shape).copy(),
                             tab.sat_ecef, emitted_names(emitted, elements)))
+            diffs = stream.take_phase()
+            if diffs and math.isfinite(epoch_unix):
+                tab = emitted_phase_table(diffs, stream.tones, start_unix, epoch_unix, elements, site_origin, operator)
+                counts["phase_differences"] = counts.get("phase_differences", 0) + int(tab.t.size)
+                outbox.put(("phase", tab, phase_names(diffs, stream.tones, elements)))
     except Exception as exc:      # the navigator goes on without Doppler-rate, and says why
         error = f"{type(exc).__name__}: {exc}"
     finally:
@@ -98,11 +107,12 @@ class BeaconProcess:
     """The parent side (module doc)."""
 
     def __init__(self, data_path: Path, f_c_hz: float, tle_files: tuple, sigma_floor_hz_s: float,
-                 operator=None) -> None:
+                 operator=None, carrier_phase: bool = False) -> None:
         """operator: an `orbits.operator_folder.OperatorFolder`: the child reads the same folder for the
         states, this side for the road's consider term (the names come with each table)."""
         self.data_path = Path(data_path)
         self.operator = operator
+        self.carrier_phase = carrier_phase
         self.f_c_hz = f_c_hz
         self.tle_files = tuple(str(p) for p in tle_files)
         self.sigma_floor = sigma_floor_hz_s
@@ -123,7 +133,7 @@ class BeaconProcess:
             target=_child, name="leonav-beacons", daemon=True,
             args=(str(self.data_path), str(meta_path), self.f_c_hz, self.tle_files, self.sigma_floor,
                   self._inbox, self._outbox, self._recording_done, self._stop,
-                  None if self.operator is None else str(self.operator.folder)))
+                  None if self.operator is None else str(self.operator.folder), self.carrier_phase))
         self._proc.start()
 
     def _send_site(self, navigator) -> None:
@@ -155,6 +165,13 @@ class BeaconProcess:
     def _handle(self, msg, navigator) -> None:
         if msg[0] == "summary":
             self._summary = msg[1]
+            return
+        if msg[0] == "phase":
+            _, table, names = msg
+            if self.operator is not None:
+                self.operator.ensure(names)
+            if navigator is not None:
+                navigator.on_carrier_phase(table)
             return
         _, t, sat_id, z, sigma, sat_ecef, names = msg
         self.tables += 1

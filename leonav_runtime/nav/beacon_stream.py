@@ -30,6 +30,9 @@ import time
 import numpy as np
 
 from leonav_runtime.beacons.associate import associate_capture
+from leonav_runtime.beacons.carrier_front import Aiding
+from leonav_runtime.beacons.carrier_hook import AID_STEP_S
+from leonav_runtime.beacons.carrier_stream import StreamingCarrier
 from leonav_runtime.beacons.doppler import RidgeMeasurements, ridge_measurements
 from leonav_runtime.beacons.pipeline import PipelineConfig
 from leonav_runtime.beacons.predict import predict_visible
@@ -120,7 +123,9 @@ class BeaconStream:
     """Feed IQ (`push`, complex64) or spectrum blocks (`add_block`); take measurements with `take()`."""
 
     def __init__(self, sample_rate_hz: float, rf_center_hz: float, f_c_hz: float, elements,
-                 cfg: PipelineConfig | None = None, settings: StreamSettings | None = None) -> None:
+                 cfg: PipelineConfig | None = None, settings: StreamSettings | None = None,
+                 carrier_phase: bool = False) -> None:
+        """carrier_phase: also track the carrier of every identified tone (`take_phase`)."""
         self.cfg = cfg = cfg or PipelineConfig(f_c_hz=f_c_hz, band_hz=min(1.2e6, sample_rate_hz))
         self.settings = settings or StreamSettings()
         self.fs = sample_rate_hz
@@ -145,6 +150,10 @@ class BeaconStream:
                        "predictions": 0, "tracks_dropped": 0, "too_late": 0}
         self.max_lag_seen_s = 0.0
         self.last_summary: dict = {}
+        self.carrier = StreamingCarrier(sample_rate_hz) if carrier_phase else None
+        self._phase_final = False          # flushed: the last epochs need no lag
+        self.tones: dict[int, tuple[int, int, float]] = {}   # ridge id -> (norad, element row, tone offset Hz)
+        self._aid_offset: dict[int, float] = {}              # ridge id -> aiding's constant (Hz)
 
     def set_site(self, site, start_utc: _dt.datetime) -> None:
         """The receiver's site and the capture's first-sample UTC (needed to associate)."""
@@ -154,10 +163,20 @@ class BeaconStream:
     def push(self, samples: np.ndarray) -> None:
         for blk in self.stft_push.push(samples):
             self.add_block(blk)
+        if self.carrier is not None:    # after the blocks: a tone identified in them starts here
+            self.carrier.push(samples)
 
     def flush(self) -> None:
         for blk in self.stft_push.flush():
             self.add_block(blk)
+        self._phase_final = True
+
+    def take_phase(self) -> list:
+        """Carrier-phase differences made final since the last call (`carrier_stream.StreamedDifference`,
+        capture time); the tone's satellite row and offset from the channel centre are in `tones`."""
+        if self.carrier is None:
+            return []
+        return self.carrier.take(final=self._phase_final)
 
     def add_block(self, blk) -> None:
         self.tracker.add_block(blk)
@@ -250,6 +269,38 @@ class BeaconStream:
                                          float(m.rate_hz_s[k]), float(m.sigma_rate_hz_s[k]), lag, now))
             if m.t_s.size:
                 self._emitted_t[a.norad_id] = max(last, float(m.t_s[-1]))
+        if self.carrier is not None:
+            self._track_tones(ca, pred)
+
+    def _track_tones(self, ca, pred) -> None:
+        """Start the carrier of every identified tone with a comb index (its offset from the centre
+        is then known), and give every tracked tone the aiding of the current predictions: the
+        predicted Doppler plus the median of its ridge's baseband frequency minus it."""
+        tracks = {entry[1]: entry[0] for entry in self._ids.values()}
+        spacing = self.cfg.association.comb.spacing_hz
+        t = np.arange(max(0.0, self._pred_span[0]), self._pred_span[1], AID_STEP_S)
+        if t.size < 4:
+            return
+        curves = None
+        for a in ca.associations:
+            if a.status != "associated" or a.sat_row < 0 or a.tone_index is None:
+                continue
+            tr = tracks.get(a.ridge_id)
+            offset = self._aid_offset.get(a.ridge_id)
+            if offset is None:
+                if tr is None or len(tr.t) < 8:
+                    continue
+                on_ridge = pred.at(np.asarray(tr.t))[0][a.sat_row]
+                # fixed once the tone is tracked: a new median each second (the LO drifts under it)
+                # would step the aiding's frequency, and each step is a transient in the loop
+                offset = self._aid_offset[a.ridge_id] = float(np.median(np.asarray(tr.f) - on_ridge))
+            curves = pred.at(t)[0] if curves is None else curves
+            aid = Aiding(t, curves[a.sat_row] + offset, f"ridge {a.ridge_id} ({a.name})")
+            if a.ridge_id in self.tones:
+                self.carrier.set_aiding(a.ridge_id, aid)
+            else:
+                self.tones[a.ridge_id] = (a.norad_id, int(pred.sat_index[a.sat_row]), a.tone_index * spacing)
+                self.carrier.start_tone(a.ridge_id, a.norad_id, aid)
 
     def _trim(self) -> None:
         s = self.settings

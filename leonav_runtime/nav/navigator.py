@@ -115,7 +115,11 @@ class Navigator:
         self._step(arrived_mono)
 
     def on_doppler_rate(self, table) -> None:
-        self.road.add_doppler_rate(table)
+        self.road.add_satellite_table(table)
+        self._step()
+
+    def on_carrier_phase(self, table) -> None:
+        self.road.add_satellite_table(table)
         self._step()
 
     def device_ended(self, kind: str, reason: str) -> None:

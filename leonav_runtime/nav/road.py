@@ -7,8 +7,8 @@
   at the first buffered IMU sample, as in the replay) and go through `inputs.assemble` with the
   replay's `FirstFixPrior` (`replay.run.replay_prior`): x0, P0, p and the first records;
 - then, for every arriving IMU sample, one `ImuTable` row -> `inputs.imu_records`; for every
-  fix epoch, `gnss_table.fix_table` rows -> `inputs.fix_records`; for every Doppler-rate
-  measurement, a `DopplerRateTable` row -> `inputs.satellite_records` with the specific force
+  fix epoch, `gnss_table.fix_table` rows -> `inputs.fix_records`; for every Doppler-rate or
+  carrier-phase measurement, a `SatelliteTable` row -> `inputs.satellite_records` with the specific force
   averaged over the IMU samples up to it (`inputs.averaged_specific_force` on the last
   `ROLLING_IMU_S` of samples), corrected there by a base's differential corrections when given
   (`inputs.corrections`, as every source's). A measurement is released once an IMU sample at or after its
@@ -27,7 +27,7 @@ import numpy as np
 
 from leonav.hardware.records import GnssFix
 from leonav_runtime.core import navfuncs, records
-from leonav_runtime.inputs import (DopplerRateTable, FilterInputs, FixTable, ImuTable, assemble,
+from leonav_runtime.inputs import (FilterInputs, FixTable, ImuTable, SatelliteTable, assemble,
                                    averaged_specific_force, filter_params, fix_records, imu_records,
                                    satellite_records)
 from leonav_runtime.nav.gnss_stream import FixAssembler, epoch_fixes
@@ -56,7 +56,7 @@ class RoadConfig:
 
 
 class StreamingRoad:
-    """Feed `add_gnss`, `add_imu`, `add_doppler_rate`; take the filter's records with `take()`."""
+    """Feed `add_gnss`, `add_imu`, `add_satellite_table`; take the filter's records with `take()`."""
 
     def __init__(self, cfg: RoadConfig, nav: navfuncs.NavFunctions | None = None, corrections=None,
                  operator=None) -> None:
@@ -123,13 +123,14 @@ class StreamingRoad:
         else:
             self._release()
 
-    def add_doppler_rate(self, table: DopplerRateTable) -> None:
-        """Doppler-rate measurements (t on this road's axis, satellite states filled)."""
-        if "doppler_rate" not in self.cfg.streams or not self.started:
-            self.counts["doppler_rate_not_used"] += int(table.t.size)
+    def add_satellite_table(self, table: SatelliteTable) -> None:
+        """Doppler-rate or carrier-phase measurements (t on this road's axis, satellite states filled)."""
+        stream = table.KIND
+        if stream not in self.cfg.streams or not self.started:
+            self.counts[f"{stream}_not_used"] += int(table.t.size)
             return
         for k in range(table.t.size):
-            self._measurement(float(table.t[k]), "doppler_rate", table.select(np.array([k])))
+            self._measurement(float(table.t[k]), stream, table.select(np.array([k])))
         self._release()
 
     def take(self) -> np.ndarray:

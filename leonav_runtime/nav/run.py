@@ -175,8 +175,10 @@ def _beacons(opts: NavOptions, record_dir: Path | None, operator=None):
     from leonav_runtime.replay.options import replay_mode
 
     default = (None, STARLINK_BEACON_HZ, "default (no Starlink capture)")
-    if "doppler_rate" not in replay_mode(opts.nav.mode).streams:
+    streams = replay_mode(opts.nav.mode).streams
+    if "doppler_rate" not in streams and "carrier_phase" not in streams:
         return default
+    phase = "carrier_phase" in streams
     elements = load_element_files(opts.tle_files)     # checked here: a bad file is a clear error at once
     floor = opts.nav.road.doppler_rate_sigma_floor_hz_s
     if opts.session is not None:
@@ -186,12 +188,12 @@ def _beacons(opts: NavOptions, record_dir: Path | None, operator=None):
         meta = capture_meta(meta_path)
         f_c, src = carrier(meta["rf_center_hz"])
         if not opts.realtime:
-            return BeaconFeed(Path(opts.session) / "sdr.cu8", meta, f_c, elements, floor, operator), f_c, src
-        return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor, operator), f_c, src
+            return BeaconFeed(Path(opts.session) / "sdr.cu8", meta, f_c, elements, floor, operator, phase), f_c, src
+        return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor, operator, phase), f_c, src
     if opts.sdr_index is None:
         raise UserInputError(f"--mode {opts.nav.mode}: needs --sdr INDEX (the Starlink capture)")
     f_c, src = carrier(opts.sdr_settings.rf_center_hz)
-    return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor, operator), f_c, src
+    return BeaconProcess(record_dir / "sdr.cu8", f_c, opts.tle_files, floor, operator, phase), f_c, src
 
 
 def preload(opts: NavOptions, beacons) -> dict:
@@ -333,6 +335,19 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
     return result
 
 
+def navigable(o) -> bool:
+    """What live navigation fuses with the IMU: the receiver's fixes, the beacons' Doppler-rate and
+    their tracked carrier phase (no raw GNSS observations: the road has no pseudorange stream)."""
+    return o.stream in ("fix", "doppler_rate", "carrier_phase")
+
+
+def nav_mode(name: str):
+    """The mode (`model.Mode`) of --mode, or a UserInputError naming the option."""
+    from leonav_runtime.core import model
+
+    return model.parse_mode(name, navigable, "--mode")
+
+
 def _operator(opts: NavOptions):
     """The operator-ephemeris folder (--operator-ephemerides), checked now, or None."""
     if opts.operator_ephemerides is None:
@@ -340,9 +355,9 @@ def _operator(opts: NavOptions):
     from leonav_runtime.orbits.operator_folder import OperatorFolder
     from leonav_runtime.replay.options import replay_mode
 
-    if "doppler_rate" not in replay_mode(opts.nav.mode).streams:
+    if not {"doppler_rate", "carrier_phase"} & set(replay_mode(opts.nav.mode).streams):
         raise UserInputError(f"--operator-ephemerides: mode {opts.nav.mode} measures no Starlink satellite "
-                             "(it needs a Doppler-rate mode such as fix+leo-alpha+imu)")
+                             "(it needs a Starlink mode such as fix+leo-alpha+imu or leo-phase+imu)")
     return OperatorFolder(opts.operator_ephemerides)
 
 
