@@ -136,3 +136,21 @@ def test_fast_playback_in_a_phase_mode_feeds_the_replays_phase_records(tmp_path,
     sat = np.array([np.linalg.norm(a["aux"][L.AUX_R_S_ECEF_SLICE] - b["aux"][L.AUX_R_S_ECEF_SLICE]
                                    - b["aux"][L.AUX_V_S_ECEF_SLICE] * (a["t"] - b["t"])) for a, b in common])
     assert sat.max() < 0.05, sat.max()
+
+
+def test_the_live_beacon_process_sends_phase_tables(tmp_path):
+    from tests.test_nav_operator_ephemerides import _child_tables
+    from leonav_runtime.simulation.session_synth import SynthSessionConfig, write_synthetic_session
+
+    write_synthetic_session(tmp_path / "s", SynthSessionConfig(seconds=10.0, seed=0, sdr_rate_hz=240e3))
+    (tmp_path / "m").mkdir()
+    phase, summary = _child_tables(tmp_path / "s", None, tmp_path / "m", carrier_phase=True, kind="phase")
+    tables = [m[1] for m in phase]
+    n = sum(t.t.size for t in tables)
+    assert n >= 100 and summary["counts"]["phase_differences"] == n
+    for t in tables:
+        assert t.KIND == "carrier_phase" and np.all(t.interval_s > 0)
+        moved = np.linalg.norm(t.sat_ecef[:, 0:3] - t.sat_prev_r_m, axis=1)
+        assert np.all(np.abs(moved - 760.0) < 100.0)          # 0.1 s of a LEO satellite's motion (m)
+    # the names ride along (the road's operator files are read by name)
+    assert {int(i) for t in tables for i in t.sat_id} == set().union(*(set(m[2]) for m in phase))

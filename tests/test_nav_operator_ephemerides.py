@@ -100,7 +100,7 @@ def test_a_folder_that_is_not_one_is_refused_in_one_line(pair, tmp_path, capsys)
     assert len(err) == 1 and "lists no operator-ephemeris file" in err[0], err
 
 
-def _child_tables(session, folder, tmp):
+def _child_tables(session, folder, tmp, carrier_phase: bool = False, kind: str = "table"):
     """The live path's beacon process body (`beacon_process._child`), run in this thread on the
     whole recorded capture: the tables it sends. Its metadata copy leaves out the host stamp of
     the first sample, so that the lag is counted in capture time (read at once, not live)."""
@@ -122,10 +122,10 @@ def _child_tables(session, folder, tmp):
     meta["global"].pop("leonav:t_mono_start_s", None)
     (tmp / "sdr.sigmf-meta").write_text(json.dumps(meta))
     _child(str(session / "sdr.cu8"), str(tmp / "sdr.sigmf-meta"), info.rf_center_hz, (), 0.5,
-           inbox, outbox, done, stop, folder)
+           inbox, outbox, done, stop, folder, carrier_phase)
     msgs = [outbox.get() for _ in range(outbox.qsize())]
     assert msgs[-1][0] == "summary" and not msgs[-1][1]["error"], msgs[-1]
-    return [m for m in msgs if m[0] == "table"], msgs[-1][1]
+    return [m for m in msgs if m[0] == kind], msgs[-1][1]
 
 
 def test_the_live_beacon_process_takes_the_states_from_the_files(pair, tmp_path):
