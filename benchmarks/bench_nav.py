@@ -93,7 +93,7 @@ def latency_and_cpu(seconds: float, work: Path) -> dict:
             "solutions": nav["outputs"]["solutions"], "imu_timing": nav["imu_timing"], "output": text.strip()}
 
 
-def beacon_throughput(seconds: float) -> dict:
+def beacon_throughput(seconds: float, carrier_phase: bool = False) -> dict:
     from leonav_runtime.beacons import capture_io, synth
     from leonav_runtime.beacons.predict import Site
     from leonav_runtime.gen.constants import STARLINK_BEACON_HZ
@@ -108,20 +108,22 @@ def beacon_throughput(seconds: float) -> dict:
     cfg = synth.SynthConfig(duration_s=seconds, sample_rate_hz=fs, n_satellites=5, cn0_dbhz=40.0, seed=1)
     truth = synth.build_truth(elements, site, PAPER_EPOCH, cfg)
     rf_center = cfg.center_freq_hz + cfg.lnb_lo_hz
-    bs = BeaconStream(fs, rf_center, STARLINK_BEACON_HZ, elements)
+    bs = BeaconStream(fs, rf_center, STARLINK_BEACON_HZ, elements, carrier_phase=carrier_phase)
     bs.set_site(site, PAPER_EPOCH)
     piece = int(0.1 * fs)
     busy = cpu = 0.0
     done = 0
-    rss, next_mark, emitted = [], 10.0, []
-    print(f"beacon stream: {seconds:g} s of 2.4 MS/s cu8, 5 satellites (synthesis not timed) ...", flush=True)
+    rss, next_mark, emitted, phase = [], 10.0, [], 0
+    print(f"beacon stream{' with carrier tracking' if carrier_phase else ''}: {seconds:g} s of 2.4 MS/s cu8, "
+          "5 satellites (synthesis not timed) ...", flush=True)
     for x in synth.iter_synthetic_iq(truth, cfg):
         raw = capture_io.quantize_cu8(x, 1.0).tobytes()
         t0, c0 = time.perf_counter(), time.process_time()
         z = cu8_to_complex(raw)
         for k in range(0, z.size, piece):
             bs.push(z[k:k + piece])
-        emitted += bs.take()
+            emitted += bs.take()
+            phase += len(bs.take_phase())
         busy += time.perf_counter() - t0
         cpu += time.process_time() - c0
         done += z.size
@@ -134,6 +136,7 @@ def beacon_throughput(seconds: float) -> dict:
     return {"data_s": done / fs, "busy_s": busy, "cpu_s": cpu, "x_real_time": done / fs / busy,
             "x_real_time_cpu": done / fs / cpu, "measurements": len(emitted),
             "satellites": len({e.norad_id for e in emitted}), "max_lag_s": max(lags) if lags else None,
+            "phase_differences": phase, "tones_tracked": len(bs.tones),
             "counts": bs.counts, "rss_mb": rss, "rss_slope_mb_per_min_second_half": 60 * slope}
 
 
@@ -142,6 +145,8 @@ def main() -> None:
     ap.add_argument("--part", choices=("all", "latency", "beacons"), default="all")
     ap.add_argument("--seconds", type=float, default=40.0, help="latency/CPU run length (s)")
     ap.add_argument("--beacon-seconds", type=float, default=180.0, help="beacon stream length (s of data)")
+    ap.add_argument("--carrier-phase", action="store_true",
+                    help="beacons part: also the stream with carrier tracking of every identified tone, side by side")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         if args.part in ("all", "latency"):
@@ -163,6 +168,14 @@ def main() -> None:
                   f"{b['max_lag_s']:.2f} s after the newest sample; {b['counts']}")
             print(f"  resident memory (s of data, MB): {b['rss_mb']}")
             print(f"  slope over the second half: {b['rss_slope_mb_per_min_second_half']:+.2f} MB per minute of data")
+            if args.carrier_phase:
+                c = beacon_throughput(args.beacon_seconds, carrier_phase=True)
+                print(f"\nbeacon streaming with carrier tracking: {c['x_real_time']:.1f}x real time wall, "
+                      f"{c['x_real_time_cpu']:.1f}x per CPU-second; CPU {c['cpu_s']:.1f} s = {c['cpu_s'] / b['cpu_s']:.2f}x "
+                      f"the stream without; {c['tones_tracked']} tones tracked, {c['phase_differences']} phase "
+                      f"differences, {c['measurements']} Doppler-rate measurements")
+                print(f"  resident memory (s of data, MB): {c['rss_mb']}; slope over the second half "
+                      f"{c['rss_slope_mb_per_min_second_half']:+.2f} MB per minute of data")
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.test_nav_live import nav_options
+from tests.test_nav_live import nav_options, run_nav_records
 from leonav_runtime.beacons import synthetic_phase as sp
 from leonav_runtime.beacons.carrier_front import Aiding
 from leonav_runtime.beacons.carrier_score import AID_STEP_S, track_capture
@@ -72,40 +72,19 @@ def test_every_streamed_pair_is_a_difference_or_a_counted_break(capture):
         assert span < 4.0
 
 
-def _spy_records(monkeypatch):
-    from leonav_runtime.nav import road as road_module
-
-    taken: list[np.ndarray] = []
-    original = road_module.StreamingRoad.take
-
-    def take(self):
-        recs = original(self)
-        taken.append(recs)
-        return recs
-
-    monkeypatch.setattr(road_module.StreamingRoad, "take", take)
-    return taken
-
-
 @pytest.mark.slow
-def test_fast_playback_in_a_phase_mode_feeds_the_replays_phase_records(tmp_path, monkeypatch):
+def test_fast_playback_in_a_phase_mode_feeds_the_replays_phase_records(tmp_path):
     import warnings
 
-    from leonav_runtime.core import model
     from leonav_runtime.gen import state_layout as L
-    from leonav_runtime.nav.run import run_nav
     from leonav_runtime.replay import ReplayOptions
     from leonav_runtime.replay.run import decode_inputs
     from leonav_runtime.simulation.session_synth import SynthSessionConfig, write_synthetic_session
 
     mode = "leo-phase+imu"
     write_synthetic_session(tmp_path / "s", SynthSessionConfig(seconds=10.0, seed=0, sdr_rate_hz=240e3))
-    taken = _spy_records(monkeypatch)
-    res = run_nav(nav_options(tmp_path / "nav", mode=mode, session=tmp_path / "s"))
+    res, nav = run_nav_records(nav_options(tmp_path / "nav", mode=mode, session=tmp_path / "s"), "carrier_phase")
     assert res["exit_code"] == 0 and res["road"]["carrier_phase_released"] >= 100
-    kind = model.observable("carrier_phase").kind
-    recs = np.concatenate(taken)
-    nav = recs[recs["kind"] == kind]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         decoded = decode_inputs(tmp_path / "s", ReplayOptions(modes=(mode,)))

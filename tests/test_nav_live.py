@@ -61,6 +61,30 @@ def free_port(kind=socket.SOCK_STREAM) -> int:
         return s.getsockname()[1]
 
 
+def run_nav_records(opts, kind: str) -> tuple[dict, np.ndarray]:
+    """run_nav(opts) and the records of observable `kind` (e.g. "doppler_rate") its road released
+    to the filter, in order."""
+    from leonav_runtime.core import model
+    from leonav_runtime.nav import road as road_module
+    from leonav_runtime.nav.run import run_nav
+
+    taken: list[np.ndarray] = []
+    original = road_module.StreamingRoad.take
+
+    def take(self):
+        recs = original(self)
+        taken.append(recs)
+        return recs
+
+    road_module.StreamingRoad.take = take
+    try:
+        res = run_nav(opts)
+    finally:
+        road_module.StreamingRoad.take = original
+    recs = np.concatenate(taken) if taken else np.zeros(0)
+    return res, recs[recs["kind"] == model.observable(kind).kind] if recs.size else recs
+
+
 def nav_options(out: Path, mode: str = "fix+imu", **kw):
     from leonav_runtime.nav.navigator import NavConfig
     from leonav_runtime.nav.road import RoadConfig

@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 import pytest
 
-from tests.test_nav_live import difference_rms, nav_options
+from tests.test_nav_live import difference_rms, nav_options, run_nav_records
 from tests.test_operator_replay import COV_UVW, EPOCH, _ahead, _starlink
 from leonav_runtime.orbits.operator_ephemeris import write_file
 from leonav_runtime.orbits.operator_states import ephemerides_from_elements
@@ -41,33 +41,18 @@ def pair(tmp_path_factory):
     return base, len(files.ephemerides)
 
 
-def _run(out, session, monkeypatch, folder=None):
+def _run(out, session, folder=None):
     """run_nav in fast playback; also the R of every Doppler-rate record the road released."""
-    from leonav_runtime.core import model
-    from leonav_runtime.nav import road as road_module
-    from leonav_runtime.nav.run import run_nav
-
-    taken: list[np.ndarray] = []
-    original = road_module.StreamingRoad.take
-
-    def take(self):
-        recs = original(self)
-        taken.append(recs)
-        return recs
-
-    monkeypatch.setattr(road_module.StreamingRoad, "take", take)
-    res = run_nav(nav_options(out, mode=MODE, session=session, operator_ephemerides=folder))
-    monkeypatch.setattr(road_module.StreamingRoad, "take", original)
-    recs = np.concatenate(taken)
-    alpha = recs[recs["kind"] == model.observable("doppler_rate").kind]
+    res, alpha = run_nav_records(nav_options(out, mode=MODE, session=session, operator_ephemerides=folder),
+                                 "doppler_rate")
     return res, alpha["R"]
 
 
-def test_fast_playback_with_the_files_follows_the_replay_with_them(pair, monkeypatch):
+def test_fast_playback_with_the_files_follows_the_replay_with_them(pair):
     base, n_files = pair
-    with_files, r1 = _run(base / "nav-files", base / "s", monkeypatch, str(base / "files"))
-    _, r4 = _run(base / "nav-files-x4", base / "s", monkeypatch, str(base / "files-x4"))
-    plain, r0 = _run(base / "nav-plain", base / "s", monkeypatch)
+    with_files, r1 = _run(base / "nav-files", base / "s", str(base / "files"))
+    _, r4 = _run(base / "nav-files-x4", base / "s", str(base / "files-x4"))
+    plain, r0 = _run(base / "nav-plain", base / "s")
     assert with_files["exit_code"] == 0 and plain["exit_code"] == 0
     road = with_files["road"]
     released = road["doppler_rate_released"]
