@@ -5,7 +5,8 @@ join when the beacon stream has identified them (`start_tone`, from the sample i
 pushed block goes through each tone's aided front end and loop (`carrier._Tone`, the batch
 code), and the epochs are made by the batch epoch code (`carrier._epochs`) over a window of
 recent prompts. An epoch is final `lag_s` after its time: its lock flag looks back from a loss
-declared later (0.1-0.3 s), its C/N0 spans +-0.5 s, its slip test +-0.3 s. Each call of `take`
+declared later (0.1-0.3 s), its C/N0 spans +-0.5 s, its slip test +-0.3 s. Epochs are made
+`EVERY_S` at a time (so an epoch comes 1-1.5 s after its time). Each call of `take`
 makes the epochs from the last one given (included again, so that the pair across two calls is
 differenced inside one window: arcs are numbered per window) up to `t_data - lag_s`, and returns
 the new phase differences with `phase_differences`' rules and its break counts. Memory stays
@@ -24,6 +25,7 @@ from leonav_runtime.inputs.carrier_phase import BREAK_REASONS, phase_differences
 
 LAG_S = 1.0
 KEEP_S = 2.0
+EVERY_S = 0.5      # epochs are made in batches of at least this much (a call per 0.1 s piece costs 3x the loop)
 
 
 @dataclasses.dataclass
@@ -93,7 +95,7 @@ class StreamingCarrier:
         e_ready = int(math.floor((self.t_data - lag) / self.cfg.epoch_s + 1e-9))
         for key, tone in self.tones.items():
             e_first = self._next_epoch[key]
-            if e_ready < e_first:
+            if e_ready < e_first or (not final and (e_ready - e_first + 1) * self.cfg.epoch_s < EVERY_S - 1e-9):
                 continue
             tr = _epochs(tone, self.cfg, max(1, e_first - 1), e_ready)
             if not tr.t_s.size:
