@@ -133,3 +133,19 @@ def test_the_live_beacon_process_sends_phase_tables(tmp_path):
         assert np.all(np.abs(moved - 760.0) < 100.0)          # 0.1 s of a LEO satellite's motion (m)
     # the names ride along (the road's operator files are read by name)
     assert {int(i) for t in tables for i in t.sat_id} == set().union(*(set(m[2]) for m in phase))
+
+
+def test_a_tone_whose_ridge_is_gone_is_no_longer_tracked(capture):
+    from leonav_runtime.nav.beacon_stream import TONE_GONE_S, BeaconStream
+    from leonav_runtime.simulation.session_synth import PAPER_EPOCH, builtin_starlink
+
+    bs = BeaconStream(capture.sample_rate_hz, 11.325e9, 11.325e9, builtin_starlink(PAPER_EPOCH), carrier_phase=True)
+    t = np.arange(-2 * AID_STEP_S, capture.cfg.duration_s + 3 * AID_STEP_S, AID_STEP_S)
+    bs.carrier.start_tone(99, 1, Aiding(t, capture.predicted_baseband(t, 0, 0.05, 5.0)[0], "tone"))
+    bs.tones[99] = (1, 0, 0.0)       # a tone no STFT ridge of this stream carries (its ridge has ended)
+    chunk = 24_000
+    for k in range(0, capture.iq.size, chunk):
+        bs.push(capture.iq[k:k + chunk])
+        if bs.t_data < TONE_GONE_S - 0.5:
+            assert 99 in bs.carrier.tones
+    assert 99 not in bs.carrier.tones and bs.counts["tones_stopped"] == 1

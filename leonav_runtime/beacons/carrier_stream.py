@@ -73,6 +73,12 @@ class StreamingCarrier:
         self._next_epoch[key] = int(math.floor(first / self.cfg.epoch_s)) + 1
         self.counts["tones"] += 1
 
+    def stop_tone(self, key: int) -> None:
+        """No longer track tone `key` (its satellite has gone); its last epochs are not given."""
+        for d in (self.tones, self.norad, self._next_epoch):
+            d.pop(key, None)
+        self._given.discard(key)
+
     def set_aiding(self, key: int, aiding: Aiding) -> None:
         """A longer aiding curve for a tracked tone (the predictions reach further)."""
         if key in self.tones:

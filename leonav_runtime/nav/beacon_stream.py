@@ -30,7 +30,7 @@ import time
 import numpy as np
 
 from leonav_runtime.beacons.associate import associate_capture
-from leonav_runtime.beacons.carrier_front import Aiding
+from leonav_runtime.beacons.carrier_front import MAX_TONE_FRACTION, Aiding
 from leonav_runtime.beacons.carrier_hook import AID_STEP_S
 from leonav_runtime.beacons.carrier_stream import StreamingCarrier
 from leonav_runtime.beacons.doppler import RidgeMeasurements, ridge_measurements
@@ -39,6 +39,7 @@ from leonav_runtime.beacons.predict import predict_visible
 from leonav_runtime.beacons.ridges import Ridge, RidgeTracker
 from leonav_runtime.beacons.waterfall import StftConfig, band_bins, iter_spectra
 
+TONE_GONE_S = 5.0   # a tracked tone whose STFT ridge has been gone this long is no longer tracked
 MEAS_FIELDS = ("t_s", "doppler_hz", "sigma_doppler_hz", "rate_hz_s", "sigma_rate_hz_s", "n_points", "snr_db")
 
 
@@ -148,12 +149,15 @@ class BeaconStream:
         self.t_data = 0.0                        # capture time processed so far (s)
         self.counts = {"blocks": 0, "ridges": 0, "epochs": 0, "associations": 0, "emitted": 0,
                        "predictions": 0, "tracks_dropped": 0, "too_late": 0}
+        if carrier_phase:
+            self.counts.update(tones_tracked=0, tones_left_out=0, tones_stopped=0)
         self.max_lag_seen_s = 0.0
         self.last_summary: dict = {}
         self.carrier = StreamingCarrier(sample_rate_hz) if carrier_phase else None
         self._phase_final = False          # flushed: the last epochs need no lag
         self.tones: dict[int, tuple[int, int, float]] = {}   # ridge id -> (norad, element row, tone offset Hz)
         self._aid_offset: dict[int, float] = {}              # ridge id -> aiding's constant (Hz)
+        self._gone_since: dict[int, float] = {}              # tracked tone -> when its ridge ended (s)
 
     def set_site(self, site, start_utc: _dt.datetime) -> None:
         """The receiver's site and the capture's first-sample UTC (needed to associate)."""
@@ -186,6 +190,22 @@ class BeaconStream:
         if new and self.site is not None:
             self._associate()
         self._trim()
+        if self.carrier is not None:
+            self._stop_gone_tones()
+
+    def _stop_gone_tones(self) -> None:
+        """Stop tracking a tone whose ridge the STFT tracker has let go of for `TONE_GONE_S` (the
+        satellite set or faded): a live run meets a new satellite every few minutes."""
+        alive = {entry[1] for entry in self._ids.values()}
+        for key in list(self.carrier.tones):
+            if key in alive:
+                self._gone_since.pop(key, None)
+                continue
+            since = self._gone_since.setdefault(key, self.t_data)
+            if self.t_data - since >= TONE_GONE_S:
+                self.carrier.stop_tone(key)
+                self._gone_since.pop(key)
+                self.counts["tones_stopped"] += 1
 
     def _rid(self, tr) -> int:
         entry = self._ids.get(id(tr))
@@ -298,9 +318,17 @@ class BeaconStream:
             aid = Aiding(t, curves[a.sat_row] + offset, f"ridge {a.ridge_id} ({a.name})")
             if a.ridge_id in self.tones:
                 self.carrier.set_aiding(a.ridge_id, aid)
+            elif np.max(np.abs(aid.f_hz)) > MAX_TONE_FRACTION * self.fs:   # beyond the band the front end holds
+                self._aid_offset.pop(a.ridge_id)
+                self.counts["tones_left_out"] += 1
             else:
-                self.tones[a.ridge_id] = (a.norad_id, int(pred.sat_index[a.sat_row]), a.tone_index * spacing)
+                tone = (a.norad_id, int(pred.sat_index[a.sat_row]), a.tone_index * spacing)
+                for old in [k for k, v in self.tones.items() if v == tone and k in self.carrier.tones]:
+                    self.carrier.stop_tone(old)      # a new ridge of the same tone: one phase per tone
+                    self.counts["tones_stopped"] += 1
+                self.tones[a.ridge_id] = tone
                 self.carrier.start_tone(a.ridge_id, a.norad_id, aid)
+                self.counts["tones_tracked"] += 1
 
     def _trim(self) -> None:
         s = self.settings
