@@ -133,3 +133,21 @@ def test_the_cache_keeps_at_most_max_entries_files(cache, tmp_path, monkeypatch)
         path.write_text("\n".join(_entry(500 + k, 0.1)) + "\n")
         load_elements(path)
     assert len(list(cache.glob("*.json"))) == 3
+
+
+def test_the_built_in_constellations_text_goes_through_the_cache(cache, monkeypatch):
+    import datetime as dt
+
+    from leonav_runtime.orbits import elements
+    from leonav_runtime.orbits.constellations import default_elements
+
+    epoch = dt.datetime(2026, 2, 23, 12, tzinfo=dt.timezone.utc)
+    monkeypatch.setenv(element_cache.CACHE_ENV, "off")
+    fresh = default_elements(epoch)
+    monkeypatch.setenv(element_cache.CACHE_ENV, str(cache))
+    default_elements(epoch)                           # misses: parsed, then stored (GPS and Starlink)
+    assert len(list(cache.glob("*.json"))) == 2
+    monkeypatch.setattr(elements, "_parse_text", lambda *a: pytest.fail("parsed again"))
+    again = default_elements(epoch)
+    for name in ("gps", "starlink"):
+        _same(fresh[name], again[name])

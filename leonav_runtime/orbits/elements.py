@@ -12,10 +12,10 @@ about 400,000 satellites and 0.6 GB). Fields that decode to NaN or infinity are 
 with the field named; deeply nested JSON/XML and unreadable CSV rows are rejected and
 counted (see `omm`).
 
-`load_elements` keeps what it parsed of a large TLE/3LE file in the user's cache
-(`element_cache`: keyed by the file's bytes and the parser's source; `LEONAV_ELEMENT_CACHE=off`
-turns it off), so the next load rebuilds the SGP4 records from checked lines instead of
-checking every field again (the same ElementSet, warnings included).
+`load_elements` and `parse_elements_text` keep what they parsed of a large TLE/3LE text (a file,
+the built-in constellations) in the user's cache (`element_cache`: keyed by the bytes and the
+parser's source; `LEONAV_ELEMENT_CACHE=off` turns it off), so the next parse rebuilds the SGP4
+records from checked lines instead of checking every field again (the same set, warnings included).
 """
 from __future__ import annotations
 
@@ -286,8 +286,28 @@ def parse_elements_text(
     entries whose checksum is wrong but are otherwise valid (hand-edited test sets such as
     Vallado's SGP4-VER.TLE), with a warning listing their lines.
     """
+    if strict_checksum and _cache.wanted(len(text)):    # a large text (the built-in constellations) parsed before
+        return _parse_cached(text.encode("utf-8", errors="replace"), source, stale_after_days, constellation,
+                             stacklevel=4)
     entries, rejected, kind = _parse_text(text, source, strict_checksum)
     return _element_set(entries, rejected, kind, source, stale_after_days, constellation, stacklevel=4)
+
+
+def _parse_cached(data: bytes, source: str, stale_after_days: float, constellation: str | None,
+                  stacklevel: int) -> ElementSet:
+    """Parse element bytes (strict checksums; bad bytes become U+FFFD, their entries rejected)
+    through the element cache: the same bytes parsed before come from it, a TLE/3LE text is stored."""
+    hit = _cache.lookup(key := _cache.cache_key(data, {"strict_checksum": True}))
+    if hit is None:
+        entries, rejected, kind = _parse_text(data.decode("utf-8", errors="replace"), source, True)
+        if kind == "TLE/3LE":
+            _cache.store(key, [(e[0], e[1], e[2], e[5], e[6], e[7]) for e in entries],
+                         [(r.line, r.name, r.reason) for r in rejected])
+    else:
+        entries = [(name, norad, epoch, satrec, f"{source}:{line}") for name, norad, epoch, satrec, line in hit[0]]
+        rejected = [RejectedEntry(source, line, name, reason) for line, name, reason in hit[1]]
+        kind = "TLE/3LE"
+    return _element_set(entries, rejected, kind, source, stale_after_days, constellation, stacklevel=stacklevel + 1)
 
 
 def _parse_text(text: str, source: str, strict_checksum: bool) -> tuple[list[tuple], list[RejectedEntry], str]:
@@ -357,29 +377,17 @@ def load_elements(
     source = str(path)
     # a TLE/3LE file parsed before (same bytes, same parser) comes from the element cache; not with
     # strict_checksum=False, whose entries with a bad checksum are announced at every load
-    key = _cache.cache_key(data, {"strict_checksum": True}) if strict_checksum and _cache.wanted(len(data)) else None
-    hit = _cache.lookup(key) if key else None
-    if hit is not None:
-        cached, cached_rejected = hit
-        entries = [(name, norad, epoch, satrec, f"{source}:{line}") for name, norad, epoch, satrec, line in cached]
-        rejected = [RejectedEntry(source, line, name, reason) for line, name, reason in cached_rejected]
-        return _element_set(entries, rejected, "TLE/3LE", source, stale_after_days, constellation, stacklevel=3)
+    if strict_checksum and _cache.wanted(len(data)):
+        return _parse_cached(data, source, stale_after_days, constellation, stacklevel=3)
     text = data.decode("utf-8", errors="replace")  # bad bytes become U+FFFD: their entries are rejected
     del data
     entries, rejected, kind = _parse_text(text, source, strict_checksum)
-    es = _element_set(entries, rejected, kind, source, stale_after_days, constellation, stacklevel=3)
-    if key and kind == "TLE/3LE":
-        _cache.store(key, [(e[0], e[1], e[2], e[5], e[6], e[7]) for e in entries],
-                     [(r.line, r.name, r.reason) for r in rejected])
-    return es
+    return _element_set(entries, rejected, kind, source, stale_after_days, constellation, stacklevel=3)
 
 
 def load_element_files(paths: Sequence[str | Path], option: str = "--tle") -> ElementSet | None:
-    """Load and concatenate several element files (None for no paths).
-
-    `option` names the command-line option in errors (a missing file, or files that give
-    no usable element set).
-    """
+    """Load and concatenate several element files (None for no paths); `option` names the
+    command-line option in errors (a missing file, or files that give no usable element set)."""
     es = None
     for path in paths:
         if not Path(path).is_file():
