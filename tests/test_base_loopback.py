@@ -37,6 +37,19 @@ def _start_base(folder, *extra):
     return base, m.group(1)
 
 
+def _stop_base(base, timeout: float = 30.0) -> int:
+    """SIGINT to the base, then its exit code; its pipes are drained meanwhile (an undrained pipe
+    could hold a process that writes), and a base that does not stop fails with its stderr."""
+    base.send_signal(signal.SIGINT)
+    try:
+        base.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        base.kill()
+        _, err = base.communicate()
+        pytest.fail(f"leonav base did not stop within {timeout:g} s of SIGINT; stderr: {err[-2000:]}")
+    return base.returncode
+
+
 def _nav(folder, out, *extra, timeout=120):
     r = subprocess.run(CLI + ["nav", "--from", str(folder / "p" / "rover"), "--out", str(out), "--mode",
                               "leo-alpha+imu", "--nmea-port", "0", *extra],
@@ -102,8 +115,8 @@ def test_corrections_applied_over_loopback_reduce_the_error_against_truth(pair, 
     try:
         r, res = _nav(folder, tmp_path / "nav", "--corrections", address)
     finally:
-        base.send_signal(signal.SIGINT)
-        base.wait(timeout=10)
+        code = _stop_base(base)
+    assert code == 130                               # SIGINT: the documented exit status
     assert r.returncode == 0, r.stderr[-2000:]
     corr = res["corrections"]
     assert corr["counts"]["doppler_rate_applied"] > 0 and corr["link"]["connects"] == 1

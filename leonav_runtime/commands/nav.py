@@ -145,9 +145,9 @@ def _max_age(args: argparse.Namespace) -> float | None:
 
 
 def options_from_args(args: argparse.Namespace):
-    from leonav_runtime.nav.navigator import NavConfig
+    from leonav_runtime.nav.navigator import NavConfig, nav_mode
     from leonav_runtime.nav.road import RoadConfig
-    from leonav_runtime.nav.run import NavOptions, nav_mode
+    from leonav_runtime.nav.run import NavOptions
 
     if args.session is not None and (args.gnss or args.imu or args.sdr is not None):
         raise UserInputError("nav: --from SESSION plays back a session; do not give --gnss/--imu/--sdr with it")

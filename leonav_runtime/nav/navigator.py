@@ -28,12 +28,12 @@ from leonav.hardware.session_files import LostWrites
 from leonav_runtime.common.output import write_csv
 from leonav_runtime.core import filter as lfilter
 from leonav_runtime.inputs.corrections import LOG_COLUMNS
-from leonav_runtime.core import navfuncs, records
+from leonav_runtime.core import model, navfuncs, records
 from leonav_runtime.nav.outputs import COLUMNS_TEXT, Decimator, LiveOutputs, TrajectoryWriter, solution_of
 from leonav_runtime.nav.road import RoadConfig, StreamingRoad
 from leonav_runtime.nav.status import StatusLine, format_status
 from leonav_runtime.nav.stepper import LagStepper
-from leonav_runtime.replay.options import latency_estimate, replay_mode
+from leonav_runtime.replay.options import latency_estimate
 from leonav_runtime.replay.timebase import utc_of
 
 LATENCY_KEEP = 200_000        # latency samples kept for the run's percentiles (ring)
@@ -52,6 +52,17 @@ class NavConfig:
     imu_timeout_s: float = 1.0
 
 
+def navigable(o) -> bool:
+    """What live navigation fuses with the IMU: the receiver's fixes, the beacons' Doppler-rate and
+    their tracked carrier phase (no raw GNSS observations: the road has no pseudorange stream)."""
+    return o.stream in ("fix", "doppler_rate", "carrier_phase")
+
+
+def nav_mode(name: str) -> model.Mode:
+    """The mode of --mode, or a UserInputError naming the option."""
+    return model.parse_mode(name, navigable, "--mode")
+
+
 class Navigator:
     def __init__(self, cfg: NavConfig, out_dir: Path, outputs: LiveOutputs | None = None,
                  status: StatusLine | None = None, nav: navfuncs.NavFunctions | None = None,
@@ -60,7 +71,7 @@ class Navigator:
         its state to the status line, events and nav.json; it is started here and stopped in finish.
         operator: an `orbits.operator_folder.OperatorFolder` (--operator-ephemerides), to the road."""
         self.cfg = cfg
-        cfg.road.streams = replay_mode(cfg.mode).streams
+        cfg.road.streams = nav_mode(cfg.mode).streams
         self.nav = nav or navfuncs.NavFunctions()
         self.corrections = corrections
         self.operator = operator

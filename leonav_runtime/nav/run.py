@@ -172,10 +172,10 @@ def _beacons(opts: NavOptions, record_dir: Path | None, operator=None):
     from leonav_runtime.nav.beacon_feed import BeaconFeed, capture_meta, carrier
     from leonav_runtime.nav.beacon_process import BeaconProcess
     from leonav_runtime.orbits.elements import load_element_files
-    from leonav_runtime.replay.options import replay_mode
+    from leonav_runtime.nav.navigator import nav_mode
 
     default = (None, STARLINK_BEACON_HZ, "default (no Starlink capture)")
-    streams = replay_mode(opts.nav.mode).streams
+    streams = nav_mode(opts.nav.mode).streams
     if "doppler_rate" not in streams and "carrier_phase" not in streams:
         return default
     phase = "carrier_phase" in streams
@@ -217,8 +217,11 @@ def preload(opts: NavOptions, beacons) -> dict:
         from leonav_runtime.orbits import eop            # process, and its predictions read the EOP table
 
         eop.default_table()     # a missing or bad table is an error now rather than in the middle of the run
-        if not opts.tle_files:      # the built-in Starlink set is made once the road starts
+        if not opts.tle_files:      # the built-in Starlink set is made once the road starts, parsed in
+            from leonav_runtime.orbits import element_cache  # full: the element cache would open files
             from leonav_runtime.simulation import session_synth  # noqa: F401
+
+            element_cache.turn_off_in_this_process()
     else:       # the beacon process is spawned in the run; an SDR thread records the capture and
         import multiprocessing.popen_spawn_posix  # noqa: F401  (writes its SigMF metadata at the start and end)
         import mmap  # noqa: F401  (numpy.memmap imports it on first use: sigmf maps the data file)
@@ -335,27 +338,14 @@ def _run_locked(opts: NavOptions, out: Path, on_started: Callable[[], None] | No
     return result
 
 
-def navigable(o) -> bool:
-    """What live navigation fuses with the IMU: the receiver's fixes, the beacons' Doppler-rate and
-    their tracked carrier phase (no raw GNSS observations: the road has no pseudorange stream)."""
-    return o.stream in ("fix", "doppler_rate", "carrier_phase")
-
-
-def nav_mode(name: str):
-    """The mode (`model.Mode`) of --mode, or a UserInputError naming the option."""
-    from leonav_runtime.core import model
-
-    return model.parse_mode(name, navigable, "--mode")
-
-
 def _operator(opts: NavOptions):
     """The operator-ephemeris folder (--operator-ephemerides), checked now, or None."""
     if opts.operator_ephemerides is None:
         return None
+    from leonav_runtime.nav.navigator import nav_mode
     from leonav_runtime.orbits.operator_folder import OperatorFolder
-    from leonav_runtime.replay.options import replay_mode
 
-    if not {"doppler_rate", "carrier_phase"} & set(replay_mode(opts.nav.mode).streams):
+    if not {"doppler_rate", "carrier_phase"} & set(nav_mode(opts.nav.mode).streams):
         raise UserInputError(f"--operator-ephemerides: mode {opts.nav.mode} measures no Starlink satellite "
                              "(it needs a Starlink mode such as fix+leo-alpha+imu or leo-phase+imu)")
     return OperatorFolder(opts.operator_ephemerides)

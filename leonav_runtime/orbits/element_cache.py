@@ -35,9 +35,19 @@ _PARSER_FILES = ("elements.py", "tle.py", "element_checks.py", "element_cache.py
 _log = logging.getLogger("leonav.orbits")
 
 
+_OFF_IN_PROCESS = False
+
+
+def turn_off_in_this_process() -> None:
+    """No cache from here on in this process: a server that must open no file once it serves
+    (`leonav nav`) parses its built-in element sets in full instead."""
+    global _OFF_IN_PROCESS
+    _OFF_IN_PROCESS = True
+
+
 def wanted(size_bytes: int) -> bool:
     """Whether a file of this size goes through the cache (a folder is set and it is not small)."""
-    return size_bytes >= MIN_BYTES and cache_dir() is not None
+    return size_bytes >= MIN_BYTES and not _OFF_IN_PROCESS and cache_dir() is not None
 
 
 def cache_dir() -> Path | None:
