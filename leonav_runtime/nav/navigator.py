@@ -92,6 +92,7 @@ class Navigator:
         ids = self.nav.library.meas_ids
         self.fix_kinds = {int(ids[k]) for k in ("pos_e", "pos_n", "pos_u")}
         self.dr_kind = int(ids["doppler_rate"])
+        self.leo_kinds = [int(ids[k]) for k in ("doppler_rate", "carrier_phase")]   # the status line's Starlink
         self.t0_mono = time.monotonic()
         self.events: list[dict] = []
         self.faults: dict[str, str] = {}          # device -> what is wrong now
@@ -137,10 +138,10 @@ class Navigator:
         if kind in self.lost:
             return
         self.lost[kind] = reason
-        what = {"gnss": "GNSS lost: going on with the IMU" + (" and Starlink" if "doppler_rate" in
-                                                               self.cfg.road.streams else "") + ", sigma grows",
+        leo = {"doppler_rate", "carrier_phase"} & set(self.cfg.road.streams)
+        what = {"gnss": "GNSS lost: going on with the IMU" + (" and Starlink" if leo else "") + ", sigma grows",
                 "imu": "IMU lost: not predicting any more",
-                "sdr": "SDR lost: no more Doppler-rate"}.get(kind, f"{kind} lost")
+                "sdr": "SDR lost: no more Starlink measurements"}.get(kind, f"{kind} lost")
         self.faults[kind] = f"{kind.upper()} LOST"
         self.event(f"{what} ({reason})", "device_lost")
 
@@ -171,19 +172,19 @@ class Navigator:
 
     def _settled(self, settled) -> None:
         self.trajectory.add(settled, self.road.epoch_unix, self.road.origin, self.fix_kinds, self.dr_kind)
-        dr = (settled.recs["kind"] == self.dr_kind) & (settled.status == lfilter.STATUS_APPLIED)
+        dr = np.isin(settled.recs["kind"], self.leo_kinds) & (settled.status == lfilter.STATUS_APPLIED)
         self._dr_settled.extend(zip(settled.recs["t"][dr].tolist(), settled.recs["sat_id"][dr].tolist()))
         while self._dr_settled and self._dr_settled[0][0] < settled.recs["t"][-1] - 10.0:
             self._dr_settled.popleft()
 
     def _window_counts(self, t_head: float) -> tuple[int, int, int]:
-        """(fix epochs applied in the last second, Doppler-rate records applied in the last 10 s and
-        their satellites), from the lag window and the records that left it."""
+        """(fix epochs applied in the last second, Starlink records (Doppler-rate, carrier phase)
+        applied in the last 10 s and their satellites), from the lag window and the records that left it."""
         recs, status = self.stepper.window()
         ok = status == lfilter.STATUS_APPLIED
         t = recs["t"]
         n_fix = int(np.sum(ok & (t > t_head - 1.0) & np.isin(recs["kind"], list(self.fix_kinds)))) // 3
-        dr = ok & (recs["kind"] == self.dr_kind) & (t > t_head - 10.0)
+        dr = ok & np.isin(recs["kind"], self.leo_kinds) & (t > t_head - 10.0)
         old = [sat for (t_dr, sat) in self._dr_settled if t_dr > t_head - 10.0]
         return n_fix, int(dr.sum()) + len(old), len(set(recs["sat_id"][dr].tolist()) | set(old))
 

@@ -1,8 +1,8 @@
 """The one-line terminal status of `leonav nav` (stderr), and the run's event messages.
 
 On a terminal the line is rewritten in place (at most `refresh_s` apart): mode, position
-sigma (3D, horizontal), GNSS fixes applied in the last second, Starlink Doppler-rate records
-(and satellites) in the last 10 s, latency from an IMU packet's arrival to the updated
+sigma (3D, horizontal), GNSS fixes applied in the last second, Starlink records (Doppler-rate
+and carrier phase) and their satellites in the last 10 s, latency from an IMU packet's arrival to the updated
 solution (median / 99th percentile over the last second), bytes rejected as garbage, and any
 fault. Elsewhere (a log, systemd's journal) the same line is printed as its own line every
 `log_every_s`. Events (a device lost, GNSS back, the start) are printed as lines above it.
