@@ -149,3 +149,20 @@ def test_a_tone_whose_ridge_is_gone_is_no_longer_tracked(capture):
         if bs.t_data < TONE_GONE_S - 0.5:
             assert 99 in bs.carrier.tones
     assert 99 not in bs.carrier.tones and bs.counts["tones_stopped"] == 1
+
+
+def test_a_tone_stopped_before_its_first_epochs_leaves_the_counts_whole(capture):
+    t = np.arange(-2 * AID_STEP_S, capture.cfg.duration_s + 3 * AID_STEP_S, AID_STEP_S)
+    sc = StreamingCarrier(capture.sample_rate_hz)
+    chunk = 24_000
+    for k in range(0, capture.iq.size, chunk):
+        if k == 10 * chunk:
+            for i in range(2):
+                sc.start_tone(i, 100 + i, Aiding(t, capture.predicted_baseband(t, i, 0.05, 5.0)[0], f"tone {i}"))
+        if k == 12 * chunk:
+            sc.stop_tone(1)          # 0.2 s after joining: before any of its epochs was final
+        sc.push(capture.iq[k:k + chunk])
+        sc.take()
+    sc.take(final=True)
+    c = sc.counts
+    assert c["tones"] == 1 and c["differences"] + sum(c["breaks"].values()) == c["epochs"] - c["tones"]

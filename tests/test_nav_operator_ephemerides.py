@@ -125,3 +125,24 @@ def test_the_live_beacon_process_takes_the_states_from_the_files(pair, tmp_path)
         assert np.all(np.abs(moved - 3000.0) < 20.0), moved    # every satellite from its file, 3 km along
         assert set(a[6]) == set(int(i) for i in a[2])          # the names ride along for the road's files
     assert summary["counts"]["states_from_operator_files"] == sum(t[1].size for t in ahead)
+
+
+def test_the_folder_reads_each_satellite_once_and_keeps_each_refusal_once(pair):
+    from leonav_runtime.orbits.operator_folder import OperatorFolder
+
+    base, n_files = pair
+    manifest = (base / "files" / "MANIFEST.txt").read_text()
+    bad = base / "files-bad-line"
+    bad.mkdir(exist_ok=True)
+    for p in (base / "files").glob("MEME_*.txt"):
+        (bad / p.name).write_bytes(p.read_bytes())
+    (bad / "MANIFEST.txt").write_text(manifest + "sub/elsewhere.txt\n")
+    folder = OperatorFolder(bad)
+    names = sorted(folder.listed)
+    assert len(names) == n_files
+    for k, name in enumerate(names):           # satellites met one by one, and again
+        assert folder.ensure({k: name}) == [name]
+        assert folder.ensure({k: name}) == []
+    assert folder.ensure({99999: "STARLINK-NOFILE"}) == []
+    assert folder.counts == {"satellites_with_file": n_files, "satellites_without_file": 1, "files_refused": 0}
+    assert len(folder.set.rejected) == 1 and "sub/elsewhere.txt" in folder.set.rejected[0][1]

@@ -71,13 +71,12 @@ class StreamingCarrier:
         self.norad[key] = int(norad_id)
         first = k0 * m / self.fs
         self._next_epoch[key] = int(math.floor(first / self.cfg.epoch_s)) + 1
-        self.counts["tones"] += 1
 
     def stop_tone(self, key: int) -> None:
         """No longer track tone `key` (its satellite has gone); its last epochs are not given."""
         for d in (self.tones, self.norad, self._next_epoch):
             d.pop(key, None)
-        self._given.discard(key)
+        self._given.discard(key)    # started again later, it is a new tone with a first window
 
     def set_aiding(self, key: int, aiding: Aiding) -> None:
         """A longer aiding curve for a tracked tone (the predictions reach further)."""
@@ -112,12 +111,15 @@ class StreamingCarrier:
             # every pair of the window ends at a new epoch (the repeated one starts the window)
             out += [StreamedDifference(float(t), float(i), key, self.norad[key], float(z), float(s))
                     for t, i, z, s in zip(d.t, d.interval_s, d.z_cycles, d.sigma_cycles)]
-            # the window's first epoch was counted by the window before it (a tone's first window: not)
+            # the window's first epoch was counted by the window before it; a tone is counted with its
+            # first window (one stopped before it gave none: pairs = epochs - tones holds)
             self.counts["epochs"] += n - (1 if key in self._given else 0)
-            self._given.add(key)
+            if key not in self._given:
+                self.counts["tones"] += 1
+                self._given.add(key)
             for r in BREAK_REASONS:
                 self.counts["breaks"][r] += d.counts["breaks"][r]
-            self._next_epoch[key] = e_ready + 1
+            self._next_epoch[key] = int(round(tr.t_s[-1] / self.cfg.epoch_s)) + 1   # the prompts may end sooner
             tone.trim(int((e_ready * self.cfg.epoch_s - self.keep_s) * tone.front.sub_rate_hz))
         self.counts["differences"] += len(out)
         return out

@@ -85,7 +85,7 @@ def emitted_table(emitted: list, start_unix: float, epoch_unix: float, elements,
 
 
 def emitted_phase_table(diffs: list, tones: dict, start_unix: float, epoch_unix: float, elements, origin,
-                        operator=None):
+                        operator=None, stats: dict | None = None):
     """`inputs.CarrierPhaseTable` of streamed phase differences (`beacon_stream.BeaconStream.take_phase`)
     on the road's axis: each tone referred to the channel centre and its satellite's states at both
     ends of the interval, as the replay makes them (`replay.beacon_table.carrier_phase_table`);
@@ -104,9 +104,11 @@ def emitted_phase_table(diffs: list, tones: dict, start_unix: float, epoch_unix:
     if operator is not None:
         operator.ensure({int(d.norad_id): str(elements.names[r]).strip() for d, r in zip(diffs, rows)})
         files = operator.set if operator.set.ephemerides else None
+        if files is None and stats is not None:
+            stats["states_from_element_sets"] = stats.get("states_from_element_sets", 0) + int(t.size)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return carrier_phase_table(pm, elements, utc_of(epoch_unix), geodetic_to_ecef(*origin), files)
+        return carrier_phase_table(pm, elements, utc_of(epoch_unix), geodetic_to_ecef(*origin), files, stats=stats)
 
 
 def phase_names(diffs: list, tones: dict, elements) -> dict[int, str]:
@@ -195,7 +197,7 @@ class BeaconFeed:
         road = navigator.road
         if diffs and road.started and math.isfinite(self.start_unix):
             table = emitted_phase_table(diffs, self.stream.tones, self.start_unix, road.epoch_unix, self.elements,
-                                        road.origin, self.operator)
+                                        road.origin, self.operator, self.counts)
             self.counts["phase_tables"] = self.counts.get("phase_tables", 0) + 1
             self.counts["phase_differences"] = self.counts.get("phase_differences", 0) + int(table.t.size)
             navigator.on_carrier_phase(table)

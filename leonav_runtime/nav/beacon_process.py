@@ -89,7 +89,8 @@ def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigm
                             tab.sat_ecef, emitted_names(emitted, elements)))
             diffs = stream.take_phase()
             if diffs and math.isfinite(epoch_unix):
-                tab = emitted_phase_table(diffs, stream.tones, start_unix, epoch_unix, elements, site_origin, operator)
+                tab = emitted_phase_table(diffs, stream.tones, start_unix, epoch_unix, elements, site_origin, operator,
+                                          counts)
                 counts["phase_differences"] = counts.get("phase_differences", 0) + int(tab.t.size)
                 outbox.put(("phase", tab, phase_names(diffs, stream.tones, elements)))
     except Exception as exc:      # the navigator goes on without Doppler-rate, and says why

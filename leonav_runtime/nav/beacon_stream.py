@@ -158,6 +158,7 @@ class BeaconStream:
         self.tones: dict[int, tuple[int, int, float]] = {}   # ridge id -> (norad, element row, tone offset Hz)
         self._aid_offset: dict[int, float] = {}              # ridge id -> aiding's constant (Hz)
         self._gone_since: dict[int, float] = {}              # tracked tone -> when its ridge ended (s)
+        self._ended: set[int] = set()                        # ridges stopped or left out: not started again
 
     def set_site(self, site, start_utc: _dt.datetime) -> None:
         """The receiver's site and the capture's first-sample UTC (needed to associate)."""
@@ -195,17 +196,24 @@ class BeaconStream:
 
     def _stop_gone_tones(self) -> None:
         """Stop tracking a tone whose ridge the STFT tracker has let go of for `TONE_GONE_S` (the
-        satellite set or faded): a live run meets a new satellite every few minutes."""
+        satellite set or faded; a live run meets a new satellite every few minutes), or whose
+        aiding ends within a second (its satellite left the predictions)."""
         alive = {entry[1] for entry in self._ids.values()}
         for key in list(self.carrier.tones):
-            if key in alive:
+            if self.carrier.tones[key].front.aiding.t_s[-1] < self.t_data + 1.0:
+                self._stop(key)
+            elif key in alive:
                 self._gone_since.pop(key, None)
-                continue
-            since = self._gone_since.setdefault(key, self.t_data)
-            if self.t_data - since >= TONE_GONE_S:
-                self.carrier.stop_tone(key)
-                self._gone_since.pop(key)
-                self.counts["tones_stopped"] += 1
+            elif self.t_data - self._gone_since.setdefault(key, self.t_data) >= TONE_GONE_S:
+                self._stop(key)
+
+    def _stop(self, key: int) -> None:
+        """A tracked tone ends for good (its ridge is not started again)."""
+        self.carrier.stop_tone(key)
+        for d in (self.tones, self._aid_offset, self._gone_since):
+            d.pop(key, None)
+        self._ended.add(key)
+        self.counts["tones_stopped"] += 1
 
     def _rid(self, tr) -> int:
         entry = self._ids.get(id(tr))
@@ -301,9 +309,10 @@ class BeaconStream:
         t = np.arange(max(0.0, self._pred_span[0]), self._pred_span[1], AID_STEP_S)
         if t.size < 4:
             return
-        curves = None
+        curves = pred.at(t)[0]
+        updated = set()
         for a in ca.associations:
-            if a.status != "associated" or a.sat_row < 0 or a.tone_index is None:
+            if a.status != "associated" or a.sat_row < 0 or a.tone_index is None or a.ridge_id in self._ended:
                 continue
             tr = tracks.get(a.ridge_id)
             offset = self._aid_offset.get(a.ridge_id)
@@ -313,22 +322,28 @@ class BeaconStream:
                 on_ridge = pred.at(np.asarray(tr.t))[0][a.sat_row]
                 # fixed once the tone is tracked: a new median each second (the LO drifts under it)
                 # would step the aiding's frequency, and each step is a transient in the loop
-                offset = self._aid_offset[a.ridge_id] = float(np.median(np.asarray(tr.f) - on_ridge))
-            curves = pred.at(t)[0] if curves is None else curves
+                offset = float(np.median(np.asarray(tr.f) - on_ridge))
             aid = Aiding(t, curves[a.sat_row] + offset, f"ridge {a.ridge_id} ({a.name})")
+            updated.add(a.ridge_id)
             if a.ridge_id in self.tones:
                 self.carrier.set_aiding(a.ridge_id, aid)
-            elif np.max(np.abs(aid.f_hz)) > MAX_TONE_FRACTION * self.fs:   # beyond the band the front end holds
-                self._aid_offset.pop(a.ridge_id)
+            elif not np.all(np.abs(aid.f_hz[t >= self.t_data]) <= MAX_TONE_FRACTION * self.fs):  # beyond the
+                self._ended.add(a.ridge_id)                                                    # front end's band
                 self.counts["tones_left_out"] += 1
             else:
                 tone = (a.norad_id, int(pred.sat_index[a.sat_row]), a.tone_index * spacing)
-                for old in [k for k, v in self.tones.items() if v == tone and k in self.carrier.tones]:
-                    self.carrier.stop_tone(old)      # a new ridge of the same tone: one phase per tone
-                    self.counts["tones_stopped"] += 1
+                for old in [k for k, v in self.tones.items() if v == tone]:
+                    self._stop(old)                  # a new ridge of the same tone: one phase per tone
                 self.tones[a.ridge_id] = tone
+                self._aid_offset[a.ridge_id] = offset
                 self.carrier.start_tone(a.ridge_id, a.norad_id, aid)
                 self.counts["tones_tracked"] += 1
+        # a tracked tone whose ridge is not associated this time keeps its aiding up to date by its
+        # satellite (element row); one whose satellite left the predictions stops when its aiding ends
+        for key, (_, row, _) in self.tones.items():
+            rows = np.flatnonzero(pred.sat_index == row)
+            if key not in updated and rows.size:
+                self.carrier.set_aiding(key, Aiding(t, curves[rows[0]] + self._aid_offset[key], f"ridge {key}"))
 
     def _trim(self) -> None:
         s = self.settings

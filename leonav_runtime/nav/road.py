@@ -21,7 +21,6 @@ import collections
 import dataclasses
 import datetime as _dt
 import math
-import warnings
 
 import numpy as np
 
@@ -206,26 +205,25 @@ class StreamingRoad:
             else:
                 roll = self._roll_table()
                 f_b, span = averaged_specific_force(roll.dvel_b, roll.dt)
+                consider, provider = self._consider(table)
                 self._out.append(satellite_records(table, roll, f_b, span, self.params, self.nav,
-                                                   self._consider(table), self.inputs.x0,
-                                                   corrections=self.corrections))
+                                                   consider, self.inputs.x0, corrections=self.corrections))
+                if provider is not None:    # covered: a file for the satellite over the record's time
+                    missing = provider.uncovered_records
+                    self.counts[f"{stream}_operator_covariance"] += int(table.t.size) - missing
+                    self.counts[f"{stream}_without_operator_covariance"] += missing
             self.counts[f"{stream}_released"] += 1
 
     def _consider(self, table):
         """The operator files' covariance as the table's consider term (None without files); records
         whose satellite has no covering file keep their R and are counted."""
         if self.operator is None or not self.operator.set.ephemerides:
-            return None
+            return None, None
         from leonav_runtime.inputs.consider import OrbitConsider
         from leonav_runtime.orbits.operator_consider import OperatorCovariance
 
-        with warnings.catch_warnings():      # uncovered records are counted, not warned per table
-            warnings.simplefilter("ignore")
-            provider = OperatorCovariance(self.operator.set, self.epoch_utc, self.operator.ids_to_names)
-            covered = np.isin(table.sat_id, list(provider.ids_to_names))
-        self.counts["doppler_rate_operator_covariance"] += int(covered.sum())
-        self.counts["doppler_rate_without_operator_covariance"] += int((~covered).sum())
-        return OrbitConsider({}, covariance={table.KIND: provider})
+        provider = OperatorCovariance(self.operator.set, self.epoch_utc, self.operator.ids_to_names, quiet=True)
+        return OrbitConsider({}, covariance={table.KIND: provider}), provider
 
     @property
     def pending(self) -> int:

@@ -63,14 +63,16 @@ class OperatorCovariance:
     times are seconds since `epoch_utc` (UTC), like the records'."""
 
     def __init__(self, ephemerides: OperatorEphemerisSet, epoch_utc: _dt.datetime, ids_to_names: dict[int, str],
-                 *, eop: EopTable | None = None, match_m: float = 50e3) -> None:
+                 *, eop: EopTable | None = None, match_m: float = 50e3, quiet: bool = False) -> None:
+        """quiet: records without a covering file are only counted (`uncovered_records`), not
+        announced (a caller that makes a provider per record counts them itself)."""
         self.ephemerides = ephemerides
         self.epoch_utc = epoch_utc
         self.ids_to_names = {i: n for i, n in ids_to_names.items() if n in ephemerides.ephemerides}
         self.eop = eop
         self.match_m = match_m
         self.uncovered_records = 0       # per distinct request (repeats come from the memo)
-        self._warned = False
+        self._warned = quiet
         self._memo: dict[bytes, np.ndarray] = {}
 
     def _states(self, names: list[str], t_s: np.ndarray):

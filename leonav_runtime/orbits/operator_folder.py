@@ -68,7 +68,8 @@ class OperatorFolder:
             if got is not None:
                 loaded = [n for n in got.ephemerides if n not in self.set.ephemerides]
                 self.set.ephemerides.update({n: got.ephemerides[n] for n in loaded})
-                self.set.rejected.extend(got.rejected)
+                # the folder's own refusals (a bad MANIFEST line) come with every read: kept once
+                self.set.rejected.extend(r for r in got.rejected if r not in self.set.rejected)
             refused = len(wanted) - len(loaded)
             self.counts["files_refused"] += refused
         self.counts["satellites_with_file"] = len(self.set.ephemerides)

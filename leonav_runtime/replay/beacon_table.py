@@ -276,7 +276,7 @@ def _states(elements, idx: int, epoch_utc: _dt.datetime, t: np.ndarray, operator
 
 
 def carrier_phase_table(pm: PhaseMeasurements, elements, epoch_utc: _dt.datetime, origin_ecef_m,
-                        operator=None, notes: list[str] | None = None) -> CarrierPhaseTable:
+                        operator=None, notes: list[str] | None = None, stats: dict | None = None) -> CarrierPhaseTable:
     """The phase differences with each satellite's ECEF state at t and position at
     t - interval (SGP4, or the operator's file where it covers both: `doppler_rate_table`'s
     propagation), each tone referred to the channel centre with the range change predicted
@@ -293,6 +293,9 @@ def carrier_phase_table(pm: PhaseMeasurements, elements, epoch_utc: _dt.datetime
             both = np.concatenate([d.t[sel], d.t_prev[sel]])
             st, used = _states(elements, int(idx), epoch_utc, both, operator)
             from_files += int(used)
+            if stats is not None and operator is not None:   # as doppler_rate_table's, per measurement
+                key = "states_from_operator_files" if used else "states_from_element_sets"
+                stats[key] = stats.get(key, 0) + int(sel.sum())
             m = int(sel.sum())
             sat[sel, SAT_R_M], sat[sel, SAT_V_MPS], sat[sel, SAT_A_MPS2] = (st.r_ecef_m[0][:m], st.v_ecef_mps[0][:m],
                                                                            st.a_ecef_mps2[0][:m])
