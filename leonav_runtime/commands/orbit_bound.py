@@ -62,9 +62,9 @@ def run(args: argparse.Namespace) -> int:
     count = int(args.count if args.count is not None else max(scn.starlink["counts"]))
     if count < 1:
         raise UserInputError(f"--count {count}: expected at least 1 satellite")
-    age_h = 24.0 * scn.realism["ephemeris"]["element_age_days"]
-    cases = [("true orbits", None), (f"offsets estimated, element sets {age_h:g} h old",
-                                     starlink_sigma_rac(scn.realism["ephemeris"]))]
+    age_h = max(24.0 * scn.realism["ephemeris"]["element_age_days"], 1.0)   # the sigma model's own floor
+    sig = starlink_sigma_rac(scn.realism["ephemeris"])
+    cases = [("true orbits", None), (f"offsets estimated, element sets {age_h:g} h old", sig)]
     cases += [(f"offsets estimated, prior {s[0]:g}/{s[1]:g}/{s[2]:g} m", s) for s in extra]
     out_dir = output.results_dir(args.out, f"orbit-bound-{scn.name}")
     print(f"{scn.name}: {args.mode}, {count} satellites, {scn.duration_s:g} s")
