@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 import signal
 import subprocess
@@ -29,24 +30,30 @@ def pair(tmp_path_factory):
 
 
 def _start_base(folder, *extra):
+    # PYTHONFAULTHANDLER: a base that does not stop is sent SIGABRT and shows where its threads are
     base = subprocess.Popen(CLI + ["base", "--simulate", str(folder / "p"), "--listen", "127.0.0.1:0", *extra],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONFAULTHANDLER": "1"})
     line = base.stdout.readline()
     m = re.search(r"tcp://(127\.0\.0\.1:\d+)", line)
     assert m, (line, base.stderr.read() if base.poll() is not None else "")
     return base, m.group(1)
 
 
-def _stop_base(base, timeout: float = 30.0) -> int:
-    """SIGINT to the base, then its exit code; its pipes are drained meanwhile (an undrained pipe
-    could hold a process that writes), and a base that does not stop fails with its stderr."""
-    base.send_signal(signal.SIGINT)
+def _stop_base(base, timeout: float = 30.0, sig=signal.SIGINT) -> int:
+    """A signal (SIGINT) to the base, then its exit code; its pipes are drained meanwhile (an
+    undrained pipe could hold a process that writes), and a base that does not stop fails with its stderr."""
+    base.send_signal(sig)
     try:
         base.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
-        base.kill()
-        _, err = base.communicate()
-        pytest.fail(f"leonav base did not stop within {timeout:g} s of SIGINT; stderr: {err[-2000:]}")
+        base.send_signal(signal.SIGABRT)        # the fault handler prints every thread's stack
+        try:
+            _, err = base.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            base.kill()
+            _, err = base.communicate()
+        pytest.fail(f"leonav base did not stop within {timeout:g} s of signal {sig}; stderr: {err[-4000:]}")
     return base.returncode
 
 
@@ -203,3 +210,9 @@ def test_rover_falls_back_cleanly_when_the_base_is_killed(tmp_path):
     assert corr["link"]["connect_failures"] >= 1             # it kept trying
     assert "went away" in err and "fallback" in err
     assert res["trajectory_rows"] > 0
+
+
+def test_sigterm_stops_the_base_with_its_documented_status(pair):
+    folder, _ = pair
+    base, _ = _start_base(folder, "--pace", "fast")
+    assert _stop_base(base, sig=signal.SIGTERM) == 143

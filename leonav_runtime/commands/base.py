@@ -4,7 +4,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import signal
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -135,8 +137,14 @@ def run(args: argparse.Namespace) -> int:
     end_s = args.seconds if args.seconds is not None else (
         corr[-1].t_utc_s - start_utc + 2.0 if args.pace == "realtime" else math.inf)
     k, next_hb = (0 if args.pace == "realtime" else len(lines)), 0.0
+    # SIGINT / SIGTERM set a flag the loop reads: an exception raised at any bytecode could leave the
+    # server's lock held (between its acquire and the with block), and the close would then wait forever
+    stop: list[int] = []
+    in_main = threading.current_thread() is threading.main_thread()    # (handlers only go there)
+    previous = {s: signal.signal(s, lambda signum, _frame: stop.append(signum))
+                for s in (signal.SIGINT, signal.SIGTERM)} if in_main else {}
     try:
-        while (now := time.monotonic() - wall0) < end_s:
+        while not stop and (now := time.monotonic() - wall0) < end_s:
             out = []
             while k < len(lines) and corr[k].t_utc_s <= start_utc + now:
                 out.append(lines[k])
@@ -150,12 +158,13 @@ def run(args: argparse.Namespace) -> int:
                     record.write("".join(out))
                     record.flush()
             time.sleep(0.05)
-    except KeyboardInterrupt:
-        server.close()
-        return 130
     finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         if record:
             record.close()
     server.close()
+    if stop:
+        return 130 if stop[0] == signal.SIGINT else 143
     print(f"leonav base: done; {k} corrections sent; {server.counts}", flush=True)
     return 0
