@@ -33,7 +33,7 @@ from leonav_runtime.nav.outputs import COLUMNS_TEXT, Decimator, LiveOutputs, Tra
 from leonav_runtime.nav.road import RoadConfig, StreamingRoad
 from leonav_runtime.nav.status import StatusLine, format_status
 from leonav_runtime.nav.stepper import LagStepper
-from leonav_runtime.replay.options import latency_estimate
+from leonav_runtime.replay.options import latency_estimate, replayable
 from leonav_runtime.replay.timebase import utc_of
 
 LATENCY_KEEP = 200_000        # latency samples kept for the run's percentiles (ring)
@@ -53,14 +53,19 @@ class NavConfig:
 
 
 def navigable(o) -> bool:
-    """What live navigation fuses with the IMU: the receiver's fixes, the beacons' Doppler-rate and
-    their tracked carrier phase (no raw GNSS observations: the road has no pseudorange stream)."""
-    return o.stream in ("fix", "doppler_rate", "carrier_phase")
+    """What live navigation fuses with the IMU: what a replay does (`replay.options.replayable`)
+    but the raw GNSS observations (the road has no pseudorange stream)."""
+    return replayable(o) and o.table != "gnss_obs"
 
 
 def nav_mode(name: str) -> model.Mode:
     """The mode of --mode, or a UserInputError naming the option."""
     return model.parse_mode(name, navigable, "--mode")
+
+
+def leo_streams(name: str) -> tuple[str, ...]:
+    """The Starlink record streams of nav mode `name` (what needs the beacon capture)."""
+    return tuple(dict.fromkeys(o.stream for o in nav_mode(name).observables if o.source == "leo"))
 
 
 class Navigator:
@@ -92,7 +97,8 @@ class Navigator:
         ids = self.nav.library.meas_ids
         self.fix_kinds = {int(ids[k]) for k in ("pos_e", "pos_n", "pos_u")}
         self.dr_kind = int(ids["doppler_rate"])
-        self.leo_kinds = [int(ids[k]) for k in ("doppler_rate", "carrier_phase")]   # the status line's Starlink
+        self.leo_kinds = [int(ids[o.suffix]) for o in model.OBSERVABLES    # the status line's Starlink
+                          if navigable(o) and o.source == "leo"]
         self.t0_mono = time.monotonic()
         self.events: list[dict] = []
         self.faults: dict[str, str] = {}          # device -> what is wrong now
@@ -138,7 +144,7 @@ class Navigator:
         if kind in self.lost:
             return
         self.lost[kind] = reason
-        leo = {"doppler_rate", "carrier_phase"} & set(self.cfg.road.streams)
+        leo = leo_streams(self.cfg.mode)
         what = {"gnss": "GNSS lost: going on with the IMU" + (" and Starlink" if leo else "") + ", sigma grows",
                 "imu": "IMU lost: not predicting any more",
                 "sdr": "SDR lost: no more Starlink measurements"}.get(kind, f"{kind} lost")

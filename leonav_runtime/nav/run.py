@@ -172,13 +172,13 @@ def _beacons(opts: NavOptions, record_dir: Path | None, operator=None):
     from leonav_runtime.nav.beacon_feed import BeaconFeed, capture_meta, carrier
     from leonav_runtime.nav.beacon_process import BeaconProcess
     from leonav_runtime.orbits.elements import load_element_files
-    from leonav_runtime.nav.navigator import nav_mode
+    from leonav_runtime.nav.navigator import leo_streams
 
     default = (None, STARLINK_BEACON_HZ, "default (no Starlink capture)")
-    streams = nav_mode(opts.nav.mode).streams
-    if "doppler_rate" not in streams and "carrier_phase" not in streams:
+    streams = leo_streams(opts.nav.mode)
+    if not streams:
         return default
-    phase = "carrier_phase" in streams
+    phase = "carrier_phase" in streams     # the tones' carrier is tracked only for a phase mode
     elements = load_element_files(opts.tle_files)     # checked here: a bad file is a clear error at once
     floor = opts.nav.road.doppler_rate_sigma_floor_hz_s
     if opts.session is not None:
@@ -342,10 +342,10 @@ def _operator(opts: NavOptions):
     """The operator-ephemeris folder (--operator-ephemerides), checked now, or None."""
     if opts.operator_ephemerides is None:
         return None
-    from leonav_runtime.nav.navigator import nav_mode
+    from leonav_runtime.nav.navigator import leo_streams
     from leonav_runtime.orbits.operator_folder import OperatorFolder
 
-    if not {"doppler_rate", "carrier_phase"} & set(nav_mode(opts.nav.mode).streams):
+    if not leo_streams(opts.nav.mode):
         raise UserInputError(f"--operator-ephemerides: mode {opts.nav.mode} measures no Starlink satellite "
                              "(it needs a Starlink mode such as fix+leo-alpha+imu or leo-phase+imu)")
     return OperatorFolder(opts.operator_ephemerides)
