@@ -73,15 +73,15 @@ def emitted_table(emitted: list, start_unix: float, epoch_unix: float, elements,
     meas = BeaconMeasurements(t, np.array([e.norad_id for e in emitted], int),
                               np.array([e.sat_index for e in emitted], int),
                               np.array([e.rate_hz_s for e in emitted]), np.array([e.sigma_hz_s for e in emitted]))
-    files = None
-    if operator is not None:
-        operator.ensure(emitted_names(emitted, elements))
-        files = operator.set if operator.set.ephemerides else None
-        if files is None and stats is not None:
-            stats["states_from_element_sets"] = stats.get("states_from_element_sets", 0) + int(t.size)
+    files = None if operator is None else operator.files(emitted_names(emitted, elements))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return doppler_rate_table(meas, elements, utc_of(epoch_unix), sigma_floor_hz_s, files, stats=stats)
+
+
+def phase_names(diffs: list, tones: dict, elements) -> dict[int, str]:
+    """{NORAD id: object name} of streamed phase differences' satellites."""
+    return {int(d.norad_id): str(elements.names[tones[d.key][1]]).strip() for d in diffs}
 
 
 def emitted_phase_table(diffs: list, tones: dict, start_unix: float, epoch_unix: float, elements, origin,
@@ -100,20 +100,10 @@ def emitted_phase_table(diffs: list, tones: dict, start_unix: float, epoch_unix:
                           np.array([d.sigma_cycles for d in diffs]), {})
     rows = np.array([tones[d.key][1] for d in diffs], int)
     pm = PhaseMeasurements(pd, rows, np.array([tones[d.key][2] for d in diffs], float), {})
-    files = None
-    if operator is not None:
-        operator.ensure({int(d.norad_id): str(elements.names[r]).strip() for d, r in zip(diffs, rows)})
-        files = operator.set if operator.set.ephemerides else None
-        if files is None and stats is not None:
-            stats["states_from_element_sets"] = stats.get("states_from_element_sets", 0) + int(t.size)
+    files = None if operator is None else operator.files(phase_names(diffs, tones, elements))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return carrier_phase_table(pm, elements, utc_of(epoch_unix), geodetic_to_ecef(*origin), files, stats=stats)
-
-
-def phase_names(diffs: list, tones: dict, elements) -> dict[int, str]:
-    """{NORAD id: object name} of streamed phase differences' satellites."""
-    return {int(d.norad_id): str(elements.names[tones[d.key][1]]).strip() for d in diffs}
 
 
 class CaptureFile:

@@ -215,9 +215,10 @@ class StreamingRoad:
             self.counts[f"{stream}_released"] += 1
 
     def _consider(self, table):
-        """The operator files' covariance as the table's consider term (None without files); records
-        whose satellite has no covering file keep their R and are counted."""
-        if self.operator is None or not self.operator.set.ephemerides:
+        """The operator files' covariance as the table's consider term, and its provider (None, None
+        without --operator-ephemerides); records whose satellite has no covering file (none read yet
+        included) keep their R and are counted."""
+        if self.operator is None:
             return None, None
         from leonav_runtime.inputs.consider import OrbitConsider
         from leonav_runtime.orbits.operator_consider import OperatorCovariance

@@ -42,6 +42,12 @@ class OperatorFolder:
         self.ids_to_names: dict[int, str] = {}     # NORAD id -> object name of the satellites met
         self.counts = {"satellites_with_file": 0, "satellites_without_file": 0, "files_refused": 0}
 
+    def files(self, ids_to_names: dict[int, str]) -> OperatorEphemerisSet:
+        """The set, after reading the files of these satellites not tried yet (`ensure`): a satellite
+        it does not hold keeps its element-set states and is counted so by the tables' `stats`."""
+        self.ensure(ids_to_names)
+        return self.set
+
     def ensure(self, ids_to_names: dict[int, str]) -> list[str]:
         """Read the files of the satellites ({NORAD id: object name}, the element sets' names) not
         tried yet; returns the names newly loaded."""
