@@ -79,10 +79,16 @@ def moved_states(s, rows: np.ndarray, d_sat: np.ndarray) -> tuple[np.ndarray, np
     sat9 = perturb_states(s.sat_ecef[rows], d_sat)
     if s.sat_prev_r_m is None:
         return sat9, None
-    T = s.interval_s[rows][:, None]
-    v, a = s.sat_ecef[rows, 3:6], s.sat_ecef[rows, 6:9]
-    prev = np.concatenate([s.sat_prev_r_m[rows], v - a * T, a], axis=1)
-    return sat9, perturb_states(prev, d_sat)[:, 0:3]
+    return sat9, moved_start(s.sat_prev_r_m[rows], s.sat_ecef[rows], s.interval_s[rows], d_sat)
+
+
+def moved_start(prev_r: np.ndarray, sat9: np.ndarray, interval_s: np.ndarray, d_sat: np.ndarray) -> np.ndarray:
+    """A time difference's start positions (n, 3) m, ECEF, moved by the offsets d_sat (n, 3) of its
+    end along the same orbit: the start's velocity taken back over the interval (s) with the end's
+    acceleration (sat9 (n, 9): the end's [r v a] on the element orbit)."""
+    v, a = sat9[:, 3:6], sat9[:, 6:9]
+    prev = np.concatenate([prev_r, v - a * np.asarray(interval_s)[:, None], a], axis=1)
+    return perturb_states(prev, d_sat)[:, 0:3]
 
 
 def move_aux(aux: np.ndarray, d_sat: np.ndarray, layout) -> np.ndarray:
@@ -97,9 +103,8 @@ def move_aux(aux: np.ndarray, d_sat: np.ndarray, layout) -> np.ndarray:
     T = aux[:, layout.AUX_DT_PHASE]
     spans = np.flatnonzero(T > 0)
     if spans.size:
-        v, a = sat9[spans, 3:6], sat9[spans, 6:9]
-        prev = np.concatenate([aux[spans, layout.AUX_R_S_PREV_ECEF_SLICE], v - a * T[spans, None], a], axis=1)
-        out[spans, layout.AUX_R_S_PREV_ECEF_SLICE] = perturb_states(prev, d_sat[spans])[:, 0:3]
+        out[spans, layout.AUX_R_S_PREV_ECEF_SLICE] = moved_start(aux[spans, layout.AUX_R_S_PREV_ECEF_SLICE],
+                                                                 sat9[spans], T[spans], d_sat[spans])
     return out
 
 
