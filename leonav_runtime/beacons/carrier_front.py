@@ -108,6 +108,11 @@ class FrontEnd:
         self._b = np.arange(self.s, dtype=np.float32)
         self._a_idx = np.arange(self.a, dtype=np.float32)
 
+    @property
+    def next_sample(self) -> int:
+        """Capture index of the next sample this front end takes (whole blocks made, plus the pending ones)."""
+        return self.k * self.m + self._rest.size
+
     def feed(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(y complex64, Phi_k cycles at each block start, f_k Hz) for the whole blocks available."""
         parts = []

@@ -86,8 +86,7 @@ class StreamingCarrier:
     def push(self, x: np.ndarray) -> None:
         """The capture's next samples (complex64)."""
         for tone in self.tones.values():
-            start = tone.front.k * tone.front.m + tone.front._rest.size    # the tone's next sample
-            skip = start - self.n_samples
+            skip = tone.front.next_sample - self.n_samples
             if skip < x.size:
                 tone.feed(x[max(0, skip):])
         self.n_samples += x.size
