@@ -105,9 +105,7 @@ def build_corrections(folder: Path, pos, tle_files=(), smooth_s: float | None = 
 
 
 def run(args: argparse.Namespace) -> int:
-    from leonav_runtime.base import protocol
     from leonav_runtime.base.client import parse_address
-    from leonav_runtime.base.server import CorrectionsServer
 
     folder, pos = _position(args)
     try:
@@ -116,7 +114,35 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError(str(exc)) from None
     if args.smooth is not None and not (math.isfinite(args.smooth) and args.smooth >= 0):
         raise UserInputError(f"--smooth {args.smooth}: expected a window >= 0 s")
-    corr, epoch_unix, _ = build_corrections(folder, pos, tuple(args.tle), args.smooth)
+    # SIGINT / SIGTERM set a flag the loop reads: an exception raised at any bytecode could leave the
+    # server's lock held (between its acquire and the with block), and the close would then wait forever.
+    # Installed before the corrections are built and the "serving" line printed: a client that signals
+    # as soon as it reads that line is heard, and a stop during the build exits with its status too.
+    stop: list[int] = []
+    in_main = threading.current_thread() is threading.main_thread()    # (handlers only go there)
+    previous = {s: signal.signal(s, lambda signum, _frame: stop.append(signum))
+                for s in (signal.SIGINT, signal.SIGTERM)} if in_main else {}
+    code = 0
+    try:
+        corr, epoch_unix, _ = build_corrections(folder, pos, tuple(args.tle), args.smooth)
+        if not stop:
+            code = _serve(args, corr, epoch_unix, f"{folder} at {pos[0]:.7f}, {pos[1]:.7f}, {pos[2]:.2f} m",
+                          pos, host, port, stop)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if stop:
+        return 130 if stop[0] == signal.SIGINT else 143
+    return code
+
+
+def _serve(args: argparse.Namespace, corr: list, epoch_unix: float, source: str, pos: tuple, host: str,
+           port: int, stop: list[int]) -> int:
+    """Serve the corrections (UTC epoch `epoch_unix`, s) until the end or until `stop` holds a signal
+    number (0), or 3 when the port is taken."""
+    from leonav_runtime.base import protocol
+    from leonav_runtime.base.server import CorrectionsServer
+
     header = protocol.header_line(*pos)
     lines = [protocol.correction_line(c) for c in corr]
     record = open(args.record, "w") if args.record else None
@@ -127,8 +153,8 @@ def run(args: argparse.Namespace) -> int:
               f"try port 0)", file=sys.stderr)
         return 3
     sats = len({c.norad_id for c in corr})
-    print(f"leonav base: {len(corr)} corrections of {sats} satellites from {folder} at {pos[0]:.7f}, {pos[1]:.7f}, "
-          f"{pos[2]:.2f} m; serving tcp://{server.address[0]}:{server.address[1]} ({args.pace})", flush=True)
+    print(f"leonav base: {len(corr)} corrections of {sats} satellites from {source}; "
+          f"serving tcp://{server.address[0]}:{server.address[1]} ({args.pace})", flush=True)
     if record:
         record.write(header + ("".join(lines) if args.pace == "fast" else ""))
     wall0 = time.monotonic()
@@ -137,12 +163,6 @@ def run(args: argparse.Namespace) -> int:
     end_s = args.seconds if args.seconds is not None else (
         corr[-1].t_utc_s - start_utc + 2.0 if args.pace == "realtime" else math.inf)
     k, next_hb = (0 if args.pace == "realtime" else len(lines)), 0.0
-    # SIGINT / SIGTERM set a flag the loop reads: an exception raised at any bytecode could leave the
-    # server's lock held (between its acquire and the with block), and the close would then wait forever
-    stop: list[int] = []
-    in_main = threading.current_thread() is threading.main_thread()    # (handlers only go there)
-    previous = {s: signal.signal(s, lambda signum, _frame: stop.append(signum))
-                for s in (signal.SIGINT, signal.SIGTERM)} if in_main else {}
     try:
         while not stop and (now := time.monotonic() - wall0) < end_s:
             out = []
@@ -159,12 +179,9 @@ def run(args: argparse.Namespace) -> int:
                     record.flush()
             time.sleep(0.05)
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        server.close()
         if record:
             record.close()
-    server.close()
-    if stop:
-        return 130 if stop[0] == signal.SIGINT else 143
-    print(f"leonav base: done; {k} corrections sent; {server.counts}", flush=True)
+    if not stop:
+        print(f"leonav base: done; {k} corrections sent; {server.counts}", flush=True)
     return 0
