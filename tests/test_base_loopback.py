@@ -216,3 +216,15 @@ def test_sigterm_stops_the_base_with_its_documented_status(pair):
     folder, _ = pair
     base, _ = _start_base(folder, "--pace", "fast")
     assert _stop_base(base, sig=signal.SIGTERM) == 143
+
+
+def test_a_taken_port_gives_status_3_and_names_the_address(pair):
+    import socket
+
+    folder, _ = pair
+    with socket.create_server(("127.0.0.1", 0)) as held:
+        port = held.getsockname()[1]
+        r = subprocess.run(CLI + ["base", "--simulate", str(folder / "p"), "--listen", f"127.0.0.1:{port}"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=120)
+    assert r.returncode == 3, r.stderr
+    assert f"127.0.0.1:{port}" in r.stderr and "serving" not in r.stdout
