@@ -42,16 +42,19 @@ def _walk(steps: np.ndarray, x0: np.ndarray, phi: np.ndarray) -> np.ndarray:
     return out
 
 
-def _start(block, scn, scale: float, streams: list[np.random.Generator], profile, layout) -> np.ndarray:
-    """(B, size): the block's start in each trial (a prior draw from each trial's stream)."""
+def _starter(block, scn, scale: float, profile, layout):
+    """The block's start as a function of trials' streams -> (B, size) (a prior draw from each
+    stream), its sigma or value worked out once: a block of trials calls it once per trial, so each
+    trial's stream sees its start and then its noise."""
     start = block.truth["start"]
     if start == "zero":
-        return np.zeros((len(streams), block.size))
+        return lambda streams: np.zeros((len(streams), block.size))
     if start == "prior":
         sigma = model.prior_sigmas(layout, profile, 0.0, 0.0, 0.0)[block.error_offset:block.error_offset + block.size]
-        return scale * sigma * np.stack([r.standard_normal(block.size) for r in streams])
+        return lambda streams: scale * sigma * np.stack([r.standard_normal(block.size) for r in streams])
     section, _, key = start.partition(".")
-    return np.full((len(streams), block.size), float(getattr(scn, section)[key]))
+    value = float(getattr(scn, section)[key])
+    return lambda streams: np.full((len(streams), block.size), value)
 
 
 def draw_truth(rng: np.random.Generator, blocks, n: int, dt: float, Phi: np.ndarray, Qd: np.ndarray, scn, profile,
@@ -77,7 +80,8 @@ def draw_truth_many(rngs: list[np.random.Generator], blocks, n: int, dt: float, 
         drift = model.state_block(dyn["of"]) if dyn["kind"] == "integral" else None
         if drift is not None and drift.name in names:   # an integral pair: exact two-state draw
             d = slice(drift.error_offset, drift.error_offset + drift.error_size)
-            parts = [_pair_draws(b, drift, scn, scale, r, profile, layout, n) for r in rs]
+            start_b, start_d = _starter(b, scn, scale, profile, layout), _starter(drift, scn, scale, profile, layout)
+            parts = [_pair_draws(start_b, start_d, drift, r, n) for r in rs]
             x_b0, x_d0, w_d, w_b = (np.stack([p[i] for p in parts]) for i in range(4))
             l11 = np.sqrt(np.diag(Qd[e, e]))
             l21 = np.diag(Qd[d, e]) / np.where(l11 > 0, l11, 1.0)
@@ -89,18 +93,20 @@ def draw_truth_many(rngs: list[np.random.Generator], blocks, n: int, dt: float, 
             out[b.name], out[drift.name] = x_b, x_d
             continue
         x0, w = np.empty((len(rs), b.size)), np.empty((len(rs), n, b.size))
+        start = _starter(b, scn, scale, profile, layout)
         for i, r in enumerate(rs):   # each trial's start, then its noise
-            x0[i] = _start(b, scn, scale, [r], profile, layout)[0]
+            x0[i] = start([r])[0]
             r.standard_normal(out=w[i])
         w *= scale * np.sqrt(np.diag(Qd[e, e]))
         out[b.name] = _walk(w, x0, np.diag(Phi[e, e]).copy())
     return out
 
 
-def _pair_draws(b, drift, scn, scale, r, profile, layout, n):
-    """One trial's draws of an integral pair, in order: start, drift's start, w_d, w_b."""
-    x_b0, x_d0 = _start(b, scn, scale, [r], profile, layout)[0], _start(drift, scn, scale, [r], profile, layout)[0]
-    return x_b0, x_d0, r.standard_normal((n, drift.size)), r.standard_normal((n, b.size))
+def _pair_draws(start_b, start_d, drift, r, n):
+    """One trial's draws of an integral pair (block b over its drift; `_starter`s), in order: start,
+    drift's start, w_d, w_b."""
+    x_b0, x_d0 = start_b([r])[0], start_d([r])[0]
+    return x_b0, x_d0, r.standard_normal((n, drift.size)), r.standard_normal((n, x_b0.size))
 
 
 def error_model(nav: navfuncs.NavFunctions, dt: float, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

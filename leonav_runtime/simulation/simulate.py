@@ -257,7 +257,10 @@ def block_draws(setup: Setup, parsed, count: int, rngs: list[np.random.Generator
     for o in satellites.satellite_observables():
         s = setup.series[o.suffix]
         sigma = noise_sigma(scn, o.suffix)
-        # the paper's observables draw for every series from the trial's stream (common numbers)
+        # the paper's observables draw for every series from the trial's stream (common numbers);
+        # one with a stream of its own draws only when the mode uses it (no other draw depends on it)
+        if not o.paper and o not in parsed.observables:
+            continue
         noise = np.stack([(r if o.paper else own_stream(r, o.name)).standard_normal(s.t_s.size) for r in rngs])
         if o not in parsed.observables:
             continue

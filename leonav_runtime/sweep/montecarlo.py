@@ -29,6 +29,7 @@ from leonav_runtime.core import compiled, records
 from leonav_runtime.core import filter as lfilter
 from leonav_runtime.core import navfuncs
 from leonav_runtime.simulation import simulate, trial_block
+from leonav_runtime.sweep import consistency
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.scenarios.load import Scenario, scenario_from_dict
 
@@ -131,8 +132,8 @@ def trial_result(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunction
     t_c = time.thread_time() - t_c
     err = nav.boxminus(res.x[rows], trial.x_true[k])[:, NAV]
     P9 = res.P[:, NAV, NAV]
-    nees = np.einsum("ni,ni->n", err, np.linalg.solve(P9, err[:, :, None])[:, :, 0])
-    nis_sum, nis_count = _nis_sums(_kind_masks(res.kind), res.nis, res.status)
+    nees = consistency.nees(err, P9)
+    nis_sum, nis_count = consistency.nis_sums(*consistency.kind_index(res.kind), res.nis, res.status)
     p_est = res.x[rows, L.X_P_ENU_SLICE].copy() if index == 0 else None
     return TrialResult(index, err, nees, nis_sum, nis_count, res.n_gated, res.n_failed, p_est,
                        t_c, time.thread_time() - t0, time.perf_counter() - w0, trial.counts)
@@ -188,15 +189,16 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     c_seconds, runs = [], []
     loop = _CLoop(nav.library, buf, rows, lfilter.EKF(block.x0[0], setup.P0, block.params.reshape(-1, L.NP)[0],
                                                       gate=gate, library=nav.library).gate)
-    kinds = _kind_masks(buf["kind"])   # the same for every trial of the block
+    kinds = consistency.kind_index(buf["kind"])   # the same for every trial of the block
     for j in range(B):
         params = block.params if block.params.ndim == 1 else block.params[j]
         c_seconds.append(loop.run(block.x0[j], setup.P0, params, block.fill(j, buf)))
         x_est[j], P9[j] = loop.x[rows], loop.P_rows[:, NAV, NAV]
-        runs.append((_nis_sums(kinds, loop.nis, loop.status), int(loop.out.n_gated), int(loop.out.n_failed)))
+        runs.append((consistency.nis_sums(*kinds, loop.nis, loop.status), int(loop.out.n_gated),
+                     int(loop.out.n_failed)))
     err = nav.boxminus(x_est.reshape(B * nt, L.NX), block.truth(k).reshape(B * nt, L.NX))[:, NAV]
     err = err.reshape(B, nt, L.NNAV)
-    nees = np.einsum("bni,bni->bn", err, np.linalg.solve(P9, err[..., None])[..., 0])
+    nees = consistency.nees(err, P9)
     results = []
     for j, (index, ((nis_sum, nis_count), gated, failed)) in enumerate(zip(indices, runs)):
         p_est = x_est[j, :, L.X_P_ENU_SLICE].copy() if index == 0 else None
@@ -245,23 +247,6 @@ class _CLoop:
 
 def _ptr(a: np.ndarray):
     return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
-
-
-def _nis_sums(kinds: list[tuple[int, np.ndarray]], nis: np.ndarray, status: np.ndarray,
-              ) -> tuple[dict[int, float], dict[int, int]]:
-    """Per measurement kind (id, its records' mask): the sum of NIS over the applied and gated
-    updates, and their number."""
-    used = (status >= 0) & (status <= 1)
-    nis_sum, nis_count = {}, {}
-    for kind, mask in kinds:
-        sel = mask & used
-        nis_sum[kind] = float(np.sum(nis[sel]))
-        nis_count[kind] = int(np.count_nonzero(sel))
-    return nis_sum, nis_count
-
-
-def _kind_masks(kind: np.ndarray) -> list[tuple[int, np.ndarray]]:
-    return [(int(k), kind == k) for k in np.unique(kind[kind >= 0])]
 
 
 def pcrb_on_truth(setup: simulate.Setup, nav: navfuncs.NavFunctions, mode: str, count: int,
