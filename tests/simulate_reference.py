@@ -3,6 +3,10 @@ reference the tests compare against: `trial_records` here draws one trial with t
 code (sensor-error truth, IMU noise, measurement noise, prior) and takes the input road, so
 `simulate.trial_records` and `trial_block.trial_block` must give the same records bit for bit
 (the same seeds, the same sweep results).
+
+One later rule is followed here too: a block of its own stream (registry `truth.stream = own`)
+is drawn only when the mode measures it; otherwise it stays at the base truth with no start
+error (no other draw depends on it, so every other value is unchanged).
 """
 from __future__ import annotations
 
@@ -85,10 +89,17 @@ def measured_increments(rng: np.random.Generator, profile, u_true: np.ndarray, b
     return u
 
 
-def _error_truth(setup: Setup, nav, rng, n: int, dt: float, g: float) -> dict[str, np.ndarray]:
+def _drawn(block, mode) -> bool:
+    """Whether the block's truth is drawn for `mode` (module doc)."""
+    read = {name for o in mode.observables for name in o.reads}
+    return block.role != "navigation" and (block.truth["stream"] != "own" or block.role != "measurement"
+                                           or block.error_name in read)
+
+
+def _error_truth(setup: Setup, nav, rng, mode, n: int, dt: float, g: float) -> dict[str, np.ndarray]:
     """This trial's truth of every sensor-error block (sensor_errors.draw_truth)."""
     Phi, Qd = nav.sensor_error_step(dt, setup.params)
-    blocks = [b for b in model.STATES if b.role != "navigation"]
+    blocks = [b for b in model.STATES if _drawn(b, mode)]
     return draw_truth(rng, blocks, n, dt, Phi, Qd, setup.scn, setup.imu_profile, nav.layout, g)
 
 
@@ -127,7 +138,7 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
     x_true = setup.x_true.copy()
     g = 0.0 if noise_free else 1.0
 
-    errors = _error_truth(setup, nav, rng, n, dt, g)
+    errors = _error_truth(setup, nav, rng, parsed, n, dt, g)
     for name, values in errors.items():
         b = model.state_block(name)
         x_true[:, b.offset:b.offset + b.size] = values
@@ -165,7 +176,7 @@ def trial_records(setup: Setup, mode: str, count: int, rng: np.random.Generator,
         dx0[shared] = rng.multivariate_normal(np.zeros(shared.size), setup.P0[np.ix_(shared, shared)])
         for b in model.STATES:
             e = slice(b.error_offset, b.error_offset + b.error_size)
-            if b.name in own and np.any(var[e] > 0):
+            if b.name in own and _drawn(b, parsed) and np.any(var[e] > 0):
                 dx0[e] = np.sqrt(var[e]) * own_stream(rng, b.name + ":prior").standard_normal(b.error_size)
     x0 = nav.boxplus(x_true[0], dx0)
     params = setup.params

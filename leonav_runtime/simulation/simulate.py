@@ -248,8 +248,12 @@ def block_draws(setup: Setup, parsed, count: int, rngs: list[np.random.Generator
     n = setup.u_true.shape[0]
     dt = 1.0 / scn.imu_rate_hz
     Phi, Qd = nav.sensor_error_step(dt, setup.params)
-    blocks = [b for b in model.STATES if b.role != "navigation"]
-    errors = draw_truth_many(rngs, blocks, n, dt, Phi, Qd, scn, prof, L, g)
+    # a block of its own stream is drawn only when the mode measures it: no other draw depends on
+    # it, and a sensor the mode does not have leaves its state at the base truth (error-free start)
+    read = {name for o in parsed.observables for name in o.reads}
+    drawn = {b.name for b in model.STATES if b.role != "navigation"
+             and (b.truth["stream"] != "own" or b.role != "measurement" or b.error_name in read)}
+    errors = draw_truth_many(rngs, [b for b in model.STATES if b.name in drawn], n, dt, Phi, Qd, scn, prof, L, g)
     zero = np.zeros((len(rngs), n + 1, 3))
     u = measured_increments_many(rngs, prof, setup.u_true, errors.get("b_a", zero), errors.get("b_g", zero), dt, g)
     measuring = [b for b in model.STATES if b.role == "measurement"]
@@ -290,7 +294,7 @@ def block_draws(setup: Setup, parsed, count: int, rngs: list[np.random.Generator
         dx0[:, shared] = prior_draws(rngs, setup.P0[np.ix_(shared, shared)])
         for b in model.STATES:
             e = slice(b.error_offset, b.error_offset + b.error_size)
-            if b.name in own and np.any(var[e] > 0):
+            if b.name in own and b.name in drawn and np.any(var[e] > 0):
                 dx0[:, e] = np.sqrt(var[e]) * np.stack([own_stream(r, b.name + ":prior").standard_normal(b.error_size)
                                                         for r in rngs])
     x_start = np.repeat(setup.x_true[:1], len(rngs), axis=0)
