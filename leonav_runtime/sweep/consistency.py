@@ -8,21 +8,25 @@ import numpy as np
 
 def nees(err: np.ndarray, P: np.ndarray) -> np.ndarray:
     """err' P^-1 err for each leading index: err (..., n), P (..., n, n) symmetric positive
-    definite -> (...). A Cholesky factor and a forward substitution over the batch at once, in a
-    fixed order of operations; an entry whose P is not positive definite falls back to a solve."""
+    definite -> (...). An entry whose P is not positive definite falls back to a solve."""
     n = err.shape[-1]
-    shape = err.shape[:-1]
-    A = np.moveaxis(P.reshape(-1, n, n), 0, -1).copy()     # (n, n, batch): each entry contiguous
-    e = np.moveaxis(err.reshape(-1, n), 0, -1)
+    out = nees_batch_last(np.moveaxis(err.reshape(-1, n), 0, -1), np.moveaxis(P.reshape(-1, n, n), 0, -1).copy())
+    return out.reshape(err.shape[:-1])
+
+
+def nees_batch_last(e: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """`nees` with the batch last: e (n, batch), A (n, n, batch), its lower triangle overwritten by
+    the Cholesky factor. A factor and a forward substitution over the batch at once, the same
+    operations on every entry in the same order."""
+    n = e.shape[0]
     y = np.empty_like(e)
+    diag = A[np.arange(n), np.arange(n)].copy()     # the factor overwrites it (kept for the fallback)
     with np.errstate(invalid="ignore", divide="ignore"):
         for j in range(n):
             for k in range(j):          # column j of A becomes column j of the factor L
-                for i in range(j, n):
-                    A[i, j] -= A[i, k] * A[j, k]
+                A[j:, j] -= A[j:, k] * A[j, k]
             A[j, j] = np.sqrt(A[j, j])
-            for i in range(j + 1, n):
-                A[i, j] /= A[j, j]
+            A[j + 1:, j] /= A[j, j]
             yj = e[j].copy()
             for k in range(j):
                 yj -= A[j, k] * y[k]
@@ -30,11 +34,13 @@ def nees(err: np.ndarray, P: np.ndarray) -> np.ndarray:
         out = y[0] * y[0]
         for j in range(1, n):
             out += y[j] * y[j]
-    bad = ~np.isfinite(out)
-    if bad.any():
-        eb, Pb = err.reshape(-1, n)[bad], P.reshape(-1, n, n)[bad]
+    bad = np.flatnonzero(~np.isfinite(out))
+    if bad.size:    # P again from its diagonal and the strict upper triangle the factor left alone
+        upper = np.triu(np.moveaxis(A[:, :, bad], -1, 0), 1)
+        Pb = upper + np.swapaxes(upper, 1, 2) + np.einsum("ib,ij->bij", diag[:, bad], np.eye(n))
+        eb = e[:, bad].T
         out[bad] = np.einsum("ni,ni->n", eb, np.linalg.solve(Pb, eb[:, :, None])[:, :, 0])
-    return out.reshape(shape)
+    return out
 
 
 def kind_index(kind: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

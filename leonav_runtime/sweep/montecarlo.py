@@ -185,7 +185,7 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     rows, k = eval_rows(buf, setup.t_imu, EVAL_RATE_HZ, scn.imu_rate_hz)
     B, nt = len(indices), rows.size
     x_est = np.empty((B, nt, L.NX))
-    P9 = np.empty((B, nt, L.NNAV, L.NNAV))
+    P9 = np.empty((L.NNAV, L.NNAV, B, nt))    # batch last: the layout the NEES works in
     c_seconds, runs = [], []
     loop = _CLoop(nav.library, buf, rows, lfilter.EKF(block.x0[0], setup.P0, block.params.reshape(-1, L.NP)[0],
                                                       gate=gate, library=nav.library).gate)
@@ -193,12 +193,13 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     for j in range(B):
         params = block.params if block.params.ndim == 1 else block.params[j]
         c_seconds.append(loop.run(block.x0[j], setup.P0, params, block.fill(j, buf)))
-        x_est[j], P9[j] = loop.x[rows], loop.P_rows[:, NAV, NAV]
+        x_est[j] = loop.x[rows]
+        P9[:, :, j] = np.moveaxis(loop.P_rows[:, NAV, NAV], 0, -1)
         runs.append((consistency.nis_sums(*kinds, loop.nis, loop.status), int(loop.out.n_gated),
                      int(loop.out.n_failed)))
     err = nav.boxminus(x_est.reshape(B * nt, L.NX), block.truth(k).reshape(B * nt, L.NX))[:, NAV]
+    nees = consistency.nees_batch_last(err.T, P9.reshape(L.NNAV, L.NNAV, B * nt)).reshape(B, nt)
     err = err.reshape(B, nt, L.NNAV)
-    nees = consistency.nees(err, P9)
     results = []
     for j, (index, ((nis_sum, nis_count), gated, failed)) in enumerate(zip(indices, runs)):
         p_est = x_est[j, :, L.X_P_ENU_SLICE].copy() if index == 0 else None
