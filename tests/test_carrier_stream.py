@@ -101,6 +101,13 @@ def test_fast_playback_in_a_phase_mode_feeds_the_replays_phase_records(tmp_path)
         if same.size == 1:
             common.append((r, ref[same[0]]))
     assert len(common) >= 0.8 * nav.size, (len(common), nav.size)
+    # every tone the replay tracks is tracked live too (none left out for leaving the band long
+    # after the capture), and up to the end: the stream is flushed when the playback ends
+    def tones(recs):
+        return {(int(x["sat_id"]), round(float(x["aux"][L.AUX_DF_TONE]))) for x in recs}
+    assert tones(nav) == tones(ref), (tones(nav), tones(ref))
+    assert nav["t"].max() > ref["t"].max() - 0.2, (nav["t"].max(), ref["t"].max())
+    assert res["beacons"]["counts"]["flushed_at_samples"] > 0
     dt = np.array([a["t"] - b["t"] for a, b in common])
     assert np.abs(dt).max() < 5e-3
     dz = np.array([a["z"] - b["z"] for a, b in common])
@@ -149,6 +156,28 @@ def test_a_tone_whose_ridge_is_gone_is_no_longer_tracked(capture):
         if bs.t_data < TONE_GONE_S - 0.5:
             assert 99 in bs.carrier.tones
     assert 99 not in bs.carrier.tones and bs.counts["tones_stopped"] == 1
+
+
+def test_a_tone_about_to_leave_the_band_stops_and_one_that_would_soon_is_not_started(capture):
+    from leonav_runtime.nav.beacon_stream import BAND_MARGIN_S, TONE_BAND_AHEAD_S, BeaconStream
+    from leonav_runtime.simulation.session_synth import PAPER_EPOCH, builtin_starlink
+
+    bs = BeaconStream(capture.sample_rate_hz, 11.325e9, 11.325e9, builtin_starlink(PAPER_EPOCH), carrier_phase=True)
+    edge = 0.45 * capture.sample_rate_hz
+    t = np.arange(-2 * AID_STEP_S, capture.cfg.duration_s + 3 * AID_STEP_S, AID_STEP_S)
+    leaving = np.where(t < 6.0, 0.5 * edge, 1.2 * edge)       # beyond the band from 6 s on
+    assert bs._in_band(Aiding(t, leaving, "x"), TONE_BAND_AHEAD_S)      # t_data 0: in band up to 5 s
+    bs.t_data = 1.5
+    assert not bs._in_band(Aiding(t, leaving, "x"), TONE_BAND_AHEAD_S)
+    bs.t_data = 0.0
+    bs.carrier.start_tone(7, 1, Aiding(t, leaving, "tone"))
+    bs.tones[7] = (1, 0, 0.0)
+    chunk = 24_000
+    for k in range(0, capture.iq.size, chunk):
+        bs.push(capture.iq[k:k + chunk])
+        if bs.t_data < 6.0 - BAND_MARGIN_S - 0.1:
+            assert 7 in bs.carrier.tones
+    assert 7 not in bs.carrier.tones and bs.counts["tones_left_band"] == 1 and bs.counts["tones_stopped"] == 1
 
 
 def test_a_tone_stopped_before_its_first_epochs_leaves_the_counts_whole(capture):

@@ -172,6 +172,20 @@ class BeaconFeed:
                 break
             self.stream.push(z)
         self.counts["samples"] = self.capture.n_read
+        self._hand_over(navigator)
+
+    def finish(self, navigator) -> None:
+        """The playback ended: the stream's last partial STFT block and its last phase epochs (no
+        lag left to wait for) are made, and handed to the navigator before it settles; the samples
+        after the last serial chunk are not read (the filter has no IMU there)."""
+        if self.meta.get("t_mono_start_s") is None:
+            return
+        self.set_site(navigator)
+        self.stream.flush()
+        self.counts["flushed_at_samples"] = self.capture.n_read
+        self._hand_over(navigator)
+
+    def _hand_over(self, navigator) -> None:
         emitted = self.stream.take()
         road = navigator.road
         if emitted and road.started and math.isfinite(self.start_unix):

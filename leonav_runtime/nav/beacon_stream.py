@@ -40,6 +40,9 @@ from leonav_runtime.beacons.ridges import Ridge, RidgeTracker
 from leonav_runtime.beacons.waterfall import StftConfig, band_bins, iter_spectra
 
 TONE_GONE_S = 5.0   # a tracked tone whose STFT ridge has been gone this long is no longer tracked
+# a tone starts when its aiding stays inside the front end's band (0.45 fs) this long ahead, and
+# stops when it would leave the band within BAND_MARGIN_S (the samples already pushed and a block)
+TONE_BAND_AHEAD_S, BAND_MARGIN_S = 5.0, 2.0
 MEAS_FIELDS = ("t_s", "doppler_hz", "sigma_doppler_hz", "rate_hz_s", "sigma_rate_hz_s", "n_points", "snr_db")
 
 
@@ -150,7 +153,7 @@ class BeaconStream:
         self.counts = {"blocks": 0, "ridges": 0, "epochs": 0, "associations": 0, "emitted": 0,
                        "predictions": 0, "tracks_dropped": 0, "too_late": 0}
         if carrier_phase:
-            self.counts.update(tones_tracked=0, tones_left_out=0, tones_stopped=0)
+            self.counts.update(tones_tracked=0, tones_left_out=0, tones_stopped=0, tones_left_band=0)
         self.max_lag_seen_s = 0.0
         self.last_summary: dict = {}
         self.carrier = StreamingCarrier(sample_rate_hz) if carrier_phase else None
@@ -196,12 +199,17 @@ class BeaconStream:
 
     def _stop_gone_tones(self) -> None:
         """Stop tracking a tone whose ridge the STFT tracker has let go of for `TONE_GONE_S` (the
-        satellite set or faded; a live run meets a new satellite every few minutes), or whose
-        aiding ends within a second (its satellite left the predictions)."""
+        satellite set or faded; a live run meets a new satellite every few minutes), whose
+        aiding ends within a second (its satellite left the predictions), or whose Doppler takes
+        it out of the front end's band within `BAND_MARGIN_S` (counted as tones_left_band too)."""
         alive = {entry[1] for entry in self._ids.values()}
         for key in list(self.carrier.tones):
-            if self.carrier.tones[key].front.aiding.t_s[-1] < self.t_data + 1.0:
+            aiding = self.carrier.tones[key].front.aiding
+            if aiding.t_s[-1] < self.t_data + 1.0:
                 self._stop(key)
+            elif not self._in_band(aiding, BAND_MARGIN_S):
+                self._stop(key)
+                self.counts["tones_left_band"] += 1
             elif key in alive:
                 self._gone_since.pop(key, None)
             elif self.t_data - self._gone_since.setdefault(key, self.t_data) >= TONE_GONE_S:
@@ -214,6 +222,11 @@ class BeaconStream:
             d.pop(key, None)
         self._ended.add(key)
         self.counts["tones_stopped"] += 1
+
+    def _in_band(self, aiding: Aiding, ahead_s: float) -> bool:
+        """Whether the aided frequency stays within 0.45 fs of the centre from now to `ahead_s` on."""
+        t = np.linspace(self.t_data, self.t_data + ahead_s, 21)
+        return bool(np.all(np.abs(aiding.at(t)) <= MAX_TONE_FRACTION * self.fs))
 
     def _rid(self, tr) -> int:
         entry = self._ids.get(id(tr))
@@ -327,8 +340,8 @@ class BeaconStream:
             updated.add(a.ridge_id)
             if a.ridge_id in self.tones:
                 self.carrier.set_aiding(a.ridge_id, aid)
-            elif not np.all(np.abs(aid.f_hz[t >= self.t_data]) <= MAX_TONE_FRACTION * self.fs):  # beyond the
-                self._ended.add(a.ridge_id)                                                    # front end's band
+            elif not self._in_band(aid, TONE_BAND_AHEAD_S):     # soon beyond the front end's band
+                self._ended.add(a.ridge_id)
                 self.counts["tones_left_out"] += 1
             else:
                 tone = (a.norad_id, int(pred.sat_index[a.sat_row]), a.tone_index * spacing)

@@ -313,6 +313,12 @@ class FastPlayback:
         events.sort(key=lambda e: (e[0], e[1]))
         if on_started:
             on_started()
+        reason = self._play(events, navigator, seconds, should_stop)
+        if self.beacons is not None:    # the capture's last measurements, before the navigator settles
+            self.beacons.finish(navigator)
+        return reason
+
+    def _play(self, events: list, navigator, seconds: float | None, should_stop: Callable[[], bool]) -> str:
         t_first = events[0][0] if events else 0.0
         last_tick = -float("inf")
         for t, _, kind, chunk in events:
