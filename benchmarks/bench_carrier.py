@@ -43,7 +43,7 @@ sys.path.insert(0, str(ROOT))
 
 from leonav_runtime.beacons import synthetic_phase as sp                      # noqa: E402
 from leonav_runtime.beacons.carrier import CarrierConfig                      # noqa: E402
-from leonav_runtime.beacons.carrier_loop import coefficients, noise_bandwidth_hz  # noqa: E402
+from leonav_runtime.beacons.carrier_loop import LoopConfig, coefficients, noise_bandwidth_hz  # noqa: E402
 from leonav_runtime.beacons.carrier_score import score, track_capture         # noqa: E402
 from leonav_runtime.gen.constants import C_LIGHT_MPS, STARLINK_BEACON_HZ     # noqa: E402
 
@@ -75,7 +75,8 @@ def _run(cn0: float, seed: int, lnb: bool, duration_s: float = 10.0, slips: int 
 
 
 def phase_table(trials: int) -> None:
-    cc = CarrierConfig()
+    # the default loop at every C/N0 (the weak-tone choice off), so the relation columns apply
+    cc = CarrierConfig(loop=LoopConfig(weak_below_dbhz=None))
     bn_loop = noise_bandwidth_hz(cc.loop)
     pn = untracked_phase_noise_rad2(cc)
     T = cc.loop.t_coh_s
@@ -87,8 +88,8 @@ def phase_table(trials: int) -> None:
           "|  %      dB")
     for cn0 in (20.0, 22.5, 25.0, 27.5, 30.0, 35.0, 40.0):
         c = 10 ** (cn0 / 10)
-        th = [_run(cn0, s, False) for s in range(trials)]
-        ln = [_run(cn0, s, True) for s in range(trials)]
+        th = [_run(cn0, s, False, cc=cc) for s in range(trials)]
+        ln = [_run(cn0, s, True, cc=cc) for s in range(trials)]
         rms = lambda runs: float(np.sqrt(np.mean([r[1].jitter_cycles ** 2 for r in runs])))  # noqa: E731
         m_th, m_ln = rms(th), rms(ln)
         design = np.degrees(np.sqrt(cc.loop.bn_hz / c))
@@ -103,17 +104,18 @@ def phase_table(trials: int) -> None:
 
 
 def narrow_table(trials: int) -> None:
-    """Low C/N0 with a narrower, longer loop beside the default (LNB + RTL-SDR front end)."""
-    from leonav_runtime.beacons.carrier_loop import LoopConfig
-
-    print(f"\n1b. low C/N0: default loop (10 Hz, 10 ms) beside a narrow one (5 Hz, 20 ms), LNB + RTL-SDR, "
-          f"{trials} x 10 s")
-    print(" C/N0 dB-Hz | default: rms deg  lock %  losses | narrow: rms deg  lock %  losses  loop relation deg")
-    narrow = CarrierConfig(loop=LoopConfig(bn_hz=5.0, t_coh_s=0.02))
+    """Low C/N0: the default loop, a narrower, longer one, and the loop chosen from the
+    acquisition's C/N0 (what the tracker does), side by side (LNB + RTL-SDR front end)."""
+    print(f"\n1b. low C/N0: default loop (10 Hz, 10 ms), a narrow one (5 Hz, 20 ms) and the one chosen from the "
+          f"acquisition's C/N0 (narrow below 22.5 dB-Hz), LNB + RTL-SDR, {trials} x 10 s")
+    print(" C/N0 dB-Hz | default: rms deg  lock %  losses | narrow: rms deg  lock %  losses | chosen: rms deg  "
+          "lock %  losses | narrow loop relation deg")
+    default = CarrierConfig(loop=LoopConfig(weak_below_dbhz=None))
+    narrow = CarrierConfig(loop=LoopConfig(bn_hz=5.0, t_coh_s=0.02, weak_below_dbhz=None))
     bn = noise_bandwidth_hz(narrow.loop)
-    for cn0 in (17.5, 20.0, 22.5, 25.0):
+    for cn0 in (17.5, 20.0, 22.5, 25.0, 27.5):
         row = []
-        for cc in (None, narrow):
+        for cc in (default, narrow, None):
             runs = [_run(cn0, s, True, cc=cc) for s in range(trials)]
             rms = float(np.sqrt(np.nanmean([r[1].jitter_cycles ** 2 for r in runs])))
             row += [360 * rms, 100 * np.mean([r[1].locked_fraction for r in runs]),
@@ -121,7 +123,7 @@ def narrow_table(trials: int) -> None:
         c = 10 ** (cn0 / 10)
         rel = np.degrees(np.sqrt(bn / c * (1 + 1 / (2 * narrow.loop.t_coh_s * c))))
         print(f"   {cn0:5.1f}    |     {row[0]:6.2f}      {row[1]:5.1f}   {row[2]:3d}   |     {row[3]:6.2f}      "
-              f"{row[4]:5.1f}   {row[5]:3d}      {rel:6.2f}")
+              f"{row[4]:5.1f}   {row[5]:3d}   |     {row[6]:6.2f}      {row[7]:5.1f}   {row[8]:3d}   |   {rel:6.2f}")
 
 
 def slip_table(trials: int) -> None:

@@ -140,3 +140,30 @@ def test_bad_input_is_one_line():
             track_tones(x, 240e3, [Aiding(t, np.full(t.size, 130e3), "tone A")], 0.1)
         except err as e:
             assert "\n" not in str(e)
+
+
+@pytest.mark.parametrize("cn0", [20.0, 30.0])
+def test_the_loop_is_chosen_from_the_acquisitions_cn0(cn0):
+    """A weak tone gets the narrow, longer loop (5 Hz, 20 ms): its phase error is smaller than the
+    default loop's on the same samples (LNB + RTL-SDR front end); a strong tone keeps the default."""
+    import dataclasses
+
+    from leonav_runtime.beacons.carrier_loop import LoopConfig
+
+    cfg = sp.PhaseBenchConfig(duration_s=8.0, sample_rate_hz=240e3, seed=5, phase_noise=sp.LNB_PHASE_NOISE_DBC_HZ,
+                              **FRONT_END)
+    cap = sp.make_capture([sp.ToneSpec(cn0_dbhz=cn0, if_hz=40e3, t_closest_s=4.0)], cfg)
+    chosen = track_capture(cap)[0]
+    fixed = track_capture(cap, cfg=CarrierConfig(loop=dataclasses.replace(LoopConfig(), weak_below_dbhz=None)))[0]
+    c = chosen.counts
+    assert c["cn0_acquisition_dbhz"] == pytest.approx(cn0, abs=1.0)     # from the acquisition's peak alone
+    assert c["weak_loop"] == (cn0 < 22.5) and not fixed.counts["weak_loop"]
+    if cn0 < 22.5:
+        assert c["t_coh_s"] == pytest.approx(0.02) and c["bn_hz"] < 0.7 * fixed.counts["bn_hz"]
+        s_chosen, s_fixed = score(chosen, cap, 0), score(fixed, cap, 0)
+        assert s_chosen.locked_fraction >= 0.99 and s_chosen.undetected_jumps == 0
+        assert s_chosen.jitter_cycles < 0.85 * s_fixed.jitter_cycles, (s_chosen, s_fixed)   # 22 vs 31 deg
+        # the stated sigma follows the chosen loop's bandwidth
+        assert np.nanmedian(chosen.sigma_cycles) < np.nanmedian(fixed.sigma_cycles)
+    else:
+        assert chosen.phase_cycles.tobytes() == fixed.phase_cycles.tobytes()

@@ -178,8 +178,9 @@ def _epochs(tone: _Tone, cfg: CarrierConfig, e_first: int = 1, e_last: int | Non
     dt_sub = front.m / front.fs
     n_p = rec["i0"].size
     label = front.aiding.label
-    counts = {"prompts": int(n_p), "acquisitions": loop.acquisitions, "bn_hz": noise_bandwidth_hz(cfg.loop),
-              "t_coh_s": loop.t, "sub_rate_hz": front.sub_rate_hz}
+    counts = {"prompts": int(n_p), "acquisitions": loop.acquisitions, "bn_hz": noise_bandwidth_hz(loop.cfg),
+              "t_coh_s": loop.t, "sub_rate_hz": front.sub_rate_hz, "weak_loop": loop.weak,
+              "cn0_acquisition_dbhz": loop.cn0_acq_dbhz}
     if n_p == 0:
         z = np.zeros(0)
         return CarrierTrack(label, z, z, z, np.zeros(0, bool), np.zeros(0, bool), np.zeros(0, int), z, z, z,
@@ -192,7 +193,7 @@ def _epochs(tone: _Tone, cfg: CarrierConfig, e_first: int = 1, e_last: int | Non
         k = np.clip((t / dt_sub).astype(int) - tone.k_first, 0, phi_aid.size - 1)
         return phi_aid[k] + f_aid[k] * (t - (k + tone.k_first) * dt_sub)
 
-    ok = _retro_unlock(rec["mode"], rec["d"], cfg.loop.lock_window, cfg.loop.lock_on_d)
+    ok = _retro_unlock(rec["mode"], rec["d"], loop.cfg.lock_window, loop.cfg.lock_on_d)
     arc = rec["arc"]
     res = (rec["phi"] + rec["w"] * 0.5 * T) / (2 * np.pi)            # NCO residual phase at prompt centres
     total_c = aid_phase(centre) + res

@@ -75,6 +75,12 @@ class LoopConfig:
     settle_s: float = 0.4          # no lock declared sooner after an acquisition (FLL-to-PLL handover)
     fll_s: float = 0.3             # FLL assist for this long after an acquisition
     reacq_s: float = 1.0
+    # the loop chosen from the first acquisition's C/N0: a weaker tone than `weak_below_dbhz` is
+    # tracked with the narrower, longer loop (better below it, docs/carrier.md table 1b; its jerk
+    # margin, jerk / w0^3, is 8x smaller, so it is kept for weak tones only); None: never
+    weak_below_dbhz: float | None = 22.5
+    weak_bn_hz: float = 5.0
+    weak_t_coh_s: float = 0.02
 
 
 def coefficients(cfg: LoopConfig) -> tuple[float, float, float, float, float]:
@@ -100,6 +106,12 @@ def noise_bandwidth_hz(cfg: LoopConfig, n: int = 4000) -> float:
         phi += (w1 + k1 * e) * t
         h[i] = phi
     return float(np.sum(h**2) / (2 * t))
+
+
+def acquisition_cn0_dbhz(ratio: float, acq_s: float) -> float:
+    """C/N0 (dB-Hz) from an acquisition's peak-to-noise power ratio over `acq_s` of samples: the
+    peak holds the tone's energy plus one bin of noise, a bin of noise is N0 / acq_s of it."""
+    return 10 * math.log10(max(ratio - 1.0, 1e-12) / acq_s)
 
 
 def acquire(y: np.ndarray, sub_rate_hz: float, cfg: LoopConfig) -> tuple[float, float, float] | None:
@@ -138,11 +150,11 @@ class Loop:
     """
 
     def __init__(self, cfg: LoopConfig, sub_rate_hz: float):
-        self.cfg, self.rate = cfg, sub_rate_hz
-        self.p = max(1, int(round(cfg.t_coh_s * sub_rate_hz)))
-        self.t = self.p / sub_rate_hz
-        self.k3, self.k2, self.k1, self.f2, self.f1 = coefficients(cfg)
-        self.tau = (np.arange(self.p) + 0.5) / sub_rate_hz
+        self.rate = sub_rate_hz
+        self._configure(cfg)
+        self.chosen = cfg.weak_below_dbhz is None     # the loop is chosen at the first acquisition
+        self.weak = False
+        self.cn0_acq_dbhz = math.nan
         self.mode = ACQ
         self.phi = self.w1 = self.w2 = 0.0
         self.w = 0.0
@@ -158,6 +170,25 @@ class Loop:
         self.arc = -1
         self.rec: dict[str, list] = {k: [] for k in ("i0", "mode", "phi", "w", "z", "d", "arc", "noise")}
         self.acquisitions = 0
+
+    def _configure(self, cfg: LoopConfig) -> None:
+        self.cfg = cfg
+        self.p = max(1, int(round(cfg.t_coh_s * self.rate)))
+        self.t = self.p / self.rate
+        self.k3, self.k2, self.k1, self.f2, self.f1 = coefficients(cfg)
+        self.tau = (np.arange(self.p) + 0.5) / self.rate
+
+    def _choose(self, ratio: float) -> None:
+        """At the first acquisition that finds the tone: the weak-tone loop below its C/N0."""
+        self.chosen = True
+        self.cn0_acq_dbhz = acquisition_cn0_dbhz(ratio, self.cfg.acq_s)
+        self.weak = self.cn0_acq_dbhz < self.cfg.weak_below_dbhz
+        if self.weak:   # the lock detector's window keeps its length in time (0.1 s), not in prompts
+            window = max(3, int(round(self.cfg.lock_window * self.cfg.t_coh_s / self.cfg.weak_t_coh_s)))
+            self._configure(dataclasses.replace(self.cfg, bn_hz=self.cfg.weak_bn_hz, t_coh_s=self.cfg.weak_t_coh_s,
+                                                lock_window=window))
+            self.ring, self.pring = [0j] * window, [0.0] * (2 * window)
+            self.hist = collections.deque(self.hist, maxlen=6 * window)
 
     def _noise(self) -> float:
         return self.noise_sum / self.noise_n if self.noise_n else self.sigma2_y
@@ -177,6 +208,9 @@ class Loop:
                         self._record(offset + j, 0j, 0.0)
                     i += (n_acq // p) * p
                     continue
+                if not self.chosen:
+                    self._choose(got[1])
+                    cfg, p = self.cfg, self.p
                 self.w1, self.w2, self.w, self.prev_e = 2 * math.pi * got[0], 0.0, 2 * math.pi * got[0], None
                 if not self.noise_n:
                     self.sigma2_y = got[2]
