@@ -105,3 +105,6 @@ def test_live_path_with_the_capture_agrees_with_the_replay(long_session):
     rms, n, sigma = difference_rms(out, session / "replay", "fix+leo-alpha+imu")
     assert n > 80 and rms < sigma, (rms, sigma)
     assert (out / "session" / "sdr.cu8").stat().st_size == (session / "s" / "sdr.cu8").stat().st_size
+    # the playback ended, so the beacon process read the whole capture and flushed its stream (cu8: 2
+    # bytes a sample) before the navigator settled
+    assert b["counts"]["flushed_at_samples"] == (session / "s" / "sdr.cu8").stat().st_size // 2, b["counts"]

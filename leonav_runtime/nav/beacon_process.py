@@ -29,8 +29,7 @@ def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigm
            inbox, outbox, recording_done, stop, operator_folder: str | None = None,
            carrier_phase: bool = False) -> None:
     from leonav_runtime.beacons.predict import Site
-    from leonav_runtime.nav.beacon_feed import (CHUNK_S, CaptureFile, capture_meta, emitted_names,
-                                                emitted_phase_table, emitted_table, phase_names, stream_summary)
+    from leonav_runtime.nav.beacon_feed import CHUNK_S, CaptureFile, capture_meta, stream_summary
     from leonav_runtime.orbits.operator_folder import OperatorFolder
     from leonav_runtime.nav.beacon_stream import BeaconStream
     from leonav_runtime.orbits.elements import load_element_files
@@ -74,31 +73,44 @@ def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigm
                 stream.set_site(Site(*origin), utc_of(start_unix))
             z = capture.read(chunk)
             if z is None:
-                if recording_done.is_set():
+                if recording_done.is_set():     # all of it read: its last block and phase epochs too
+                    stream.flush()
+                    counts["flushed_at_samples"] = capture.n_read
+                    _send(stream, counts, elements, sigma_floor, operator, site_origin, start_unix, epoch_unix,
+                          outbox)
                     break
                 time.sleep(IDLE_S)
                 continue
             counts["samples"] = capture.n_read
             stream.push(z)
-            emitted = stream.take()
-            if emitted and math.isfinite(epoch_unix):
-                tab = emitted_table(emitted, start_unix, epoch_unix, elements, sigma_floor, operator, counts)
-                counts["tables"] += 1
-                counts["measurements"] += int(tab.t.size)
-                outbox.put(("table", tab.t, tab.sat_id, tab.z, np.broadcast_to(tab.sigma, tab.t.shape).copy(),
-                            tab.sat_ecef, emitted_names(emitted, elements)))
-            diffs = stream.take_phase()
-            if diffs and math.isfinite(epoch_unix):
-                tab = emitted_phase_table(diffs, stream.tones, start_unix, epoch_unix, elements, site_origin, operator,
-                                          counts)
-                counts["phase_differences"] = counts.get("phase_differences", 0) + int(tab.t.size)
-                outbox.put(("phase", tab, phase_names(diffs, stream.tones, elements)))
+            _send(stream, counts, elements, sigma_floor, operator, site_origin, start_unix, epoch_unix, outbox)
     except Exception as exc:      # the navigator goes on without Doppler-rate, and says why
         error = f"{type(exc).__name__}: {exc}"
     finally:
         if capture is not None:
             capture.close()
         outbox.put(("summary", stream_summary(stream, counts, error, notes, start_unix)))
+
+
+def _send(stream, counts: dict, elements, sigma_floor: float, operator, site_origin, start_unix: float,
+          epoch_unix: float, outbox) -> None:
+    """What the stream has made since the last call, as Doppler-rate and phase tables to the parent."""
+    from leonav_runtime.nav.beacon_feed import emitted_names, emitted_phase_table, emitted_table, phase_names
+
+    emitted = stream.take()
+    if emitted and math.isfinite(epoch_unix):
+        tab = emitted_table(emitted, start_unix, epoch_unix, elements, sigma_floor, operator, counts)
+        counts["tables"] += 1
+        counts["measurements"] += int(tab.t.size)
+        outbox.put(("table", tab.t, tab.sat_id, tab.z, np.broadcast_to(tab.sigma, tab.t.shape).copy(),
+                    tab.sat_ecef, emitted_names(emitted, elements)))
+    diffs = stream.take_phase()
+    if diffs and math.isfinite(epoch_unix):
+        tab = emitted_phase_table(diffs, stream.tones, start_unix, epoch_unix, elements, site_origin, operator,
+                                  counts)
+        counts["phase_differences"] = counts.get("phase_differences", 0) + int(tab.t.size)
+        outbox.put(("phase", tab, phase_names(diffs, stream.tones, elements)))
+
 
 STOP_WAIT_S = 10.0
 """Longest wait (s) at stop for the beacon process's summary before it is terminated."""
@@ -181,21 +193,31 @@ class BeaconProcess:
         if navigator is not None:
             navigator.on_doppler_rate(DopplerRateTable(t, sat_id, z, sigma, sat_ecef))
 
+    def finish(self, navigator) -> None:
+        """The recording is over and all of it is to be used: the process reads to its end, flushes
+        its stream and stops; what it sends meanwhile reaches the navigator (`STOP_WAIT_S` at most)."""
+        self._recording_done.set()
+        self._drain(navigator)
+
     def stop(self) -> None:
         self._stop.set()
         self._recording_done.set()
-        # the process drains what it has read first: on a loaded machine (or a Pi) that takes seconds
-        deadline = time.monotonic() + STOP_WAIT_S
-        while not self._summary and time.monotonic() < deadline and self._proc is not None:
-            try:
-                self._handle(self._outbox.get(timeout=0.2), None)
-            except queue.Empty:
-                if not self._proc.is_alive():
-                    break
+        self._drain(None)
         if self._proc is not None:
             self._proc.join(timeout=2.0)
             if self._proc.is_alive():
                 self._proc.terminate()
+
+    def _drain(self, navigator) -> None:
+        """Messages until the process's summary: the process drains what it has read first, and on
+        a loaded machine (or a Pi) that takes seconds."""
+        deadline = time.monotonic() + STOP_WAIT_S
+        while not self._summary and time.monotonic() < deadline and self._proc is not None:
+            try:
+                self._handle(self._outbox.get(timeout=0.2), navigator)
+            except queue.Empty:
+                if not self._proc.is_alive():
+                    break
 
     def summary(self) -> dict:
         return self._summary or {"error": "the beacon process sent no summary"}

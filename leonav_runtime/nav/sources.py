@@ -220,13 +220,20 @@ class LiveSource:
                 navigator.tick(now, self.rejected())
             alive = [d for d in self.session.devices if d.thread is not None and d.thread.is_alive()]
             if not alive:
-                return "devices ended"
+                return self._ended("devices ended", navigator)
             if self.playback and all(p.done.is_set() for p in self.playback):
                 quiet_since = quiet_since or now
                 if items:
                     quiet_since = now
                 if now - quiet_since > 0.5:
-                    return "playback ended"
+                    return self._ended("playback ended", navigator)
+
+    def _ended(self, reason: str, navigator) -> str:
+        """Every device (or the playback) ended: the beacon process's last records, its stream
+        flushed, reach the navigator before it settles."""
+        if self.beacons is not None:
+            self.beacons.finish(navigator)
+        return reason
 
     def _dispatch(self, items: list, navigator) -> None:
         """Records in arrival order; IMU samples of one read (one stamp) go together, with the time
