@@ -165,19 +165,28 @@ def test_a_tone_about_to_leave_the_band_stops_and_one_that_would_soon_is_not_sta
     bs = BeaconStream(capture.sample_rate_hz, 11.325e9, 11.325e9, builtin_starlink(PAPER_EPOCH), carrier_phase=True)
     edge = 0.45 * capture.sample_rate_hz
     t = np.arange(-2 * AID_STEP_S, capture.cfg.duration_s + 3 * AID_STEP_S, AID_STEP_S)
-    leaving = np.where(t < 6.0, 0.5 * edge, 1.2 * edge)       # beyond the band from 6 s on
+    # the capture's first tone, predicted beyond the band from 6 s on
+    leaving = np.where(t < 6.0, capture.predicted_baseband(t, 0, 0.05, 5.0)[0], 1.2 * edge)
     assert bs._in_band(Aiding(t, leaving, "x"), TONE_BAND_AHEAD_S)      # t_data 0: in band up to 5 s
     bs.t_data = 1.5
     assert not bs._in_band(Aiding(t, leaving, "x"), TONE_BAND_AHEAD_S)
     bs.t_data = 0.0
     bs.carrier.start_tone(7, 1, Aiding(t, leaving, "tone"))
     bs.tones[7] = (1, 0, 0.0)
-    chunk = 24_000
+    chunk, diffs, t_stop = 24_000, [], None
     for k in range(0, capture.iq.size, chunk):
         bs.push(capture.iq[k:k + chunk])
+        diffs += bs.take_phase()
         if bs.t_data < 6.0 - BAND_MARGIN_S - 0.1:
             assert 7 in bs.carrier.tones
+        elif t_stop is None and 7 not in bs.carrier.tones:
+            t_stop = bs.carrier.t_data
     assert 7 not in bs.carrier.tones and bs.counts["tones_left_band"] == 1 and bs.counts["tones_stopped"] == 1
+    # its epochs that were final when it stopped still come (those within the lag are not confirmed)
+    from leonav_runtime.beacons.carrier_stream import LAG_S
+
+    assert diffs and max(d.t_s for d in diffs) >= t_stop - LAG_S - 0.15, (max(d.t_s for d in diffs), t_stop)
+    assert bs.phase_tones[7] == (1, 0, 0.0)
 
 
 def test_a_tone_stopped_before_its_first_epochs_leaves_the_counts_whole(capture):

@@ -55,6 +55,7 @@ class StreamingCarrier:
         self.norad: dict[int, int] = {}
         self._next_epoch: dict[int, int] = {}   # first epoch index not yet given, per tone
         self._given: set[int] = set()           # tones whose epochs have been given once
+        self._stopped: list[StreamedDifference] = []   # final differences of tones stopped since `take`
         self.counts = {"tones": 0, "epochs": 0, "differences": 0, "breaks": {r: 0 for r in BREAK_REASONS}}
 
     @property
@@ -73,7 +74,11 @@ class StreamingCarrier:
         self._next_epoch[key] = int(math.floor(first / self.cfg.epoch_s)) + 1
 
     def stop_tone(self, key: int) -> None:
-        """No longer track tone `key` (its satellite has gone); its last epochs are not given."""
+        """No longer track tone `key` (its satellite has gone, or is about to leave the band): its
+        epochs that are final now (`lag_s` behind the data) are kept for the next `take`, the
+        later ones, which no later prompt can confirm, are not given."""
+        if key in self.tones:
+            self._stopped += self._take_tone(key, self.tones[key], final=False, batch=False)
         for d in (self.tones, self.norad, self._next_epoch):
             d.pop(key, None)
         self._given.discard(key)    # started again later, it is a new tone with a first window
@@ -94,31 +99,37 @@ class StreamingCarrier:
     def take(self, final: bool = False) -> list[StreamedDifference]:
         """The phase differences made final since the last call (module doc); final: the capture
         has ended, every epoch its samples give is final."""
-        out: list[StreamedDifference] = []
+        out, self._stopped = self._stopped, []
+        for key, tone in self.tones.items():
+            out += self._take_tone(key, tone, final, batch=not final)
+        self.counts["differences"] += len(out)
+        return out
+
+    def _take_tone(self, key: int, tone: _Tone, final: bool, batch: bool) -> list[StreamedDifference]:
+        """One tone's new differences up to `lag_s` behind the data (none behind: final); batch:
+        only once `EVERY_S` of epochs are ready."""
         lag = 0.0 if final else self.lag_s
         e_ready = int(math.floor((self.t_data - lag) / self.cfg.epoch_s + 1e-9))
-        for key, tone in self.tones.items():
-            e_first = self._next_epoch[key]
-            if e_ready < e_first or (not final and (e_ready - e_first + 1) * self.cfg.epoch_s < EVERY_S - 1e-9):
-                continue
-            tr = _epochs(tone, self.cfg, max(1, e_first - 1), e_ready)
-            if not tr.t_s.size:
-                continue
-            n = tr.t_s.size
-            d = phase_differences(tr.t_s, np.full(n, self.norad[key]), np.full(n, key), tr.phase_cycles,
-                                  tr.sigma_cycles, tr.locked, tr.arc, self.cfg.epoch_s)
-            # every pair of the window ends at a new epoch (the repeated one starts the window)
-            out += [StreamedDifference(float(t), float(i), key, self.norad[key], float(z), float(s))
-                    for t, i, z, s in zip(d.t, d.interval_s, d.z_cycles, d.sigma_cycles)]
-            # the window's first epoch was counted by the window before it; a tone is counted with its
-            # first window (one stopped before it gave none: pairs = epochs - tones holds)
-            self.counts["epochs"] += n - (1 if key in self._given else 0)
-            if key not in self._given:
-                self.counts["tones"] += 1
-                self._given.add(key)
-            for r in BREAK_REASONS:
-                self.counts["breaks"][r] += d.counts["breaks"][r]
-            self._next_epoch[key] = int(round(tr.t_s[-1] / self.cfg.epoch_s)) + 1   # the prompts may end sooner
-            tone.trim(int((e_ready * self.cfg.epoch_s - self.keep_s) * tone.front.sub_rate_hz))
-        self.counts["differences"] += len(out)
+        e_first = self._next_epoch[key]
+        if e_ready < e_first or (batch and (e_ready - e_first + 1) * self.cfg.epoch_s < EVERY_S - 1e-9):
+            return []
+        tr = _epochs(tone, self.cfg, max(1, e_first - 1), e_ready)
+        if not tr.t_s.size:
+            return []
+        n = tr.t_s.size
+        d = phase_differences(tr.t_s, np.full(n, self.norad[key]), np.full(n, key), tr.phase_cycles,
+                              tr.sigma_cycles, tr.locked, tr.arc, self.cfg.epoch_s)
+        # every pair of the window ends at a new epoch (the repeated one starts the window)
+        out = [StreamedDifference(float(t), float(i), key, self.norad[key], float(z), float(s))
+               for t, i, z, s in zip(d.t, d.interval_s, d.z_cycles, d.sigma_cycles)]
+        # the window's first epoch was counted by the window before it; a tone is counted with its
+        # first window (one stopped before it gave none: pairs = epochs - tones holds)
+        self.counts["epochs"] += n - (1 if key in self._given else 0)
+        if key not in self._given:
+            self.counts["tones"] += 1
+            self._given.add(key)
+        for r in BREAK_REASONS:
+            self.counts["breaks"][r] += d.counts["breaks"][r]
+        self._next_epoch[key] = int(round(tr.t_s[-1] / self.cfg.epoch_s)) + 1   # the prompts may end sooner
+        tone.trim(int((e_ready * self.cfg.epoch_s - self.keep_s) * tone.front.sub_rate_hz))
         return out

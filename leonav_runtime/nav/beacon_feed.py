@@ -200,7 +200,7 @@ class BeaconFeed:
         diffs = self.stream.take_phase()
         road = navigator.road
         if diffs and road.started and math.isfinite(self.start_unix):
-            table = emitted_phase_table(diffs, self.stream.tones, self.start_unix, road.epoch_unix, self.elements,
+            table = emitted_phase_table(diffs, self.stream.phase_tones, self.start_unix, road.epoch_unix, self.elements,
                                         road.origin, self.operator, self.counts)
             self.counts["phase_tables"] = self.counts.get("phase_tables", 0) + 1
             self.counts["phase_differences"] = self.counts.get("phase_differences", 0) + int(table.t.size)

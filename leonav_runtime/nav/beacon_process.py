@@ -106,10 +106,10 @@ def _send(stream, counts: dict, elements, sigma_floor: float, operator, site_ori
                     tab.sat_ecef, emitted_names(emitted, elements)))
     diffs = stream.take_phase()
     if diffs and math.isfinite(epoch_unix):
-        tab = emitted_phase_table(diffs, stream.tones, start_unix, epoch_unix, elements, site_origin, operator,
+        tab = emitted_phase_table(diffs, stream.phase_tones, start_unix, epoch_unix, elements, site_origin, operator,
                                   counts)
         counts["phase_differences"] = counts.get("phase_differences", 0) + int(tab.t.size)
-        outbox.put(("phase", tab, phase_names(diffs, stream.tones, elements)))
+        outbox.put(("phase", tab, phase_names(diffs, stream.phase_tones, elements)))
 
 
 STOP_WAIT_S = 10.0

@@ -14,12 +14,11 @@ public pieces (it does not change them):
 - each new epoch of an associated comb is emitted once (its combined, drift-corrected rate,
   `CaptureAssociation.filter_measurements`), never revised afterwards.
 Memory stays bounded: finished tracks are dropped from the tracker once measured, tracks keep
-their last `track_keep_s` of points, measurements their last `window_s`.
-
-Differences from the batch pipeline (named for the README): no fragment joining and no
-tone-shape filter at the end of the capture (noise tracks simply find no satellite); the LO
-drift is estimated from the window, not the whole capture; a ridge shorter than one fit
-window gives no measurement; an association made early is not revised for epochs already sent.
+their last `track_keep_s` of points, measurements their last `window_s`. Differences from the
+batch pipeline (named for the README): no fragment joining and no tone-shape filter at the end
+of the capture (noise tracks simply find no satellite); the LO drift is estimated from the
+window, not the whole capture; a ridge shorter than one fit window gives no measurement; an
+association made early is not revised for epochs already sent.
 """
 from __future__ import annotations
 
@@ -162,6 +161,7 @@ class BeaconStream:
         self._aid_offset: dict[int, float] = {}              # ridge id -> aiding's constant (Hz)
         self._gone_since: dict[int, float] = {}              # tracked tone -> when its ridge ended (s)
         self._ended: set[int] = set()                        # ridges stopped or left out: not started again
+        self._retired, self._left_out = {}, set()    # stopped tones (last epochs may follow); ridges out of band
 
     def set_site(self, site, start_utc: _dt.datetime) -> None:
         """The receiver's site and the capture's first-sample UTC (needed to associate)."""
@@ -178,6 +178,11 @@ class BeaconStream:
         for blk in self.stft_push.flush():
             self.add_block(blk)
         self._phase_final = True
+
+    @property
+    def phase_tones(self) -> dict:
+        """Ridge id -> (NORAD id, element row, offset Hz) of every tone tracked or stopped."""
+        return {**self._retired, **self.tones}
 
     def take_phase(self) -> list:
         """Carrier-phase differences made final since the last call (`carrier_stream.StreamedDifference`,
@@ -216,8 +221,10 @@ class BeaconStream:
                 self._stop(key)
 
     def _stop(self, key: int) -> None:
-        """A tracked tone ends for good (its ridge is not started again)."""
+        """A tracked tone ends for good (its ridge is not started again); its final epochs still come
+        with the next `take_phase`, so its satellite and offset stay known (`phase_tones`)."""
         self.carrier.stop_tone(key)
+        self._retired[key] = self.tones.get(key, self._retired.get(key))
         for d in (self.tones, self._aid_offset, self._gone_since):
             d.pop(key, None)
         self._ended.add(key)
@@ -340,9 +347,10 @@ class BeaconStream:
             updated.add(a.ridge_id)
             if a.ridge_id in self.tones:
                 self.carrier.set_aiding(a.ridge_id, aid)
-            elif not self._in_band(aid, TONE_BAND_AHEAD_S):     # soon beyond the front end's band
-                self._ended.add(a.ridge_id)
-                self.counts["tones_left_out"] += 1
+            elif not self._in_band(aid, TONE_BAND_AHEAD_S):     # soon beyond the front end's band: counted
+                if a.ridge_id not in self._left_out:           # once, and looked at again next time (a
+                    self._left_out.add(a.ridge_id)             # tone entering the band is seen at its edge)
+                    self.counts["tones_left_out"] += 1
             else:
                 tone = (a.norad_id, int(pred.sat_index[a.sat_row]), a.tone_index * spacing)
                 for old in [k for k, v in self.tones.items() if v == tone]:
