@@ -228,3 +228,24 @@ def test_a_taken_port_gives_status_3_and_names_the_address(pair):
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=120)
     assert r.returncode == 3, r.stderr
     assert f"127.0.0.1:{port}" in r.stderr and "serving" not in r.stdout
+
+
+def test_a_signal_during_the_build_stops_the_base_at_once(pair, tmp_path):
+    """SIGINT while the corrections are still being built ends the build (no server yet), exits 130
+    and says so; the --record file is not created."""
+    import time
+
+    folder, _ = pair
+    record = tmp_path / "rec.txt"
+    base = subprocess.Popen(CLI + ["base", "--simulate", str(folder / "p"), "--listen", "127.0.0.1:0",
+                                   "--record", str(record)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(1.0)                  # imports done, the build under way (it takes seconds)
+    assert base.poll() is None
+    t0 = time.monotonic()
+    base.send_signal(signal.SIGINT)
+    out, err = base.communicate(timeout=30)
+    assert base.returncode == 130, err
+    assert "serving" not in out and "interrupted" in err
+    assert time.monotonic() - t0 < 1.5, time.monotonic() - t0
+    assert not record.exists()

@@ -101,6 +101,8 @@ def build_corrections(folder: Path, pos, tle_files=(), smooth_s: float | None = 
     epoch_unix = inputs.epoch_utc.timestamp()
     corr = corrections_of_table(table, epoch_unix, origin, inputs.f_c_hz, nav,
                                 DEFAULT_SMOOTH_S if smooth_s is None else smooth_s)
+    if not corr:
+        raise UserInputError(f"{folder}: {table.t.size} Doppler-rate measurements, but none gave a correction")
     return corr, epoch_unix, list(inputs.notes)
 
 
@@ -114,17 +116,27 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError(str(exc)) from None
     if args.smooth is not None and not (math.isfinite(args.smooth) and args.smooth >= 0):
         raise UserInputError(f"--smooth {args.smooth}: expected a window >= 0 s")
-    # SIGINT / SIGTERM set a flag the loop reads: an exception raised at any bytecode could leave the
-    # server's lock held (between its acquire and the with block), and the close would then wait forever.
-    # Installed before the corrections are built and the "serving" line printed: a client that signals
-    # as soon as it reads that line is heard, and a stop during the build exits with its status too.
+    # SIGINT / SIGTERM: while the corrections are built (no server yet) they end the build at once;
+    # from then on they set a flag the serving loop reads, since an exception raised at any bytecode
+    # could leave the server's lock held (between its acquire and the with block) and the close would
+    # wait forever. Installed before the "serving" line: a client that signals on reading it is heard.
     stop: list[int] = []
+    building = [True]
+
+    def on_signal(signum, _frame):
+        stop.append(signum)
+        if building[0]:
+            raise _Signalled(signum)
+
     in_main = threading.current_thread() is threading.main_thread()    # (handlers only go there)
-    previous = {s: signal.signal(s, lambda signum, _frame: stop.append(signum))
-                for s in (signal.SIGINT, signal.SIGTERM)} if in_main else {}
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)} if in_main else {}
     code = 0
     try:
-        corr, epoch_unix, _ = build_corrections(folder, pos, tuple(args.tle), args.smooth)
+        try:
+            corr, epoch_unix, _ = build_corrections(folder, pos, tuple(args.tle), args.smooth)
+            building[0] = False
+        except _Signalled:
+            pass
         if not stop:
             code = _serve(args, corr, epoch_unix, f"{folder} at {pos[0]:.7f}, {pos[1]:.7f}, {pos[2]:.2f} m",
                           pos, host, port, stop)
@@ -132,8 +144,14 @@ def run(args: argparse.Namespace) -> int:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     if stop:
+        print(f"leonav base: {'interrupted (SIGINT)' if stop[0] == signal.SIGINT else 'stopped (SIGTERM)'}",
+              file=sys.stderr, flush=True)
         return 130 if stop[0] == signal.SIGINT else 143
     return code
+
+
+class _Signalled(BaseException):
+    """SIGINT or SIGTERM while the corrections are built (not an Exception: nothing swallows it)."""
 
 
 def _serve(args: argparse.Namespace, corr: list, epoch_unix: float, source: str, pos: tuple, host: str,
@@ -145,25 +163,25 @@ def _serve(args: argparse.Namespace, corr: list, epoch_unix: float, source: str,
 
     header = protocol.header_line(*pos)
     lines = [protocol.correction_line(c) for c in corr]
-    record = open(args.record, "w") if args.record else None
     try:
         server = CorrectionsServer(host, port, header + ("".join(lines) if args.pace == "fast" else ""))
     except OSError as exc:
         print(f"leonav base: error: --listen {host}:{port}: {exc.strerror or exc} (another program holds it? "
               f"try port 0)", file=sys.stderr)
         return 3
-    sats = len({c.norad_id for c in corr})
-    print(f"leonav base: {len(corr)} corrections of {sats} satellites from {source}; "
-          f"serving tcp://{server.address[0]}:{server.address[1]} ({args.pace})", flush=True)
-    if record:
-        record.write(header + ("".join(lines) if args.pace == "fast" else ""))
-    wall0 = time.monotonic()
-    t_first = corr[0].t_utc_s
-    start_utc = epoch_unix if args.pace == "realtime" else t_first
-    end_s = args.seconds if args.seconds is not None else (
-        corr[-1].t_utc_s - start_utc + 2.0 if args.pace == "realtime" else math.inf)
-    k, next_hb = (0 if args.pace == "realtime" else len(lines)), 0.0
-    try:
+    record = None
+    try:    # from here on the server and the record file are closed whatever happens
+        record = open(args.record, "w") if args.record else None
+        sats = len({c.norad_id for c in corr})
+        print(f"leonav base: {len(corr)} corrections of {sats} satellites from {source}; "
+              f"serving tcp://{server.address[0]}:{server.address[1]} ({args.pace})", flush=True)
+        if record:
+            record.write(header + ("".join(lines) if args.pace == "fast" else ""))
+        wall0 = time.monotonic()
+        start_utc = epoch_unix if args.pace == "realtime" else corr[0].t_utc_s
+        end_s = args.seconds if args.seconds is not None else (
+            corr[-1].t_utc_s - start_utc + 2.0 if args.pace == "realtime" else math.inf)
+        k, next_hb = (0 if args.pace == "realtime" else len(lines)), 0.0
         while not stop and (now := time.monotonic() - wall0) < end_s:
             out = []
             while k < len(lines) and corr[k].t_utc_s <= start_utc + now:
