@@ -99,6 +99,8 @@ class TrialBlock:
             return buf
         tpl = self.template
         u_at, z_at, f_b_at = tpl.flat_positions()
+        if not buf.flags.c_contiguous:
+            raise ValueError("TrialBlock.fill: the buffer must be C-contiguous (from buffer())")
         flat = buf.view(np.float64)     # a scatter into flat float64 positions: ~3x the field views'
         flat[u_at] = self.u[j]
         flat[z_at] = self.z[j, tpl.meas_src]
