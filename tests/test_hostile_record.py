@@ -144,9 +144,10 @@ def test_stop_signals_end_the_recording_like_ctrl_c(tmp_path, signals):
     lines = rtk_lines()
     gnss = PtyDevice([lines[i] + lines[i + 1] for i in range(0, len(lines) - 1, 2)], delay_s=0.1)
     out = tmp_path / "session"
+    # PYTHONFAULTHANDLER: a recorder that does not stop is sent SIGABRT and shows where its threads are
     proc = subprocess.Popen([sys.executable, "-c", CLI, "record", "--gnss", gnss.path, "--seconds", "60", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=REPO,
-                            env=dict(os.environ, PYTHONPATH=str(REPO)))
+                            env=dict(os.environ, PYTHONPATH=str(REPO), PYTHONFAULTHANDLER="1"))
     try:
         deadline = time.monotonic() + 30
         while not (out / "session.json").exists() and time.monotonic() < deadline:
@@ -157,7 +158,12 @@ def test_stop_signals_end_the_recording_like_ctrl_c(tmp_path, signals):
         for name in signals:
             proc.send_signal(getattr(signal, name))
             time.sleep(0.02)
-        stdout, stderr = proc.communicate(timeout=30)
+        try:
+            stdout, stderr = proc.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGABRT)
+            _, err = proc.communicate(timeout=10)
+            pytest.fail(f"leonav record did not stop within 30 s of {signals}; stderr: {err.decode()[-4000:]}")
     finally:
         if proc.poll() is None:
             proc.kill()
