@@ -267,9 +267,12 @@ class RecordSession:
                               old if old is not None else signal.SIG_DFL)
 
     def _on_stop_signal(self, signum: int, frame) -> None:
+        # a flag only: the handler runs between any two bytecodes of the main thread, so taking a
+        # lock here (Event.set) deadlocks when the signal lands inside the main thread's own
+        # stop_event.set() - a repeated Ctrl-C during the shutdown did that. run()'s loop reads the
+        # flag within 50 ms and _stop_all sets the event for the device threads.
         if not self.stop_signal:
             self.stop_signal = signal.Signals(signum).name
-        self.stop_event.set()
 
     def _stop_all(self) -> None:
         self.stop_event.set()

@@ -234,3 +234,23 @@ def test_sdr_recording_longer_than_the_free_disk_is_refused_up_front(tmp_path, c
     assert rc == EXIT_BAD_INPUT
     line = _one_line(capsys)
     assert "free" in line and "--seconds" in line and "GB" in line
+
+
+def test_the_stop_signal_handler_takes_no_lock():
+    """The handler runs between any two bytecodes of the main thread, also inside the main thread's
+    own `stop_event.set()` during the shutdown: it must not take the event's lock (a repeated
+    Ctrl-C then deadlocked `leonav record`). Here the lock is held by the thread that runs it."""
+    import threading
+    from types import SimpleNamespace
+
+    fake = SimpleNamespace(stop_signal=None, stop_event=threading.Event())
+    returned = threading.Event()
+
+    def inside_set():
+        with fake.stop_event._cond:        # where Event.set() is when the signal lands
+            RecordSession._on_stop_signal(fake, signal.SIGINT, None)
+            returned.set()
+
+    threading.Thread(target=inside_set, daemon=True).start()
+    assert returned.wait(timeout=5), "the handler blocked on the stop event's lock"
+    assert fake.stop_signal == "SIGINT"
