@@ -176,7 +176,9 @@ def test_a_tone_about_to_leave_the_band_stops_and_one_that_would_soon_is_not_sta
     chunk, diffs, t_stop = 24_000, [], None
     for k in range(0, capture.iq.size, chunk):
         bs.push(capture.iq[k:k + chunk])
-        diffs += bs.take_phase()
+        new = bs.take_phase()
+        assert all(bs.phase_tones[d.key] == (1, 0, 0.0) for d in new)     # known also once stopped
+        diffs += new
         if bs.t_data < 6.0 - BAND_MARGIN_S - 0.1:
             assert 7 in bs.carrier.tones
         elif t_stop is None and 7 not in bs.carrier.tones:
@@ -186,7 +188,6 @@ def test_a_tone_about_to_leave_the_band_stops_and_one_that_would_soon_is_not_sta
     from leonav_runtime.beacons.carrier_stream import LAG_S
 
     assert diffs and max(d.t_s for d in diffs) >= t_stop - LAG_S - 0.15, (max(d.t_s for d in diffs), t_stop)
-    assert bs.phase_tones[7] == (1, 0, 0.0)
 
 
 def test_a_tone_stopped_before_its_first_epochs_leaves_the_counts_whole(capture):
@@ -204,3 +205,21 @@ def test_a_tone_stopped_before_its_first_epochs_leaves_the_counts_whole(capture)
     sc.take(final=True)
     c = sc.counts
     assert c["tones"] == 1 and c["differences"] + sum(c["breaks"].values()) == c["epochs"] - c["tones"]
+
+
+def test_a_stopped_tone_is_known_until_the_take_after_its_last_epochs():
+    """phase_tones keeps a stopped tone for the take_phase that returns its last differences, and
+    drops it at the one after (the stream's memory stays bounded over a long run)."""
+    from leonav_runtime.nav.beacon_stream import BeaconStream
+    from leonav_runtime.simulation.session_synth import PAPER_EPOCH, builtin_starlink
+
+    bs = BeaconStream(240e3, 11.325e9, 11.325e9, builtin_starlink(PAPER_EPOCH), carrier_phase=True)
+    t = np.arange(-1.0, 20.0, AID_STEP_S)
+    bs.carrier.start_tone(3, 1, Aiding(t, np.zeros_like(t), "tone"))
+    bs.tones[3] = (1, 0, 0.0)
+    bs._stop(3)
+    assert 3 not in bs.tones
+    bs.take_phase()
+    assert bs.phase_tones[3] == (1, 0, 0.0)      # for the differences this take returned
+    bs.take_phase()
+    assert 3 not in bs.phase_tones

@@ -173,7 +173,7 @@ def test_fix_epochs_wait_for_their_gst_or_go_at_once_without():
 
 def test_push_stft_gives_the_batch_slices():
     from leonav_runtime.beacons.waterfall import StftConfig, iter_spectra
-    from leonav_runtime.nav.beacon_stream import PushStft
+    from leonav_runtime.nav.push_stft import PushStft
 
     fs = 200e3
     rng = np.random.default_rng(0)

@@ -11,6 +11,7 @@ with what has arrived so far and nothing later:
   stepper.py      the generated C filter on each arriving batch, with a fixed-lag window in
                   which a late measurement is put in its place and the window re-run
   beacon_stream.py  the beacon pipeline on a growing capture, chunk by chunk
+  push_stft.py    the batch STFT driven by pushed sample blocks (the same slices)
   navigator.py    the loop: events in, records to the filter, solutions out, faults
   sources.py      live devices (the recorder's device threads), paced pty playback, fast playback
   outputs.py, status.py   NMEA/MAVLink/JSON lines, trajectory files, the terminal status line

@@ -36,7 +36,8 @@ from leonav_runtime.beacons.doppler import RidgeMeasurements, ridge_measurements
 from leonav_runtime.beacons.pipeline import PipelineConfig
 from leonav_runtime.beacons.predict import predict_visible
 from leonav_runtime.beacons.ridges import Ridge, RidgeTracker
-from leonav_runtime.beacons.waterfall import StftConfig, band_bins, iter_spectra
+from leonav_runtime.beacons.waterfall import StftConfig, band_bins
+from leonav_runtime.nav.push_stft import PushStft
 
 TONE_GONE_S = 5.0   # a tracked tone whose STFT ridge has been gone this long is no longer tracked
 # a tone starts when its aiding stays inside the front end's band (0.45 fs) this long ahead, and
@@ -79,49 +80,6 @@ def _since(m: RidgeMeasurements, t0: float) -> RidgeMeasurements:
     return RidgeMeasurements(m.ridge_id, *(getattr(m, f)[k:] for f in MEAS_FIELDS))
 
 
-class PushStft:
-    """`waterfall.iter_spectra` driven by pushed sample blocks: the same slices (and times since the
-    capture start) as the batch STFT of the whole capture, emitted as soon as a block of
-    `slices_per_block` slices is complete."""
-
-    def __init__(self, stft: StftConfig, sample_rate_hz: float, slices_per_block: int = 64) -> None:
-        self.stft, self.fs, self.per_block = stft, sample_rate_hz, slices_per_block
-        self.need = stft.fft_size + (slices_per_block - 1) * stft.hop
-        self.step = slices_per_block * stft.hop
-        self._parts: list[np.ndarray] = []    # pushed pieces not yet joined (joined once per block)
-        self._n = 0
-        self._start = 0                 # sample index of the first buffered sample
-
-    def _joined(self) -> np.ndarray:
-        if len(self._parts) > 1:
-            self._parts = [np.concatenate(self._parts)]
-        return self._parts[0] if self._parts else np.zeros(0, np.complex64)
-
-    def push(self, samples: np.ndarray) -> list:
-        self._parts.append(samples)
-        self._n += samples.size
-        out = []
-        while self._n >= self.need:
-            buf = self._joined()
-            out.append(self._emit(buf[:self.need]))
-            self._parts = [buf[self.step:]]
-            self._n -= self.step
-            self._start += self.step
-        return out
-
-    def flush(self) -> list:
-        buf = self._joined()
-        out = [self._emit(buf)] if buf.size >= self.stft.fft_size else []
-        self._parts, self._n = [], 0
-        return out
-
-    def _emit(self, block: np.ndarray):
-        spec = next(iter_spectra([block], self.stft, self.fs, slices_per_block=self.per_block))
-        # slice centres since the capture start, written as iter_spectra writes them (same rounding)
-        t = (self._start + np.arange(spec.t_s.size) * self.stft.hop + self.stft.fft_size / 2) / self.fs
-        return dataclasses.replace(spec, t_s=t)
-
-
 class BeaconStream:
     """Feed IQ (`push`, complex64) or spectrum blocks (`add_block`); take measurements with `take()`."""
 
@@ -161,7 +119,8 @@ class BeaconStream:
         self._aid_offset: dict[int, float] = {}              # ridge id -> aiding's constant (Hz)
         self._gone_since: dict[int, float] = {}              # tracked tone -> when its ridge ended (s)
         self._ended: set[int] = set()                        # ridges stopped or left out: not started again
-        self._retired, self._left_out = {}, set()    # stopped tones (last epochs may follow); ridges out of band
+        # stopped tones (their last epochs may follow), those stopped since take_phase, ridges out of band
+        self._retired, self._stopped_since, self._left_out = {}, set(), set()
 
     def set_site(self, site, start_utc: _dt.datetime) -> None:
         """The receiver's site and the capture's first-sample UTC (needed to associate)."""
@@ -186,9 +145,11 @@ class BeaconStream:
 
     def take_phase(self) -> list:
         """Carrier-phase differences made final since the last call (`carrier_stream.StreamedDifference`,
-        capture time); the tone's satellite row and offset from the channel centre are in `tones`."""
+        capture time); their tones' satellite rows and offsets are in `phase_tones` until the next call."""
         if self.carrier is None:
             return []
+        self._retired = {k: v for k, v in self._retired.items() if k in self._stopped_since}
+        self._stopped_since = set()
         return self.carrier.take(final=self._phase_final)
 
     def add_block(self, blk) -> None:
@@ -225,6 +186,7 @@ class BeaconStream:
         with the next `take_phase`, so its satellite and offset stay known (`phase_tones`)."""
         self.carrier.stop_tone(key)
         self._retired[key] = self.tones.get(key, self._retired.get(key))
+        self._stopped_since.add(key)
         for d in (self.tones, self._aid_offset, self._gone_since):
             d.pop(key, None)
         self._ended.add(key)
