@@ -161,12 +161,8 @@ class Loop:
         self.prev_e = None
         self.sigma2_y = math.nan
         self.noise_sum, self.noise_n = 0.0, 0
-        self.ring = [0j] * cfg.lock_window
-        self.ring_i, self.zsum = 0, 0j
-        self.pring, self.psum, self.pring_i, self.present = [0.0] * (2 * cfg.lock_window), 0.0, 0, 0
         self.on = self.off = self.neg = 0
         self.lost_prompts = self.since_acq = 0
-        self.hist: collections.deque = collections.deque(maxlen=6 * cfg.lock_window)
         self.arc = -1
         self.rec: dict[str, list] = {k: [] for k in ("i0", "mode", "phi", "w", "z", "d", "arc", "noise")}
         self.acquisitions = 0
@@ -177,6 +173,12 @@ class Loop:
         self.t = self.p / self.rate
         self.k3, self.k2, self.k1, self.f2, self.f1 = coefficients(cfg)
         self.tau = (np.arange(self.p) + 0.5) / self.rate
+        # the lock and presence detectors' buffers, sized in prompts (empty: the loop is configured
+        # before its first prompt, at the start and at the first acquisition)
+        self.ring = [0j] * cfg.lock_window
+        self.ring_i, self.zsum = 0, 0j
+        self.pring, self.psum, self.pring_i, self.present = [0.0] * (2 * cfg.lock_window), 0.0, 0, 0
+        self.hist: collections.deque = collections.deque(maxlen=6 * cfg.lock_window)
 
     def _choose(self, ratio: float) -> None:
         """At the first acquisition that finds the tone: the weak-tone loop below its C/N0."""
@@ -187,8 +189,6 @@ class Loop:
             window = max(3, int(round(self.cfg.lock_window * self.cfg.t_coh_s / self.cfg.weak_t_coh_s)))
             self._configure(dataclasses.replace(self.cfg, bn_hz=self.cfg.weak_bn_hz, t_coh_s=self.cfg.weak_t_coh_s,
                                                 lock_window=window))
-            self.ring, self.pring = [0j] * window, [0.0] * (2 * window)
-            self.hist = collections.deque(self.hist, maxlen=6 * window)
 
     def _noise(self) -> float:
         return self.noise_sum / self.noise_n if self.noise_n else self.sigma2_y
