@@ -119,8 +119,8 @@ class BeaconStream:
         self._aid_offset: dict[int, float] = {}              # ridge id -> aiding's constant (Hz)
         self._gone_since: dict[int, float] = {}              # tracked tone -> when its ridge ended (s)
         self._ended: set[int] = set()                        # ridges stopped or left out: not started again
-        # stopped tones (their last epochs may follow), those stopped since take_phase, ridges out of band
-        self._retired, self._stopped_since, self._left_out = {}, set(), set()
+        # stopped tones whose last epochs the last take_phase gave, those stopped since; ridges out of band
+        self._retired, self._stopping, self._left_out = {}, {}, set()
 
     def set_site(self, site, start_utc: _dt.datetime) -> None:
         """The receiver's site and the capture's first-sample UTC (needed to associate)."""
@@ -141,15 +141,14 @@ class BeaconStream:
     @property
     def phase_tones(self) -> dict:
         """Ridge id -> (NORAD id, element row, offset Hz) of every tone tracked or stopped."""
-        return {**self._retired, **self.tones}
+        return {**self._retired, **self._stopping, **self.tones}
 
     def take_phase(self) -> list:
         """Carrier-phase differences made final since the last call (`carrier_stream.StreamedDifference`,
         capture time); their tones' satellite rows and offsets are in `phase_tones` until the next call."""
         if self.carrier is None:
             return []
-        self._retired = {k: v for k, v in self._retired.items() if k in self._stopped_since}
-        self._stopped_since = set()
+        self._retired, self._stopping = self._stopping, {}
         return self.carrier.take(final=self._phase_final)
 
     def add_block(self, blk) -> None:
@@ -185,8 +184,8 @@ class BeaconStream:
         """A tracked tone ends for good (its ridge is not started again); its final epochs still come
         with the next `take_phase`, so its satellite and offset stay known (`phase_tones`)."""
         self.carrier.stop_tone(key)
-        self._retired[key] = self.tones.get(key, self._retired.get(key))
-        self._stopped_since.add(key)
+        if key in self.tones:
+            self._stopping[key] = self.tones[key]
         for d in (self.tones, self._aid_offset, self._gone_since):
             d.pop(key, None)
         self._ended.add(key)
