@@ -106,6 +106,27 @@ def emitted_phase_table(diffs: list, tones: dict, start_unix: float, epoch_unix:
         return carrier_phase_table(pm, elements, utc_of(epoch_unix), geodetic_to_ecef(*origin), files, stats=stats)
 
 
+def stream_tables(stream, ready: bool, start_unix: float, epoch_unix: float, elements, sigma_floor_hz_s: float,
+                  operator, origin, counts: dict):
+    """What the beacon stream has made since the last call: (emitted Doppler-rate measurements,
+    their `DopplerRateTable` or None, phase differences, their `CarrierPhaseTable` or None), the
+    tables on the road's axis (`epoch_unix`) at its site `origin`. Before the road is `ready`
+    (its axis and site known) the stream's output makes no table. Counts tables, measurements,
+    phase_tables and phase_differences in `counts`."""
+    emitted, diffs = stream.take(), stream.take_phase()
+    rate = phase = None
+    if ready and emitted:
+        rate = emitted_table(emitted, start_unix, epoch_unix, elements, sigma_floor_hz_s, operator, counts)
+        counts["tables"] += 1
+        counts["measurements"] += int(rate.t.size)
+    if ready and diffs:
+        phase = emitted_phase_table(diffs, stream.phase_tones, start_unix, epoch_unix, elements, origin, operator,
+                                    counts)
+        counts["phase_tables"] = counts.get("phase_tables", 0) + 1
+        counts["phase_differences"] = counts.get("phase_differences", 0) + int(phase.t.size)
+    return emitted, rate, diffs, phase
+
+
 class CaptureFile:
     """A cu8 file read from the start in pieces, also while it is still being written."""
 
@@ -186,25 +207,14 @@ class BeaconFeed:
         self._hand_over(navigator)
 
     def _hand_over(self, navigator) -> None:
-        emitted = self.stream.take()
         road = navigator.road
-        if emitted and road.started and math.isfinite(self.start_unix):
-            table = emitted_table(emitted, self.start_unix, road.epoch_unix, self.elements, self.sigma_floor,
-                                  self.operator, self.counts)
-            self.counts["tables"] += 1
-            self.counts["measurements"] += int(table.t.size)
-            navigator.on_doppler_rate(table)
-        self._phase(navigator)
-
-    def _phase(self, navigator) -> None:
-        diffs = self.stream.take_phase()
-        road = navigator.road
-        if diffs and road.started and math.isfinite(self.start_unix):
-            table = emitted_phase_table(diffs, self.stream.phase_tones, self.start_unix, road.epoch_unix, self.elements,
-                                        road.origin, self.operator, self.counts)
-            self.counts["phase_tables"] = self.counts.get("phase_tables", 0) + 1
-            self.counts["phase_differences"] = self.counts.get("phase_differences", 0) + int(table.t.size)
-            navigator.on_carrier_phase(table)
+        ready = road.started and math.isfinite(self.start_unix)
+        _, rate, _, phase = stream_tables(self.stream, ready, self.start_unix, road.epoch_unix if ready else math.nan,
+                                          self.elements, self.sigma_floor, self.operator, road.origin, self.counts)
+        if rate is not None:
+            navigator.on_doppler_rate(rate)
+        if phase is not None:
+            navigator.on_carrier_phase(phase)
 
     def poll(self, navigator) -> None:
         """Nothing arrives on its own in fast playback (`advance_to` delivers)."""

@@ -95,21 +95,15 @@ def _child(data_path: str, meta_path: str, f_c_hz: float, tle_files: tuple, sigm
 def _send(stream, counts: dict, elements, sigma_floor: float, operator, site_origin, start_unix: float,
           epoch_unix: float, outbox) -> None:
     """What the stream has made since the last call, as Doppler-rate and phase tables to the parent."""
-    from leonav_runtime.nav.beacon_feed import emitted_names, emitted_phase_table, emitted_table, phase_names
+    from leonav_runtime.nav.beacon_feed import emitted_names, phase_names, stream_tables
 
-    emitted = stream.take()
-    if emitted and math.isfinite(epoch_unix):
-        tab = emitted_table(emitted, start_unix, epoch_unix, elements, sigma_floor, operator, counts)
-        counts["tables"] += 1
-        counts["measurements"] += int(tab.t.size)
-        outbox.put(("table", tab.t, tab.sat_id, tab.z, np.broadcast_to(tab.sigma, tab.t.shape).copy(),
-                    tab.sat_ecef, emitted_names(emitted, elements)))
-    diffs = stream.take_phase()
-    if diffs and math.isfinite(epoch_unix):
-        tab = emitted_phase_table(diffs, stream.phase_tones, start_unix, epoch_unix, elements, site_origin, operator,
-                                  counts)
-        counts["phase_differences"] = counts.get("phase_differences", 0) + int(tab.t.size)
-        outbox.put(("phase", tab, phase_names(diffs, stream.phase_tones, elements)))
+    emitted, rate, diffs, phase = stream_tables(stream, math.isfinite(epoch_unix), start_unix, epoch_unix, elements,
+                                                sigma_floor, operator, site_origin, counts)
+    if rate is not None:
+        outbox.put(("table", rate.t, rate.sat_id, rate.z, np.broadcast_to(rate.sigma, rate.t.shape).copy(),
+                    rate.sat_ecef, emitted_names(emitted, elements)))
+    if phase is not None:
+        outbox.put(("phase", phase, phase_names(diffs, stream.phase_tones, elements)))
 
 
 STOP_WAIT_S = 10.0
