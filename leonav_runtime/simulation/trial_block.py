@@ -48,11 +48,10 @@ class Template:
         float64 (those fields of RECORD_DTYPE are float64 at 8-byte offsets): (n, 6), (values,),
         (records, 3)."""
         if "_flat" not in self.__dict__:
-            width, offsets = divmod(self.rec.dtype.itemsize, 8), self.rec.dtype.fields
+            (width, rest), offsets = divmod(self.rec.dtype.itemsize, 8), self.rec.dtype.fields
             field = {name: offsets[name][1] // 8 for name in ("u", "z", "aux")}
-            if width[1] or any(offsets[name][1] % 8 for name in field):
+            if rest or any(offsets[name][1] % 8 for name in field):
                 raise RuntimeError(f"record dtype {self.rec.dtype}: u, z, aux expected at 8-byte offsets")
-            width = width[0]
             self.__dict__["_flat"] = (
                 self.imu_pos[:, None] * width + field["u"] + np.arange(6),
                 self.meas_pos * width + field["z"],
