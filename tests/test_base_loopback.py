@@ -15,6 +15,8 @@ import warnings
 import numpy as np
 import pytest
 
+from tests.timebox import communicate_or_stacks
+
 CLI = [sys.executable, "-c", "import sys; from leonav_runtime.cli import main; sys.exit(main(sys.argv[1:]))"]
 SECONDS = 12.0
 
@@ -44,16 +46,7 @@ def _stop_base(base, timeout: float = 30.0, sig=signal.SIGINT) -> int:
     """A signal (SIGINT) to the base, then its exit code; its pipes are drained meanwhile (an
     undrained pipe could hold a process that writes), and a base that does not stop fails with its stderr."""
     base.send_signal(sig)
-    try:
-        base.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        base.send_signal(signal.SIGABRT)        # the fault handler prints every thread's stack
-        try:
-            _, err = base.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            base.kill()
-            _, err = base.communicate()
-        pytest.fail(f"leonav base did not stop within {timeout:g} s of signal {sig}; stderr: {err[-4000:]}")
+    communicate_or_stacks(base, timeout, f"leonav base did not stop after signal {sig}")
     return base.returncode
 
 

@@ -14,8 +14,9 @@ PROBE = ("import json, leonav_runtime.cli, numpy; from threadpoolctl import thre
 
 
 def _blas_threads(**env: str) -> list[int]:
-    clean = {k: v for k, v in os.environ.items()
-             if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "GOTO_NUM_THREADS", "MKL_NUM_THREADS")}
+    from leonav_runtime.cli import BLAS_THREAD_VARIABLES
+
+    clean = {k: v for k, v in os.environ.items() if k not in BLAS_THREAD_VARIABLES}
     r = subprocess.run([sys.executable, "-c", PROBE], env={**clean, **env}, capture_output=True, text=True,
                        timeout=60, check=True)
     return json.loads(r.stdout)

@@ -24,7 +24,7 @@ from leonav.hardware.gnss import nmea
 from leonav.hardware.session import RecordSession, decode_session
 from leonav_runtime.cli import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_IO, main
 from tests.conftest import shared_file
-from tests.timebox import bounded
+from tests.timebox import bounded, communicate_or_stacks
 
 REPO = Path(__file__).resolve().parents[1]
 CLI = "import sys; from leonav_runtime.cli import main; sys.exit(main(sys.argv[1:]))"
@@ -158,12 +158,7 @@ def test_stop_signals_end_the_recording_like_ctrl_c(tmp_path, signals):
         for name in signals:
             proc.send_signal(getattr(signal, name))
             time.sleep(0.02)
-        try:
-            stdout, stderr = proc.communicate(timeout=30)
-        except subprocess.TimeoutExpired:
-            proc.send_signal(signal.SIGABRT)
-            _, err = proc.communicate(timeout=10)
-            pytest.fail(f"leonav record did not stop within 30 s of {signals}; stderr: {err.decode()[-4000:]}")
+        stdout, stderr = communicate_or_stacks(proc, 30, f"leonav record did not stop after {signals}")
     finally:
         if proc.poll() is None:
             proc.kill()
