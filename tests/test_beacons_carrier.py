@@ -146,15 +146,13 @@ def test_bad_input_is_one_line():
 def test_the_loop_is_chosen_from_the_acquisitions_cn0(cn0):
     """A weak tone gets the narrow, longer loop (5 Hz, 20 ms): its phase error is smaller than the
     default loop's on the same samples (LNB + RTL-SDR front end); a strong tone keeps the default."""
-    import dataclasses
-
     from leonav_runtime.beacons.carrier_loop import LoopConfig
 
     cfg = sp.PhaseBenchConfig(duration_s=8.0, sample_rate_hz=240e3, seed=5, phase_noise=sp.LNB_PHASE_NOISE_DBC_HZ,
                               **FRONT_END)
     cap = sp.make_capture([sp.ToneSpec(cn0_dbhz=cn0, if_hz=40e3, t_closest_s=4.0)], cfg)
     chosen = track_capture(cap)[0]
-    fixed = track_capture(cap, cfg=CarrierConfig(loop=dataclasses.replace(LoopConfig(), weak_below_dbhz=None)))[0]
+    fixed = track_capture(cap, cfg=CarrierConfig(loop=LoopConfig(weak_below_dbhz=None)))[0]
     c = chosen.counts
     assert c["cn0_acquisition_dbhz"] == pytest.approx(cn0, abs=1.0)     # from the acquisition's peak alone
     assert c["weak_loop"] == (cn0 < 22.5) and not fixed.counts["weak_loop"]
