@@ -6,6 +6,7 @@ import argparse
 from leonav_runtime.common import output
 from leonav_runtime.sweep.executors import add_executor_arguments
 from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.study import shipped_studies
 
 
 def register(subparsers) -> None:
@@ -19,7 +20,7 @@ def register(subparsers) -> None:
             "Writes study.csv, study.json, study.png (heat map for two fields, lines for one) and "
             "report.html with time-averaged and final-epoch RMSE and sqrt(PCRB), keys with their units "
             "(position_rmse_m, position_sqrt_pcrb_m, attitude_final_rmse_deg, ...). A bare name runs a shipped "
-            "study (where-is-6-9m, where-is-6-9m-prior, paper-hardware-seeds, realism-ephemeris, realism-imu)."
+            f"study ({', '.join(shipped_studies())})."
         ),
     )
     p.add_argument("study", metavar="STUDY", help="study TOML file or shipped study name")

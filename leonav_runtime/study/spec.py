@@ -25,12 +25,12 @@ else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
 from leonav_runtime.common.errors import UserInputError
+from leonav_runtime.study import BUILTIN_STUDY_DIR, shipped_studies
 from leonav_runtime.common.toml_file import read_toml_file
 from leonav_runtime.scenarios.load import NAME, SCHEMA, Scenario, load_scenario, scenario_from_dict
 
 MAX_AXES, MAX_VALUES, MAX_CELLS = 2, 50, 400
 STUDY_KEYS = ("name", "description", "scenario", "modes", "count", "trials", "set", "vary")
-BUILTIN_STUDY_DIR = Path(__file__).with_name("studies")
 TRIALS = SCHEMA["monte_carlo"]["trials"]   # the bounds of trials per cell, as a scenario's
 
 
@@ -257,7 +257,7 @@ def load_study(path: str | Path, sets: list[str] = ()) -> Study:
     if not path.exists() and (BUILTIN_STUDY_DIR / f"{path.name}.toml").exists():
         path = BUILTIN_STUDY_DIR / f"{path.name}.toml"
     if not path.is_file():
-        shipped = ", ".join(sorted(p.stem for p in BUILTIN_STUDY_DIR.glob("*.toml")))
+        shipped = ", ".join(shipped_studies())
         raise UserInputError(f"{path}: study file not found (shipped studies: {shipped})")
     data = read_toml_file(path, "study")
     return study_from_dict(data, str(path), path.parent, [parse_set(s) for s in sets])
