@@ -20,7 +20,7 @@ from typing import Mapping, Union
 
 import numpy as np
 
-from leonav_runtime.core import compiled, records
+from leonav_runtime.core import compiled, orbit_states, records
 from leonav_runtime.gen import state_layout as _codes
 from leonav_runtime.gen.constants import CHI2_1DOF_999
 
@@ -183,13 +183,15 @@ class EKF:
 
     # -- whole streams ----------------------------------------------------------
     def run(self, recs: np.ndarray, gate: GateSpec | str = "filter", full_P: bool = False,
-            P_rows: np.ndarray | None = None) -> RunResult:
+            P_rows: np.ndarray | None = None, orbit=None) -> RunResult:
         """Run a time-ordered RECORD_DTYPE stream in the C loop; x and P end at its end.
 
         gate: "filter" uses this filter's gate, else a gate spec (see module doc).
         full_P: also return P after every record (n * NDX^2 doubles).
         P_rows: record indices (increasing) after which to return P instead; `RunResult.P`
         then has one block per index, in that order.
+        orbit: an `orbit_states.OrbitStates`: its satellites' orbit offsets are estimated beside
+        the state (`leonav_run_orbit`, ephemeris method 1) and left in it; P stays NDX x NDX.
         """
         recs = np.ascontiguousarray(recs)
         records.check_records(recs, len(self.lib.meas_ids))
@@ -215,10 +217,17 @@ class EKF:
             P_mask=None if mask is None else mask.ctypes.data_as(ctypes.POINTER(ctypes.c_uint8)),
             y=_ptr(y), S=_ptr(S), nis=_ptr(nis),
             status=status.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
-        rc = self.lib.lib.leonav_run(_ptr(self.x), _ptr(self.P), _ptr(self.params), recs.ctypes.data, n,
-                                     _ptr(gates), ctypes.byref(out), self._work.ctypes.data)
+        if orbit is None:
+            rc = self.lib.lib.leonav_run(_ptr(self.x), _ptr(self.P), _ptr(self.params), recs.ctypes.data, n,
+                                         _ptr(gates), ctypes.byref(out), self._work.ctypes.data)
+        else:
+            orbit_states.declare(self.lib.lib)
+            rc = self.lib.lib.leonav_run_orbit(_ptr(self.x), _ptr(self.P), _ptr(self.params), recs.ctypes.data, n,
+                                               _ptr(gates), ctypes.byref(orbit.c), ctypes.byref(out),
+                                               self._work.ctypes.data)
         if rc != _codes.OK:
-            raise RuntimeError(f"leonav_run returned {compiled.code_name(rc)} at record {out.n_done}")
+            name = "leonav_run" if orbit is None else "leonav_run_orbit"
+            raise RuntimeError(f"{name} returned {compiled.code_name(rc)} at record {out.n_done}")
         if p_hist is not None:
             p_hist = p_hist.transpose(0, 2, 1)  # each block was written column-major
         return RunResult(recs["t"].copy(), recs["kind"].copy(), recs["sat_id"].copy(), x_hist, pd_hist, p_hist,

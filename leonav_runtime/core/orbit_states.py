@@ -1,0 +1,108 @@
+"""Ephemeris method 1: each tracked satellite's orbit offset as states beside the filter's.
+
+`OrbitStates` holds what `leonav_run_orbit` (csrc/leonav_orbit_states.h, where the algebra is
+documented) carries beside the generated filter's x and P: per slot a satellite's radial,
+along-track and cross-track offset from its ephemeris (m), their covariance with the navigation
+state and with each other. `EKF.run(recs, orbit=OrbitStates(...))` runs it. The kinds whose
+records read their satellite's offsets are the registry's undifferenced Starlink satellite
+observables (`offset_kinds`), the ones a base station corrects in the orbit domain.
+"""
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+
+from leonav_runtime.core import model
+
+MAX_SLOTS = 256   # LEONAV_ORBIT_MAX_SLOTS
+_dp = ctypes.POINTER(ctypes.c_double)
+
+
+class OrbitStatesC(ctypes.Structure):
+    """ctypes twin of `leonav_orbit_states` (csrc/leonav_orbit_states.h)."""
+
+    _fields_ = [
+        ("n_slots", ctypes.c_int32), ("prior_var", ctypes.c_double * 3), ("q_rw", ctypes.c_double * 3),
+        ("free_after_s", ctypes.c_double), ("kind_offsets", ctypes.POINTER(ctypes.c_uint8)),
+        ("slot_sat", ctypes.POINTER(ctypes.c_int32)), ("slot_last_t", _dp), ("offset", _dp),
+        ("P_no", _dp), ("P_oo", _dp),
+        ("n_taken", ctypes.c_long), ("n_reused", ctypes.c_long), ("n_no_slot", ctypes.c_long),
+    ]
+
+
+def offset_kinds() -> set[int]:
+    """Observable ids whose satellites' offsets are states: undifferenced Starlink satellite
+    observables (a differenced one reads a reference satellite too)."""
+    return {int(o.kind) for o in model.OBSERVABLES
+            if o.table == "satellite" and o.constellation == "starlink" and not o.reads_ref}
+
+
+class OrbitStates:
+    """The orbit-offset states of one run: `n_slots` satellites at a time, each joining with
+    prior sigmas `prior_sigma_rac_m` (radial, along, cross; m) and walking with PSD `q_rw_m2_s`
+    (m^2/s per axis; 0: random constants); a slot is reused once its satellite has had no
+    record for `free_after_s` (s). After a run: `satellites()` the offsets in the slots."""
+
+    def __init__(self, ndx: int, n_meas: int, n_slots: int, prior_sigma_rac_m, q_rw_m2_s=(0.0, 0.0, 0.0),
+                 free_after_s: float = 30.0, kinds: set[int] | None = None) -> None:
+        if not 1 <= int(n_slots) <= MAX_SLOTS:
+            raise ValueError(f"orbit states: n_slots {n_slots}; expected 1..{MAX_SLOTS}")
+        sig = np.asarray(prior_sigma_rac_m, dtype=float)
+        q = np.asarray(q_rw_m2_s, dtype=float)
+        if sig.shape != (3,) or q.shape != (3,) or not (np.all(sig > 0) and np.all(np.isfinite(sig))
+                                                        and np.all(q >= 0) and np.all(np.isfinite(q))):
+            raise ValueError(f"orbit states: prior sigmas {sig.tolist()} m (3 > 0) and random walk {q.tolist()} "
+                             "m^2/s (3 >= 0) expected")
+        if not (free_after_s > 0 and np.isfinite(free_after_s)):
+            raise ValueError(f"orbit states: free_after_s {free_after_s!r}; expected > 0 s")
+        m = 3 * int(n_slots)
+        self.kind_offsets = np.zeros(n_meas, np.uint8)
+        self.kind_offsets[sorted(offset_kinds() if kinds is None else kinds)] = 1
+        self.slot_sat = np.full(n_slots, -1, np.int32)
+        self.slot_last_t = np.zeros(n_slots)
+        self.offset = np.zeros(m)
+        self.P_no = np.zeros((m, ndx))          # column-major NDX x 3K: row c is column c
+        self.P_oo = np.zeros((m, m))            # symmetric: either order
+        self.c = OrbitStatesC(int(n_slots), (ctypes.c_double * 3)(*(sig**2)), (ctypes.c_double * 3)(*q),
+                              float(free_after_s), self.kind_offsets.ctypes.data_as(ctypes.POINTER(ctypes.c_uint8)),
+                              self.slot_sat.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
+                              self.slot_last_t.ctypes.data_as(_dp), self.offset.ctypes.data_as(_dp),
+                              self.P_no.ctypes.data_as(_dp), self.P_oo.ctypes.data_as(_dp), 0, 0, 0)
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Slots taken, of them reused from a satellite gone, records that found no slot."""
+        return {"slots_taken": int(self.c.n_taken), "slots_reused": int(self.c.n_reused),
+                "no_slot": int(self.c.n_no_slot)}
+
+    def satellites(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """{satellite id: (offset radial/along/cross m, its sigmas m)} of the satellites in the slots."""
+        out = {}
+        for j, sat in enumerate(self.slot_sat.tolist()):
+            if sat >= 0:
+                c = slice(3 * j, 3 * j + 3)
+                out[sat] = (self.offset[c].copy(), np.sqrt(np.diag(self.P_oo[c, c])))
+        return out
+
+
+def declare(lib) -> None:
+    """ctypes signatures of the orbit-state entry points of a loaded library."""
+    i, dp, vp, lng = ctypes.c_int, _dp, ctypes.c_void_p, ctypes.c_long
+    from leonav_runtime.core.compiled import RunOut
+
+    lib.leonav_run_orbit.restype = i
+    lib.leonav_run_orbit.argtypes = [dp, dp, dp, vp, lng, dp, ctypes.POINTER(OrbitStatesC), ctypes.POINTER(RunOut), vp]
+    lib.leonav_orbit_move_aux.restype = None
+    lib.leonav_orbit_move_aux.argtypes = [dp, dp, dp]
+
+
+def move_aux(lib, aux: np.ndarray, d_rac: np.ndarray) -> np.ndarray:
+    """Rows of aux (n, NAUX) with their satellite moved by d_rac (n, 3) m, by the C filter's move."""
+    declare(lib)
+    aux = np.ascontiguousarray(aux, dtype=np.float64)
+    d = np.ascontiguousarray(np.broadcast_to(d_rac, (aux.shape[0], 3)), dtype=np.float64)
+    out = np.empty_like(aux)
+    for k in range(aux.shape[0]):
+        lib.leonav_orbit_move_aux(aux[k].ctypes.data_as(_dp), d[k].ctypes.data_as(_dp), out[k].ctypes.data_as(_dp))
+    return out
