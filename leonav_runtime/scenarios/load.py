@@ -298,6 +298,10 @@ def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any], base: Path |
         eph[key] = check_numbers(source, "ephemeris_error", key, eph[key], 3, "m", limit=1e7)
         if min(eph[key]) < 0:
             raise UserInputError(f"{source}: [ephemeris_error] {key} = {show_value(eph[key])}: expected sigmas >= 0 m")
+    if eph["compensate"] == "states" and min(eph["starlink_sigma_rac_m"]) <= 0:
+        raise UserInputError(f"{source}: [ephemeris_error] compensate = 'states' takes the Starlink sigmas as the "
+                             f"offsets' prior: starlink_sigma_rac_m = {show_value(eph['starlink_sigma_rac_m'])}, "
+                             "expected three sigmas > 0 m")
     bad = [c for c in eph["apply_to"] if c not in ("starlink", "gps")] if isinstance(eph["apply_to"], list) else [1]
     if bad:
         raise UserInputError(f"{source}: [ephemeris_error] apply_to = "
@@ -321,6 +325,10 @@ def _realism(source: str, eph: dict[str, Any], imu: dict[str, Any], base: Path |
         out["front_end"] = {**front_end, "cn0_dbhz": [lo, hi]}
     if station is not None:
         offset = check_numbers(source, "base", "offset_enu_m", station["offset_enu_m"], 3, "m", limit=1e6)
+        if station["enabled"] and eph["compensate"] == "states":
+            raise UserInputError(f"{source}: [base] enabled = true serves corrected orbits; [ephemeris_error] "
+                                 "compensate = 'states' estimates the element orbits' offsets instead: use one "
+                                 "(with [base], compensate = 'consider' or 'inflate-r')")
         if station["enabled"] and not eph["enabled"]:
             raise UserInputError(f"{source}: [base] enabled = true corrects the orbit error: it needs "
                                  "[ephemeris_error] enabled = true")

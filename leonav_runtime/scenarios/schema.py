@@ -127,10 +127,18 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "reference_age_days": Field(float, "d", 1e-3, 30, default=0.25, doc="age the Starlink sigmas hold at"),
         "growth_exponent": Field(float, "-", 0, 3, default=1.09,
                                  doc="sigma ~ age^k (1 km at 6 h to 38 km at 7 d: k = 1.09)"),
-        "compensate": Field(str, "-", default="none", choices=("none", "inflate-r", "consider"),
+        "compensate": Field(str, "-", default="none", choices=("none", "inflate-r", "consider", "states"),
                             doc="filter: R plus the orbit error's effect on each measurement (inflate-r: "
                                 "one-sigma moves at the truth; consider: J P_sat J^T at the prior); with [base] "
-                                "orbit corrections, what the served covariance does instead"),
+                                "orbit corrections, what the served covariance does instead; states: each Starlink "
+                                "satellite's radial, along, cross offset estimated as states (method 1, prior: "
+                                "the Starlink sigmas at the element age)"),
+        "orbit_state_slots": Field(int, "-", 1, 256, default=64,
+                                   doc="states: satellites whose offsets are states at once"),
+        "orbit_state_free_after_s": Field(float, "s", 0.1, 1e5, default=30.0,
+                                          doc="states: a satellite without records this long gives its slot up"),
+        "orbit_state_walk_m2_s": Field(float, "m^2/s", 0, 1e6, default=0.0,
+                                       doc="states: random-walk PSD of each offset (0: random constants)"),
         "consider_correlation_s": Field(float, "s", 0, 1e5, default=0.0,
                                         doc="consider: the term times the satellite's records within this "
                                             "time (its error is shared); 0 = white"),

@@ -27,11 +27,12 @@ from scipy import stats
 
 from leonav_runtime.core import compiled, records
 from leonav_runtime.core import filter as lfilter
-from leonav_runtime.core import navfuncs
+from leonav_runtime.core import navfuncs, orbit_states
 from leonav_runtime.simulation import simulate, trial_block
 from leonav_runtime.sweep import consistency
 from leonav_runtime.gen import state_layout as L
-from leonav_runtime.scenarios.load import Scenario, scenario_from_dict
+from leonav_runtime.scenarios.load import Scenario, mode_of, scenario_from_dict
+from leonav_runtime.simulation.orbit_truth import starlink_sigma_rac
 
 EVAL_RATE_HZ = 10.0
 NAV = L.DX_NAV9_SLICE  # the 9D error (dp, dv, dtheta): the leading NNAV entries of dx
@@ -108,6 +109,7 @@ class TrialResult:
     seconds: float
     wall_seconds: float = 0.0
     counts: dict = field(default_factory=dict)   # the front end's (simulate.Trial.counts)
+    orbit: dict = field(default_factory=dict)    # the orbit-offset states' slot counts (compensate = "states")
 
 
 def run_trial(scn: Scenario, mode: str, count: int, index: int) -> TrialResult:
@@ -116,19 +118,32 @@ def run_trial(scn: Scenario, mode: str, count: int, index: int) -> TrialResult:
     setup, nav = setup_for(scn)
     rng = trial_rng(scn.seed, index)
     trial = simulate.trial_records(setup, mode, count, rng, nav)
-    return trial_result(scn, setup, nav, trial, index, t0, w0)
+    return trial_result(scn, setup, nav, trial, index, t0, w0, mode)
+
+
+def orbit_states_for(scn: Scenario, mode: str, nav: navfuncs.NavFunctions) -> orbit_states.OrbitStates | None:
+    """Fresh orbit-offset states for one trial of `mode` when the scenario estimates them
+    (`[ephemeris_error] compensate = "states"`, ephemeris method 1) and the mode measures
+    Starlink; their prior is the Starlink sigmas at the element age. None otherwise."""
+    eph = scn.realism.get("ephemeris", {})
+    if eph.get("compensate") != "states" or not mode_of(mode).uses("starlink"):
+        return None
+    return orbit_states.OrbitStates(L.NDX, len(nav.library.meas_ids), eph["orbit_state_slots"],
+                                    starlink_sigma_rac(eph), [eph["orbit_state_walk_m2_s"]] * 3,
+                                    eph["orbit_state_free_after_s"])
 
 
 def trial_result(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions, trial: simulate.Trial,
-                 index: int, t0: float, w0: float) -> TrialResult:
-    """Run one drawn trial through the C filter loop; t0, w0: its start on the thread's CPU
-    clock and the wall clock."""
+                 index: int, t0: float, w0: float, mode: str) -> TrialResult:
+    """Run one drawn trial of `mode` through the C filter loop; t0, w0: its start on the thread's
+    CPU clock and the wall clock."""
     gate = scn.filter["gate_nis"] or None
     params = setup.params if trial.params is None else trial.params   # realism compensation may differ
     ekf = lfilter.EKF(trial.x0, setup.P0, params, gate=gate, library=nav.library)
     rows, k = eval_rows(trial.records, setup.t_imu, EVAL_RATE_HZ, scn.imu_rate_hz)
+    orbit = orbit_states_for(scn, mode, nav)
     t_c = time.thread_time()
-    res = ekf.run(trial.records, P_rows=rows)  # full P only on the output grid, for NEES
+    res = ekf.run(trial.records, P_rows=rows, orbit=orbit)  # full P only on the output grid, for NEES
     t_c = time.thread_time() - t_c
     err = nav.boxminus(res.x[rows], trial.x_true[k])[:, NAV]
     P9 = res.P[:, NAV, NAV]
@@ -136,7 +151,8 @@ def trial_result(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunction
     nis_sum, nis_count = consistency.nis_sums(*consistency.kind_index(res.kind), res.nis, res.status)
     p_est = res.x[rows, L.X_P_ENU_SLICE].copy() if index == 0 else None
     return TrialResult(index, err, nees, nis_sum, nis_count, res.n_gated, res.n_failed, p_est,
-                       t_c, time.thread_time() - t0, time.perf_counter() - w0, trial.counts)
+                       t_c, time.thread_time() - t0, time.perf_counter() - w0, trial.counts,
+                       orbit.counts if orbit else {})
 
 
 @dataclass
@@ -177,7 +193,7 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     """The trials `indices` of (mode, count) from one block of records: (results, C loop CPU s)."""
     block = trial_block.trial_block(setup, mode, count, [trial_rng(scn.seed, i) for i in indices], nav)
     if block.trials is not None:   # streams of different lengths (a realism switch dropped records)
-        results = [trial_result(scn, setup, nav, t, i, time.thread_time(), time.perf_counter())
+        results = [trial_result(scn, setup, nav, t, i, time.thread_time(), time.perf_counter(), mode)
                    for t, i in zip(block.trials, indices)]
         return results, sum(r.c_seconds for r in results)
     gate = scn.filter["gate_nis"] or None
@@ -186,13 +202,15 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     B, nt = len(indices), rows.size
     x_est = np.empty((B, nt, L.NX))
     P9 = np.empty((L.NNAV, L.NNAV, B, nt))    # batch last: the layout the NEES works in
-    c_seconds, runs = [], []
+    c_seconds, runs, orbits = [], [], []
     loop = _CLoop(nav.library, buf, rows, lfilter.EKF(block.x0[0], setup.P0, block.params.reshape(-1, L.NP)[0],
                                                       gate=gate, library=nav.library).gate)
     kinds = consistency.kind_index(buf["kind"])   # the same for every trial of the block
     for j in range(B):
         params = block.params if block.params.ndim == 1 else block.params[j]
-        c_seconds.append(loop.run(block.x0[j], setup.P0, params, block.fill(j, buf)))
+        orbit = orbit_states_for(scn, mode, nav)
+        c_seconds.append(loop.run(block.x0[j], setup.P0, params, block.fill(j, buf), orbit))
+        orbits.append(orbit.counts if orbit else {})
         x_est[j] = loop.x[rows]
         P9[:, :, j] = np.moveaxis(loop.P_rows[:, NAV, NAV], 0, -1)
         runs.append((consistency.nis_sums(*kinds, loop.nis, loop.status), int(loop.out.n_gated),
@@ -204,7 +222,7 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     for j, (index, ((nis_sum, nis_count), gated, failed)) in enumerate(zip(indices, runs)):
         p_est = x_est[j, :, L.X_P_ENU_SLICE].copy() if index == 0 else None
         results.append(TrialResult(index, err[j], nees[j], nis_sum, nis_count, gated, failed, p_est, c_seconds[j],
-                                   math.nan, math.nan, block.counts[j] if block.counts else {}))
+                                   math.nan, math.nan, block.counts[j] if block.counts else {}, orbits[j]))
     return results, sum(c_seconds)
 
 
@@ -230,16 +248,24 @@ class _CLoop:
             P_mask=self.mask.ctypes.data_as(ctypes.POINTER(ctypes.c_uint8)), y=_ptr(self.y), S=_ptr(self.S),
             nis=_ptr(self.nis), status=self.status.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
 
-    def run(self, x0: np.ndarray, P0: np.ndarray, params: np.ndarray, recs: np.ndarray) -> float:
-        """Run one trial's stream (the block's layout) from x0, P0; returns the C call's CPU s."""
+    def run(self, x0: np.ndarray, P0: np.ndarray, params: np.ndarray, recs: np.ndarray,
+            orbit: orbit_states.OrbitStates | None = None) -> float:
+        """Run one trial's stream (the block's layout) from x0, P0, with `orbit`'s offset states
+        beside it when given; returns the C call's CPU s."""
         x = np.array(x0, dtype=np.float64)
         P = np.array(P0, dtype=np.float64, order="F")
         p = np.ascontiguousarray(params, dtype=np.float64)
         if recs.size != self.n or not recs.flags.c_contiguous:
             raise ValueError(f"records: expected the block's {self.n} contiguous records, got {recs.size}")
+        if orbit is not None:
+            orbit_states.declare(self.lib.lib)
         t_c = time.thread_time()
-        rc = self.lib.lib.leonav_run(_ptr(x), _ptr(P), _ptr(p), recs.ctypes.data, self.n, _ptr(self.gates),
-                                     ctypes.byref(self.out), self.work.ctypes.data)
+        if orbit is None:
+            rc = self.lib.lib.leonav_run(_ptr(x), _ptr(P), _ptr(p), recs.ctypes.data, self.n, _ptr(self.gates),
+                                         ctypes.byref(self.out), self.work.ctypes.data)
+        else:
+            rc = self.lib.lib.leonav_run_orbit(_ptr(x), _ptr(P), _ptr(p), recs.ctypes.data, self.n, _ptr(self.gates),
+                                               ctypes.byref(orbit.c), ctypes.byref(self.out), self.work.ctypes.data)
         t_c = time.thread_time() - t_c
         if rc != L.OK:
             raise RuntimeError(f"leonav_run returned {compiled.code_name(rc)} at record {self.out.n_done}")
@@ -305,4 +331,7 @@ def summarize(results: list[TrialResult], bound: dict[str, np.ndarray], n_err: i
     out["gated"] = int(sum(r.gated for r in results))
     out["failed"] = int(sum(r.failed for r in results))
     out["front_end"] = {k: int(sum(r.counts.get(k, 0) for r in results)) for k in sorted({k for r in results for k in r.counts})}
+    if any(r.orbit for r in results):
+        out["orbit_states"] = {k: int(sum(r.orbit.get(k, 0) for r in results)) for k in ("slots_taken", "slots_reused",
+                                                                                        "no_slot")}
     return out

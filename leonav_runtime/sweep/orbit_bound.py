@@ -25,7 +25,8 @@ import dataclasses
 
 import numpy as np
 
-from leonav_runtime.core import model, navfuncs
+from leonav_runtime.core import navfuncs
+from leonav_runtime.core.orbit_states import offset_kinds
 from leonav_runtime.simulation import simulate
 from leonav_runtime.simulation.orbit_truth import move_aux
 
@@ -43,13 +44,6 @@ class OrbitStateBound:
     sat_id: np.ndarray
     orbit_sigma_m: np.ndarray
     measurements: int
-
-
-def offset_kinds() -> set[int]:
-    """Observable ids whose satellites' offsets are states: undifferenced Starlink observables
-    (the kinds a base station corrects in the orbit domain)."""
-    return {int(o.kind) for o in model.OBSERVABLES
-            if o.table == "satellite" and o.constellation == "starlink" and not o.reads_ref}
 
 
 def offset_jacobian(nav: navfuncs.NavFunctions, kind: int, x_rows: np.ndarray, aux: np.ndarray, params: np.ndarray,

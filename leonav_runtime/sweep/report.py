@@ -87,6 +87,7 @@ def metrics_dict(scn, res) -> dict:
     for (mode, count), s in sorted(res.summaries.items(), key=lambda kv: (order.get(kv[0][0], len(order)), kv[0])):
         entry = {"mode": mode, "count": count, "trials": s["trials"], "gated": s["gated"], "failed": s["failed"],
                  "front_end": s.get("front_end", {}),   # slips injected / detected, epochs dropped (all trials)
+                 "orbit_states": s.get("orbit_states", {}),   # slots taken / reused, records without one (method 1)
                  "nees": {k: v for k, v in s["nees"].items() if k != "nees_t"},
                  "nis": {str(k): v for k, v in s["nis"].items()}}
         for block in mc.BLOCKS:
