@@ -39,6 +39,10 @@ def register(subparsers) -> None:
                    help="folder of Starlink operator ephemerides (MANIFEST.txt and MEME_*.txt): satellites with a "
                         "file over their measurement times take their states from it instead of their element "
                         "sets, joined by name (docs/ephemerides.md)")
+    p.add_argument("--orbit-states", default=None, metavar="R,A,C",
+                   help="estimate each Starlink satellite's radial, along-track and cross-track orbit offset as "
+                        "states, with these prior sigmas in m (ephemeris method 1; e.g. 240,960,170 for element "
+                        "sets 6 h old); reported per satellite in metrics.json")
     p.add_argument("--modes", default=",".join(_modes()[0]), metavar="LIST",
                    help=f"comma-separated modes of {', '.join(_modes()[1])} (default %(default)s)")
     p.add_argument("--nav", action="append", default=[], metavar="RINEX_NAV",
@@ -69,6 +73,16 @@ def _modes():
     return MODES, ALL_MODES
 
 
+def _sigmas(text: str | None) -> tuple[float, ...] | None:
+    """--orbit-states R,A,C -> three floats (checked by the replay options)."""
+    if text is None:
+        return None
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise UserInputError(f"--orbit-states: {text!r}: expected three sigmas in m, e.g. 240,960,170") from None
+
+
 def _fmt(v, scale=1.0, digits=2) -> str:
     return "-" if v is None else f"{v * scale:.{digits}f}"
 
@@ -91,7 +105,8 @@ def run(args: argparse.Namespace) -> int:
                                    nav_paths=tuple(args.nav), elevation_mask_deg=args.elevation_mask,
                                    reference_file=reference_options(args),
                                    operator_ephemerides=args.operator_ephemerides, corrections=args.corrections,
-                                   corrections_max_age_s=args.corrections_max_age)
+                                   corrections_max_age_s=args.corrections_max_age,
+                                   orbit_states_sigma_m=_sigmas(args.orbit_states))
     if args.origin:
         lat, lon, h = args.origin
         if not (abs(lat) <= 90 and abs(lon) <= 360 and -11_000 <= h <= 1e5):

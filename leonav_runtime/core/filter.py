@@ -64,6 +64,7 @@ class RunResult:
     n_gated: int
     n_failed: int
     n_cv: int = 0
+    orbit_states: dict | None = None   # with `run(orbit=...)`: its counts and per-satellite offsets (m)
 
 
 class EKF:
@@ -232,7 +233,7 @@ class EKF:
             p_hist = p_hist.transpose(0, 2, 1)  # each block was written column-major
         return RunResult(recs["t"].copy(), recs["kind"].copy(), recs["sat_id"].copy(), x_hist, pd_hist, p_hist,
                          y, S, nis, status, int(out.n_imu), int(out.n_applied), int(out.n_gated),
-                         int(out.n_failed), int(out.n_cv))
+                         int(out.n_failed), int(out.n_cv), None if orbit is None else orbit.summary())
 
 
 @dataclass

@@ -76,6 +76,11 @@ class OrbitStates:
         return {"slots_taken": int(self.c.n_taken), "slots_reused": int(self.c.n_reused),
                 "no_slot": int(self.c.n_no_slot)}
 
+    def summary(self) -> dict:
+        """counts, and per satellite in a slot its offsets and their sigmas (m), JSON-ready."""
+        return {**self.counts, "satellites": {str(s): {"offset_rac_m": o.tolist(), "sigma_rac_m": g.tolist()}
+                                              for s, (o, g) in self.satellites().items()}}
+
     def satellites(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
         """{satellite id: (offset radial/along/cross m, its sigmas m)} of the satellites in the slots."""
         out = {}

@@ -103,6 +103,7 @@ class ReplayOptions:
     operator_ephemerides: str | None = None   # --operator-ephemerides: folder of operator files (docs/ephemerides.md)
     corrections: str | None = None            # --corrections: a base's recorded line stream (docs/corrections.md)
     corrections_max_age_s: float | None = None  # None: inputs.corrections.DEFAULT_MAX_AGE_S
+    orbit_states_sigma_m: tuple[float, float, float] | None = None   # --orbit-states: offsets as states, prior m
 
 
 def canonical_modes(modes) -> tuple[tuple[str, ...], list[str]]:
@@ -125,6 +126,10 @@ def check_options(options: ReplayOptions) -> ReplayOptions:
         replay_mode(m)
     if not 0.0 <= options.elevation_mask_deg <= 90.0:
         raise UserInputError(f"--elevation-mask: {options.elevation_mask_deg!r}: expected degrees in 0..90")
+    sig = options.orbit_states_sigma_m
+    if sig is not None and not (len(sig) == 3 and all(math.isfinite(v) and v > 0 for v in sig)):
+        raise UserInputError(f"--orbit-states: {sig}: expected three sigmas > 0 m (radial, along, cross), "
+                             "e.g. 240,960,170 for element sets 6 h old")
     if options.origin_deg is not None and not all(math.isfinite(v) for v in options.origin_deg):
         raise UserInputError(f"--origin: {options.origin_deg}: expected finite LAT LON H")
     return dataclasses.replace(options, modes=modes)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from leonav_runtime.core import filter as lfilter
-from leonav_runtime.core import navfuncs
+from leonav_runtime.core import navfuncs, orbit_states
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.inputs import DopplerRateTable, FilterInputs, FirstFixPrior, FixTable, assemble, filter_params
 from leonav_runtime.replay.beacon_table import (BeaconMeasurements, beacon_measurements, carrier_phase_table,
@@ -28,6 +28,7 @@ from leonav_runtime.replay.timebase import device_baud, filter_profile, imu_tabl
 
 WITMOTION_ATTITUDE = "WitMotion angle output"
 RMC_VELOCITY = "initializing fix's RMC speed/course (NAV-PVT velocity)"
+ORBIT_SLOTS = 64   # --orbit-states: satellites whose offsets are states at once (a capture holds a few)
 
 
 @dataclasses.dataclass
@@ -287,8 +288,10 @@ def skip_reasons(inputs: SessionInputs, modes) -> dict[str, str]:
 
 
 def run_modes(inputs: FilterInputs, modes, gate_nis: float, nav: navfuncs.NavFunctions,
-              skipped: dict | None = None) -> dict:
-    """{mode: (records, RunResult, seconds)} for every mode not skipped (default: inputs.skipped)."""
+              skipped: dict | None = None, orbit_sigma_m=None) -> dict:
+    """{mode: (records, RunResult, seconds)} for every mode not skipped (default: inputs.skipped);
+    orbit_sigma_m (radial, along, cross; m): the Starlink modes estimate each satellite's orbit
+    offsets as states with this prior (ephemeris method 1; `RunResult.orbit_states`)."""
     skipped = getattr(inputs, "skipped", {}) if skipped is None else skipped
     out = {}
     for mode in modes:
@@ -296,8 +299,11 @@ def run_modes(inputs: FilterInputs, modes, gate_nis: float, nav: navfuncs.NavFun
             continue
         recs = inputs.merged(replay_mode(mode).streams)
         ekf = lfilter.EKF(inputs.x0, inputs.P0, inputs.params, gate=gate_nis or None, library=nav.library)
+        orbit = None
+        if orbit_sigma_m is not None and np.isin(recs["kind"], sorted(orbit_states.offset_kinds())).any():
+            orbit = orbit_states.OrbitStates(nav.layout.NDX, len(nav.library.meas_ids), ORBIT_SLOTS, orbit_sigma_m)
         t0 = time.perf_counter()
-        res = ekf.run(recs)
+        res = ekf.run(recs, orbit=orbit)
         out[mode] = (recs, res, time.perf_counter() - t0)
     return out
 
@@ -319,7 +325,7 @@ def replay_session(folder: str | Path, out_dir: str | Path, options: ReplayOptio
     if inputs is None:
         inputs = decode_inputs(folder, given, elements, out_dir, nav, progress)
     nav.params = inputs.params
-    runs = run_modes(inputs, options.modes, options.gate_nis, nav)
+    runs = run_modes(inputs, options.modes, options.gate_nis, nav, orbit_sigma_m=options.orbit_states_sigma_m)
     truth = folder / "truth.csv"
     ref = None
     if options.use_truth and truth.is_file():

@@ -135,4 +135,6 @@ def mode_metrics(runs: dict, scored: dict, nav: navfuncs.NavFunctions) -> dict:
             "records": {"imu": res.n_imu, "applied": res.n_applied, "gated": res.n_gated, "failed": res.n_failed},
             "per_observable": per_kind, "filter_seconds": seconds,
         }
+        if res.orbit_states is not None:   # --orbit-states: the estimated orbit offsets per satellite
+            out[mode]["orbit_states"] = res.orbit_states
     return out
