@@ -95,6 +95,23 @@ def short_paper_scenario(duration_s: float, counts: list[int], source: str,
     return scenario_from_dict(raw, source=source)
 
 
+def orbit_phase_stream(duration_s: float, count: int, mode: str = "leo-phase+alpha+imu"):
+    """(setup, nav, records, x_lin) of the paper scenario shortened to `duration_s` with Starlink
+    at 10 Hz, `count` satellites and a 10 m position prior: the noise-free stream of `mode` on
+    the truth, linearised where each record acts (`orbit_bound.records_on_truth`)."""
+    from leonav_runtime.scenarios.load import load_scenario
+    from leonav_runtime.sweep import montecarlo as mc
+    from leonav_runtime.sweep import orbit_bound as ob
+
+    paper = load_scenario("paper").raw
+    scn = short_paper_scenario(duration_s, [count], f"<{mode}, {duration_s:g} s, {count} satellites>", modes=(mode,),
+                               starlink={**paper["starlink"], "rate_hz": 10.0},
+                               filter={**paper["filter"], "initial_position_sigma_m": 10.0})
+    setup, nav = mc.setup_for(scn)
+    recs, x_lin = ob.records_on_truth(setup, nav, mode, count)
+    return setup, nav, recs, x_lin
+
+
 @contextlib.contextmanager
 def local_http_server(handler: type):
     """An HTTP server on 127.0.0.1 (a free port) answering with `handler` in a thread;

@@ -11,11 +11,9 @@ import json
 import numpy as np
 import pytest
 
-from tests.conftest import short_paper_scenario
+from tests.conftest import orbit_phase_stream
 from leonav_runtime.core import filter as lfilter
 from leonav_runtime.inputs.consider import rac_axes
-from leonav_runtime.scenarios.load import load_scenario
-from leonav_runtime.sweep import montecarlo as mc
 from leonav_runtime.sweep import orbit_bound as ob
 
 MODE = "leo-phase+alpha+imu"
@@ -23,13 +21,7 @@ MODE = "leo-phase+alpha+imu"
 
 @pytest.fixture(scope="module")
 def stream():
-    paper = load_scenario("paper").raw
-    scn = short_paper_scenario(16.0, [8], "<orbit bound test>", modes=(MODE,),
-                               starlink={**paper["starlink"], "rate_hz": 10.0},
-                               filter={**paper["filter"], "initial_position_sigma_m": 10.0})
-    setup, nav = mc.setup_for(scn)
-    recs, x_lin = ob.records_on_truth(setup, nav, MODE, 8)
-    return setup, nav, recs, x_lin
+    return orbit_phase_stream(16.0, 8, MODE)
 
 
 def test_without_offset_states_it_is_the_filters_own_pcrb(stream):

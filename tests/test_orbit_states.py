@@ -11,14 +11,12 @@ import copy
 import numpy as np
 import pytest
 
-from tests.conftest import short_paper_scenario
+from tests.conftest import orbit_phase_stream
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.core import filter as lfilter
 from leonav_runtime.core import navfuncs, orbit_states
 from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 from leonav_runtime.simulation.orbit_truth import move_aux
-from leonav_runtime.sweep import montecarlo as mc
-from leonav_runtime.sweep import orbit_bound as ob
 from leonav_runtime.sweep.run import run_sweep
 
 MODE = "leo-phase+alpha+imu"
@@ -26,13 +24,7 @@ MODE = "leo-phase+alpha+imu"
 
 @pytest.fixture(scope="module")
 def stream():
-    paper = load_scenario("paper").raw
-    scn = short_paper_scenario(6.0, [6], "<orbit states test>", modes=(MODE,),
-                               starlink={**paper["starlink"], "rate_hz": 10.0},
-                               filter={**paper["filter"], "initial_position_sigma_m": 10.0})
-    setup, nav = mc.setup_for(scn)
-    recs, x_lin = ob.records_on_truth(setup, nav, MODE, 6)
-    return setup, nav, recs, x_lin
+    return orbit_phase_stream(6.0, 6, MODE)
 
 
 def test_the_c_move_is_the_orbit_truths_move(stream):
