@@ -116,6 +116,16 @@ static int slot_of(leonav_orbit_states *o, int32_t sat, double t)
 
 /* ---- predict and update of the augmented state ----------------------------------- */
 
+/* Slots are taken lowest free first and never given back empty, so the slots in use are
+ * 0..n-1: the loops below run over them without a test per slot (a slot never taken holds
+ * zeros, and its gain is zero). */
+static int slots_in_use(const leonav_orbit_states *o)
+{
+    int n = 0;
+    while (n < o->n_slots && o->slot_sat[n] >= 0) ++n;
+    return n;
+}
+
 static int predict(double *x, double *P, const leonav_record *r, const double *p, leonav_orbit_states *o,
                    void *work)
 {
@@ -132,9 +142,8 @@ static int predict(double *x, double *P, const leonav_record *r, const double *p
                 nz_k[nnz] = k;
                 nz_v[nnz++] = F[i + k * NDX];
             }
-    const int m = 3 * o->n_slots;
-    for (int j = 0; j < o->n_slots; ++j) {
-        if (o->slot_sat[j] < 0) continue;
+    const int m = 3 * o->n_slots, used = slots_in_use(o);
+    for (int j = 0; j < used; ++j) {
         for (int c = 3 * j; c < 3 * j + 3; ++c) {
             double *pc = o->P_no + (size_t)c * NDX;
             memset(col, 0, sizeof col);
@@ -198,17 +207,14 @@ static int update(double *x, double *P, const leonav_record *r, const double *p,
             for (int a = 0; a < 3; ++a) s += o->P_no[i + (size_t)(3 * j + a) * NDX] * Ho[a];
         bn[i] = s;
     }
-    for (int jj = 0; jj < o->n_slots; ++jj) {
-        for (int c = 3 * jj; c < 3 * jj + 3; ++c) {
-            double s = 0.0;
-            if (o->slot_sat[jj] >= 0) {
-                const double *pc = o->P_no + (size_t)c * NDX;
-                for (int k = 0; k < NDX; ++k) s += pc[k] * H[k];
-                if (j >= 0)
-                    for (int a = 0; a < 3; ++a) s += o->P_oo[c + (size_t)(3 * j + a) * m] * Ho[a];
-            }
-            bo[c] = s;
-        }
+    const int mu = 3 * slots_in_use(o);   /* the columns in use (j < mu / 3) */
+    for (int c = 0; c < mu; ++c) {
+        double s = 0.0;
+        const double *pc = o->P_no + (size_t)c * NDX;
+        for (int k = 0; k < NDX; ++k) s += pc[k] * H[k];
+        if (j >= 0)
+            for (int a = 0; a < 3; ++a) s += o->P_oo[c + (size_t)(3 * j + a) * m] * Ho[a];
+        bo[c] = s;
     }
     double S = r->R;
     for (int k = 0; k < NDX; ++k) S += H[k] * bn[k];
@@ -226,7 +232,7 @@ static int update(double *x, double *P, const leonav_record *r, const double *p,
         cn[i] = bn[i] - S * Kn[i] / 2.0;
         dx[i] = Kn[i] * y;
     }
-    for (int c = 0; c < m; ++c) {
+    for (int c = 0; c < mu; ++c) {
         Ko[c] = bo[c] / S;
         co[c] = bo[c] - S * Ko[c] / 2.0;
     }
@@ -237,18 +243,13 @@ static int update(double *x, double *P, const leonav_record *r, const double *p,
     memcpy(x, x_new, sizeof x_new);
     for (int k = 0; k < NDX; ++k)
         for (int i = 0; i < NDX; ++i) P[i + k * NDX] -= Kn[i] * cn[k] + cn[i] * Kn[k];
-    for (int jj = 0; jj < o->n_slots; ++jj) {
-        if (o->slot_sat[jj] < 0) continue;
-        for (int c = 3 * jj; c < 3 * jj + 3; ++c) {
-            o->offset[c] += Ko[c] * y;
-            double *pc = o->P_no + (size_t)c * NDX;
-            for (int i = 0; i < NDX; ++i) pc[i] -= Kn[i] * co[c] + cn[i] * Ko[c];
-            for (int j2 = 0; j2 < o->n_slots; ++j2) {
-                if (o->slot_sat[j2] < 0) continue;
-                for (int c2 = 3 * j2; c2 < 3 * j2 + 3; ++c2)
-                    o->P_oo[c2 + (size_t)c * m] -= Ko[c2] * co[c] + co[c2] * Ko[c];
-            }
-        }
+    for (int c = 0; c < mu; ++c) {
+        o->offset[c] += Ko[c] * y;
+        double *pc = o->P_no + (size_t)c * NDX;
+        for (int i = 0; i < NDX; ++i) pc[i] -= Kn[i] * co[c] + cn[i] * Ko[c];
+        double *qc = o->P_oo + (size_t)c * m;
+        const double kc = Ko[c], cc = co[c];
+        for (int c2 = 0; c2 < mu; ++c2) qc[c2] -= Ko[c2] * cc + co[c2] * kc;
     }
     return LEONAV_OK;
 }
