@@ -209,7 +209,10 @@ def test_unobservable_directions_are_those_whose_pcrb_stays_at_the_prior(mode):
         assert np.all(ratio[:nullity] > 1 - 1e-6), (mode, motion, ratio[:nullity + 1])
         assert np.all(ratio[nullity:] < 0.0100), (mode, motion, ratio[:nullity + 1])
         expected = np.sort(1.0 / (1.0 + (sigma0 * s) ** 2))[::-1]
-        np.testing.assert_allclose(ratio, expected, rtol=1e-3, atol=1e-7)
+        # 2e-3: fix+imu accelerating's weakest observable direction (relative singular value 7.6e-8,
+        # the smallest of these cases) agrees to 1.4e-3 on an AMD EPYC host and to < 1e-3 on the
+        # Intel hosts this was written on; every other case of this test agrees to < 1e-4
+        np.testing.assert_allclose(ratio, expected, rtol=2e-3, atol=1e-7)
         # the functionals that stay at the prior are the null directions, mapped by B0^-1 and Phi^-T
         N = c.null_space_physical
         if nullity:
