@@ -133,6 +133,7 @@ def run(args: argparse.Namespace) -> int:
     code = 0
     try:
         try:
+            print(f"leonav base: building the corrections of {folder} (seconds) ...", file=sys.stderr, flush=True)
             corr, epoch_unix, _ = build_corrections(folder, pos, tuple(args.tle), args.smooth)
             building[0] = False
         except _Signalled:
