@@ -63,12 +63,17 @@ class OrbitStates:
         self.slot_last_t = np.zeros(n_slots)
         self.offset = np.zeros(m)
         self.P_no = np.zeros((m, ndx))          # column-major NDX x 3K: row c is column c
-        self.P_oo = np.zeros((m, m))            # symmetric: either order
+        self.P_oo = np.zeros((m, m))            # the C keeps its lower triangle: see `offset_covariance`
         self.c = OrbitStatesC(int(n_slots), (ctypes.c_double * 3)(*(sig**2)), (ctypes.c_double * 3)(*q),
                               float(free_after_s), self.kind_offsets.ctypes.data_as(ctypes.POINTER(ctypes.c_uint8)),
                               self.slot_sat.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
                               self.slot_last_t.ctypes.data_as(_dp), self.offset.ctypes.data_as(_dp),
                               self.P_no.ctypes.data_as(_dp), self.P_oo.ctypes.data_as(_dp), 0, 0, 0)
+
+    def offset_covariance(self) -> np.ndarray:
+        """(3 n_slots, 3 n_slots) covariance of the offsets (m^2), slot j in rows 3j..3j+2."""
+        lower = np.triu(self.P_oo).T      # column-major lower triangle = this array's upper one
+        return lower + np.tril(lower, -1).T
 
     @property
     def counts(self) -> dict[str, int]:

@@ -213,7 +213,10 @@ static int update(double *x, double *P, const leonav_record *r, const double *p,
         const double *pc = o->P_no + (size_t)c * NDX;
         for (int k = 0; k < NDX; ++k) s += pc[k] * H[k];
         if (j >= 0)
-            for (int a = 0; a < 3; ++a) s += o->P_oo[c + (size_t)(3 * j + a) * m] * Ho[a];
+            for (int a = 0; a < 3; ++a) {   /* P_oo holds its lower triangle (row >= column) */
+                const int k = 3 * j + a;
+                s += (c >= k ? o->P_oo[c + (size_t)k * m] : o->P_oo[k + (size_t)c * m]) * Ho[a];
+            }
         bo[c] = s;
     }
     double S = r->R;
@@ -249,7 +252,7 @@ static int update(double *x, double *P, const leonav_record *r, const double *p,
         for (int i = 0; i < NDX; ++i) pc[i] -= Kn[i] * co[c] + cn[i] * Ko[c];
         double *qc = o->P_oo + (size_t)c * m;
         const double kc = Ko[c], cc = co[c];
-        for (int c2 = 0; c2 < mu; ++c2) qc[c2] -= Ko[c2] * cc + co[c2] * kc;
+        for (int c2 = c; c2 < mu; ++c2) qc[c2] -= Ko[c2] * cc + co[c2] * kc;   /* lower triangle */
     }
     return LEONAV_OK;
 }

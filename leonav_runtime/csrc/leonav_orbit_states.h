@@ -13,7 +13,8 @@
  * current estimate and differentiated by central differences of 1 m over the offsets.
  *
  * The covariance is [P (NDX x NDX, the caller's, as in leonav_run) | P_no; P_no^T | P_oo],
- * P_no NDX x 3 n_slots and P_oo 3 n_slots x 3 n_slots, column-major, slot j in columns 3j..3j+2.
+ * P_no NDX x 3 n_slots and P_oo 3 n_slots x 3 n_slots, column-major, slot j in columns 3j..3j+2;
+ * of P_oo only the lower triangle (row >= column) is kept (the upper one is not written).
  * Per IMU record: the generated predict (P, F), P_no = F P_no, P_oo += q_rw dt on the taken
  * slots. Per measurement: one scalar Kalman update of the whole state in the Joseph form the
  * generated updates use (P - K c^T - c K^T, c = b - S K / 2).
@@ -39,7 +40,7 @@ typedef struct leonav_orbit_states {
     double *slot_last_t;             /* n_slots: time of the slot satellite's last record (s) */
     double *offset;                  /* 3 n_slots: estimated radial, along, cross offsets (m) */
     double *P_no;                    /* NDX x 3 n_slots, column-major */
-    double *P_oo;                    /* 3 n_slots x 3 n_slots, column-major */
+    double *P_oo;                    /* 3 n_slots x 3 n_slots, column-major, lower triangle */
     long n_taken, n_reused, n_no_slot;  /* slots taken, of them reused from a satellite gone, records without a slot */
 } leonav_orbit_states;
 
