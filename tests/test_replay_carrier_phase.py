@@ -252,9 +252,9 @@ def test_replay_phase_r_carries_the_operator_files_covariance(phase_replay, tmp_
         for k, e in enumerate(made.ephemerides.values()):
             write_file(e, tmp_path / name, serial=k)
 
-    def records(folder):
+    def records(folder, orbit_states=None):
         opts = ReplayOptions(modes=("leo-phase+alpha+imu",), operator_ephemerides=folder,
-                             gnss_latency_s=synth.cfg.gnss_latency_s)
+                             gnss_latency_s=synth.cfg.gnss_latency_s, orbit_states_sigma_m=orbit_states)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             inputs = decode_inputs(synth.folder, opts, synth.elements, tmp_path / "out")
@@ -268,6 +268,16 @@ def test_replay_phase_r_carries_the_operator_files_covariance(phase_replay, tmp_
         added = r1[kind]["R"] - base[kind]["R"]
         assert added.min() > 0, kind
         assert r4[kind]["R"] - base[kind]["R"] == pytest.approx(4.0 * added, rel=1e-6), kind
+    # with --orbit-states the offsets are estimated instead: the files' covariance stays out of R
+    rs, notes = records(str(tmp_path / "x1"), orbit_states=(1.4, 4.7, 2.2))
+    assert any("the operator covariance is not added to R: --orbit-states" in n for n in notes)
+    for kind in ("carrier_phase", "doppler_rate"):
+        np.testing.assert_array_equal(rs[kind]["R"], base[kind]["R"])
+    from leonav_runtime.common.errors import UserInputError
+    from leonav_runtime.replay.options import check_options
+
+    with pytest.raises(UserInputError, match="--orbit-states with --corrections"):
+        check_options(ReplayOptions(orbit_states_sigma_m=(1.0, 1.0, 1.0), corrections="corr.txt"))
 
 
 def test_the_sample_clock_scales_an_outer_tones_offset_and_h_carries_it():

@@ -31,11 +31,16 @@ class OrbitStatesC(ctypes.Structure):
     ]
 
 
-def offset_kinds() -> set[int]:
-    """Observable ids whose satellites' offsets are states: undifferenced Starlink satellite
-    observables (a differenced one reads a reference satellite too)."""
-    return {int(o.kind) for o in model.OBSERVABLES
+def offset_observables() -> set[str]:
+    """Observables (suffixes) whose satellites' offsets are states: undifferenced Starlink
+    satellite observables (a differenced one reads a reference satellite too)."""
+    return {o.suffix for o in model.OBSERVABLES
             if o.table == "satellite" and o.constellation == "starlink" and not o.reads_ref}
+
+
+def offset_kinds() -> set[int]:
+    """Observable ids of `offset_observables`."""
+    return {int(o.kind) for o in model.OBSERVABLES if o.suffix in offset_observables()}
 
 
 class OrbitStates:

@@ -64,10 +64,26 @@ void leonav_orbit_move_aux(const double *aux, const double d[3], double *aux_out
 
 /* ---- slots ---------------------------------------------------------------------- */
 
+static int finite_all(const double *v, int n)
+{
+    for (int i = 0; i < n; ++i)
+        if (!isfinite(v[i])) return 0;
+    return 1;
+}
+
+/* Pointers set, n_slots in range, and the slots in use a prefix 0..n-1 (what `slots_in_use` and
+ * the loops over it rely on; a caller's -1 between taken slots is refused). */
 static int valid(const leonav_orbit_states *o)
 {
-    return o && o->n_slots >= 1 && o->n_slots <= LEONAV_ORBIT_MAX_SLOTS && o->kind_offsets && o->slot_sat &&
-           o->slot_last_t && o->offset && o->P_no && o->P_oo;
+    if (!(o && o->n_slots >= 1 && o->n_slots <= LEONAV_ORBIT_MAX_SLOTS && o->kind_offsets && o->slot_sat &&
+          o->slot_last_t && o->offset && o->P_no && o->P_oo))
+        return 0;
+    int seen_free = 0;
+    for (int j = 0; j < o->n_slots; ++j) {
+        if (o->slot_sat[j] < 0) seen_free = 1;
+        else if (seen_free) return 0;
+    }
+    return 1;
 }
 
 /* Forget slot j (its rows and columns) and give it to satellite `sat` with the prior. */
@@ -82,36 +98,69 @@ static void take_slot(leonav_orbit_states *o, int j, int32_t sat, double t)
     }
     o->slot_sat[j] = sat;
     o->slot_last_t[j] = t;
-    o->n_taken++;
 }
 
-/* The slot of satellite `sat` at time t (taking a free one, or the longest idle one past
- * free_after_s), or -1 when every slot is held. */
-static int slot_of(leonav_orbit_states *o, int32_t sat, double t)
+/* A slot's contents, kept while a new satellite tries it: a record that is then not applied
+ * gives the slot back as it was (nothing changes unless an update is applied). */
+typedef struct {
+    int j;
+    int32_t sat;
+    double last_t, offset[3], P_no[3 * NDX], P_oo_col[3 * 3 * LEONAV_ORBIT_MAX_SLOTS],
+        P_oo_row[3 * 3 * LEONAV_ORBIT_MAX_SLOTS];
+} slot_copy;
+
+static void keep_slot(const leonav_orbit_states *o, int j, slot_copy *k)
 {
-    int free_j = -1, idle_j = -1;
+    const int m = 3 * o->n_slots;
+    k->j = j;
+    k->sat = o->slot_sat[j];
+    k->last_t = o->slot_last_t[j];
+    memcpy(k->offset, o->offset + 3 * j, sizeof k->offset);
+    memcpy(k->P_no, o->P_no + (size_t)(3 * j) * NDX, sizeof k->P_no);
+    for (int a = 0; a < 3; ++a)
+        for (int r = 0; r < m; ++r) {
+            k->P_oo_col[a * m + r] = o->P_oo[r + (size_t)(3 * j + a) * m];
+            k->P_oo_row[a * m + r] = o->P_oo[(3 * j + a) + (size_t)r * m];
+        }
+}
+
+static void give_back(leonav_orbit_states *o, const slot_copy *k)
+{
+    const int m = 3 * o->n_slots, j = k->j;
+    o->slot_sat[j] = k->sat;
+    o->slot_last_t[j] = k->last_t;
+    memcpy(o->offset + 3 * j, k->offset, sizeof k->offset);
+    memcpy(o->P_no + (size_t)(3 * j) * NDX, k->P_no, sizeof k->P_no);
+    for (int a = 0; a < 3; ++a)
+        for (int r = 0; r < m; ++r) {
+            o->P_oo[r + (size_t)(3 * j + a) * m] = k->P_oo_col[a * m + r];
+            o->P_oo[(3 * j + a) + (size_t)r * m] = k->P_oo_row[a * m + r];
+        }
+}
+
+/* The slot satellite `sat` holds, or -1. */
+static int held_slot(const leonav_orbit_states *o, int32_t sat)
+{
+    for (int j = 0; j < o->n_slots; ++j)
+        if (o->slot_sat[j] == sat) return j;
+    return -1;
+}
+
+/* The slot a new satellite would take at time t: the lowest free one, else the longest idle one
+ * whose satellite had no applied record for free_after_s; -1 when every slot is held. */
+static int free_slot(const leonav_orbit_states *o, double t, int *reused)
+{
+    int idle_j = -1;
     for (int j = 0; j < o->n_slots; ++j) {
-        if (o->slot_sat[j] == sat) {
-            o->slot_last_t[j] = t;
+        if (o->slot_sat[j] < 0) {
+            *reused = 0;
             return j;
         }
-        if (o->slot_sat[j] < 0) {
-            if (free_j < 0) free_j = j;
-        } else if (t - o->slot_last_t[j] > o->free_after_s &&
-                   (idle_j < 0 || o->slot_last_t[j] < o->slot_last_t[idle_j])) {
+        if (t - o->slot_last_t[j] > o->free_after_s && (idle_j < 0 || o->slot_last_t[j] < o->slot_last_t[idle_j]))
             idle_j = j;
-        }
     }
-    if (free_j >= 0) {
-        take_slot(o, free_j, sat, t);
-        return free_j;
-    }
-    if (idle_j >= 0) {
-        take_slot(o, idle_j, sat, t);
-        o->n_reused++;
-        return idle_j;
-    }
-    return -1;
+    *reused = idle_j >= 0;
+    return idle_j;
 }
 
 /* ---- predict and update of the augmented state ----------------------------------- */
@@ -178,17 +227,31 @@ static int model(const double *x, const leonav_record *r, const double *p, const
     return LEONAV_OK;
 }
 
-/* Scalar update; returns LEONAV_OK, _GATED or _FAILED (nothing changed unless OK). */
+static int apply(double *x, double *P, const leonav_record *r, double h, const double *H, int j, const double *Ho,
+                 double gate, leonav_orbit_states *o, double *ysn, void *work);
+
+/* Scalar update; returns LEONAV_OK, _GATED or _FAILED: nothing changes unless OK (a new
+ * satellite's slot included: it is taken only by an applied record). */
 static int update(double *x, double *P, const leonav_record *r, const double *p, double gate,
                   leonav_orbit_states *o, double *ysn, void *work)
 {
-    const int m = 3 * o->n_slots;
-    double h, H[NDX], Ho[3] = {0.0, 0.0, 0.0}, bn[NDX], bo[3 * LEONAV_ORBIT_MAX_SLOTS];
+    double h, H[NDX], Ho[3] = {0.0, 0.0, 0.0};
     ysn[0] = ysn[1] = ysn[2] = NAN;
     if (!isfinite(r->z) || !isfinite(r->R) || r->R < 0.0) return LEONAV_FAILED;
-    int j = -1, rc;
+    if (!finite_all(r->aux, LEONAV_NAUX)) return LEONAV_FAILED;
+    int j = -1, rc, reused = 0;
+    slot_copy kept;   /* a new satellite's slot as it was (37 kB at most; not static: threads may share the library) */
+    int trying = 0;
     if (o->kind_offsets[r->kind]) {
-        j = r->sat_id >= 0 ? slot_of(o, r->sat_id, r->t) : -1;
+        j = r->sat_id >= 0 ? held_slot(o, r->sat_id) : -1;
+        if (j < 0 && r->sat_id >= 0) {
+            j = free_slot(o, r->t, &reused);
+            if (j >= 0) {
+                keep_slot(o, j, &kept);
+                take_slot(o, j, r->sat_id, r->t);
+                trying = 1;
+            }
+        }
         if (j < 0) {
             o->n_no_slot++;
             return LEONAV_FAILED;
@@ -197,7 +260,25 @@ static int update(double *x, double *P, const leonav_record *r, const double *p,
     } else {
         rc = leonav_h_step(r->kind, x, r->aux, p, &h, H, work);
     }
-    if (rc != LEONAV_OK) return LEONAV_FAILED;
+    int step = rc == LEONAV_OK ? apply(x, P, r, h, H, j, Ho, gate, o, ysn, work) : LEONAV_FAILED;
+    if (step == LEONAV_OK && j >= 0) {
+        o->slot_last_t[j] = r->t;
+        if (trying) {
+            o->n_taken++;
+            o->n_reused += reused;
+        }
+    } else if (trying) {
+        give_back(o, &kept);
+    }
+    return step;
+}
+
+/* The update of record r with h, H (nav) and Ho (slot j, -1 for none) evaluated. */
+static int apply(double *x, double *P, const leonav_record *r, double h, const double *H, int j, const double *Ho,
+                 double gate, leonav_orbit_states *o, double *ysn, void *work)
+{
+    const int m = 3 * o->n_slots;
+    double bn[NDX], bo[3 * LEONAV_ORBIT_MAX_SLOTS];
     const double y = r->z - h;
     /* b = P_aug H^T, H = [H | Ho at slot j] */
     for (int i = 0; i < NDX; ++i) {
@@ -226,7 +307,8 @@ static int update(double *x, double *P, const leonav_record *r, const double *p,
     ysn[0] = y;
     ysn[1] = S;
     ysn[2] = y * y / S;
-    if (!(S > 0.0) || !isfinite(S) || !isfinite(ysn[2])) return LEONAV_FAILED;
+    if (!(S > 0.0) || !isfinite(S) || !isfinite(ysn[2]) || !finite_all(bn, NDX) || !finite_all(bo, mu))
+        return LEONAV_FAILED;
     if (gate > 0.0 && ysn[2] > gate) return LEONAV_GATED;
     /* K = b / S, c = b - S K / 2; P_aug -= K c^T + c K^T */
     double Kn[NDX], cn[NDX], Ko[3 * LEONAV_ORBIT_MAX_SLOTS], co[3 * LEONAV_ORBIT_MAX_SLOTS], dx[NDX];

@@ -4,11 +4,12 @@
  * states. Built on the driver's public steps (leonav_driver.h): the generated predict, h and
  * boxplus; the augmented covariance algebra is here. C99, no allocation, no exit.
  *
- * The offsets of a satellite live in one of n_slots slots. A slot is taken at the satellite's
- * first record of an offset kind (its offsets start at 0 with the prior variances, independent of
- * everything else) and given to another satellite once its own has had no record for
- * free_after_s (dropping a state no later record reads is its exact marginal; a satellite seen
- * again afterwards starts from its prior). An offset moves the satellite as
+ * The offsets of a satellite live in one of n_slots slots. A slot is taken by the satellite's
+ * first applied record of an offset kind (its offsets start at 0 with the prior variances,
+ * independent of everything else) and given to another satellite once its own has had no applied
+ * record for free_after_s. Dropping the states is their marginal; a satellite seen again after
+ * that starts from its prior, without what was learnt of it or its correlation with the
+ * navigation state (an approximation, the price of a bounded state). An offset moves the satellite as
  * leonav_orbit_move_aux does; an offset kind's h is evaluated with its satellite moved by the
  * current estimate and differentiated by central differences of 1 m over the offsets.
  *
@@ -52,7 +53,7 @@ typedef struct leonav_orbit_states {
  * the simulator's orbit truth (simulation/orbit_truth.move_aux). */
 void leonav_orbit_move_aux(const double *aux, const double d[3], double *aux_out);
 
-/* As leonav_run (the same outputs, P the navigation block), with the orbit-offset states of `orb`
+/* As leonav_run (the same outputs to rounding, P the navigation block), with the orbit-offset states of `orb`
  * carried beside it (their estimates, covariances and slots updated in place). Records of a kind
  * flagged in orb->kind_offsets need a satellite id >= 0; one that finds no slot is not applied
  * (status FAILED, counted in n_failed and orb->n_no_slot). Constant-velocity records are refused

@@ -130,6 +130,9 @@ def check_options(options: ReplayOptions) -> ReplayOptions:
     if sig is not None and not (len(sig) == 3 and all(math.isfinite(v) and v > 0 for v in sig)):
         raise UserInputError(f"--orbit-states: {sig}: expected three sigmas > 0 m (radial, along, cross), "
                              "e.g. 240,960,170 for element sets 6 h old")
+    if sig is not None and options.corrections:
+        raise UserInputError("--orbit-states with --corrections: a base's corrections remove the orbit error the "
+                             "states would estimate; use one")
     if options.origin_deg is not None and not all(math.isfinite(v) for v in options.origin_deg):
         raise UserInputError(f"--origin: {options.origin_deg}: expected finite LAT LON H")
     return dataclasses.replace(options, modes=modes)

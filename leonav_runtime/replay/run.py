@@ -87,7 +87,10 @@ def session_inputs(epoch_utc, origin, imu, fixes: FixTable, meas: BeaconMeasurem
 
         gnss = observation_table(spp, epoch_utc)
     orbit_consider = provider = None
-    if operator is not None:    # the files' covariance into every beacon observable's R (consider term)
+    if operator is not None and options.orbit_states_sigma_m is not None:
+        notes.append("beacons: the operator covariance is not added to R: --orbit-states estimates each "
+                     "satellite's orbit offset from the operator states instead")
+    elif operator is not None:    # the files' covariance into every beacon observable's R (consider term)
         from leonav_runtime.inputs.consider import OrbitConsider
         from leonav_runtime.orbits.operator_consider import OperatorCovariance, names_by_id
 

@@ -132,7 +132,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
                                 "one-sigma moves at the truth; consider: J P_sat J^T at the prior); with [base] "
                                 "orbit corrections, what the served covariance does instead; states: each Starlink "
                                 "satellite's radial, along, cross offset estimated as states (method 1, prior: "
-                                "the Starlink sigmas at the element age)"),
+                                "the Starlink sigmas at the element age; a differenced range and GPS keep the "
+                                "consider term)"),
         "orbit_state_slots": Field(int, "-", 1, 256, default=64,
                                    doc="states: satellites whose offsets are states at once"),
         "orbit_state_free_after_s": Field(float, "s", 0.1, 1e5, default=30.0,

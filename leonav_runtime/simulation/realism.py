@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from leonav_runtime.core import model
+from leonav_runtime.core import model, orbit_states
 from leonav_runtime.inputs.consider import OrbitConsider, rac_axes  # noqa: F401  (rac_axes: re-exported)
 from leonav_runtime.simulation import base_station, front_end
 from leonav_runtime.simulation.orbit_truth import (  # noqa: F401  (the truth's names, re-exported)
@@ -47,13 +47,17 @@ def _satellite_constellations() -> dict[str, str]:
 
 def orbit_consider(scn) -> OrbitConsider | None:
     """The road's consider term for `compensate = "consider"`: the sigmas of the perturbed
-    constellations per observable kind (None for any other compensation)."""
+    constellations per observable kind. Under `compensate = "states"` the kinds whose satellites'
+    offsets are states (`orbit_states.offset_kinds`) get none; the others the orbit error also
+    reaches (a differenced range, GPS with `apply_to` gps) keep the consider term. None for any
+    other compensation."""
     eph = scn.realism.get("ephemeris", {})
-    if eph.get("compensate") != "consider":
+    if eph.get("compensate") not in ("consider", "states"):
         return None
+    estimated = orbit_states.offset_observables() if eph["compensate"] == "states" else set()
     # a kind the base corrects in the orbit domain has its served covariance's term already (base_station.py)
     kinds = {k: c for k, c in _satellite_constellations().items()
-             if c in eph["apply_to"] and not base_station.orbit_corrected(scn, k)}
+             if c in eph["apply_to"] and not base_station.orbit_corrected(scn, k) and k not in estimated}
     covariance = {}
     if eph.get("operator_folder"):   # Starlink's P_sat from its operator ephemerides (docs/ephemerides.md)
         # imported on use: ERFA and the operator readers cost ~60 ms of import every sweep would pay

@@ -31,7 +31,7 @@ from leonav_runtime.core import navfuncs, orbit_states
 from leonav_runtime.simulation import simulate, trial_block
 from leonav_runtime.sweep import consistency
 from leonav_runtime.gen import state_layout as L
-from leonav_runtime.scenarios.load import Scenario, mode_of, scenario_from_dict
+from leonav_runtime.scenarios.load import Scenario, scenario_from_dict
 from leonav_runtime.simulation.orbit_truth import starlink_sigma_rac
 
 EVAL_RATE_HZ = 10.0
@@ -118,15 +118,16 @@ def run_trial(scn: Scenario, mode: str, count: int, index: int) -> TrialResult:
     setup, nav = setup_for(scn)
     rng = trial_rng(scn.seed, index)
     trial = simulate.trial_records(setup, mode, count, rng, nav)
-    return trial_result(scn, setup, nav, trial, index, t0, w0, mode)
+    return trial_result(scn, setup, nav, trial, index, t0, w0)
 
 
-def orbit_states_for(scn: Scenario, mode: str, nav: navfuncs.NavFunctions) -> orbit_states.OrbitStates | None:
-    """Fresh orbit-offset states for one trial of `mode` when the scenario estimates them
-    (`[ephemeris_error] compensate = "states"`, ephemeris method 1) and the mode measures
-    Starlink; their prior is the Starlink sigmas at the element age. None otherwise."""
+def orbit_states_for(scn: Scenario, kinds: np.ndarray, nav: navfuncs.NavFunctions) -> orbit_states.OrbitStates | None:
+    """Fresh orbit-offset states for one trial whose records have these `kinds` when the scenario
+    estimates them (`[ephemeris_error] compensate = "states"`, ephemeris method 1) and a kind reads
+    its satellite's offsets (a differenced range keeps the consider term: `realism.orbit_consider`);
+    their prior is the Starlink sigmas at the element age. None otherwise."""
     eph = scn.realism.get("ephemeris", {})
-    if eph.get("compensate") != "states" or not mode_of(mode).uses("starlink"):
+    if eph.get("compensate") != "states" or not np.isin(kinds, sorted(orbit_states.offset_kinds())).any():
         return None
     return orbit_states.OrbitStates(L.NDX, len(nav.library.meas_ids), eph["orbit_state_slots"],
                                     starlink_sigma_rac(eph), [eph["orbit_state_walk_m2_s"]] * 3,
@@ -134,14 +135,14 @@ def orbit_states_for(scn: Scenario, mode: str, nav: navfuncs.NavFunctions) -> or
 
 
 def trial_result(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions, trial: simulate.Trial,
-                 index: int, t0: float, w0: float, mode: str) -> TrialResult:
-    """Run one drawn trial of `mode` through the C filter loop; t0, w0: its start on the thread's
-    CPU clock and the wall clock."""
+                 index: int, t0: float, w0: float) -> TrialResult:
+    """Run one drawn trial through the C filter loop; t0, w0: its start on the thread's CPU
+    clock and the wall clock."""
     gate = scn.filter["gate_nis"] or None
     params = setup.params if trial.params is None else trial.params   # realism compensation may differ
     ekf = lfilter.EKF(trial.x0, setup.P0, params, gate=gate, library=nav.library)
     rows, k = eval_rows(trial.records, setup.t_imu, EVAL_RATE_HZ, scn.imu_rate_hz)
-    orbit = orbit_states_for(scn, mode, nav)
+    orbit = orbit_states_for(scn, trial.records["kind"], nav)
     t_c = time.thread_time()
     res = ekf.run(trial.records, P_rows=rows, orbit=orbit)  # full P only on the output grid, for NEES
     t_c = time.thread_time() - t_c
@@ -193,7 +194,7 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     """The trials `indices` of (mode, count) from one block of records: (results, C loop CPU s)."""
     block = trial_block.trial_block(setup, mode, count, [trial_rng(scn.seed, i) for i in indices], nav)
     if block.trials is not None:   # streams of different lengths (a realism switch dropped records)
-        results = [trial_result(scn, setup, nav, t, i, time.thread_time(), time.perf_counter(), mode)
+        results = [trial_result(scn, setup, nav, t, i, time.thread_time(), time.perf_counter())
                    for t, i in zip(block.trials, indices)]
         return results, sum(r.c_seconds for r in results)
     gate = scn.filter["gate_nis"] or None
@@ -208,7 +209,7 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     kinds = consistency.kind_index(buf["kind"])   # the same for every trial of the block
     for j in range(B):
         params = block.params if block.params.ndim == 1 else block.params[j]
-        orbit = orbit_states_for(scn, mode, nav)
+        orbit = orbit_states_for(scn, buf["kind"], nav)
         c_seconds.append(loop.run(block.x0[j], setup.P0, params, block.fill(j, buf), orbit))
         orbits.append(orbit.counts if orbit else {})
         x_est[j] = loop.x[rows]
