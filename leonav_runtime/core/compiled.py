@@ -254,6 +254,8 @@ def _declare(lib: ctypes.CDLL) -> None:
         "leonav_update_step": (i, [dp, dp, i, d, d, dp, dp, d, dp, vp]),
         "leonav_h_step": (i, [i, dp, dp, dp, dp, dp, vp]),
         "leonav_run": (i, [dp, dp, dp, vp, lng, dp, ctypes.POINTER(RunOut), vp]),
+        "leonav_run_orbit": (i, [dp, dp, dp, vp, lng, dp, ctypes.POINTER(OrbitStatesC), ctypes.POINTER(RunOut), vp]),
+        "leonav_orbit_move_aux": (None, [dp, dp, dp]),
         "leonav_pcrb_run": (i, [dp, dp, vp, lng, dp, dp, dp, dp, lp, vp]),
         "leonav_code_name": (ctypes.c_char_p, [i]),
         "leonav_meas_name": (ctypes.c_char_p, [i]),
@@ -274,6 +276,18 @@ class RunOut(ctypes.Structure):
         ("status", ctypes.POINTER(ctypes.c_int32)),
         ("n_done", ctypes.c_long), ("n_imu", ctypes.c_long), ("n_applied", ctypes.c_long),
         ("n_gated", ctypes.c_long), ("n_failed", ctypes.c_long), ("n_cv", ctypes.c_long),
+    ]
+
+
+class OrbitStatesC(ctypes.Structure):
+    """ctypes twin of `leonav_orbit_states` (leonav_orbit_states.h; `core.orbit_states` fills it)."""
+
+    _fields_ = [
+        ("n_slots", ctypes.c_int32), ("prior_var", ctypes.c_double * 3), ("q_rw", ctypes.c_double * 3),
+        ("free_after_s", ctypes.c_double), ("kind_offsets", ctypes.POINTER(ctypes.c_uint8)),
+        ("slot_sat", ctypes.POINTER(ctypes.c_int32)), ("slot_last_t", _c_double_p), ("offset", _c_double_p),
+        ("P_no", _c_double_p), ("P_oo", _c_double_p),
+        ("n_taken", ctypes.c_long), ("n_reused", ctypes.c_long), ("n_no_slot", ctypes.c_long),
     ]
 
 

@@ -20,7 +20,7 @@ from typing import Mapping, Union
 
 import numpy as np
 
-from leonav_runtime.core import compiled, orbit_states, records
+from leonav_runtime.core import compiled, records
 from leonav_runtime.gen import state_layout as _codes
 from leonav_runtime.gen.constants import CHI2_1DOF_999
 
@@ -222,7 +222,6 @@ class EKF:
             rc = self.lib.lib.leonav_run(_ptr(self.x), _ptr(self.P), _ptr(self.params), recs.ctypes.data, n,
                                          _ptr(gates), ctypes.byref(out), self._work.ctypes.data)
         else:
-            orbit_states.declare(self.lib.lib)
             rc = self.lib.lib.leonav_run_orbit(_ptr(self.x), _ptr(self.P), _ptr(self.params), recs.ctypes.data, n,
                                                _ptr(gates), ctypes.byref(orbit.c), ctypes.byref(out),
                                                self._work.ctypes.data)

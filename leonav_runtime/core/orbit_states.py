@@ -14,21 +14,10 @@ import ctypes
 import numpy as np
 
 from leonav_runtime.core import model
+from leonav_runtime.core.compiled import OrbitStatesC
 
 MAX_SLOTS = 256   # LEONAV_ORBIT_MAX_SLOTS
 _dp = ctypes.POINTER(ctypes.c_double)
-
-
-class OrbitStatesC(ctypes.Structure):
-    """ctypes twin of `leonav_orbit_states` (csrc/leonav_orbit_states.h)."""
-
-    _fields_ = [
-        ("n_slots", ctypes.c_int32), ("prior_var", ctypes.c_double * 3), ("q_rw", ctypes.c_double * 3),
-        ("free_after_s", ctypes.c_double), ("kind_offsets", ctypes.POINTER(ctypes.c_uint8)),
-        ("slot_sat", ctypes.POINTER(ctypes.c_int32)), ("slot_last_t", _dp), ("offset", _dp),
-        ("P_no", _dp), ("P_oo", _dp),
-        ("n_taken", ctypes.c_long), ("n_reused", ctypes.c_long), ("n_no_slot", ctypes.c_long),
-    ]
 
 
 def offset_observables() -> set[str]:
@@ -40,7 +29,8 @@ def offset_observables() -> set[str]:
 
 def offset_kinds() -> set[int]:
     """Observable ids of `offset_observables`."""
-    return {int(o.kind) for o in model.OBSERVABLES if o.suffix in offset_observables()}
+    names = offset_observables()
+    return {int(o.kind) for o in model.OBSERVABLES if o.suffix in names}
 
 
 class OrbitStates:
@@ -101,20 +91,8 @@ class OrbitStates:
         return out
 
 
-def declare(lib) -> None:
-    """ctypes signatures of the orbit-state entry points of a loaded library."""
-    i, dp, vp, lng = ctypes.c_int, _dp, ctypes.c_void_p, ctypes.c_long
-    from leonav_runtime.core.compiled import RunOut
-
-    lib.leonav_run_orbit.restype = i
-    lib.leonav_run_orbit.argtypes = [dp, dp, dp, vp, lng, dp, ctypes.POINTER(OrbitStatesC), ctypes.POINTER(RunOut), vp]
-    lib.leonav_orbit_move_aux.restype = None
-    lib.leonav_orbit_move_aux.argtypes = [dp, dp, dp]
-
-
 def move_aux(lib, aux: np.ndarray, d_rac: np.ndarray) -> np.ndarray:
     """Rows of aux (n, NAUX) with their satellite moved by d_rac (n, 3) m, by the C filter's move."""
-    declare(lib)
     aux = np.ascontiguousarray(aux, dtype=np.float64)
     d = np.ascontiguousarray(np.broadcast_to(d_rac, (aux.shape[0], 3)), dtype=np.float64)
     out = np.empty_like(aux)

@@ -207,9 +207,10 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     loop = _CLoop(nav.library, buf, rows, lfilter.EKF(block.x0[0], setup.P0, block.params.reshape(-1, L.NP)[0],
                                                       gate=gate, library=nav.library).gate)
     kinds = consistency.kind_index(buf["kind"])   # the same for every trial of the block
+    present = np.unique(buf["kind"])               # so are the kinds the orbit states look for
     for j in range(B):
         params = block.params if block.params.ndim == 1 else block.params[j]
-        orbit = orbit_states_for(scn, buf["kind"], nav)
+        orbit = orbit_states_for(scn, present, nav)
         c_seconds.append(loop.run(block.x0[j], setup.P0, params, block.fill(j, buf), orbit))
         orbits.append(orbit.counts if orbit else {})
         x_est[j] = loop.x[rows]
@@ -258,8 +259,6 @@ class _CLoop:
         p = np.ascontiguousarray(params, dtype=np.float64)
         if recs.size != self.n or not recs.flags.c_contiguous:
             raise ValueError(f"records: expected the block's {self.n} contiguous records, got {recs.size}")
-        if orbit is not None:
-            orbit_states.declare(self.lib.lib)
         t_c = time.thread_time()
         if orbit is None:
             rc = self.lib.lib.leonav_run(_ptr(x), _ptr(P), _ptr(p), recs.ctypes.data, self.n, _ptr(self.gates),
