@@ -165,8 +165,9 @@ static int free_slot(const leonav_orbit_states *o, double t, int *reused)
 
 /* ---- predict and update of the augmented state ----------------------------------- */
 
-/* Slots are taken lowest free first and never given back empty, so the slots in use are
- * 0..n-1: the loops below run over them without a test per slot (a slot never taken holds
+/* Slots are taken lowest free first, and a free slot a record tried without being applied goes
+ * back to free (it was the lowest free one), so the slots in use are 0..n-1 (`valid` checks a
+ * caller's table): the loops below run over them without a test per slot (a free slot holds
  * zeros, and its gain is zero). */
 static int slots_in_use(const leonav_orbit_states *o)
 {
@@ -347,8 +348,8 @@ int leonav_run_orbit(double *x, double *P, const double *p, const leonav_record 
     if (!x || !P || !p || !out || !valid(orb) || (n > 0 && !rec) || n < 0) return LEONAV_ERR_ARG;
     out->n_done = 0;
     out->n_imu = out->n_applied = out->n_gated = out->n_failed = out->n_cv = 0;
-    if (leonav_work_size() == 0 || leonav_h_step(-1, x, NULL, p, NULL, NULL, work) == LEONAV_ERR_WORK)
-        return LEONAV_ERR_WORK;
+    /* the workspace check of the driver's steps (it comes before their kind check) */
+    if (leonav_h_step(-1, x, NULL, p, NULL, NULL, work) == LEONAV_ERR_WORK) return LEONAV_ERR_WORK;
     long n_P = 0;
     for (long i = 0; i < n; ++i) {
         const leonav_record *r = &rec[i];
