@@ -87,7 +87,6 @@ def build_functions(call: Callable[[ca.Function], ca.Function] = _itself) -> lis
                     "shared Joseph-form step of every scalar update: K = b / S, x [+] K y, "
                     "P - K c^T - c K^T with c = b - S K / 2")
     out.append(joseph_fn)
-    joseph = call(joseph_fn)
     xm, Pm, pm = (ca.MX.sym(n, *v.shape) for n, v in (("x", x), ("P", P), ("p", p)))
     auxm, zm, Rm, Jm = ca.MX.sym("aux", NAUX), ca.MX.sym("z"), ca.MX.sym("R"), ca.MX.sym("J", NDX, NDX)
     for suffix, h in measurement_models().items():
@@ -95,14 +94,8 @@ def build_functions(call: Callable[[ca.Function], ca.Function] = _itself) -> lis
         hfn = _fn(f"leonav_h_{suffix}", {"x": x, "aux": aux, "p": p}, {"h": h_pred, "H": H},
                   f"{suffix}: prediction and 1 x NDX Jacobian w.r.t. dx at 0")
         out.append(hfn)
-        innovation = ca.Function(f"leonav_innovation_{suffix}", [x, P, z, R, aux, p],
-                                 list(ekf.innovation(P, z, R, h_pred, H)), FUNCTION_OPTS)
-        ym, bm, Sm = innovation(xm, Pm, zm, Rm, auxm, pm)
-        x_post, P_post = joseph(xm, Pm, ym, bm, Sm)
-        out.append(_fn(f"leonav_update_{suffix}",
-                       {"x": xm, "P": Pm, "z": zm, "R": Rm, "aux": auxm, "p": pm},
-                       {"x_post": x_post, "P_post": P_post, "y": ym, "S": Sm, "nis": ym * ym / Sm},
-                       f"{suffix}: scalar Joseph-form update"))
+        out += _update_functions(call, suffix, ekf.innovation(P, z, R, h_pred, H), joseph_fn,
+                                 (x, P, z, R, aux, p), (xm, Pm, zm, Rm, auxm, pm))
         # not on the filter path: MX keeps the dense J + H^T H / R a loop
         _, Hm = call(hfn)(xm, auxm, pm)
         out.append(_fn(f"leonav_pcrb_info_{suffix}", {"J": Jm, "x": xm, "aux": auxm, "p": pm, "R": Rm},
@@ -170,6 +163,31 @@ def build_functions(call: Callable[[ca.Function], ca.Function] = _itself) -> lis
                        f"{suffix}: 1 x 12 Jacobian dh/d[r_S, v_S, r_ref, v_ref] (ECEF, m and m/s) of the aux "
                        "satellite states (consider term R + J P_sat J^T)"))
     return out
+
+
+def _update_functions(call, suffix: str, innovation_sx, joseph_fn: ca.Function, sx_in, mx_in) -> list[ca.Function]:
+    """An observable's SX innovation (y, b = P H^T, S and nis = y^2 / S) and its update, the
+    MX composition of it with the shared Joseph step. The update's C is plain glue over the
+    two (codegen/emit_pipeline.py): an MX function copies its callee's x_post and P_post
+    (553 doubles) through its work vector on every update."""
+    names = ("x", "P", "z", "R", "aux", "p")
+    y, b, S = innovation_sx
+    innovation = _fn(f"leonav_innovation_{suffix}", dict(zip(names, sx_in)), {"y": y, "b": b, "S": S, "nis": y * y / S},
+                     f"{suffix}: innovation y = z - h, b = P H^T, S = H b + R and nis = y^2 / S")
+    innovation.internal = True   # called by leonav_update_<k> only
+    ym, bm, Sm, nism = call(innovation)(*mx_in)
+    x_post, P_post = call(joseph_fn)(mx_in[0], mx_in[1], ym, bm, Sm)
+    update = _fn(f"leonav_update_{suffix}", dict(zip(names, mx_in)),
+                 {"x_post": x_post, "P_post": P_post, "y": ym, "S": Sm, "nis": nism},
+                 f"{suffix}: scalar Joseph-form update")
+    # y and S are also the Joseph step's arguments: they pass through the work vector, since a
+    # caller may leave those results NULL (not wanted)
+    scalar = ca.Sparsity.dense(1, 1)
+    update.pipeline = Pipeline(update, (
+        Step(innovation, tuple(f"in:{n}" for n in names), ("tmp:y", "tmp:b", "tmp:S", "out:nis")),
+        Step(joseph_fn, ("in:x", "in:P", "tmp:y", "tmp:b", "tmp:S"), ("out:x_post", "out:P_post")),
+    ), {"y": ("y", scalar), "S": ("S", scalar)})
+    return [innovation, update]
 
 
 def _predict_functions(call, x, P, u, dt, p) -> list[ca.Function]:

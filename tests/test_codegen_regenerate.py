@@ -53,8 +53,9 @@ def test_check_flag_fails_on_a_diff(tmp_path):
 @pytest.mark.slow
 def test_a_model_change_rewrites_only_the_functions_it_reaches(monkeypatch):
     """One file per generated function: changing one observable's h changes that observable's
-    h, update and orbit Jacobian (and the manifest), nothing else; its information add calls
-    the h as an external and stays as it was."""
+    h, innovation and orbit Jacobian (and the manifest), nothing else; its update (glue over
+    the innovation and the shared Joseph step) and its information add call them as externals
+    and stay as they were."""
     import dataclasses
 
     from leonav.models import state as S
@@ -66,7 +67,7 @@ def test_a_model_change_rewrites_only_the_functions_it_reaches(monkeypatch):
     after = generated_files()
     changed = {rel for rel in before if before[rel] != after.get(rel)}
     functions = {rel.removeprefix("c/").rsplit(".", 1)[0] for rel in changed if rel.startswith("c/")}
-    assert functions == {"leonav_h_doppler", "leonav_update_doppler", "leonav_orbit_jac_doppler"}, functions
+    assert functions == {"leonav_h_doppler", "leonav_innovation_doppler", "leonav_orbit_jac_doppler"}, functions
     assert changed - {rel for rel in changed if rel.startswith("c/")} == {"leonav_gen.json"}
 
 
@@ -88,7 +89,7 @@ def test_generated_files_are_small_and_hashed_in_the_manifest():
     stages = calls["leonav_predict"]   # the predict is glue over its stages (some generated in parts)
     assert stages[0].startswith("leonav_predict_") and all(s.startswith("leonav_predict_") for s in stages)
     assert {"leonav_predict_transition", "leonav_predict_project"} <= set(stages) and len(stages) >= 3
-    assert calls["leonav_update_doppler"] == ["leonav_joseph"] and calls["leonav_pcrb_info_doppler"] == ["leonav_h_doppler"]
+    assert calls["leonav_update_doppler"] == ["leonav_innovation_doppler", "leonav_joseph"] and calls["leonav_pcrb_info_doppler"] == ["leonav_h_doppler"]
 
 
 def test_layout_twin_matches_header():
