@@ -1,9 +1,10 @@
-"""Plain-C glue for a function that only calls generated functions in sequence (`leonav_predict`).
+"""Plain-C glue for a function that only calls generated functions in sequence (`leonav_predict`,
+`leonav_update_<k>`).
 
 A CasADi MX function over its stages copies every argument and result through its own work
-vector (about 1,600 doubles per predict: +20 % of its time). The glue emitted here passes the
-caller's arrays to the stages directly, keeps only the values between stages in the work
-vector, and densifies a sparse intermediate where it is also an output. It exports the same
+vector (about 1,600 doubles per predict: +20 % of its time; 553 per update). The glue emitted
+here passes the caller's arrays to the stages directly, keeps only the values between stages
+in the work vector, and densifies a sparse intermediate where it is also an output. It exports the same
 C API as CasADi-generated code (`<name>_n_in`, `_sparsity_out`, `_work`, ...), so the driver,
 ctypes and casadi.external load it like any other generated function, and the tests compare
 it with the MX function it stands for (`Pipeline.function`).

@@ -61,7 +61,7 @@ def build_functions(call: Callable[[ca.Function], ca.Function] = _itself) -> lis
 
     The filter steps are SX (straight-line C) with the covariance algebra built on the
     structural non-zeros of F and H and on the symmetry of P (see models.ekf): generic dense
-    18 x 18 products (MX, casadi_mtimes loops) were several times slower. Each update is a
+    18 x 18 products (MX, casadi_mtimes loops) were several times slower. Each update is
     glue over its SX innovation and one shared SX Joseph function; the predict
     is glue over its three SX stages (models.ekf.nav_predict). `call(fn)`:
     how a caller references a generated callee (module doc).
