@@ -1,13 +1,15 @@
 /*
  * leonav_filter: the generated filter as a standalone program (no Python), for the Pi.
  *
- *   leonav_filter RECORDS.bin INIT.bin OUT.csv [GATE_NIS]
+ *   leonav_filter RECORDS.bin INIT.bin OUT.csv [GATE_NIS [COV_INTERVAL]]
  *
  * RECORDS.bin: a raw array of leonav_record (leonav_driver.h; NumPy: recs.tofile()).
  * INIT.bin:    x0 (NX), P0 (NDX*NDX, column-major), p (NP) as little-endian doubles.
  * OUT.csv:     one row per record: t, kind, sat_id, status, y, S, nis, x[NX], P_diag[NDX].
  * GATE_NIS:    chi-square gate on every observable (default LEONAV_CHI2_1DOF_999 = 10.8276,
  *              the chi-square 1-dof 99.9 % quantile, as the Python EKF; 0 disables).
+ * COV_INTERVAL: s, the covariance interval of leonav_run (default 0: P at every IMU record;
+ *              > 0: P propagated once per run of IMU records that long, P_diag NaN inside).
  * status column: the per-record enum of leonav_run (-1 IMU, 0 applied, 1 gated, 2 failed).
  * Exit status: 0 ok, 2 bad arguments or files, 3 the run returned an error code (named on
  * stderr, LEONAV_ERR_*).
@@ -38,8 +40,8 @@ static void *read_all(const char *path, long *size)
 
 int main(int argc, char **argv)
 {
-    if (argc < 4 || argc > 5) {
-        fprintf(stderr, "usage: %s RECORDS.bin INIT.bin OUT.csv [GATE_NIS]\n", argv[0]);
+    if (argc < 4 || argc > 6) {
+        fprintf(stderr, "usage: %s RECORDS.bin INIT.bin OUT.csv [GATE_NIS [COV_INTERVAL]]\n", argv[0]);
         return 2;
     }
     long rec_bytes = 0, init_bytes = 0;
@@ -54,7 +56,8 @@ int main(int argc, char **argv)
         return 2;
     }
     long n = rec_bytes / (long)sizeof(leonav_record);
-    double gate = argc == 5 ? atof(argv[4]) : LEONAV_CHI2_1DOF_999;
+    double gate = argc >= 5 ? atof(argv[4]) : LEONAV_CHI2_1DOF_999;
+    double cov_interval = argc == 6 ? atof(argv[5]) : 0.0;
     double gates[LEONAV_NMEAS];
     for (int k = 0; k < LEONAV_NMEAS; ++k) gates[k] = gate;
 
@@ -71,7 +74,7 @@ int main(int argc, char **argv)
         return 2;
     }
     leonav_run_out out = {xs, pd, NULL, NULL, y, S, nis, status, 0, 0, 0, 0, 0, 0};
-    int rc = leonav_run(x, P, p, rec, n, gates, &out, work);
+    int rc = leonav_run(x, P, p, rec, n, gates, cov_interval, &out, work);
 
     FILE *f = fopen(argv[3], "w");
     if (!f) {

@@ -253,7 +253,7 @@ def _declare(lib: ctypes.CDLL) -> None:
         "leonav_boxplus_many": (i, [lng, dp, dp, dp, vp]),
         "leonav_update_step": (i, [dp, dp, i, d, d, dp, dp, d, dp, vp]),
         "leonav_h_step": (i, [i, dp, dp, dp, dp, dp, vp]),
-        "leonav_run": (i, [dp, dp, dp, vp, lng, dp, ctypes.POINTER(RunOut), vp]),
+        "leonav_run": (i, [dp, dp, dp, vp, lng, dp, ctypes.c_double, ctypes.POINTER(RunOut), vp]),
         "leonav_run_orbit": (i, [dp, dp, dp, vp, lng, dp, ctypes.POINTER(OrbitStatesC), ctypes.POINTER(RunOut), vp]),
         "leonav_orbit_move_aux": (None, [dp, dp, dp]),
         "leonav_pcrb_run": (i, [dp, dp, vp, lng, dp, dp, dp, dp, lp, vp]),

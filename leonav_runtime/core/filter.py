@@ -15,6 +15,7 @@ The default is the chi-square 1-dof 99.9 % quantile, 10.83.
 from __future__ import annotations
 
 import ctypes
+import math
 from dataclasses import dataclass
 from typing import Mapping, Union
 
@@ -184,7 +185,7 @@ class EKF:
 
     # -- whole streams ----------------------------------------------------------
     def run(self, recs: np.ndarray, gate: GateSpec | str = "filter", full_P: bool = False,
-            P_rows: np.ndarray | None = None, orbit=None) -> RunResult:
+            P_rows: np.ndarray | None = None, orbit=None, covariance_interval_s: float = 0.0) -> RunResult:
         """Run a time-ordered RECORD_DTYPE stream in the C loop; x and P end at its end.
 
         gate: "filter" uses this filter's gate, else a gate spec (see module doc).
@@ -193,7 +194,18 @@ class EKF:
         then has one block per index, in that order.
         orbit: an `orbit_states.OrbitStates`: its satellites' orbit offsets are estimated beside
         the state (`leonav_run_orbit`, ephemeris method 1) and left in it; P stays NDX x NDX.
+        covariance_interval_s: 0 propagates P at every IMU record; > 0 mechanizes x at every
+        IMU record and propagates P once per run of IMU records up to this long (s), over their
+        summed increments (leonav_driver.h, docs/design.md "Covariance interval"); runs end
+        before every update and at every P_rows record, and `P_diag` is NaN inside a run.
         """
+        interval = float(covariance_interval_s)
+        if not (math.isfinite(interval) and interval >= 0.0):
+            raise ValueError(f"covariance_interval_s = {covariance_interval_s!r}: expected a finite number of "
+                             "seconds >= 0 (0: the covariance at every IMU record)")
+        if interval > 0.0 and orbit is not None:
+            raise ValueError("covariance_interval_s > 0 with orbit states: leonav_run_orbit propagates the "
+                             "covariance at every IMU record; use covariance_interval_s = 0")
         recs = np.ascontiguousarray(recs)
         records.check_records(recs, len(self.lib.meas_ids))
         n = recs.size
@@ -220,7 +232,7 @@ class EKF:
             status=status.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
         if orbit is None:
             rc = self.lib.lib.leonav_run(_ptr(self.x), _ptr(self.P), _ptr(self.params), recs.ctypes.data, n,
-                                         _ptr(gates), ctypes.byref(out), self._work.ctypes.data)
+                                         _ptr(gates), interval, ctypes.byref(out), self._work.ctypes.data)
         else:
             rc = self.lib.lib.leonav_run_orbit(_ptr(self.x), _ptr(self.P), _ptr(self.params), recs.ctypes.data, n,
                                                _ptr(gates), ctypes.byref(orbit.c), ctypes.byref(out),

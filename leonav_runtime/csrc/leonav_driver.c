@@ -76,6 +76,7 @@ typedef struct {
     double P_tmp[NMAT];
     double x_run[NX];           /* leonav_run's second state buffer (swapped, not copied) */
     double P_run[NMAT];
+    double x_cov[NX];           /* leonav_run with a covariance interval: the interval's first state */
 } workspace;
 
 typedef struct {
@@ -427,45 +428,99 @@ static int32_t record_status(int kind, int rc)
     return rc == LEONAV_GATED ? LEONAV_STATUS_GATED : LEONAV_STATUS_APPLIED;
 }
 
-int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, long n,
-               const double *gate_nis, leonav_run_out *out, void *work)
+/* Nominal mechanization of x over one IMU record into x_out (x is left as it is). */
+static int mech_into(workspace *ws, const double *x, const double *u, double dt, const double *p, double *x_out)
 {
-    if (!x || !P || !p || !out || (n > 0 && !rec) || n < 0) return LEONAV_ERR_ARG;
+    if (!all_finite(u, NU) || !isfinite(dt) || dt < 0.0) return LEONAV_FAILED;
+    const double *in[4] = {x, u, &dt, p};
+    double *out[1] = {x_out};
+    if (call_gen(ws, &MECH, in, 4, out, 1) != 0 || !all_finite(x_out, NX)) return LEONAV_FAILED;
+    return LEONAV_OK;
+}
+
+/* IMU records whose covariance step is still to come (leonav_run with cov_interval > 0). */
+typedef struct {
+    long n;            /* records mechanized since the last covariance step */
+    double u[NU];      /* their increments, summed (body FLU, as each record's) */
+    double dt;         /* their intervals, summed, s */
+} cov_pending;
+
+/* Whether record i ends a covariance interval: it fills the interval, its P is an output,
+ * or the next record is not an IMU record (an update or a CV predict reads P). */
+static int ends_interval(const cov_pending *c, double cov_interval, const leonav_record *rec, long i, long n,
+                         const leonav_run_out *out)
+{
+    if (c->dt >= cov_interval * (1.0 - 1e-9)) return 1;
+    if (out->P && (!out->P_mask || out->P_mask[i])) return 1;
+    return i + 1 >= n || rec[i + 1].kind != LEONAV_MEAS_IMU;
+}
+
+int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, long n,
+               const double *gate_nis, double cov_interval, leonav_run_out *out, void *work)
+{
+    if (!x || !P || !p || !out || (n > 0 && !rec) || n < 0 || !(cov_interval >= 0.0) || !isfinite(cov_interval))
+        return LEONAV_ERR_ARG;
     out->n_done = 0;
     out->n_imu = out->n_applied = out->n_gated = out->n_failed = out->n_cv = 0;
     workspace *ws = get_ws(work);
     if (!ws) return LEONAV_ERR_WORK;
     /* The state lives in one of two buffers (the caller's, the workspace's); a step writes
-     * the other one and they are swapped when it succeeds, so nothing is copied. */
+     * the other one and they are swapped when it succeeds, so nothing is copied. x and P
+     * swap apart: a mechanization alone writes x only, a deferred covariance step P only. */
     double *xc = x, *Pc = P, *xn = ws->x_run, *Pn = ws->P_run;
     long n_P = 0;  /* full-P blocks written */
     int rc = LEONAV_OK;
+    cov_pending cov = {0, {0.0}, 0.0};
     for (long i = 0; i < n; ++i) {
         const leonav_record *r = &rec[i];
         double ysn[3] = {NAN, NAN, NAN};
-        int step;
-        if (r->kind == LEONAV_MEAS_IMU) {
-            step = predict_into(ws, xc, Pc, r->u, r->dt, p, xn, Pn, NULL, NULL);
+        int step, P_current = 1;
+        int wrote_x, wrote_P;  /* which of the other buffers this record wrote */
+        if (r->kind == LEONAV_MEAS_IMU && cov_interval > 0.0) {
+            /* mechanize now; propagate P once per interval, over the summed increments from
+             * the interval's first state (docs/design.md, "Covariance interval") */
+            step = mech_into(ws, xc, r->u, r->dt, p, xn);
+            wrote_x = step == LEONAV_OK;
+            wrote_P = 0;
+            if (wrote_x) {
+                if (cov.n == 0) memcpy(ws->x_cov, xc, sizeof(double) * NX);
+                for (int k = 0; k < NU; ++k) cov.u[k] += r->u[k];
+                cov.dt += r->dt;
+                cov.n++;
+            }
+            if (cov.n > 0 && ends_interval(&cov, cov_interval, rec, i, n, out)) {
+                wrote_P = predict_into(ws, ws->x_cov, Pc, cov.u, cov.dt, p, ws->x_tmp, Pn, NULL, NULL) == LEONAV_OK;
+                if (!wrote_P) step = LEONAV_FAILED;   /* the interval is dropped: P stays where it was */
+                cov = (cov_pending){0, {0.0}, 0.0};
+            }
+            P_current = cov.n == 0;
             if (step == LEONAV_OK) out->n_imu++;
-        } else if (r->kind == LEONAV_KIND_CV) {
-            step = predict_cv_into(ws, xc, Pc, r->dt, p, xn, Pn, NULL, NULL);
-            if (step == LEONAV_OK) out->n_cv++;
-        } else if (r->kind >= 0 && r->kind < LEONAV_NMEAS) {
-            double gate = gate_nis ? gate_nis[r->kind] : 0.0;
-            step = update_into(ws, xc, Pc, r->kind, r->z, r->R, r->aux, p, gate, ysn, xn, Pn);
-            if (step == LEONAV_OK) out->n_applied++;
-            if (step == LEONAV_GATED) out->n_gated++;
         } else {
-            rc = LEONAV_ERR_KIND;
-            break;
+            if (r->kind == LEONAV_MEAS_IMU) {
+                step = predict_into(ws, xc, Pc, r->u, r->dt, p, xn, Pn, NULL, NULL);
+                if (step == LEONAV_OK) out->n_imu++;
+            } else if (r->kind == LEONAV_KIND_CV) {
+                step = predict_cv_into(ws, xc, Pc, r->dt, p, xn, Pn, NULL, NULL);
+                if (step == LEONAV_OK) out->n_cv++;
+            } else if (r->kind >= 0 && r->kind < LEONAV_NMEAS) {
+                double gate = gate_nis ? gate_nis[r->kind] : 0.0;
+                step = update_into(ws, xc, Pc, r->kind, r->z, r->R, r->aux, p, gate, ysn, xn, Pn);
+                if (step == LEONAV_OK) out->n_applied++;
+                if (step == LEONAV_GATED) out->n_gated++;
+            } else {
+                rc = LEONAV_ERR_KIND;
+                break;
+            }
+            wrote_x = wrote_P = step == LEONAV_OK;
         }
-        if (step == LEONAV_OK) {
-            double *t = xc; xc = xn; xn = t;
-            t = Pc; Pc = Pn; Pn = t;
-        }
+        if (wrote_x) { double *t = xc; xc = xn; xn = t; }
+        if (wrote_P) { double *t = Pc; Pc = Pn; Pn = t; }
         if (step == LEONAV_FAILED) out->n_failed++;
         if (out->x) memcpy(out->x + i * NX, xc, sizeof(double) * NX);
-        if (out->P_diag) diag(Pc, out->P_diag + i * NDX);
+        if (out->P_diag) {
+            if (P_current) diag(Pc, out->P_diag + i * NDX);
+            else for (int k = 0; k < NDX; ++k) out->P_diag[i * NDX + k] = NAN;
+        }
         if (out->P && (!out->P_mask || out->P_mask[i])) memcpy(out->P + (n_P++) * NMAT, Pc, sizeof(double) * NMAT);
         if (out->y) out->y[i] = ysn[0];
         if (out->S) out->S[i] = ysn[1];
@@ -473,10 +528,8 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
         if (out->status) out->status[i] = record_status(r->kind, step);
         out->n_done = i + 1;
     }
-    if (xc != x) {  /* the state ends in the caller's buffers */
-        memcpy(x, xc, sizeof(double) * NX);
-        memcpy(P, Pc, sizeof(double) * NMAT);
-    }
+    if (xc != x) memcpy(x, xc, sizeof(double) * NX);   /* the state ends in the caller's buffers */
+    if (Pc != P) memcpy(P, Pc, sizeof(double) * NMAT);
     return rc;
 }
 

@@ -155,10 +155,17 @@ const char *leonav_meas_unit(int kind);
  * gate_nis: LEONAV_NMEAS thresholds indexed by kind (<= 0 disables), or NULL for no
  * gating. Measurement failures are discarded and counted; the loop continues. An IMU
  * (or CV) failure skips that predict (status LEONAV_STATUS_FAILED) and the loop continues.
- * Returns LEONAV_OK, or LEONAV_ERR_KIND / _ERR_ARG / _ERR_WORK with out->n_done = index
- * of the bad record. */
+ * cov_interval (s, >= 0): 0 propagates P at every IMU record (leonav_predict). > 0
+ * mechanizes x at every IMU record (leonav_mech) and propagates P once per run of IMU
+ * records of up to cov_interval seconds, with leonav_predict over their summed increments
+ * and intervals from the run's first state; a run also ends before any other record, at a
+ * record whose full P is an output and at the last record. P_diag of a record inside a
+ * run is NaN (P is not formed there). A failed covariance step drops its run's
+ * propagation (P stays, status LEONAV_STATUS_FAILED at the record that ended it).
+ * Returns LEONAV_OK, or LEONAV_ERR_KIND / _ERR_ARG (also cov_interval < 0 or not finite) /
+ * _ERR_WORK with out->n_done = index of the bad record. */
 int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, long n,
-               const double *gate_nis, leonav_run_out *out, void *work);
+               const double *gate_nis, double cov_interval, leonav_run_out *out, void *work);
 
 /* Posterior Cramer-Rao bound B = J^-1 along a given trajectory, B updated in place.
  * x_lin (n * NX): state at which record i is linearised: for an IMU record the true

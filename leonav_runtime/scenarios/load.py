@@ -224,6 +224,10 @@ def scenario_from_dict(data: dict[str, Any], source: str = "<dict>",
         mode_of(m, f"{source}: [monte_carlo] modes:")
     filt = dict(values["filter"])
     filt["initial_attitude_sigma_rad"] = math.radians(filt.pop("initial_attitude_sigma_deg"))
+    if filt["covariance_interval_s"] > 0 and values["ephemeris_error"]["compensate"] == "states":
+        raise UserInputError(f"{source}: [filter] covariance_interval_s = {filt['covariance_interval_s']:g}: the "
+                             "orbit-offset states ([ephemeris_error] compensate = 'states') propagate the covariance "
+                             "at every IMU sample; expected covariance_interval_s = 0 with them")
     if not NAME.fullmatch(values[""]["name"]):   # it names output folders: never a path
         raise UserInputError(f"{source}: name = {show_value(values['']['name'])}: "
                              "expected 1-64 letters, digits, '.', '_', "

@@ -111,6 +111,9 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "initial_velocity_sigma_mps": Field(float, "m/s", 1e-4, 1e3, default=0.5, doc="prior per ENU axis"),
         "initial_attitude_sigma_deg": Field(float, "deg", 1e-4, 180, default=1.0, doc="prior per axis"),
         "gate_nis": Field(float, "-", 0, 1e6, default=CHI2_1DOF_999, doc="chi2(1) 99.9 %; 0 disables"),
+        "covariance_interval_s": Field(float, "s", 0, 1, default=0.0,
+                                       doc="0: P propagated at every IMU sample; > 0: once per interval this "
+                                       "long (and before every update), the nominal still at every sample"),
     },
     # Realism switches: the truth differs from what the filter assumes (off by default).
     # `enabled` switches the truth; the compensation keys switch the filter, on or off alone.

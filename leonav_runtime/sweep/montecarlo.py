@@ -144,7 +144,8 @@ def trial_result(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunction
     rows, k = eval_rows(trial.records, setup.t_imu, EVAL_RATE_HZ, scn.imu_rate_hz)
     orbit = orbit_states_for(scn, trial.records["kind"], nav)
     t_c = time.thread_time()
-    res = ekf.run(trial.records, P_rows=rows, orbit=orbit)  # full P only on the output grid, for NEES
+    res = ekf.run(trial.records, P_rows=rows, orbit=orbit,   # full P only on the output grid, for NEES
+                  covariance_interval_s=scn.filter["covariance_interval_s"])
     t_c = time.thread_time() - t_c
     err = nav.boxminus(res.x[rows], trial.x_true[k])[:, NAV]
     P9 = res.P[:, NAV, NAV]
@@ -205,7 +206,8 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     P9 = np.empty((L.NNAV, L.NNAV, B, nt))    # batch last: the layout the NEES works in
     c_seconds, runs, orbits = [], [], []
     loop = _CLoop(nav.library, buf, rows, lfilter.EKF(block.x0[0], setup.P0, block.params.reshape(-1, L.NP)[0],
-                                                      gate=gate, library=nav.library).gate)
+                                                      gate=gate, library=nav.library).gate,
+                  scn.filter["covariance_interval_s"])
     kinds = consistency.kind_index(buf["kind"])   # the same for every trial of the block
     present = np.unique(buf["kind"])               # so are the kinds the orbit states look for
     for j in range(B):
@@ -233,8 +235,10 @@ class _CLoop:
     of one block: their streams share times and kinds, so they are checked once, and the outputs
     are allocated once; `run` times the C call alone (the worker thread's CPU clock)."""
 
-    def __init__(self, library, recs: np.ndarray, rows: np.ndarray, gates: np.ndarray) -> None:
+    def __init__(self, library, recs: np.ndarray, rows: np.ndarray, gates: np.ndarray,
+                 covariance_interval_s: float = 0.0) -> None:
         records.check_records(recs, len(library.meas_ids))
+        self.covariance_interval_s = float(covariance_interval_s)
         n, self.lib, self.n = recs.size, library, recs.size
         self.gates = np.ascontiguousarray(gates, dtype=np.float64)
         self.work = library.new_workspace()
@@ -262,7 +266,7 @@ class _CLoop:
         t_c = time.thread_time()
         if orbit is None:
             rc = self.lib.lib.leonav_run(_ptr(x), _ptr(P), _ptr(p), recs.ctypes.data, self.n, _ptr(self.gates),
-                                         ctypes.byref(self.out), self.work.ctypes.data)
+                                         self.covariance_interval_s, ctypes.byref(self.out), self.work.ctypes.data)
         else:
             rc = self.lib.lib.leonav_run_orbit(_ptr(x), _ptr(P), _ptr(p), recs.ctypes.data, self.n, _ptr(self.gates),
                                                ctypes.byref(orbit.c), ctypes.byref(self.out), self.work.ctypes.data)
