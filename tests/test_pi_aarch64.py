@@ -60,22 +60,29 @@ def _rows(path: Path) -> list[dict]:
         return list(csv.DictReader(fh))
 
 
-def test_export_records_runs_in_the_pi_program_as_in_python(exported, x86_program):
+@pytest.mark.parametrize("interval", [None, 0.5])
+def test_export_records_runs_in_the_pi_program_as_in_python(exported, x86_program, interval):
+    """The program's run equals EKF.run bit for bit, variances included; with a covariance
+    interval (its 5th argument, after the gate) too."""
     from leonav_runtime.core.filter import EKF
     from leonav_runtime.gen import state_layout as L
+    from leonav_runtime.gen.constants import CHI2_1DOF_999
     from leonav_runtime.core.records import RECORD_DTYPE
 
     out, info = exported
-    _run([str(x86_program), str(out / "records.bin"), str(out / "init.bin"), str(out / "x86.csv")])
+    extra = [] if interval is None else [repr(CHI2_1DOF_999), repr(interval)]
+    _run([str(x86_program), str(out / "records.bin"), str(out / "init.bin"), str(out / "x86.csv"), *extra])
     recs = np.fromfile(out / "records.bin", dtype=RECORD_DTYPE)
     init = np.fromfile(out / "init.bin", dtype="<f8")
     assert recs.size == info["records"] and init.size == L.NX + L.NDX**2 + L.NP
     x0, P0, p = init[:L.NX], init[L.NX:L.NX + L.NDX**2].reshape((L.NDX, L.NDX), order="F"), init[L.NX + L.NDX**2:]
-    ref = EKF(x0, P0, p).run(recs)
+    ref = EKF(x0, P0, p).run(recs, covariance_interval_s=interval or 0.0)
     rows = _rows(out / "x86.csv")
     x = np.array([[float(r[f"x{i}"]) for i in range(L.NX)] for r in rows])
     np.testing.assert_array_equal(x, ref.x)                     # %.17g round-trips: bit for bit
     np.testing.assert_array_equal([int(r["status"]) for r in rows], ref.status)
+    pd = np.array([[float(r[f"P{i}"]) for i in range(L.NDX)] for r in rows])
+    np.testing.assert_array_equal(pd, ref.P_diag)
 
 
 @pytest.mark.slow
