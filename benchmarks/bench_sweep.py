@@ -21,6 +21,7 @@ import tempfile
 import time
 
 from leonav_runtime.scenarios.load import load_scenario
+from leonav_runtime.scenarios.overrides import apply_overrides
 from leonav_runtime.sweep.run import run_sweep
 
 
@@ -31,9 +32,10 @@ def _cpu() -> tuple[float, float]:
 
 
 def measure_sweep(scenario: str = "paper", trials: int | None = None, workers: int | None = None,
-                  figures: bool = False, out: str | None = None) -> dict:
-    """Run the sweep once and return its timing figures (CPU s, wall s, ratios; see module doc)."""
-    scn = load_scenario(scenario)
+                  figures: bool = False, out: str | None = None, sets: tuple[str, ...] = ()) -> dict:
+    """Run the sweep once and return its timing figures (CPU s, wall s, ratios; see module doc);
+    sets: `section.key=value` overrides, as `leonav sweep --set`."""
+    scn, _ = apply_overrides(load_scenario(scenario), sets=sets)
     out = out or tempfile.mkdtemp(prefix="bench-sweep-")
     load_before = os.getloadavg()
     w0, c0 = time.perf_counter(), _cpu()
@@ -46,7 +48,7 @@ def measure_sweep(scenario: str = "paper", trials: int | None = None, workers: i
     t = res.timing
     trials_cpu = 1e-3 * t["trial_cpu_ms"] * t["trials_run"]
     return {
-        "scenario": scn.name, "trials_per_point": trials or scn.trials, "trials_run": t["trials_run"],
+        "scenario": scn.name, "sets": list(sets), "out": out, "trials_per_point": trials or scn.trials, "trials_run": t["trials_run"],
         "imu_steps_per_trial": t["imu_steps_per_trial"], "c_us_per_imu_step": t["c_us_per_imu_step"],
         "floor_cpu_s": t["floor_cpu_s"], "sweep_cpu_s": t["total_cpu_s"], "cpu_over_floor": t["cpu_over_floor"],
         "measured_cpu_s": (c1[0] - c0[0]) + (c1[1] - c0[1]),
@@ -64,7 +66,8 @@ def measure_sweep(scenario: str = "paper", trials: int | None = None, workers: i
 
 def print_sweep(r: dict) -> None:
     """The figures of `measure_sweep`, floor and sweep side by side."""
-    print(f"sweep {r['scenario']}: {r['trials_run']} trials ({r['trials_per_point']} per point; count-independent "
+    sets = f" with {', '.join(r['sets'])}" if r.get("sets") else ""
+    print(f"sweep {r['scenario']}{sets}: {r['trials_run']} trials ({r['trials_per_point']} per point; count-independent "
           f"modes run once), {r['imu_steps_per_trial']} IMU steps each, {r['executor']} on {r['cores']} cores, "
           f"load average {r['load_average_before']:.1f} -> {r['load_average_after']:.1f}")
     print(f"  C floor: {r['trials_run']} trials x {r['imu_steps_per_trial']} steps x {r['c_us_per_imu_step']:.2f} us "
@@ -80,6 +83,29 @@ def print_sweep(r: dict) -> None:
     print(f"  wall: sweep {r['sweep_wall_s']:.1f} s (trials {r['trials_wall_s']:.1f} s)   (goal <= 10 s on 2 cores, "
           f"quiet machine); peak RSS main {r['peak_rss_main_mb']:.0f} MB, largest worker "
           f"{r['peak_rss_worker_mb']:.0f} MB")
+
+
+def rmse_agreement(a_dir: str, b_dir: str) -> dict:
+    """Largest relative difference between two sweeps' rmse.csv, over every RMSE and bound column."""
+    import csv
+
+    def rows(d):
+        with open(os.path.join(d, "rmse.csv"), newline="") as fh:
+            return list(csv.DictReader(fh))
+
+    a, b = rows(a_dir), rows(b_dir)
+    if [(r["mode"], r["count"]) for r in a] != [(r["mode"], r["count"]) for r in b]:
+        raise ValueError(f"{a_dir} and {b_dir}: the sweeps' points differ")
+    worst = {"max_rel_diff": 0.0, "column": "", "mode": "", "count": ""}
+    for ra, rb in zip(a, b):
+        for col in ra:
+            if col in ("mode", "count", "trials"):
+                continue
+            x, y = float(ra[col]), float(rb[col])
+            d = abs(y - x) / abs(x) if x else abs(y)
+            if d > worst["max_rel_diff"]:
+                worst = {"max_rel_diff": d, "column": col, "mode": ra["mode"], "count": ra["count"]}
+    return worst
 
 
 def main() -> None:

@@ -42,3 +42,33 @@ def test_bench_variants_agree_on_a_short_stream(bench, tmp_path):
     assert np.max(np.abs(c["x"][pos] - a["x"][pos])) < 0.05
     assert np.max(np.abs(c["x"][vel] - a["x"][vel])) < 0.01
     assert np.linalg.norm(a["x"][pos] - x_true[pos]) < np.linalg.norm(x0[pos] - x_true[pos])
+
+
+def test_the_covariance_interval_variant_follows_the_per_sample_filter(bench):
+    lib = compiled.load()
+    recs, x_true, x0, P0, params = bench.build_stream(lib, 2.0)
+    _, _, a = bench.time_c_loop(lib, recs, x0, P0, params, 1)
+    _, _, i = bench.time_c_loop(lib, recs, x0, P0, params, 1, bench.COV_INTERVAL_S)
+    assert np.isnan(i["res"].P_diag).any()           # the interval took effect
+    pos = L.X_P_ENU_SLICE
+    assert np.max(np.abs(i["x"][pos] - a["x"][pos])) < 1e-4
+    np.testing.assert_allclose(np.diag(i["P"]), np.diag(a["P"]), rtol=1e-4)
+
+
+def test_rmse_agreement_names_the_largest_relative_difference(tmp_path):
+    import sys
+
+    sys.path.insert(0, str(BENCH.parent))
+    from bench_sweep import rmse_agreement
+
+    head = "mode,count,trials,pos_rmse_m,vel_rmse_mps\n"
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    (tmp_path / "a" / "rmse.csv").write_text(head + "gps+imu,5,100,2.0,0.5\nleo-alpha+imu,5,100,10.0,1.0\n")
+    (tmp_path / "b" / "rmse.csv").write_text(head + "gps+imu,5,100,2.0,0.5\nleo-alpha+imu,5,100,10.0,1.1\n")
+    worst = rmse_agreement(str(tmp_path / "a"), str(tmp_path / "b"))
+    assert worst["column"] == "vel_rmse_mps" and worst["mode"] == "leo-alpha+imu"
+    assert abs(worst["max_rel_diff"] - 0.1) < 1e-12
+    (tmp_path / "b" / "rmse.csv").write_text(head + "gps+imu,10,100,2.0,0.5\nleo-alpha+imu,5,100,10.0,1.0\n")
+    with pytest.raises(ValueError, match="points differ"):
+        rmse_agreement(str(tmp_path / "a"), str(tmp_path / "b"))
