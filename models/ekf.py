@@ -69,17 +69,21 @@ def congruence(A, S):
     return symmetric_from_upper(A.shape[0], lambda i, j: ca.dot(B[i, :], A[j, :]))
 
 
-def symmetric_part(P_):
-    """(P + P^T) / 2 as an SX matrix whose mirrored entries are the same expression."""
-    return symmetric_from_upper(P_.shape[0], lambda i, j: P_[i, i] if i == j else (P_[i, j] + P_[j, i]) / 2)
+def upper_mirrored(P_):
+    """P's upper triangle mirrored (SX): the symmetric matrix a step works on, read as LAPACK's
+    uplo = 'U' reads one. A covariance the filter keeps is exactly symmetric (every step writes
+    both triangles from one expression), so this equals (P + P^T) / 2 bit for bit, without its
+    n (n - 1) / 2 additions and halvings and with half the loads; the lower triangle is never
+    read. A caller's non-symmetric P is symmetrized once where it enters (`EKF`, `pcrb`)."""
+    return symmetric_from_upper(P_.shape[0], lambda i, j: P_[i, j])
 
 
 def innovation(P_, z, R, h_pred, H):
     """(y, b, S) of a scalar measurement: y = z - h_pred, b = P H^T, S = H b + R (SX).
 
-    b is formed from (P + P^T) / 2 over H's structural non-zero columns only.
+    b is formed from P's upper triangle (`upper_mirrored`) over H's structural non-zero columns only.
     """
-    b = ca.mtimes(symmetric_part(P_), H.T)
+    b = ca.mtimes(upper_mirrored(P_), H.T)
     return z - h_pred, b, ca.mtimes(H, b) + R
 
 
@@ -89,12 +93,12 @@ def joseph_update(x, P_, y, b, S, boxplus: Callable):
     K = b / S, x_post = x [+] K y, and the Joseph form (I - K H) P (I - K H)^T + K R K^T
     evaluated expanded, P - K b^T - b K^T + S K K^T = P - K c^T - c K^T with
     c = b - S K / 2: an identity for any gain K (so it keeps the Joseph form's tolerance
-    of gain errors) that costs O(n^2), not O(n^3). P is symmetrized first ((P + P^T) / 2,
-    as the symmetrized result would be), so only the upper triangle is formed.
+    of gain errors) that costs O(n^2), not O(n^3). P is read from its upper triangle
+    (`upper_mirrored`) and only the upper triangle of the result is formed (then mirrored).
     """
     K = b / S
     c = b - S * K / 2
-    P_sym = symmetric_part(P_)
+    P_sym = upper_mirrored(P_)
     P_post = symmetric_from_upper(P_.shape[0], lambda i, j: P_sym[i, j] - (K[i] * c[j] + c[i] * K[j]))
     return boxplus(x, K * y), P_post
 
@@ -272,7 +276,7 @@ def predict_pre_covariance(P_, F, G, dt, p):
     triangle mirrored) and its IMU noise part Q_pre = G_pre V G_pre^T (SX; nav_predict)."""
     F_pre, G_pre = trapezoid_pre(F, G)
     Q_pre = imu_process_noise(G_pre, dt, p)
-    B_pre = congruence(F_pre, symmetric_part(P_))
+    B_pre = congruence(F_pre, upper_mirrored(P_))
     return symmetric_from_upper(B_pre.shape[0], lambda i, j: B_pre[i, j] + Q_pre[i, j]), Q_pre
 
 
@@ -334,7 +338,7 @@ def cv_predict(x, P_, dt, p):
     x_next = cv_step(x, dt, p)
     F = error_jacobian(lambda xx: cv_step(xx, dt, p), x, frames.boxplus, frames.boxminus, NDX)
     Qd = cv_process_noise(dt, p)
-    FPF = congruence(F, symmetric_part(P_))
+    FPF = congruence(F, upper_mirrored(P_))
     P_next = symmetric_from_upper(NDX, lambda i, j: FPF[i, j] + Qd[i, j])
     return x_next, P_next, F, Qd
 

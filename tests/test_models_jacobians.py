@@ -138,14 +138,16 @@ def test_trapezoid_factorization_reproduces_F_and_G():
 
 
 def test_predict_covariance_equals_F_P_Ft_plus_Qd():
-    """P_next = sym(F P F^T + Qd) from the predict's own F and Qd, also for a non-symmetric P."""
+    """P_next = F P F^T + Qd from the predict's own F and Qd; of a non-symmetric P only the upper
+    triangle is read (models.ekf.upper_mirrored: the lower one may hold anything)."""
     rng = np.random.default_rng(12)
     x = _state(rng)
     u = np.r_[rng.normal(size=3) * 0.02, rng.normal(size=3) * 0.3 + [0, 0, 0.098]]
     A = rng.normal(size=(NDX, NDX))
-    for P in (A @ A.T + np.eye(NDX), A @ A.T + 1e-3 * A):
+    S = A @ A.T + np.eye(NDX)
+    for P in (S, S + 1e-3 * np.tril(A, -1), S + np.tril(A, -1)):
         _, P_next, F, Qd = (np.array(v) for v in FNS["leonav_predict"](x, P, u, 0.02, P_VEC))
-        ref = F @ P @ F.T + Qd
+        ref = F @ S @ F.T + Qd
         ref = (ref + ref.T) / 2
         np.testing.assert_allclose(P_next, ref, rtol=1e-12, atol=1e-13 * np.abs(ref).max())
         assert np.array_equal(P_next, P_next.T)

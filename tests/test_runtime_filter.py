@@ -279,3 +279,19 @@ def test_step_return_codes_are_distinct(lib, params):
     rec = records.measurement_records([0.0], L.MEAS_POS_E, [0.0], [0.0])
     with pytest.raises(RuntimeError, match="LEONAV_ERR_NUMERIC at record 0"):
         lf.pcrb(rec, x_rest()[None, :], P0(), params, library=lib)
+
+
+def test_a_non_symmetric_P0_runs_as_its_symmetric_part_and_P_stays_exactly_symmetric(lib, params):
+    """The generated steps read P's upper triangle only; EKF symmetrizes P0 where it enters, so a
+    caller's non-symmetric P0 gives the run of (P0 + P0^T) / 2 bit for bit, and every P written
+    (predicts and updates) is exactly symmetric."""
+    rng = np.random.default_rng(5)
+    recs = static_stream(lib, params, 1.0, rng, fix_sigma=2.0, pr_sigma=3.0)
+    A = rng.normal(size=(L.NDX, L.NDX)) * np.sqrt(np.outer(np.diag(P0()), np.diag(P0()))) * 1e-3
+    skewed = P0() + A                     # not symmetric: A's two triangles differ
+    assert not np.array_equal(skewed, skewed.T)
+    a, b = lf.EKF(x_rest(), skewed, params, library=lib), lf.EKF(x_rest(), (skewed + skewed.T) / 2, params, library=lib)
+    ra, rb = a.run(recs, full_P=True), b.run(recs, full_P=True)
+    np.testing.assert_array_equal(ra.x, rb.x)
+    np.testing.assert_array_equal(ra.P, rb.P)
+    assert all(np.array_equal(P, P.T) for P in ra.P)

@@ -72,7 +72,9 @@ class EKF:
     """Error-state EKF on the compiled generated C (see the module doc for names).
 
     x0: nominal state (NX,) with the layout of gen/state_layout.py; P0: (NDX, NDX)
-    error covariance; params: parameter vector (NP,) (LEONAV_P_* offsets).
+    error covariance, symmetrized on entry; params: parameter vector (NP,) (LEONAV_P_* offsets).
+    The steps read `P`'s upper triangle only and write it exactly symmetric; a P assigned
+    later should be symmetric (`symmetrized`).
     """
 
     def __init__(self, x0, P0, params, gate: GateSpec = CHI2_1DOF_999,
@@ -81,7 +83,7 @@ class EKF:
         lay = self.lib.layout
         self.nx, self.ndx = int(lay.NX), int(lay.NDX)
         self.x = self._vector("x0", x0, self.nx)
-        self.P = self._matrix("P0", P0)
+        self.P = self._symmetric("P0", P0)
         self.params = self._vector("params", params, int(lay.NP))
         self.gate = self.gate_vector(gate)
         self._work = self.lib.new_workspace()
@@ -105,6 +107,11 @@ class EKF:
         if arr.shape != (self.ndx, self.ndx):
             raise ValueError(f"{name}: expected shape ({self.ndx}, {self.ndx}), got {arr.shape}")
         return arr
+
+    def _symmetric(self, name: str, m) -> np.ndarray:
+        """(m + m^T) / 2: the generated steps read P's upper triangle only (models.ekf.upper_mirrored)
+        and keep it exactly symmetric, so a caller's P enters symmetrized, as each step once did."""
+        return symmetrized(self._matrix(name, m))
 
     def gate_vector(self, gate: GateSpec) -> np.ndarray:
         """Per-kind NIS thresholds (LEONAV_N_MEAS,) from a gate spec (<= 0 = off)."""
@@ -275,6 +282,7 @@ def pcrb(recs: np.ndarray, x_lin: np.ndarray, B0, params, library: compiled.Libr
     B = np.array(B0, dtype=np.float64, order="F")
     if B.shape != (ndx, ndx):
         raise ValueError(f"B0: expected shape ({ndx}, {ndx}), got {B.shape}")
+    B = symmetrized(B)   # the generated predict reads the upper triangle (EKF._symmetric)
     p = np.ascontiguousarray(params, dtype=np.float64)
     B_diag, B_nav = np.empty((n, ndx)), np.empty((n, nnav, nnav))
     done = ctypes.c_long(0)
@@ -284,6 +292,11 @@ def pcrb(recs: np.ndarray, x_lin: np.ndarray, B0, params, library: compiled.Libr
     if rc != _codes.OK:
         raise RuntimeError(f"leonav_pcrb_run returned {compiled.code_name(rc)} at record {done.value}")
     return PcrbResult(recs["t"].copy(), B_diag, B_nav.transpose(0, 2, 1), B)
+
+
+def symmetrized(M: np.ndarray) -> np.ndarray:
+    """(M + M^T) / 2, column-major (the C's order); an exactly symmetric M comes back unchanged."""
+    return np.asfortranarray((M + M.T) / 2)
 
 
 def stationary_imu(x, dt: float, params, library: compiled.Library | None = None) -> np.ndarray:

@@ -11,7 +11,9 @@
  * thread.
  *
  * Matrices: P, F, Qd, B are NDX x NDX, stored column-major (CasADi's order). P and B
- * are symmetric so the order does not matter for them; F does (F[i + j*NDX] = F_ij).
+ * are symmetric so the order does not matter for them; F does (F[i + j*NDX] = F_ij). The
+ * generated steps read the upper triangle of P (and of B in a predict) only, as LAPACK's
+ * uplo = 'U', and write both triangles exactly symmetric; pass a symmetric P0.
  *
  * Time: a record's t is seconds since the scenario epoch. An IMU record at t carries
  * the increments integrated over (t - dt, t]; predicting with it brings the state to t.

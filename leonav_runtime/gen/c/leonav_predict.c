@@ -59,7 +59,7 @@ CASADI_SYMBOL_EXPORT int leonav_predict(const casadi_real** arg, casadi_real** r
   a[2] = w + 123;
   a[3] = arg[3];
   a[4] = arg[4];
-  r[0] = w + 266;
+  r[0] = w + 375;
   if (leonav_predict_pre_covariance_2(a, r, iw, ws, 0)) return 1;
   a[0] = arg[1];
   a[1] = w + 0;
