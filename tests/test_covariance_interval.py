@@ -44,16 +44,21 @@ def _ekf(paper_trial) -> EKF:
     return EKF(trial.x0, setup.P0, setup.params, gate=scn.filter["gate_nis"], library=nav.library)
 
 
-def _by_hand(paper_trial, interval: float):
-    """The interval's rule restated on the single-step API: (x, P_diag, status) per record."""
+def _by_hand(paper_trial, interval: float, recs: np.ndarray, P_rows=(), P0=None):
+    """The interval's rule restated on the single-step API (leonav_mech_step, EKF.predict,
+    .predict_cv, .update): per record x, P_diag and status, the final P, the full P at P_rows
+    and the run's counts."""
     scn, setup, nav, trial = paper_trial
-    recs, lib = trial.records, nav.library
-    step = _ekf(paper_trial)             # updates
+    lib = nav.library
+    step = _ekf(paper_trial)             # updates and constant-velocity predicts
     cov = _ekf(paper_trial)              # the covariance step of a run, from its first state
     work = lib.new_workspace()
-    x, P = trial.x0.astype(float).copy(), np.array(setup.P0, dtype=float, order="F")
-    x_hist, pd_hist, status = np.empty((recs.size, L.NX)), np.empty((recs.size, L.NDX)), []
+    x = trial.x0.astype(float).copy()
+    P = np.array(setup.P0 if P0 is None else P0, dtype=float, order="F")
+    x_hist, pd_hist, status, P_at = np.empty((recs.size, L.NX)), np.empty((recs.size, L.NDX)), [], []
+    counts = dict(n_imu=0, n_cv=0, n_applied=0, n_gated=0, n_failed=0)
     n_run, u_sum, dt_sum, x_first = 0, np.zeros(L.NU), 0.0, None
+    rows = set(int(i) for i in P_rows)
     dp = ctypes.POINTER(ctypes.c_double)
     for i, r in enumerate(recs):
         if r["kind"] == L.MEAS_IMU:
@@ -63,21 +68,40 @@ def _by_hand(paper_trial, interval: float):
                                           float(r["dt"]), setup.params.ctypes.data_as(dp), work.ctypes.data)
             assert rc == L.OK
             n_run, u_sum, dt_sum = n_run + 1, u_sum + r["u"], dt_sum + r["dt"]
+            st = L.STATUS_IMU
             last = i + 1 == recs.size or recs["kind"][i + 1] != L.MEAS_IMU
-            if dt_sum >= interval * (1 - 1e-9) or last:
+            if dt_sum >= interval * (1 - 1e-9) or last or i in rows:
                 cov.x, cov.P = x_first.copy(), P.copy(order="F")
-                assert cov.predict(u_sum, dt_sum) == L.STATUS_IMU
-                P = cov.P.copy(order="F")
+                st = cov.predict(u_sum, dt_sum)
+                if st == L.STATUS_IMU:
+                    P = cov.P.copy(order="F")
+                else:                    # the run skipped as one predict
+                    x = x_first
                 n_run, u_sum, dt_sum = 0, np.zeros(L.NU), 0.0
-            status.append(L.STATUS_IMU)
+            counts["n_imu" if st == L.STATUS_IMU else "n_failed"] += 1
         else:
             step.x, step.P = x.copy(), P.copy(order="F")
-            step.update(int(r["kind"]), float(r["z"]), float(r["R"]), r["aux"])
+            if r["kind"] == L.KIND_CV:
+                st = step.predict_cv(float(r["dt"]))
+                counts["n_cv" if st == L.STATUS_IMU else "n_failed"] += 1
+            else:
+                step.update(int(r["kind"]), float(r["z"]), float(r["R"]), r["aux"])
+                st = step.status
+                counts[{L.STATUS_APPLIED: "n_applied", L.STATUS_GATED: "n_gated"}.get(st, "n_failed")] += 1
             x, P = step.x.copy(), step.P.copy(order="F")
-            status.append(step.status)
+        status.append(st)
         x_hist[i] = x
         pd_hist[i] = np.diag(P) if n_run == 0 else np.nan
-    return x_hist, pd_hist, np.array(status), P
+        if i in rows:
+            P_at.append(P.copy())
+    return x_hist, pd_hist, np.array(status), P, np.array(P_at), counts
+
+
+def _with_cv_records(recs: np.ndarray) -> np.ndarray:
+    """Every 37th IMU record turned into a constant-velocity predict over its dt."""
+    out = recs.copy()
+    out["kind"][np.flatnonzero(recs["kind"] == L.MEAS_IMU)[::37]] = L.KIND_CV
+    return out
 
 
 def test_an_interval_shorter_than_a_sample_is_the_per_sample_run_bit_for_bit(paper_trial):
@@ -89,27 +113,66 @@ def test_an_interval_shorter_than_a_sample_is_the_per_sample_run_bit_for_bit(pap
     np.testing.assert_array_equal(b.P, a.P)
 
 
-@pytest.mark.parametrize("interval", [0.05, 0.1, 1.0])
-def test_the_run_follows_the_rule_on_the_single_steps_bit_for_bit(paper_trial, interval):
+COUNTS = ("n_imu", "n_cv", "n_applied", "n_gated", "n_failed")
+
+
+@pytest.mark.parametrize("variant", ["stream", "P rows", "CV records"])
+@pytest.mark.parametrize("interval", [0.037, 0.05, 0.1, 1.0])
+def test_the_run_follows_the_rule_on_the_single_steps_bit_for_bit(paper_trial, interval, variant):
+    """0.037 s is not a whole number of 10 ms samples: a run ends on the first sample past it."""
     recs = paper_trial[3].records
+    rows = np.flatnonzero(recs["kind"] == L.MEAS_IMU)[3:200:7] if variant == "P rows" else ()
+    if variant == "CV records":
+        recs = _with_cv_records(recs)
     ekf = _ekf(paper_trial)
-    res = ekf.run(recs, covariance_interval_s=interval)
-    x, pd, status, P = _by_hand(paper_trial, interval)
+    res = ekf.run(recs, P_rows=rows if len(rows) else None, covariance_interval_s=interval)
+    x, pd, status, P, P_at, counts = _by_hand(paper_trial, interval, recs, rows)
     np.testing.assert_array_equal(res.x, x)
     np.testing.assert_array_equal(res.P_diag, pd)   # NaN exactly inside the runs
     np.testing.assert_array_equal(res.status, status)
     np.testing.assert_array_equal(ekf.P, P)
+    assert {k: getattr(res, k) for k in COUNTS} == counts
+    if len(rows):
+        assert np.isfinite(res.P_diag[rows]).all()
+        np.testing.assert_array_equal(res.P, P_at)
     imu = recs["kind"] == L.MEAS_IMU
     inside = np.isnan(res.P_diag[:, 0])
-    assert inside.sum() > 0.5 * imu.sum() and not inside[~imu].any()
+    assert not inside[~imu].any()
+    if interval >= 0.05:
+        assert inside.sum() > 0.5 * imu.sum()
 
 
-def test_a_requested_P_ends_a_run(paper_trial):
+def test_full_P_output_makes_every_record_a_run_end(paper_trial):
+    """full_P asks for P after every record, so no run is longer than one record: the
+    per-sample run bit for bit, whatever the interval."""
     recs = paper_trial[3].records
-    rows = np.flatnonzero(recs["kind"] == L.MEAS_IMU)[3:200:7]
-    res = _ekf(paper_trial).run(recs, P_rows=rows, covariance_interval_s=1.0)
-    assert np.isfinite(res.P_diag[rows]).all()
-    np.testing.assert_array_equal(np.diagonal(res.P, axis1=1, axis2=2), res.P_diag[rows])
+    a, b = _ekf(paper_trial), _ekf(paper_trial)
+    ra, rb = a.run(recs, full_P=True), b.run(recs, full_P=True, covariance_interval_s=1.0)
+    for name in ("x", "P_diag", "P", "status"):
+        np.testing.assert_array_equal(getattr(rb, name), getattr(ra, name), err_msg=name)
+
+
+def test_a_failed_covariance_step_skips_its_run_as_one_predict(paper_trial):
+    """A P that cannot be propagated (NaN) fails every predict: per sample each IMU record is
+    skipped, with an interval each run is, so x ends where it began in both."""
+    scn, setup, nav, trial = paper_trial
+    recs = trial.records
+    P0 = np.array(setup.P0, dtype=float)
+    P0[0, 0] = np.nan
+    for interval in (0.0, 0.1):
+        ekf = EKF(trial.x0, P0, setup.params, gate=scn.filter["gate_nis"], library=nav.library)
+        res = ekf.run(recs, covariance_interval_s=interval)
+        np.testing.assert_array_equal(ekf.x, trial.x0)
+        x, pd, status, P, _, counts = _by_hand(paper_trial, interval if interval else 1e-9, recs, P0=P0)
+        np.testing.assert_array_equal(res.x, x)
+        np.testing.assert_array_equal(res.status, status)
+        assert {k: getattr(res, k) for k in COUNTS} == counts
+        imu = recs["kind"] == L.MEAS_IMU
+        failed = res.status == L.STATUS_FAILED
+        if interval:   # only the records that end a run fail, the rest were mechanized
+            assert 0 < failed[imu].sum() < 0.2 * imu.sum() and res.n_imu == imu.sum() - failed[imu].sum()
+        else:
+            assert failed[imu].all() and res.n_imu == 0
 
 
 def test_the_interval_costs_the_paper_trial_almost_nothing_against_its_truth(paper_trial):

@@ -67,3 +67,53 @@ def test_standalone_program_rejects_bad_files(program, tmp_path):
     run = subprocess.run([str(program), str(tmp_path / "r.bin"), str(tmp_path / "i.bin"), str(tmp_path / "o.csv")],
                          capture_output=True, text=True)
     assert run.returncode == 2 and "not a whole number of" in run.stderr
+
+
+def _small_run_files(tmp_path, P0=None):
+    """A 3 s paper trial's records.bin / init.bin; returns (trial, setup, nav, P0 written)."""
+    from leonav_runtime.simulation import simulate
+    from leonav_runtime.sweep import montecarlo as mc
+    from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
+
+    raw = copy.deepcopy(load_scenario("paper").raw)
+    raw["time"]["duration_s"] = 3.0
+    raw["starlink"]["counts"] = [10]
+    setup, nav = mc.setup_for(scenario_from_dict(raw, source="<pi test>"))
+    trial = simulate.trial_records(setup, "gps+leo-alpha+imu", 10, mc.trial_rng(1, 0), nav)
+    P0 = setup.P0 if P0 is None else P0(setup.P0)
+    trial.records.tofile(tmp_path / "records.bin")
+    np.concatenate([trial.x0, P0.ravel(order="F"), setup.params]).astype("<f8").tofile(tmp_path / "init.bin")
+    return trial, setup, nav, P0
+
+
+@pytest.mark.parametrize("args, named", [(["abc"], "GATE_NIS"), (["-1"], "GATE_NIS"),
+                                         (["10.8", "0.1s"], "COV_INTERVAL"), (["10.8", "nan"], "COV_INTERVAL")])
+def test_standalone_program_names_a_bad_number_argument(program, tmp_path, args, named):
+    _small_run_files(tmp_path)
+    run = subprocess.run([str(program), str(tmp_path / "records.bin"), str(tmp_path / "init.bin"),
+                          str(tmp_path / "out.csv"), *args], capture_output=True, text=True)
+    assert run.returncode == 2 and named in run.stderr and "expected a finite number" in run.stderr
+    assert not (tmp_path / "out.csv").exists()
+
+
+def test_standalone_program_symmetrizes_P0_as_the_python_runtime(program, tmp_path):
+    """The generated steps read P's upper triangle: a P0 given with its triangles apart runs as
+    (P0 + P0^T) / 2, the same as the Python EKF (which symmetrizes too)."""
+    from leonav_runtime.core.filter import EKF
+
+    def lopsided(P0):
+        A = np.array(P0, dtype=float)
+        A[0, 1], A[1, 0] = A[0, 1] + 2e-3, A[1, 0] - 1e-3
+        A[3, 7] += 1e-4
+        return A
+    trial, setup, nav, P0 = _small_run_files(tmp_path, lopsided)
+    run = subprocess.run([str(program), str(tmp_path / "records.bin"), str(tmp_path / "init.bin"),
+                          str(tmp_path / "out.csv"), "0"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    got = np.genfromtxt(tmp_path / "out.csv", delimiter=",", names=True)
+    ref = EKF(trial.x0, P0, setup.params, gate=0.0, library=nav.library).run(trial.records)
+    L = nav.layout
+    x_got = np.column_stack([got[f"x{i}"] for i in range(L.NX)])
+    P_got = np.column_stack([got[f"P{i}"] for i in range(L.NDX)])
+    np.testing.assert_allclose(x_got, ref.x, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(P_got, ref.P_diag, rtol=1e-9)

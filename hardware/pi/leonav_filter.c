@@ -4,7 +4,7 @@
  *   leonav_filter RECORDS.bin INIT.bin OUT.csv [GATE_NIS [COV_INTERVAL]]
  *
  * RECORDS.bin: a raw array of leonav_record (leonav_driver.h; NumPy: recs.tofile()).
- * INIT.bin:    x0 (NX), P0 (NDX*NDX, column-major), p (NP) as little-endian doubles.
+ * INIT.bin:    x0 (NX), P0 (NDX*NDX, column-major; symmetrized on entry), p (NP) as little-endian doubles.
  * OUT.csv:     one row per record: t, kind, sat_id, status, y, S, nis, x[NX], P_diag[NDX].
  * GATE_NIS:    chi-square gate on every observable (default LEONAV_CHI2_1DOF_999 = 10.8276,
  *              the chi-square 1-dof 99.9 % quantile, as the Python EKF; 0 disables).
@@ -14,6 +14,7 @@
  * Exit status: 0 ok, 2 bad arguments or files, 3 the run returned an error code (named on
  * stderr, LEONAV_ERR_*).
  */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 
@@ -38,6 +39,18 @@ static void *read_all(const char *path, long *size)
     return buf;
 }
 
+/* argv[i] as a finite number >= lo, or NAN after a message naming the argument. */
+static double number_arg(const char *name, const char *text, double lo)
+{
+    char *end = NULL;
+    double v = strtod(text, &end);
+    if (end == text || *end != '\0' || !isfinite(v) || v < lo) {
+        fprintf(stderr, "%s = '%s': expected a finite number >= %g\n", name, text, lo);
+        return NAN;
+    }
+    return v;
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 4 || argc > 6) {
@@ -56,8 +69,14 @@ int main(int argc, char **argv)
         return 2;
     }
     long n = rec_bytes / (long)sizeof(leonav_record);
-    double gate = argc >= 5 ? atof(argv[4]) : LEONAV_CHI2_1DOF_999;
-    double cov_interval = argc == 6 ? atof(argv[5]) : 0.0;
+    double gate = argc >= 5 ? number_arg("GATE_NIS", argv[4], 0.0) : LEONAV_CHI2_1DOF_999;
+    double cov_interval = argc == 6 ? number_arg("COV_INTERVAL", argv[5], 0.0) : 0.0;
+    if (isnan(gate) || isnan(cov_interval)) return 2;
+    /* P0 enters symmetrized, as in the Python EKF: the generated steps read its upper triangle */
+    double *P0 = init + LEONAV_NX;
+    for (int j = 0; j < LEONAV_NDX; ++j)
+        for (int i = 0; i < j; ++i)
+            P0[i + j * LEONAV_NDX] = P0[j + i * LEONAV_NDX] = (P0[i + j * LEONAV_NDX] + P0[j + i * LEONAV_NDX]) / 2;
     double gates[LEONAV_NMEAS];
     for (int k = 0; k < LEONAV_NMEAS; ++k) gates[k] = gate;
 

@@ -202,9 +202,10 @@ class EKF:
         orbit: an `orbit_states.OrbitStates`: its satellites' orbit offsets are estimated beside
         the state (`leonav_run_orbit`, ephemeris method 1) and left in it; P stays NDX x NDX.
         covariance_interval_s: 0 propagates P at every IMU record; > 0 mechanizes x at every
-        IMU record and propagates P once per run of IMU records up to this long (s), over their
-        summed increments (leonav_driver.h, docs/design.md "Covariance interval"); runs end
-        before every update and at every P_rows record, and `P_diag` is NaN inside a run.
+        IMU record and propagates P once per run of IMU records, over their summed increments; a
+        run ends where its summed dt reaches this (s), before every other record and at every
+        P_rows record (leonav_driver.h, docs/design.md "Covariance interval"), and `P_diag` is
+        NaN inside a run.
         """
         interval = float(covariance_interval_s)
         if not (math.isfinite(interval) and interval >= 0.0):

@@ -445,8 +445,9 @@ typedef struct {
     double dt;         /* their intervals, summed, s */
 } cov_pending;
 
-/* Whether record i ends a covariance interval: it fills the interval, its P is an output,
- * or the next record is not an IMU record (an update or a CV predict reads P). */
+/* Whether record i ends a run of the covariance interval: the run's summed dt has reached the
+ * interval (so a run can exceed it by less than one record's dt), its P is an output, or the
+ * next record is not an IMU record (an update or a CV predict reads P). */
 static int ends_interval(const cov_pending *c, double cov_interval, const leonav_record *rec, long i, long n,
                          const leonav_run_out *out)
 {
@@ -490,7 +491,11 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
             }
             if (cov.n > 0 && ends_interval(&cov, cov_interval, rec, i, n, out)) {
                 wrote_P = predict_into(ws, ws->x_cov, Pc, cov.u, cov.dt, p, ws->x_tmp, Pn, NULL, NULL) == LEONAV_OK;
-                if (!wrote_P) step = LEONAV_FAILED;   /* the interval is dropped: P stays where it was */
+                if (!wrote_P) {   /* the run is skipped as one predict: x back to its first state, P kept */
+                    memcpy(xn, ws->x_cov, sizeof(double) * NX);
+                    wrote_x = 1;
+                    step = LEONAV_FAILED;
+                }
                 cov = (cov_pending){0, {0.0}, 0.0};
             }
             P_current = cov.n == 0;

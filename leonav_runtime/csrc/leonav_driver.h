@@ -159,11 +159,13 @@ const char *leonav_meas_unit(int kind);
  * (or CV) failure skips that predict (status LEONAV_STATUS_FAILED) and the loop continues.
  * cov_interval (s, >= 0): 0 propagates P at every IMU record (leonav_predict). > 0
  * mechanizes x at every IMU record (leonav_mech) and propagates P once per run of IMU
- * records of up to cov_interval seconds, with leonav_predict over their summed increments
- * and intervals from the run's first state; a run also ends before any other record, at a
- * record whose full P is an output and at the last record. P_diag of a record inside a
- * run is NaN (P is not formed there). A failed covariance step drops its run's
- * propagation (P stays, status LEONAV_STATUS_FAILED at the record that ended it).
+ * records, with leonav_predict over their summed increments and intervals from the run's
+ * first state. A run ends at the first record where its summed dt reaches cov_interval,
+ * before any other record, at a record whose full P is an output and at the last record.
+ * P_diag of a record inside a run is NaN (P is not formed there). A failed covariance step
+ * skips its whole run as one failed predict: x goes back to the run's first state, P stays,
+ * and the record that ended the run has status LEONAV_STATUS_FAILED (the run's earlier
+ * records keep theirs).
  * Returns LEONAV_OK, or LEONAV_ERR_KIND / _ERR_ARG (also cov_interval < 0 or not finite) /
  * _ERR_WORK with out->n_done = index of the bad record. */
 int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, long n,

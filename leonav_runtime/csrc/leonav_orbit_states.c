@@ -327,8 +327,13 @@ static int apply(double *x, double *P, const leonav_record *r, double h, const d
     for (int i = 0; i < NX; ++i)
         if (!isfinite(x_new[i])) return LEONAV_FAILED;
     memcpy(x, x_new, sizeof x_new);
+    /* the upper triangle once, mirrored: the generated steps read P's upper triangle, so P must
+     * stay exactly symmetric whatever the compiler contracts (-ffp-contract) */
     for (int k = 0; k < NDX; ++k)
-        for (int i = 0; i < NDX; ++i) P[i + k * NDX] -= Kn[i] * cn[k] + cn[i] * Kn[k];
+        for (int i = 0; i <= k; ++i) {
+            P[i + k * NDX] -= Kn[i] * cn[k] + cn[i] * Kn[k];
+            P[k + i * NDX] = P[i + k * NDX];
+        }
     for (int c = 0; c < mu; ++c) {
         o->offset[c] += Ko[c] * y;
         double *pc = o->P_no + (size_t)c * NDX;
