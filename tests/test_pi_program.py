@@ -15,20 +15,27 @@ def program():
     return pi_program()
 
 
-def test_standalone_program_matches_the_python_runtime(program, tmp_path):
+def _small_run_files(tmp_path, P0=None):
+    """A 3 s paper trial's records.bin / init.bin; returns (trial, setup, nav, P0 written)."""
     from leonav_runtime.simulation import simulate
     from leonav_runtime.sweep import montecarlo as mc
-    from leonav_runtime.core.filter import EKF
     from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
 
     raw = copy.deepcopy(load_scenario("paper").raw)
     raw["time"]["duration_s"] = 3.0
     raw["starlink"]["counts"] = [10]
-    scn = scenario_from_dict(raw, source="<pi test>")
-    setup, nav = mc.setup_for(scn)
+    setup, nav = mc.setup_for(scenario_from_dict(raw, source="<pi test>"))
     trial = simulate.trial_records(setup, "gps+leo-alpha+imu", 10, mc.trial_rng(1, 0), nav)
+    P0 = setup.P0 if P0 is None else P0(setup.P0)
     trial.records.tofile(tmp_path / "records.bin")
-    np.concatenate([trial.x0, setup.P0.ravel(order="F"), setup.params]).astype("<f8").tofile(tmp_path / "init.bin")
+    np.concatenate([trial.x0, P0.ravel(order="F"), setup.params]).astype("<f8").tofile(tmp_path / "init.bin")
+    return trial, setup, nav, P0
+
+
+def test_standalone_program_matches_the_python_runtime(program, tmp_path):
+    from leonav_runtime.core.filter import EKF
+
+    trial, setup, nav, _ = _small_run_files(tmp_path)
     run = subprocess.run([str(program), str(tmp_path / "records.bin"), str(tmp_path / "init.bin"),
                           str(tmp_path / "out.csv")], capture_output=True, text=True)  # default gate
     assert run.returncode == 0, run.stderr
@@ -67,23 +74,6 @@ def test_standalone_program_rejects_bad_files(program, tmp_path):
     run = subprocess.run([str(program), str(tmp_path / "r.bin"), str(tmp_path / "i.bin"), str(tmp_path / "o.csv")],
                          capture_output=True, text=True)
     assert run.returncode == 2 and "not a whole number of" in run.stderr
-
-
-def _small_run_files(tmp_path, P0=None):
-    """A 3 s paper trial's records.bin / init.bin; returns (trial, setup, nav, P0 written)."""
-    from leonav_runtime.simulation import simulate
-    from leonav_runtime.sweep import montecarlo as mc
-    from leonav_runtime.scenarios.load import load_scenario, scenario_from_dict
-
-    raw = copy.deepcopy(load_scenario("paper").raw)
-    raw["time"]["duration_s"] = 3.0
-    raw["starlink"]["counts"] = [10]
-    setup, nav = mc.setup_for(scenario_from_dict(raw, source="<pi test>"))
-    trial = simulate.trial_records(setup, "gps+leo-alpha+imu", 10, mc.trial_rng(1, 0), nav)
-    P0 = setup.P0 if P0 is None else P0(setup.P0)
-    trial.records.tofile(tmp_path / "records.bin")
-    np.concatenate([trial.x0, P0.ravel(order="F"), setup.params]).astype("<f8").tofile(tmp_path / "init.bin")
-    return trial, setup, nav, P0
 
 
 @pytest.mark.parametrize("args, named", [(["abc"], "GATE_NIS"), (["-1"], "GATE_NIS"),
