@@ -15,7 +15,6 @@ import math
 import zlib
 
 import numpy as np
-from scipy.signal import lfilter
 
 from leonav_runtime.core import model, navfuncs
 from leonav_runtime.core.params import params_array
@@ -37,6 +36,9 @@ def _walk(steps: np.ndarray, x0: np.ndarray, phi: np.ndarray) -> np.ndarray:
     if np.all(phi == 1.0):
         np.add(x0[:, None], np.cumsum(steps, axis=1, out=steps), out=out[:, 1:])   # steps reused
         return out
+    # scipy.signal costs ~0.5 s to import (more than a paper sweep's whole report), and only a
+    # first-order Gauss-Markov truth (phi < 1) needs it: the paper's random walks never do
+    from scipy.signal import lfilter
     for j in range(x0.shape[1]):   # first-order recursion, per component
         out[:, 1:, j] = lfilter([1.0], [1.0, -phi[j]], steps[:, :, j], axis=1, zi=(phi[j] * x0[:, j])[:, None])[0]
     return out

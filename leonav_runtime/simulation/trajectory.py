@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.integrate import cumulative_trapezoid
 
 from leonav_runtime.common.errors import UserInputError
 from leonav_runtime.scenarios.load import Scenario
@@ -75,6 +74,7 @@ def motion(scn: Scenario, t_s: np.ndarray) -> Motion:
         raise UserInputError(f"{scn.source}: [trajectory] maneuvers make the speed negative "
                              f"(min {speed.min():.2f} m/s): expected accelerations that keep speed >= 0")
     v_fine = np.stack([speed * np.cos(heading), speed * np.sin(heading), np.zeros_like(speed)], 1)
+    from scipy.integrate import cumulative_trapezoid   # ~0.5 s to import: only a moving profile needs it
     p_fine = cumulative_trapezoid(v_fine, fine, axis=0, initial=0.0)
     idx = np.arange(n) * _FINE if n > 1 else np.arange(n)
 
