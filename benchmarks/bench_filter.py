@@ -255,10 +255,10 @@ def run_benchmark(seconds: float = 20.0, repeats: int = 20, py_repeats: int = 2,
         from bench_sweep import measure_sweep, print_sweep, rmse_agreement
 
         print(f"\npaper sweep, {sweep_trials} trials per point, against its C floor ...", flush=True)
-        result["sweep"] = measure_sweep("paper", sweep_trials, out=str(folder / "sweep"))
+        result["sweep"] = measure_sweep("paper", sweep_trials, figures=True, out=str(folder / "sweep"))
         print_sweep(result["sweep"])
         print(f"\nthe same sweep with the covariance propagated every {COV_INTERVAL_S:g} s ...", flush=True)
-        result["sweep_cov_interval"] = measure_sweep("paper", sweep_trials, out=str(folder / "sweep-cov-interval"),
+        result["sweep_cov_interval"] = measure_sweep("paper", sweep_trials, figures=True, out=str(folder / "sweep-cov-interval"),
                                                      sets=(f"filter.covariance_interval_s={COV_INTERVAL_S!r}",))
         print_sweep(result["sweep_cov_interval"])
         agree = rmse_agreement(str(folder / "sweep"), str(folder / "sweep-cov-interval"))
