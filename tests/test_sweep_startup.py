@@ -41,3 +41,13 @@ def test_a_paper_sweep_imports_no_scipy_it_does_not_use(tmp_path):
 def test_a_moving_scenario_loads_the_position_integral(tmp_path):
     modules = _modules_after(_sweep(tmp_path, "--set", "trajectory.kind=maneuvers"), tmp_path)
     assert "scipy.integrate" in modules
+
+
+def test_the_nees_and_nis_bands_are_scipy_stats_chi2_quantiles():
+    """The bands' formula (without importing scipy.stats) against scipy.stats.chi2.ppf itself."""
+    import numpy as np
+    from scipy import stats
+
+    from leonav_runtime.sweep.montecarlo import _chi2_quantiles
+    for dof in (1, 2, 9, 17, 900, 41_400, 160_000, 1_234_567):
+        np.testing.assert_array_equal(_chi2_quantiles(dof), stats.chi2.ppf([0.025, 0.975], dof), err_msg=str(dof))
