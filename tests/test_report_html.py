@@ -93,3 +93,30 @@ def test_chromium_renders_the_tables_and_decodes_the_figures(report, tmp_path):
     run = subprocess.run([*cmd[:-2], "--window-size=1000,1400", f"--screenshot={shot}", path.as_uri()],
                          capture_output=True, text=True, timeout=60)
     assert run.returncode == 0 and shot.stat().st_size > 10_000, run.stderr[-2000:]
+
+
+def test_sweep_without_figures_draws_none_and_embeds_no_stale_one(tmp_path, capsys):
+    """`leonav sweep --no-figures`: the numbers and report.html, no PNG drawn, and a PNG an earlier
+    run left in the --out folder is not shown as this run's."""
+    import tomli_w
+
+    from leonav_runtime.cli import main
+    from leonav_runtime.scenarios.load import load_scenario
+
+    raw = load_scenario("paper").raw
+    raw["time"]["duration_s"] = 2.0
+    (tmp_path / "short.toml").write_text(tomli_w.dumps(raw))
+    out = tmp_path / "out"
+    out.mkdir()
+    stale = b"\x89PNG\r\n\x1a\n stale"
+    (out / "rmse_vs_count.png").write_bytes(stale)
+    argv = ["sweep", str(tmp_path / "short.toml"), "--counts", "5", "--modes", "gps+imu", "--trials", "2",
+            "--workers", "1", "--no-progress", "--no-figures", "--out", str(out)]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "results:" in printed and ".png" not in printed.split("results:")[1]
+    assert sorted(p.name for p in out.glob("*.png")) == ["rmse_vs_count.png"]
+    assert (out / "rmse_vs_count.png").read_bytes() == stale
+    text = (out / "report.html").read_text()
+    assert "data:image/png" not in text and "gps+imu" in text
+    assert json.loads((out / "metrics.json").read_text())["results"]

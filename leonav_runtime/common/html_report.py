@@ -70,8 +70,8 @@ SWEEP_FIGURES = (("rmse_vs_count.png", "RMSE (solid) and sqrt(PCRB) (dashed) vs 
                  ("visibility.png", "visible satellites (sky plot and count)"))
 
 
-def write_sweep_report(out_dir: Path, metrics: dict) -> Path:
-    """report.html of a sweep folder from its metrics.json content and PNG figures."""
+def write_sweep_report(out_dir: Path, metrics: dict, figures: bool = True) -> Path:
+    """report.html of a sweep folder from its metrics.json content and (with `figures`) its PNG figures."""
     out_dir = Path(out_dir)
     sc = metrics["scenario"]
     title = f"leonav sweep: {sc['name']}"
@@ -98,7 +98,8 @@ def write_sweep_report(out_dir: Path, metrics: dict) -> Path:
     body = "".join("<tr>" + "".join(f"<td>{c if i == 2 else html.escape(c)}</td>" for i, c in enumerate(row))
                    + "</tr>" for row in find_rows)
     findings = f"<h2>Findings</h2><table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
-    figs = "".join(figure(out_dir / name, cap) for name, cap in SWEEP_FIGURES if (out_dir / name).is_file())
+    figs = "".join(figure(out_dir / name, cap) for name, cap in SWEEP_FIGURES
+                   if figures and (out_dir / name).is_file())
     notes = "".join(f"<li>{html.escape(str(n))}</li>" for n in metrics.get("notes") or [])
     sections = [intro, results, findings, ("<h2>Figures</h2>" + figs) if figs else "",
                 f"<h2>Notes</h2><ul>{notes}</ul>" if notes else "", _provenance(metrics.get("provenance"))]

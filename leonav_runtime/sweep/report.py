@@ -138,7 +138,8 @@ def write_results(scn, out_dir: Path, res, figures: bool = True) -> None:
                                                  for k in ("rmse", "sqrt_pcrb")), "nees_mean"], time_rows)
     if figures:
         sweep_plots.plot_all(scn, res, out_dir)
-    html_report.write_sweep_report(out_dir, jsonable(metrics))   # the content of metrics.json, not read back
+    # the content of metrics.json, not read back; without figures, no PNG an earlier run left in the folder
+    html_report.write_sweep_report(out_dir, jsonable(metrics), figures=figures)
 
 
 def summary_table(res) -> str:
