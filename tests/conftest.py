@@ -79,6 +79,21 @@ def pi_program(cc: str = "cc") -> Path:
     return out / "leonav_filter"
 
 
+def modules_after_main(argv: list[str], cwd: Path, timeout_s: float = 300.0) -> tuple[int, set[str]]:
+    """Run `leonav argv` in a fresh interpreter (this checkout first on the path): its return code
+    and every module it had imported at the end (sys.modules)."""
+    import json
+    import sys
+
+    code = ("import json, sys\nfrom leonav_runtime.cli import main\nrc = main(json.loads(sys.argv[1]))\n"
+            "print(json.dumps([rc, sorted(sys.modules)]))")
+    proc = subprocess.run([sys.executable, "-c", code, json.dumps(argv)], cwd=cwd, capture_output=True, text=True,
+                          timeout=timeout_s, env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)))
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    rc, modules = json.loads(proc.stdout.strip().splitlines()[-1])
+    return rc, set(modules)
+
+
 def short_paper_scenario(duration_s: float, counts: list[int], source: str,
                          modes: tuple[str, ...] = ("gps+imu", "leo-alpha+imu"), **sections):
     """The paper scenario shortened to `duration_s` with the given Starlink counts and modes

@@ -4,13 +4,12 @@ scenario/simulation/filter code (the GNSS-only EKF only with --ekf). Checked in 
 interpreter after a real run on the shared GEONET file (sys.modules at the end)."""
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
-from tests.conftest import shared_file
+from tests.conftest import modules_after_main, shared_file
 
 ROOT = Path(__file__).resolve().parents[1]
 HEAVY = {"casadi", "scipy", "matplotlib", "pandas", "sgp4", "pyproj", "astropy", "tqdm", "sigmf", "pymavlink",
@@ -21,13 +20,7 @@ NOT_FOR_SPP = ("leonav_runtime.commands.", "leonav_runtime.scenarios", "leonav_r
 
 
 def _modules_after(argv: list[str], tmp_path: Path) -> tuple[int, set[str]]:
-    code = ("import json, sys\nfrom leonav_runtime.cli import main\nrc = main(json.loads(sys.argv[1]))\n"
-            "print(json.dumps([rc, sorted(sys.modules)]))")
-    proc = subprocess.run([sys.executable, "-c", code, json.dumps(argv)], cwd=tmp_path, capture_output=True,
-                          text=True, timeout=300, env=dict(os.environ, PYTHONPATH=str(ROOT)))
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    rc, modules = json.loads(proc.stdout.strip().splitlines()[-1])
-    return rc, set(modules)
+    return modules_after_main(argv, tmp_path)
 
 
 def _unexpected(modules: set[str]) -> list[str]:

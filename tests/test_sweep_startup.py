@@ -5,25 +5,17 @@ fresh interpreter after a real sweep (sys.modules at the end); a scenario that m
 scipy.integrate, so the check can see it."""
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from tests.conftest import modules_after_main
+
 NOT_FOR_THE_PAPER = ("scipy.signal", "scipy.stats", "scipy.integrate", "scipy.optimize", "scipy.interpolate")
 
 
 def _modules_after(argv: list[str], tmp_path: Path) -> set[str]:
-    code = ("import json, sys\nfrom leonav_runtime.cli import main\nrc = main(json.loads(sys.argv[1]))\n"
-            "print(json.dumps([rc, sorted(sys.modules)]))")
-    proc = subprocess.run([sys.executable, "-c", code, json.dumps(argv)], cwd=tmp_path, capture_output=True,
-                          text=True, timeout=600, env=dict(os.environ, PYTHONPATH=str(ROOT)))
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    rc, modules = json.loads(proc.stdout.strip().splitlines()[-1])
+    rc, modules = modules_after_main(argv, tmp_path, timeout_s=600)
     assert rc == 0
-    return set(modules)
+    return modules
 
 
 def _sweep(tmp_path: Path, *extra: str) -> list[str]:
