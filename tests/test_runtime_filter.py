@@ -282,9 +282,9 @@ def test_step_return_codes_are_distinct(lib, params):
 
 
 def test_a_non_symmetric_P0_runs_as_its_symmetric_part_and_P_stays_exactly_symmetric(lib, params):
-    """The generated steps read P's upper triangle only; EKF symmetrizes P0 where it enters, so a
-    caller's non-symmetric P0 gives the run of (P0 + P0^T) / 2 bit for bit, and every P written
-    (predicts and updates) is exactly symmetric."""
+    """The generated steps read P's upper triangle only; EKF symmetrizes P0 where it enters, and
+    the PCRB loop its B0, so a caller's non-symmetric P0 gives the run of (P0 + P0^T) / 2 bit for
+    bit, and every P written (predicts and updates) is exactly symmetric."""
     rng = np.random.default_rng(5)
     recs = static_stream(lib, params, 1.0, rng, fix_sigma=2.0, pr_sigma=3.0)
     A = rng.normal(size=(L.NDX, L.NDX)) * np.sqrt(np.outer(np.diag(P0()), np.diag(P0()))) * 1e-3
@@ -295,3 +295,8 @@ def test_a_non_symmetric_P0_runs_as_its_symmetric_part_and_P_stays_exactly_symme
     np.testing.assert_array_equal(ra.x, rb.x)
     np.testing.assert_array_equal(ra.P, rb.P)
     assert all(np.array_equal(P, P.T) for P in ra.P)
+    # the C loops symmetrize what they are given themselves (leonav_symmetrize): the PCRB's B0
+    x_lin = np.tile(x_rest(), (recs.size, 1))
+    ba, bb = (lf.pcrb(recs, x_lin, B0, params, library=lib) for B0 in (skewed, (skewed + skewed.T) / 2))
+    np.testing.assert_array_equal(ba.B_diag, bb.B_diag)
+    np.testing.assert_array_equal(ba.B_nav, bb.B_nav)

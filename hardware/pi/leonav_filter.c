@@ -4,7 +4,7 @@
  *   leonav_filter RECORDS.bin INIT.bin OUT.csv [GATE_NIS [COV_INTERVAL]]
  *
  * RECORDS.bin: a raw array of leonav_record (leonav_driver.h; NumPy: recs.tofile()).
- * INIT.bin:    x0 (NX), P0 (NDX*NDX, column-major; symmetrized on entry), p (NP) as little-endian doubles.
+ * INIT.bin:    x0 (NX), P0 (NDX*NDX, column-major; leonav_run symmetrizes it), p (NP) as little-endian doubles.
  * OUT.csv:     one row per record: t, kind, sat_id, status, y, S, nis, x[NX], P_diag[NDX].
  * GATE_NIS:    chi-square gate on every observable (default LEONAV_CHI2_1DOF_999 = 10.8276,
  *              the chi-square 1-dof 99.9 % quantile, as the Python EKF; 0 disables).
@@ -72,11 +72,6 @@ int main(int argc, char **argv)
     double gate = argc >= 5 ? number_arg("GATE_NIS", argv[4], 0.0) : LEONAV_CHI2_1DOF_999;
     double cov_interval = argc == 6 ? number_arg("COV_INTERVAL", argv[5], 0.0) : 0.0;
     if (isnan(gate) || isnan(cov_interval)) return 2;
-    /* P0 enters symmetrized, as in the Python EKF: the generated steps read its upper triangle */
-    double *P0 = init + LEONAV_NX;
-    for (int j = 0; j < LEONAV_NDX; ++j)
-        for (int i = 0; i < j; ++i)
-            P0[i + j * LEONAV_NDX] = P0[j + i * LEONAV_NDX] = (P0[i + j * LEONAV_NDX] + P0[j + i * LEONAV_NDX]) / 2;
     double gates[LEONAV_NMEAS];
     for (int k = 0; k < LEONAV_NMEAS; ++k) gates[k] = gate;
 

@@ -44,7 +44,6 @@ def register(subparsers) -> None:
 def export(session: Path, out: Path, options, elements=None) -> dict:
     """records.bin, init.bin, export.json for the first mode of `options`; returns export.json's content."""
     from leonav_runtime.core import navfuncs, records
-    from leonav_runtime.core.filter import symmetrized
     from leonav_runtime.gen import state_layout as L
     from leonav_runtime.gen.constants import CHI2_1DOF_999
     from leonav_runtime.replay import decode_inputs, replay_mode
@@ -56,8 +55,7 @@ def export(session: Path, out: Path, options, elements=None) -> dict:
         raise UserInputError(f"{session}: mode {mode} cannot run: {inputs.skipped[mode]}")
     recs = np.ascontiguousarray(inputs.merged(replay_mode(mode).streams))
     recs.tofile(out / "records.bin")
-    P0 = symmetrized(np.asarray(inputs.P0, dtype=np.float64))   # the C reads its upper triangle, as EKF's
-    init = np.concatenate([inputs.x0, P0.ravel(order="F"), inputs.params]).astype("<f8")
+    init = np.concatenate([inputs.x0, np.asarray(inputs.P0).ravel(order="F"), inputs.params]).astype("<f8")
     init.tofile(out / "init.bin")
     kinds, counts = np.unique(recs["kind"], return_counts=True)
     names = {v: k for k, v in nav.library.meas_ids.items()} | {records.KIND_IMU: "imu"}

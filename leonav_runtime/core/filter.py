@@ -283,7 +283,6 @@ def pcrb(recs: np.ndarray, x_lin: np.ndarray, B0, params, library: compiled.Libr
     B = np.array(B0, dtype=np.float64, order="F")
     if B.shape != (ndx, ndx):
         raise ValueError(f"B0: expected shape ({ndx}, {ndx}), got {B.shape}")
-    B = symmetrized(B)   # the generated predict reads the upper triangle (EKF._symmetric)
     p = np.ascontiguousarray(params, dtype=np.float64)
     B_diag, B_nav = np.empty((n, ndx)), np.empty((n, nnav, nnav))
     done = ctypes.c_long(0)

@@ -438,6 +438,12 @@ static int mech_into(workspace *ws, const double *x, const double *u, double dt,
     return LEONAV_OK;
 }
 
+void leonav_symmetrize(double *M)
+{
+    for (int j = 0; j < NDX; ++j)
+        for (int i = 0; i < j; ++i) M[i + j * NDX] = M[j + i * NDX] = (M[i + j * NDX] + M[j + i * NDX]) / 2;
+}
+
 /* IMU records whose covariance step is still to come (leonav_run with cov_interval > 0). */
 typedef struct {
     long n;            /* records mechanized since the last covariance step */
@@ -465,6 +471,7 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
     out->n_imu = out->n_applied = out->n_gated = out->n_failed = out->n_cv = 0;
     workspace *ws = get_ws(work);
     if (!ws) return LEONAV_ERR_WORK;
+    leonav_symmetrize(P);   /* the generated steps read its upper triangle */
     /* The state lives in one of two buffers (the caller's, the workspace's); a step writes
      * the other one and they are swapped when it succeeds, so nothing is copied. x and P
      * swap apart: a mechanization alone writes x only, a deferred covariance step P only. */
@@ -548,6 +555,7 @@ int leonav_pcrb_run(double *B, const double *p, const leonav_record *rec, long n
     if (!B || !p || n < 0 || (n > 0 && (!rec || !x_lin))) return LEONAV_ERR_ARG;
     workspace *ws = get_ws(work);
     if (!ws) return LEONAV_ERR_WORK;
+    leonav_symmetrize(B);   /* the generated predict reads its upper triangle */
     for (long i = 0; i < n; ++i) {
         const leonav_record *r = &rec[i];
         const double *xi = x_lin + i * NX;

@@ -13,7 +13,8 @@
  * Matrices: P, F, Qd, B are NDX x NDX, stored column-major (CasADi's order). P and B
  * are symmetric so the order does not matter for them; F does (F[i + j*NDX] = F_ij). The
  * generated steps read the upper triangle of P (and of B in a predict) only, as LAPACK's
- * uplo = 'U', and write both triangles exactly symmetric; pass a symmetric P0.
+ * uplo = 'U', and write both triangles exactly symmetric; the single steps need a symmetric
+ * P, the loops (leonav_run, leonav_run_orbit, leonav_pcrb_run) symmetrize theirs on entry.
  *
  * Time: a record's t is seconds since the scenario epoch. An IMU record at t carries
  * the increments integrated over (t - dt, t]; predicting with it brings the state to t.
@@ -153,7 +154,11 @@ const char *leonav_code_name(int rc);
 const char *leonav_meas_name(int kind);
 const char *leonav_meas_unit(int kind);
 
-/* Run the filter over n time-ordered records, updating x and P in place (final state).
+/* M = (M + M^T) / 2 in place (NDX x NDX, column-major); an exactly symmetric M is unchanged. */
+void leonav_symmetrize(double *M);
+
+/* Run the filter over n time-ordered records, updating x and P in place (final state); P is
+ * symmetrized on entry (leonav_symmetrize).
  * gate_nis: LEONAV_NMEAS thresholds indexed by kind (<= 0 disables), or NULL for no
  * gating. Measurement failures are discarded and counted; the loop continues. An IMU
  * (or CV) failure skips that predict (status LEONAV_STATUS_FAILED) and the loop continues.

@@ -355,6 +355,7 @@ int leonav_run_orbit(double *x, double *P, const double *p, const leonav_record 
     out->n_imu = out->n_applied = out->n_gated = out->n_failed = out->n_cv = 0;
     /* the workspace check of the driver's steps (it comes before their kind check) */
     if (leonav_h_step(-1, x, NULL, p, NULL, NULL, work) == LEONAV_ERR_WORK) return LEONAV_ERR_WORK;
+    leonav_symmetrize(P);   /* the navigation block, as leonav_run */
     long n_P = 0;
     for (long i = 0; i < n; ++i) {
         const leonav_record *r = &rec[i];

@@ -259,7 +259,7 @@ class _CLoop:
         """Run one trial's stream (the block's layout) from x0, P0, with `orbit`'s offset states
         beside it when given; returns the C call's CPU s."""
         x = np.array(x0, dtype=np.float64)
-        P = lfilter.symmetrized(np.asarray(P0, dtype=np.float64))   # as EKF does (the C reads the upper triangle)
+        P = np.array(P0, dtype=np.float64, order="F")   # leonav_run(_orbit) symmetrizes it
         p = np.ascontiguousarray(params, dtype=np.float64)
         if recs.size != self.n or not recs.flags.c_contiguous:
             raise ValueError(f"records: expected the block's {self.n} contiguous records, got {recs.size}")
