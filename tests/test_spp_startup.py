@@ -19,10 +19,6 @@ NOT_FOR_SPP = ("leonav_runtime.commands.", "leonav_runtime.scenarios", "leonav_r
                "leonav_runtime.core.filter", "leonav_runtime.gnss.gnss_ekf", "leonav.codegen")
 
 
-def _modules_after(argv: list[str], tmp_path: Path) -> tuple[int, set[str]]:
-    return modules_after_main(argv, tmp_path)
-
-
 def _unexpected(modules: set[str]) -> list[str]:
     tops = {m.split(".")[0] for m in modules}
     return sorted((tops & HEAVY) | {m for m in modules if m.startswith(NOT_FOR_SPP) and m != "leonav_runtime.commands.spp"})
@@ -30,7 +26,7 @@ def _unexpected(modules: set[str]) -> list[str]:
 
 def test_spp_imports_only_what_it_needs(tmp_path):
     o, n = shared_file("gnss_rinex/07590920.05o"), shared_file("gnss_rinex/07590920.05n")
-    rc, modules = _modules_after(["spp", str(o), "--nav", str(n), "--out", str(tmp_path / "out")], tmp_path)
+    rc, modules = modules_after_main(["spp", str(o), "--nav", str(n), "--out", str(tmp_path / "out")], tmp_path)
     assert rc == 0 and (tmp_path / "out" / "07590920_05o.pos").is_file()
     assert {"leonav_runtime.commands.spp", "leonav_runtime.gnss.spp", "leonav_runtime.gnss.rinex_obs",
             "leonav_runtime.core.navfuncs"} <= modules   # the run did go through the solution
@@ -39,7 +35,7 @@ def test_spp_imports_only_what_it_needs(tmp_path):
 
 def test_spp_ekf_loads_the_filter_only_when_asked(tmp_path):
     o, n = shared_file("gnss_rinex/07590920.05o"), shared_file("gnss_rinex/07590920.05n")
-    rc, modules = _modules_after(["spp", str(o), "--nav", str(n), "--ekf", "--out", str(tmp_path / "out")], tmp_path)
+    rc, modules = modules_after_main(["spp", str(o), "--nav", str(n), "--ekf", "--out", str(tmp_path / "out")], tmp_path)
     assert rc == 0 and (tmp_path / "out" / "07590920_05o_ekf.pos").is_file()
     assert "leonav_runtime.gnss.gnss_ekf" in modules
     assert sorted({m.split(".")[0] for m in modules} & HEAVY - {"multiprocessing", "tomllib"}) == []
@@ -52,7 +48,7 @@ def test_compressed_input_loads_its_decompressor_only_then(tmp_path):
     crx = tmp_path / "07590920.05d.gz"
     hatanaka = __import__("pytest").importorskip("hatanaka", reason="hatanaka (a leonav dependency) not installed")
     crx.write_bytes(gzip.compress(hatanaka.rnx2crx(o.read_bytes())))
-    rc, modules = _modules_after(["spp", str(crx), "--nav", str(n), "--out", str(tmp_path / "out")], tmp_path)
+    rc, modules = modules_after_main(["spp", str(crx), "--nav", str(n), "--out", str(tmp_path / "out")], tmp_path)
     assert rc == 0 and "hatanaka" in modules
     assert _unexpected(modules - {m for m in modules if m.split(".")[0] in ("hatanaka", "ncompress")}) == []
 

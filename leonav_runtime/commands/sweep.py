@@ -64,6 +64,9 @@ def run(args: argparse.Namespace) -> int:
     res = run_sweep(scn, out_dir, trials=args.trials, workers=args.workers, dask_address=args.dask,
                     progress=not args.no_progress, figures=not args.no_figures)
     print(summary_table(scn, res))
-    figures = "" if args.no_figures else ", rmse_vs_count.png, rmse_vs_time.png, trajectories.png, visibility.png"
-    print(f"\nresults: {out_dir}/ (report.html, metrics.json, rmse.csv, findings.csv, rmse_vs_time.csv{figures})")
+    from leonav_runtime.common.html_report import SWEEP_FIGURES
+
+    files = ["report.html", "metrics.json", "rmse.csv", "findings.csv", "rmse_vs_time.csv"]
+    files += [] if args.no_figures else [name for name, _ in SWEEP_FIGURES]
+    print(f"\nresults: {out_dir}/ ({', '.join(files)})")
     return 0
