@@ -1,6 +1,7 @@
 """A paper sweep loads only the SciPy it uses (issue 25): `scipy.special` for the NEES / NIS
 bands, not `scipy.signal` (0.5-1.4 s to import here, for a Gauss-Markov truth the paper has
-not), `scipy.stats` nor `scipy.integrate` (a moving profile's position integral). Checked in a
+not), `scipy.stats` nor `scipy.integrate` (a moving profile's position integral); without
+figures, no matplotlib. Checked in a
 fresh interpreter after a real sweep (sys.modules at the end); a scenario that moves does load
 scipy.integrate, so the check can see it."""
 from __future__ import annotations
@@ -28,6 +29,14 @@ def test_a_paper_sweep_imports_no_scipy_it_does_not_use(tmp_path):
     assert {"leonav_runtime.sweep.montecarlo", "leonav_runtime.simulation.sensor_errors", "scipy.special"} <= modules
     assert sorted(m for m in modules if m.startswith(NOT_FOR_THE_PAPER)) == []
     assert (tmp_path / "out" / "rmse.csv").is_file()
+
+
+def test_a_sweep_without_figures_imports_no_matplotlib(tmp_path):
+    """--no-figures: matplotlib (~0.2 s of CPU to import) is not loaded; with figures it is."""
+    modules = _modules_after(_sweep(tmp_path, "--no-figures"), tmp_path)
+    assert sorted(m for m in modules if m.split(".")[0] == "matplotlib") == []
+    assert (tmp_path / "out" / "report.html").is_file() and not list((tmp_path / "out").glob("*.png"))
+    assert "matplotlib" in _modules_after(_sweep(tmp_path), tmp_path)
 
 
 def test_a_moving_scenario_loads_the_position_integral(tmp_path):

@@ -119,8 +119,6 @@ def write_config(scn, path: Path) -> None:
 
 def write_results(scn, out_dir: Path, res, figures: bool = True) -> None:
     """Every file of the module doc into `out_dir`."""
-    from leonav_runtime.sweep import plots as sweep_plots
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_config(scn, out_dir / "config.toml")
@@ -136,7 +134,9 @@ def write_results(scn, out_dir: Path, res, figures: bool = True) -> None:
     output.write_csv(out_dir / "rmse_vs_time.csv",
                      ["mode", "count", "t_s", *(f"{p}_{k}_{u}" for p, u, _ in CSV_BLOCKS.values()
                                                  for k in ("rmse", "sqrt_pcrb")), "nees_mean"], time_rows)
-    if figures:
+    if figures:   # matplotlib only then: its import is ~0.2 s of CPU a run without figures does not need
+        from leonav_runtime.sweep import plots as sweep_plots
+
         sweep_plots.plot_all(scn, res, out_dir)
     # the content of metrics.json, not read back; without figures, no PNG an earlier run left in the folder
     html_report.write_sweep_report(out_dir, jsonable(metrics), figures=figures)
