@@ -39,3 +39,22 @@ def test_nis_sums_count_applied_and_gated_updates_per_kind():
     status = np.array([0, 0, 1, -1, 0, 0, 2, 1])      # -1 skipped, 2 failed: not counted
     sums, counts = consistency.nis_sums(*consistency.kind_index(kind), nis, status)
     assert sums == {2: 7.0, 5: 6.0} and counts == {2: 2, 5: 2}
+
+
+def test_nis_sums_of_a_block_equal_each_trials_own():
+    """The block's one bincount gives every trial exactly the sums and counts it gets alone."""
+    rng = np.random.default_rng(5)
+    kind = rng.choice([-1, -1, 3, 4, 9], size=500)
+    kinds, index = consistency.kind_index(kind)
+    nis = rng.exponential(1.0, size=(7, 500)) * 10.0 ** rng.uniform(-3, 3, size=(7, 500))
+    status = rng.choice([-1, 0, 0, 1, 2], size=(7, 500)).astype(np.int32)
+    block = consistency.nis_sums_many(kinds, index, nis, status)
+    assert len(block) == 7
+    for j in range(7):
+        sums, counts = block[j]
+        used = (index >= 0) & (status[j] >= 0) & (status[j] <= 1)
+        alone = {int(k): 0.0 for k in kinds}
+        for i in np.flatnonzero(used):          # record order, as a trial's own sum
+            alone[int(kinds[index[i]])] += nis[j, i]
+        assert sums == alone and counts == {int(k): int(np.sum(used & (index == i))) for i, k in enumerate(kinds)}
+        assert consistency.nis_sums(kinds, index, nis[j], status[j]) == block[j]

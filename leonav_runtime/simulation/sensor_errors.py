@@ -16,6 +16,7 @@ import zlib
 
 import numpy as np
 
+from leonav_runtime.common.columns import columnwise
 from leonav_runtime.core import model, navfuncs
 from leonav_runtime.core.params import params_array
 
@@ -34,7 +35,7 @@ def _walk(steps: np.ndarray, x0: np.ndarray, phi: np.ndarray) -> np.ndarray:
     out = np.empty((steps.shape[0], steps.shape[1] + 1, x0.shape[1]))
     out[:, 0] = x0
     if np.all(phi == 1.0):
-        np.add(x0[:, None], np.cumsum(steps, axis=1, out=steps), out=out[:, 1:])   # steps reused
+        columnwise(np.add, x0[:, None], np.cumsum(steps, axis=1, out=steps), out[:, 1:])   # steps reused
         return out
     # scipy.signal costs ~0.5 s to import (more than a paper sweep's whole report), and only a
     # first-order Gauss-Markov truth (phi < 1) needs it: the paper's random walks never do
@@ -99,7 +100,7 @@ def draw_truth_many(rngs: list[np.random.Generator], blocks, n: int, dt: float, 
         for i, r in enumerate(rs):   # each trial's start, then its noise
             x0[i] = start([r])[0]
             r.standard_normal(out=w[i])
-        w *= scale * np.sqrt(np.diag(Qd[e, e]))
+        columnwise(np.multiply, w, scale * np.sqrt(np.diag(Qd[e, e])), w)
         out[b.name] = _walk(w, x0, np.diag(Phi[e, e]).copy())
     return out
 
@@ -146,8 +147,7 @@ def measured_increments_many(rngs: list[np.random.Generator], profile, u_true: n
         r.standard_normal(out=w_a[i])
     w_g *= scale * profile.arw * math.sqrt(dt)
     w_a *= scale * profile.vrw * math.sqrt(dt)
-    u = np.empty((len(rngs),) + u_true.shape)
-    u[:] = u_true
-    u[:, :, :3] += b_g[:, :-1] * dt + w_g
-    u[:, :, 3:] += b_a[:, :-1] * dt + w_a
+    u = np.empty((len(rngs), n, 6))
+    columnwise(np.add, u_true[:, :3], b_g[:, :-1] * dt + w_g, u[:, :, :3])
+    columnwise(np.add, u_true[:, 3:], b_a[:, :-1] * dt + w_a, u[:, :, 3:])
     return u

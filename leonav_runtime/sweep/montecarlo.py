@@ -205,6 +205,7 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
     x_est = np.empty((B, nt, L.NX))
     P9 = np.empty((L.NNAV, L.NNAV, B, nt))    # batch last: the layout the NEES works in
     c_seconds, runs, orbits = [], [], []
+    nis, status = np.empty((B, buf.size)), np.empty((B, buf.size), dtype=np.int32)
     loop = _CLoop(nav.library, buf, rows, lfilter.EKF(block.x0[0], setup.P0, block.params.reshape(-1, L.NP)[0],
                                                       gate=gate, library=nav.library).gate,
                   scn.filter["covariance_interval_s"])
@@ -217,13 +218,14 @@ def _run_trials(scn: Scenario, setup: simulate.Setup, nav: navfuncs.NavFunctions
         orbits.append(orbit.counts if orbit else {})
         x_est[j] = loop.x[rows]
         P9[:, :, j] = np.moveaxis(loop.P_rows[:, NAV, NAV], 0, -1)
-        runs.append((consistency.nis_sums(*kinds, loop.nis, loop.status), int(loop.out.n_gated),
-                     int(loop.out.n_failed)))
+        nis[j], status[j] = loop.nis, loop.status
+        runs.append((int(loop.out.n_gated), int(loop.out.n_failed)))
     err = nav.boxminus(x_est.reshape(B * nt, L.NX), block.truth(k).reshape(B * nt, L.NX))[:, NAV]
     nees = consistency.nees_batch_last(err.T, P9.reshape(L.NNAV, L.NNAV, B * nt)).reshape(B, nt)
     err = err.reshape(B, nt, L.NNAV)
     results = []
-    for j, (index, ((nis_sum, nis_count), gated, failed)) in enumerate(zip(indices, runs)):
+    nis_per_trial = consistency.nis_sums_many(*kinds, nis, status)
+    for j, (index, (nis_sum, nis_count), (gated, failed)) in enumerate(zip(indices, nis_per_trial, runs)):
         p_est = x_est[j, :, L.X_P_ENU_SLICE].copy() if index == 0 else None
         results.append(TrialResult(index, err[j], nees[j], nis_sum, nis_count, gated, failed, p_est, c_seconds[j],
                                    math.nan, math.nan, block.counts[j] if block.counts else {}, orbits[j]))
