@@ -57,26 +57,32 @@ def _by_hand(paper_trial, interval: float, recs: np.ndarray, P_rows=(), P0=None)
     P = np.array(setup.P0 if P0 is None else P0, dtype=float, order="F")
     x_hist, pd_hist, status, P_at = np.empty((recs.size, L.NX)), np.empty((recs.size, L.NDX)), [], []
     counts = dict(n_imu=0, n_cv=0, n_applied=0, n_gated=0, n_failed=0)
-    n_run, u_sum, dt_sum, x_first = 0, np.zeros(L.NU), 0.0, None
+    n_run, u_sum, dt_sum, x_first, first = 0, np.zeros(L.NU), 0.0, None, 0
     rows = set(int(i) for i in P_rows)
     dp = ctypes.POINTER(ctypes.c_double)
     for i, r in enumerate(recs):
         if r["kind"] == L.MEAS_IMU:
-            if n_run == 0:
-                x_first = x.copy()
+            x_before = x.copy()
             rc = lib.lib.leonav_mech_step(x.ctypes.data_as(dp), np.ascontiguousarray(r["u"]).ctypes.data_as(dp),
                                           float(r["dt"]), setup.params.ctypes.data_as(dp), work.ctypes.data)
-            assert rc == L.OK
-            n_run, u_sum, dt_sum = n_run + 1, u_sum + r["u"], dt_sum + r["dt"]
-            st = L.STATUS_IMU
+            assert rc in (L.OK, L.FAILED)
+            st = L.STATUS_IMU if rc == L.OK else L.STATUS_FAILED    # a failed one is not in the run
+            if rc == L.OK:
+                if n_run == 0:
+                    x_first, first = x_before, i
+                n_run, u_sum, dt_sum = n_run + 1, u_sum + r["u"], dt_sum + r["dt"]
             last = i + 1 == recs.size or recs["kind"][i + 1] != L.MEAS_IMU
-            if dt_sum >= interval * (1 - 1e-9) or last or i in rows:
+            if n_run and (dt_sum >= interval * (1 - 1e-9) or last or i in rows):
                 cov.x, cov.P = x_first.copy(), P.copy(order="F")
-                st = cov.predict(u_sum, dt_sum)
-                if st == L.STATUS_IMU:
+                if cov.predict(u_sum, dt_sum) == L.STATUS_IMU:
                     P = cov.P.copy(order="F")
-                else:                    # the run skipped as one predict
-                    x = x_first
+                else:                    # the run fails whole: each of its records a failed predict
+                    x, st = x_first, L.STATUS_FAILED
+                    for k in range(first, i):
+                        if status[k] == L.STATUS_IMU:
+                            counts["n_imu"] -= 1
+                            counts["n_failed"] += 1
+                        status[k], x_hist[k], pd_hist[k] = L.STATUS_FAILED, x_first, np.diag(P)
                 n_run, u_sum, dt_sum = 0, np.zeros(L.NU), 0.0
             counts["n_imu" if st == L.STATUS_IMU else "n_failed"] += 1
         else:
@@ -152,27 +158,49 @@ def test_full_P_output_makes_every_record_a_run_end(paper_trial):
         np.testing.assert_array_equal(getattr(rb, name), getattr(ra, name), err_msg=name)
 
 
-def test_a_failed_covariance_step_skips_its_run_as_one_predict(paper_trial):
+def test_a_failed_covariance_step_fails_its_whole_run(paper_trial):
     """A P that cannot be propagated (NaN) fails every predict: per sample each IMU record is
-    skipped, with an interval each run is, so x ends where it began in both."""
+    skipped; with an interval each run fails whole, every record of it a failed predict, so both
+    loops give the same x, status, P_diag and counts, and x ends where it began."""
     scn, setup, nav, trial = paper_trial
     recs = trial.records
     P0 = np.array(setup.P0, dtype=float)
     P0[0, 0] = np.nan
-    for interval in (0.0, 0.1):
+    runs = {}
+    for interval in (0.0, 0.1, 1.0):
         ekf = EKF(trial.x0, P0, setup.params, gate=scn.filter["gate_nis"], library=nav.library)
-        res = ekf.run(recs, covariance_interval_s=interval)
+        res = runs[interval] = ekf.run(recs, covariance_interval_s=interval)
         np.testing.assert_array_equal(ekf.x, trial.x0)
         x, pd, status, P, _, counts = _by_hand(paper_trial, interval if interval else 1e-9, recs, P0=P0)
         np.testing.assert_array_equal(res.x, x)
+        np.testing.assert_array_equal(res.P_diag, pd)
         np.testing.assert_array_equal(res.status, status)
         assert {k: getattr(res, k) for k in COUNTS} == counts
         imu = recs["kind"] == L.MEAS_IMU
-        failed = res.status == L.STATUS_FAILED
-        if interval:   # only the records that end a run fail, the rest were mechanized
-            assert 0 < failed[imu].sum() < 0.2 * imu.sum() and res.n_imu == imu.sum() - failed[imu].sum()
-        else:
-            assert failed[imu].all() and res.n_imu == 0
+        assert (res.status[imu] == L.STATUS_FAILED).all() and res.n_imu == 0 and res.n_failed >= imu.sum()
+    for interval in (0.1, 1.0):
+        for name in ("x", "P_diag", "status"):
+            np.testing.assert_array_equal(getattr(runs[interval], name), getattr(runs[0.0], name), err_msg=name)
+        assert {k: getattr(runs[interval], k) for k in COUNTS} == {k: getattr(runs[0.0], k) for k in COUNTS}
+
+
+def test_a_record_whose_mechanization_fails_is_skipped_inside_its_run(paper_trial):
+    """A non-finite increment in the middle of the stream: that record's mechanization fails, as
+    its predict does per sample (status failed, x unchanged); it is not part of its run, whose
+    other records and covariance step go on. The rule restated on the single steps gives the same
+    outputs bit for bit."""
+    scn, setup, nav, trial = paper_trial
+    recs = trial.records.copy()
+    imu = np.flatnonzero(recs["kind"] == L.MEAS_IMU)
+    recs["u"][imu[150]] = np.nan
+    for interval in (0.1, 1.0):
+        res = _ekf(paper_trial).run(recs, covariance_interval_s=interval)
+        x, pd, status, P, _, counts = _by_hand(paper_trial, interval, recs)
+        np.testing.assert_array_equal(res.x, x)
+        np.testing.assert_array_equal(res.P_diag, pd)
+        np.testing.assert_array_equal(res.status, status)
+        assert {k: getattr(res, k) for k in COUNTS} == counts
+        assert res.status[imu[150]] == L.STATUS_FAILED and (res.status[imu[:150]] == L.STATUS_IMU).all()
 
 
 def test_the_interval_costs_the_paper_trial_almost_nothing_against_its_truth(paper_trial):

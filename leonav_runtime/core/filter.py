@@ -205,7 +205,8 @@ class EKF:
         IMU record and propagates P once per run of IMU records, over their summed increments; a
         run ends where its summed dt reaches this (s), before every other record and at every
         P_rows record (leonav_driver.h, docs/design.md "Covariance interval"), and `P_diag` is
-        NaN inside a run.
+        NaN inside a run; a run whose covariance step fails fails whole (each of its records a
+        failed predict, x back at the run's first state).
         """
         interval = float(covariance_interval_s)
         if not (math.isfinite(interval) and interval >= 0.0):

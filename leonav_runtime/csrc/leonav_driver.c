@@ -447,9 +447,26 @@ void leonav_symmetrize(double *M)
 /* IMU records whose covariance step is still to come (leonav_run with cov_interval > 0). */
 typedef struct {
     long n;            /* records mechanized since the last covariance step */
+    long first;        /* the run's first mechanized record */
     double u[NU];      /* their increments, summed (body FLU, as each record's) */
     double dt;         /* their intervals, summed, s */
 } cov_pending;
+
+/* A run whose covariance step failed at record `last`: each of its earlier records becomes the
+ * failed predict it is in the per-sample loop (status, counts, x at the run's first state,
+ * P_diag of the P kept), so the outputs say where the state is once the run is undone. `ok`:
+ * how many of them were mechanized (and counted in n_imu). */
+static void fail_run(const cov_pending *c, long last, long ok, const double *x_first, const double *P,
+                     leonav_run_out *out)
+{
+    out->n_imu -= ok;
+    out->n_failed += ok;
+    for (long k = c->first; k < last; ++k) {
+        if (out->x) memcpy(out->x + k * NX, x_first, sizeof(double) * NX);
+        if (out->P_diag) diag(P, out->P_diag + k * NDX);
+        if (out->status) out->status[k] = LEONAV_STATUS_FAILED;
+    }
+}
 
 /* Whether record i ends a run of the covariance interval: the run's summed dt has reached the
  * interval (so a run can exceed it by less than one record's dt), its P is an output, or the
@@ -478,7 +495,7 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
     double *xc = x, *Pc = P, *xn = ws->x_run, *Pn = ws->P_run;
     long n_P = 0;  /* full-P blocks written */
     int rc = LEONAV_OK;
-    cov_pending cov = {0, {0.0}, 0.0};
+    cov_pending cov = {0, 0, {0.0}, 0.0};
     for (long i = 0; i < n; ++i) {
         const leonav_record *r = &rec[i];
         double ysn[3] = {NAN, NAN, NAN};
@@ -491,19 +508,24 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
             wrote_x = step == LEONAV_OK;
             wrote_P = 0;
             if (wrote_x) {
-                if (cov.n == 0) memcpy(ws->x_cov, xc, sizeof(double) * NX);
+                if (cov.n == 0) {
+                    memcpy(ws->x_cov, xc, sizeof(double) * NX);
+                    cov.first = i;
+                }
                 for (int k = 0; k < NU; ++k) cov.u[k] += r->u[k];
                 cov.dt += r->dt;
                 cov.n++;
             }
             if (cov.n > 0 && ends_interval(&cov, cov_interval, rec, i, n, out)) {
                 wrote_P = predict_into(ws, ws->x_cov, Pc, cov.u, cov.dt, p, ws->x_tmp, Pn, NULL, NULL) == LEONAV_OK;
-                if (!wrote_P) {   /* the run is skipped as one predict: x back to its first state, P kept */
+                if (!wrote_P) {   /* the run fails whole: x back to its first state, P kept */
                     memcpy(xn, ws->x_cov, sizeof(double) * NX);
                     wrote_x = 1;
+                    /* cov.n counts this record too when its own mechanization succeeded */
+                    fail_run(&cov, i, cov.n - (step == LEONAV_OK), ws->x_cov, Pc, out);
                     step = LEONAV_FAILED;
                 }
-                cov = (cov_pending){0, {0.0}, 0.0};
+                cov = (cov_pending){0, 0, {0.0}, 0.0};
             }
             P_current = cov.n == 0;
             if (step == LEONAV_OK) out->n_imu++;

@@ -168,9 +168,9 @@ void leonav_symmetrize(double *M);
  * first state. A run ends at the first record where its summed dt reaches cov_interval,
  * before any other record, at a record whose full P is an output and at the last record.
  * P_diag of a record inside a run is NaN (P is not formed there). A failed covariance step
- * skips its whole run as one failed predict: x goes back to the run's first state, P stays,
- * and the record that ended the run has status LEONAV_STATUS_FAILED (the run's earlier
- * records keep theirs).
+ * fails its whole run: x goes back to the run's first state and P stays, and every record of
+ * the run is a failed predict, as in the per-sample loop (status LEONAV_STATUS_FAILED, counted
+ * in n_failed, its x the run's first state, its P_diag the P kept).
  * Returns LEONAV_OK, or LEONAV_ERR_KIND / _ERR_ARG (also cov_interval < 0 or not finite) /
  * _ERR_WORK with out->n_done = index of the bad record. */
 int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, long n,
