@@ -24,3 +24,13 @@ def test_columnwise_equals_the_ufunc(ufunc):
     inplace = a.copy()
     columnwise(ufunc, inplace, cases[1], inplace)
     assert inplace.tobytes() == ufunc(a, cases[1]).tobytes()
+
+
+def test_an_operand_overlapping_the_output_gives_the_ufuncs_answer():
+    """out shifted by one column against its input: column by column would read written values."""
+    rng = np.random.default_rng(12)
+    arr = rng.standard_normal((4, 5, 4))
+    want = arr.copy()
+    np.add(want[..., 0:3], 1.5, out=want[..., 1:4])
+    columnwise(np.add, arr[..., 0:3], 1.5, arr[..., 1:4])
+    assert arr.tobytes() == want.tobytes()
