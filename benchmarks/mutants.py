@@ -233,12 +233,11 @@ mutant("simulate-14", BLK, "Doppler-rate aux f_b of one IMU sample while R assum
        ("n_avg = max(1, int(round(F_B_AVERAGE_S / float(np.median(imu.dt)))))", "n_avg = 1"))
 mutant("simulate-15", SIM, "GPS outages keep only the outage", ("keep &= ~((s.t_s >= a) & ((s.t_s < b) | (b >= end_s)))", "keep &= ((s.t_s >= a) & ((s.t_s < b) | (b >= end_s)))"))
 mutant("simulate-16", BLK, "aux keeps the true instead of the measured specific force (block builder)",
-       ('        buf["aux"][tpl.fb_pos, AUX_F_B_SLICE] = self.f_b[j, tpl.fb_sample]\n', ""))
+       ("        flat[f_b_at] = np.take(self.f_b[j], tpl.fb_sample, axis=0)\n", ""))
 mutant("simulate-17", SIM, "count selects one satellite too many", ("return np.flatnonzero(s.rank < count)", "return np.flatnonzero(s.rank <= count)"))
 mutant("simulate-18", SAT, "OFDM difference includes the reference itself", ("return [r for r in rows if r[5] > 0]", "return [r for r in rows if r[5] >= 0]"))
 mutant("simulate-19", ERR, "clock and LO truth start from the scenario values with the wrong sign",
-       ("return np.full((len(streams), block.size), float(getattr(scn, section)[key]))",
-        "return np.full((len(streams), block.size), -float(getattr(scn, section)[key]))"))
+       ("    value = float(getattr(scn, section)[key])", "    value = -float(getattr(scn, section)[key])"))
 mutant("simulate-20", SIM, "too few GPS satellites accepted", ('if "gps" in needed and visible["gps"] < 4:', 'if "gps" in needed and visible["gps"] < 1:'))
 
 # ---------------------------------------------------------------- filter.py
@@ -339,11 +338,13 @@ mutant("simulate-26", BLK, "averaging window of f_b one sample short", ("np.maxi
 mutant("simulate-27", SIM, "prior drawn with the variances as sigmas", ("factor_t = (u * np.sqrt(s)).T", "factor_t = (u * s).T"))
 mutant("simulate-28", SIM, "measuring sensors' truth one IMU sample early in z", ("value = errors[b.name][:, k, j]", "value = errors[b.name][:, k - 1, j]"))
 mutant("simulate-29", ERR, "clock bias integrates the drift at the end of each step", ("x_d[:, :-1] * np.diag(Phi[e, d])", "x_d[:, 1:] * np.diag(Phi[e, d])"))
-mutant("simulate-30", ERR, "IMU bias of the interval's end added to its increment", ("u[:, :, :3] += b_g[:, :-1] * dt", "u[:, :, :3] += b_g[:, 1:] * dt"))
-mutant("simulate-31", BLK, "block measurements written in the template's record order", ('buf["z"][tpl.meas_pos] = self.z[j, tpl.meas_src]', 'buf["z"][tpl.meas_pos] = self.z[j, np.sort(tpl.meas_src)]'))
+mutant("simulate-30", ERR, "IMU bias of the interval's end added to its increment", ("u_true[:, :3], b_g[:, :-1] * dt + w_g", "u_true[:, :3], b_g[:, 1:] * dt + w_g"))
+mutant("simulate-31", BLK, "block measurements written in the template's record order", ("flat[z_at] = np.take(self.z[j], tpl.meas_src)", "flat[z_at] = np.take(self.z[j], np.sort(tpl.meas_src))"))
 mutant("simulate-32", ERR, "every trial of a block draws the first trial's own-stream blocks",
        ('rs = list(rngs) if b.truth["stream"] == "trial" else [own_stream(r, b.name) for r in rngs]',
         'rs = list(rngs) if b.truth["stream"] == "trial" else [own_stream(rngs[0], b.name)] * len(rngs)'))
+mutant("simulate-33", ERR, "every trial of a block starts its bias walks at the first trial's start",
+       ("columnwise(np.add, x0[:, None], np.cumsum", "columnwise(np.add, x0[:1, None], np.cumsum"))
 mutant("filter-15", FIL, "record stream not checked", ("        records.check_records(recs, len(self.lib.meas_ids))\n        n = recs.size\n        gates", "        n = recs.size\n        gates"))
 mutant("filter-16", FIL, "applied and gated counts swapped", ("int(out.n_imu), int(out.n_applied), int(out.n_gated),", "int(out.n_imu), int(out.n_gated), int(out.n_applied),"))
 mutant("filter-17", FIL, "a number as gate ignored", ("return np.full(n, float(gate))", "return np.full(n, CHI2_1DOF_999)"))
