@@ -1,9 +1,8 @@
 """A paper sweep loads only the SciPy it uses (issue 25): `scipy.special` for the NEES / NIS
 bands, not `scipy.signal` (0.5-1.4 s to import here, for a Gauss-Markov truth the paper has
 not), `scipy.stats` nor `scipy.integrate` (a moving profile's position integral); without
-figures, no matplotlib. Checked in a
-fresh interpreter after a real sweep (sys.modules at the end); a scenario that moves does load
-scipy.integrate, so the check can see it."""
+figures, no matplotlib. Checked in a fresh interpreter after a real sweep (sys.modules at the
+end); a scenario that moves does load scipy.integrate, so the check can see it."""
 from __future__ import annotations
 
 from pathlib import Path

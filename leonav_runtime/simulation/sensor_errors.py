@@ -147,7 +147,7 @@ def measured_increments_many(rngs: list[np.random.Generator], profile, u_true: n
         r.standard_normal(out=w_a[i])
     w_g *= scale * profile.arw * math.sqrt(dt)
     w_a *= scale * profile.vrw * math.sqrt(dt)
-    u = np.empty((len(rngs), n, 6))
+    u = np.empty((len(rngs),) + u_true.shape)
     columnwise(np.add, u_true[:, :3], b_g[:, :-1] * dt + w_g, u[:, :, :3])
     columnwise(np.add, u_true[:, 3:], b_a[:, :-1] * dt + w_a, u[:, :, 3:])
     return u
