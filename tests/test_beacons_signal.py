@@ -4,8 +4,9 @@ from __future__ import annotations
 import numpy as np
 
 from leonav_runtime.beacons import capture_io, doppler, pipeline
-from leonav_runtime.beacons.ridges import Ridge, interpolate_peak
-from leonav_runtime.beacons.waterfall import StftConfig, band_bins, default_fft_size, iter_spectra
+from leonav_runtime.beacons.ridges import (Ridge, RidgeTracker, TrackerConfig, _local_maxima, _Track,
+                                           interpolate_peak)
+from leonav_runtime.beacons.waterfall import SpectrumBlock, StftConfig, band_bins, default_fft_size, iter_spectra
 
 FS = 250e3
 
@@ -127,3 +128,52 @@ def test_synthetic_tone_phase_is_the_integral_of_its_frequency():
     ref = CubicSpline(t, bb[0]).antiderivative()(ts) + phase0
     assert x.size == 2_400_000
     assert np.max(np.abs(np.angle(x * np.exp(-2j * np.pi * ref)))) < 5e-3  # rad
+
+
+def test_local_maxima_are_the_interior_peaks_above_threshold():
+    # ties (plateaus of quantized power), NaN, peaks at the band edges and per-row thresholds
+    rng = np.random.default_rng(3)
+    p = np.round(rng.exponential(1.0, (7, 300)), 1).astype(np.float32)
+    p[2, 10:14] = 9.0           # a plateau: only its last bin is a peak (>= before, > after)
+    p[3, 0], p[3, -1] = 50, 50  # edge bins are never peaks
+    p[4, 100] = np.nan
+    p[4, 101] = 30              # a NaN neighbour compares false: not a peak
+    thr = np.linspace(0.5, 3.0, 7).astype(np.float32)
+    rows, cols = _local_maxima(p, thr)
+    mid = p[:, 1:-1]
+    want = (mid > thr[:, None]) & (mid >= p[:, :-2]) & (mid > p[:, 2:])
+    r, c = np.nonzero(want)
+    assert np.array_equal(rows, r) and np.array_equal(cols, c + 1) and rows.size > 50
+    found = set(zip(rows.tolist(), cols.tolist()))
+    assert (2, 13) in found and not found & {(2, 10), (2, 11), (2, 12), (4, 101)}
+
+
+def test_births_start_the_strongest_peaks_and_skip_their_side_lobes():
+    nb = 400
+    f_hz = np.arange(nb) * 10.0
+    power = np.ones((1, nb), np.float32)
+    strength = {50: 300.0, 54: 900.0, 120: 500.0, 200: 700.0, 300: 100.0}  # 50 is a side lobe of 54
+    for k, v in strength.items():
+        power[0, k] = v
+    blk = SpectrumBlock(np.array([0.0]), power, np.array([1.0], np.float32), np.array([1.0], np.float32))
+    tr = RidgeTracker(f_hz, TrackerConfig(max_active=2), hop_s=0.01)
+    tr.add_block(blk)
+    started = sorted(round(t.f[0] / 10.0) for t in tr.active)
+    assert started == [54, 200]                   # the two strongest, by power
+    assert tr.stats.births == 2 and tr.stats.births_refused == 2  # 120 and 300 refused; 50 excluded by 54
+
+
+def test_ridge_rate_is_the_least_squares_slope_of_its_last_second():
+    rng = np.random.default_rng(5)
+    t = np.cumsum(rng.uniform(0.005, 0.009, 400))
+    f = 1e3 + 40.0 * t + 0.5 * t**2 + rng.normal(0, 2.0, t.size)
+    track = _Track(float(t[0]), float(f[0]), 20.0)
+    for ti, fi in zip(t[1:], f[1:]):
+        track.add(float(ti), float(fi), 20.0, 1.0)
+    n = len(track.t)
+    if n % 4:
+        track.refit_rate(1.0)
+    last = np.arange(max(0, t.size - 256), t.size)
+    keep = last[t[last] >= t[-1] - 1.0]
+    slope = np.polyfit(t[keep], f[keep], 1)[0]
+    assert track.n_fit == keep.size and abs(track.rate - slope) < 1e-9 * abs(slope)

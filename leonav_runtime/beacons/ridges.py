@@ -116,13 +116,32 @@ class _Track:
             self.refit_rate(span_s)
 
     def refit_rate(self, span_s: float) -> None:
-        t = np.frombuffer(self.t[-256:], dtype=np.float64)
-        keep = t >= t[-1] - span_s
-        if keep.sum() >= 5:
-            tt, ff = t[keep], np.frombuffer(self.f[-256:], dtype=np.float64)[keep]
-            tt = tt - tt.mean()
-            self.rate = float(np.dot(tt, ff - ff.mean()) / np.dot(tt, tt))
-            self.n_fit = int(keep.sum())
+        # the points of the last `span_s` among the last 256: times ascend, so they are a suffix
+        t = self.t
+        n = len(t)
+        i0 = bisect_left(t, t[-1] - span_s, max(0, n - 256))
+        m = n - i0
+        if m >= 5:
+            tt = np.frombuffer(t[i0:], dtype=np.float64)
+            ff = np.frombuffer(self.f[i0:], dtype=np.float64)
+            # add.reduce / m is ndarray.mean's own sum and division, without its Python wrapper
+            tt = tt - np.add.reduce(tt) / m
+            self.rate = float(np.dot(tt, ff - np.add.reduce(ff) / m) / np.dot(tt, tt))
+            self.n_fit = m
+
+
+def _local_maxima(p: np.ndarray, thr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, columns) in row-major order of the interior bins of `p` (slices x bins) that are
+    above their row's `thr`, not below the bin before and above the bin after: the threshold
+    first, since it leaves a few per thousand bins to compare with their neighbours."""
+    nb = p.shape[1]
+    flat = p.reshape(-1)
+    i = np.flatnonzero(p > thr[:, None])
+    col = i % nb
+    i = i[(col > 0) & (col < nb - 1)]
+    v = flat[i]
+    i = i[(v >= flat[i - 1]) & (v > flat[i + 1])]
+    return np.divmod(i, nb)
 
 
 def interpolate_peak(power_row: np.ndarray, k: int) -> float:
@@ -162,36 +181,38 @@ class RidgeTracker:
         thr_det = blk.noise_median + cfg.k_detect * blk.noise_mad
         thr_trk = blk.noise_median + cfg.k_track * blk.noise_mad
         p = blk.power
-        above = p[:, 1:-1] > thr_trk[:, None]
-        is_max = above & (p[:, 1:-1] >= p[:, :-2]) & (p[:, 1:-1] > p[:, 2:])
-        rows, cols = np.nonzero(is_max)
-        cols = cols + 1
-        starts = np.searchsorted(rows, np.arange(p.shape[0] + 1))
+        rows, cols = _local_maxima(p, thr_trk)
         if self.hop_s is None and blk.t_s.size > 1:
             self.hop_s = float(blk.t_s[1] - blk.t_s[0])
-        # sub-bin frequency and SNR of every candidate peak of the block at once (the same
-        # element-wise operations as interpolate_peak and a per-peak log10, without a call per peak)
+        # sub-bin frequency, bin frequency, power and SNR of every candidate peak of the block at
+        # once, as Python lists the slices take their parts of (the same IEEE values as per-slice
+        # NumPy arithmetic, without its call overhead per slice and peak)
+        power = p[rows, cols]
         f_peak = (self.f_hz[0] + (cols + _peak_offsets(p, rows, cols)) * self.df).tolist()
-        snr_peak = (10 * np.log10(p[rows, cols] / blk.noise_mean[rows])).tolist()
+        snr_peak = (10 * np.log10(power / blk.noise_mean[rows])).tolist()
+        f_bin = (self.f_hz[0] + cols * self.df).tolist()
+        strong = np.flatnonzero(power > thr_det[rows])  # peaks that may start a ridge (few)
+        bins, power = cols.tolist(), power.tolist()
+        starts = np.searchsorted(rows, np.arange(p.shape[0] + 1)).tolist()
+        strong_starts = np.searchsorted(strong, starts).tolist()
+        strong = strong.tolist()
+        t_s = blk.t_s.tolist()
         for s in range(p.shape[0]):
             a, b = starts[s], starts[s + 1]
-            self._slice(float(blk.t_s[s]), p[s], cols[a:b], float(thr_det[s]), f_peak[a:b], snr_peak[a:b])
+            births = [i - a for i in strong[strong_starts[s]: strong_starts[s + 1]]]
+            self._slice(t_s[s], births, bins[a:b], f_bin[a:b], power[a:b], f_peak[a:b], snr_peak[a:b])
         self.stats.slices += p.shape[0]
 
-    def _slice(self, t: float, row: np.ndarray, peaks: np.ndarray, thr_det: float, f_peak: list[float],
-               snr_peak: list[float]) -> None:
-        """One slice: `peaks` its candidate bins (ascending), `f_peak` their interpolated
-        frequencies (Hz), `snr_peak` their power over the mean noise (dB)."""
+    def _slice(self, t: float, strong: list[int], pk: list[int], pf: list[float], power: list[float],
+               f_peak: list[float], snr_peak: list[float]) -> None:
+        """One slice at `t` (s): its candidate peaks' bins `pk` (ascending), their bin frequencies
+        `pf` and interpolated frequencies `f_peak` (Hz), powers and SNRs over the mean noise (dB);
+        `strong` (ascending indices into them) are those above the detection threshold."""
         cfg, df = self.cfg, self.df
         # strongest ridges pick first so a weak ridge cannot steal a strong tone
         order = sorted(self.active, key=lambda tr: -tr.snr_avg)
-        f0 = self.f_hz[0]
         excl = cfg.exclusion_bins
-        # Per ridge only its gate is looked at (binary search over the ascending peaks). Plain
-        # Python floats: the same IEEE doubles as the NumPy arrays, at a fraction of the call cost.
-        pf = (f0 + peaks * df).tolist()
-        pk = peaks.tolist()
-        power = row[peaks].tolist()
+        # Per ridge only its gate is looked at (binary search over the ascending peaks)
         taken = [False] * len(pk)
         for tr in order:
             if not pk:
@@ -215,23 +236,36 @@ class RidgeTracker:
             tr.add(t, f_peak[best], snr_peak[best], cfg.rate_fit_s)
             for i in range(bisect_left(pk, k - excl), bisect_right(pk, k + excl)):
                 taken[i] = True
-        taken = np.asarray(taken, bool)
         # births: strong peaks not explained by a ridge, strongest first, side lobes skipped
-        free = np.nonzero(~taken & (row[peaks] > thr_det))[0] if peaks.size else np.zeros(0, int)
+        free = [i for i in strong if not taken[i]]
+        if free:
+            self._births(t, free, taken, pk, power, f_peak, snr_peak)
+        self._end_ridges(t)
+
+    def _births(self, t: float, free: list[int], taken: list[bool], pk: list[int], power: list[float],
+                f_peak: list[float], snr_peak: list[float]) -> None:
+        """Start ridges at the peaks `free` (indices into the slice's peaks), strongest first;
+        a peak within `exclusion_bins` of one started or refused is its side lobe."""
+        cfg = self.cfg
+        excl = cfg.exclusion_bins
         room = cfg.max_active - len(self.active)
-        for i in free[np.argsort(-row[peaks[free]])]:
+        fr = np.asarray(free)
+        for i in fr[np.argsort(-np.asarray(power, np.float32)[fr])].tolist():
             if taken[i]:
                 continue
-            k = int(peaks[i])
             if room <= 0:
                 self.stats.births_refused += 1
-                taken[np.searchsorted(peaks, k - excl, "left"): np.searchsorted(peaks, k + excl, "right")] = True
-                continue
-            self.active.append(_Track(t, f_peak[i], snr_peak[i]))
-            self.stats.births += 1
-            room -= 1
-            taken[np.searchsorted(peaks, k - excl, "left"): np.searchsorted(peaks, k + excl, "right")] = True
-        # end ridges not seen for too long
+            else:
+                self.active.append(_Track(t, f_peak[i], snr_peak[i]))
+                self.stats.births += 1
+                room -= 1
+            k = pk[i]
+            for j in range(bisect_left(pk, k - excl), bisect_right(pk, k + excl)):
+                taken[j] = True
+
+    def _end_ridges(self, t: float) -> None:
+        """End the ridges not seen for too long at slice time `t` (s)."""
+        cfg = self.cfg
         still = []
         young_gap = cfg.young_max_gap_slices * (self.hop_s or 0.0)
         for tr in self.active:

@@ -90,7 +90,9 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
     slices_per_block = max(1, min(slices_per_block, (1 << 21) // n))
     idx, f_hz = band_bins(cfg, sample_rate_hz)
     notch = np.abs(f_hz) < cfg.dc_notch_hz
-    window = np.hanning(n).astype(np.float32)
+    # complex64 with zero imaginary parts: a complex64 x complex64 multiply has a SIMD loop, while
+    # a float32 window is cast to complex per element first (the products are the same)
+    window = np.hanning(n).astype(np.float32).astype(np.complex64)
     floor_step = max(1, idx.size // 4096)  # noise statistics from a subset of bins (speed)
     buf = np.zeros(0, np.complex64)
     buf_start = 0  # sample index of buf[0]
@@ -106,7 +108,9 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
         ns = 1 + (b.size - n) // hop
         fr = frames[:ns]
         np.multiply(np.lib.stride_tricks.sliding_window_view(b, n)[::hop][:ns], window, out=fr)
-        spec = scipy.fft.fft(fr, axis=1, workers=workers)
+        # in place: the frames buffer is refilled for every block, and a fresh 8 MB spectrum per block
+        # would cost its page faults again
+        spec = scipy.fft.fft(fr, axis=1, workers=workers, overwrite_x=True)
         p = np.empty((ns, idx.size), np.float32)   # |X|^2 of the complex64 spectrum, float32
         for lo, hi, at in runs:
             part = p[:, at:at + hi - lo]
