@@ -177,3 +177,28 @@ def test_ridge_rate_is_the_least_squares_slope_of_its_last_second():
     keep = last[t[last] >= t[-1] - 1.0]
     slope = np.polyfit(t[keep], f[keep], 1)[0]
     assert track.n_fit == keep.size and abs(track.rate - slope) < 1e-9 * abs(slope)
+
+
+def test_slices_do_not_depend_on_how_the_capture_is_split_into_blocks():
+    # every slice at j * hop, Hann-windowed, whatever the block sizes: blocks shorter than a slice,
+    # just over a slice plus a hop (slices that start in the carried samples come from a join),
+    # and at 75 % overlap more such slices than a spectrum block holds
+    fs, n = 64e3, 512
+    rng = np.random.default_rng(2)
+    x = (rng.standard_normal(20000) + 1j * rng.standard_normal(20000)).astype(np.complex64)
+    for overlap, per_block in ((0.5, 64), (0.75, 2), (0.75, 64)):
+        cfg = StftConfig.for_rate(fs, 40e3, n, overlap)
+        idx, _ = band_bins(cfg, fs)
+        starts = np.arange(0, x.size - n + 1, cfg.hop)
+        frames = np.stack([x[s:s + n] for s in starts]) * np.hanning(n)
+        want = np.abs(np.fft.fft(frames, axis=1)[:, idx]) ** 2
+        whole = list(iter_spectra([x], cfg, fs, slices_per_block=per_block))
+        ref_power = np.vstack([b.power for b in whole])
+        np.testing.assert_allclose(ref_power, want, rtol=2e-4, atol=1e-3 * want.max())
+        np.testing.assert_array_equal(np.concatenate([b.t_s for b in whole]), (starts + n / 2) / fs)
+        for size in (100, 511, n + cfg.hop - 1, n + cfg.hop, 2 * n + 3, 3001):
+            got = list(iter_spectra([x[i:i + size] for i in range(0, x.size, size)], cfg, fs,
+                                    slices_per_block=per_block))
+            assert all(b.power.shape[0] <= per_block for b in got)
+            np.testing.assert_array_equal(np.vstack([b.power for b in got]), ref_power, err_msg=f"blocks of {size}")
+            np.testing.assert_array_equal(np.concatenate([b.t_s for b in got]), (starts + n / 2) / fs)

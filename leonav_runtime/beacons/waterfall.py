@@ -82,8 +82,9 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
                  slices_per_block: int = 64, workers: int = 2) -> Iterator[SpectrumBlock]:
     """Stream STFT slices from consecutive complex64 sample blocks.
 
-    Samples are buffered so slices straddle block boundaries; memory is bounded by
-    `slices_per_block * fft_size` samples (fewer slices per block above 2^15-sample FFTs).
+    Slices straddle block boundaries; memory is bounded by `slices_per_block * fft_size`
+    samples (fewer slices per block above 2^15-sample FFTs). The input blocks are read, never
+    written: a yielded block's slices may come from a view of them.
     """
     n, hop = cfg.fft_size, cfg.hop
     # long FFTs: fewer slices per block, so a block stays near 2^21 samples (tens of MB)
@@ -125,11 +126,21 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
         return SpectrumBlock(t, p, med, mad)
 
     for block in blocks:
-        buf = np.concatenate([buf, block]) if buf.size else block
+        if buf.size:
+            # the few slices that start in the carried samples come from them and this block's
+            # head, joined; the rest from the block itself, not from a copy of it joined whole
+            k = 1 + (buf.size - 1) // hop        # slices starting in the carried samples
+            need = (k - 1) * hop + n - buf.size  # samples of the block the last of them reaches
+            if k <= slices_per_block and block.size >= need + n:
+                yield emit(np.concatenate([buf, block[:need]]), buf_start)
+                block, buf_start = block[k * hop - buf.size:], buf_start + k * hop
+            else:  # a short block (or many slices per carried sample): joined whole
+                block = np.concatenate([buf, block])
+        buf = block
         # every whole slice the buffer holds, in blocks of 2..slices_per_block slices (the tracker
-        # takes the slice spacing from its first block): what is copied again with the next chunk
-        # is then under two slices, not most of a chunk. Slices are per-slice computations, so
-        # where the blocks split them changes no value.
+        # takes the slice spacing from its first block): what is carried to the next chunk is
+        # then under two slices. Slices are per-slice computations, so where the blocks split
+        # them changes no value.
         while buf.size >= n + hop:
             ns = min(slices_per_block, 1 + (buf.size - n) // hop)
             yield emit(buf[: n + (ns - 1) * hop], buf_start)
