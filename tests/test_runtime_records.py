@@ -14,8 +14,7 @@ from leonav_runtime.core import compiled, records
 def _c_offsets(tmp_path) -> dict[str, int]:
     """offsetof/sizeof of leonav_record and leonav_run_out, from a C probe program."""
     fields_rec = ["t", "kind", "sat_id", "z", "R", "dt", "u", "aux"]
-    fields_out = ["x", "P_diag", "P", "P_mask", "y", "S", "nis", "status", "n_done", "n_imu", "n_applied",
-                  "n_gated", "n_failed", "n_cv"]
+    fields_out = [name for name, _ in compiled.RunOut._fields_]   # the C names the ctypes twin claims
     lines = ['#include <stdio.h>', '#include <stddef.h>', '#include "leonav_driver.h"', "int main(void) {"]
     lines += [f'  printf("rec.{f} %zu\\n", offsetof(leonav_record, {f}));' for f in fields_rec]
     lines += [f'  printf("out.{f} %zu\\n", offsetof(leonav_run_out, {f}));' for f in fields_out]

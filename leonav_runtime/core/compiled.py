@@ -276,6 +276,7 @@ class RunOut(ctypes.Structure):
         ("status", ctypes.POINTER(ctypes.c_int32)),
         ("n_done", ctypes.c_long), ("n_imu", ctypes.c_long), ("n_applied", ctypes.c_long),
         ("n_gated", ctypes.c_long), ("n_failed", ctypes.c_long), ("n_cv", ctypes.c_long),
+        ("P_lead", ctypes.c_long),
     ]
 
 

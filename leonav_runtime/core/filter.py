@@ -192,13 +192,16 @@ class EKF:
 
     # -- whole streams ----------------------------------------------------------
     def run(self, recs: np.ndarray, gate: GateSpec | str = "filter", full_P: bool = False,
-            P_rows: np.ndarray | None = None, orbit=None, covariance_interval_s: float = 0.0) -> RunResult:
+            P_rows: np.ndarray | None = None, orbit=None, covariance_interval_s: float = 0.0,
+            P_lead: int = 0) -> RunResult:
         """Run a time-ordered RECORD_DTYPE stream in the C loop; x and P end at its end.
 
         gate: "filter" uses this filter's gate, else a gate spec (see module doc).
         full_P: also return P after every record (n * NDX^2 doubles).
         P_rows: record indices (increasing) after which to return P instead; `RunResult.P`
         then has one block per index, in that order.
+        P_lead: with full_P or P_rows, return only the leading P_lead x P_lead block of each P
+        (`state_layout.NNAV`: the 9D navigation error's); 0 returns P whole.
         orbit: an `orbit_states.OrbitStates`: its satellites' orbit offsets are estimated beside
         the state (`leonav_run_orbit`, ephemeris method 1) and left in it; P stays NDX x NDX.
         covariance_interval_s: 0 propagates P at every IMU record; > 0 mechanizes x at every
@@ -215,6 +218,9 @@ class EKF:
         if interval > 0.0 and orbit is not None:
             raise ValueError("covariance_interval_s > 0 with orbit states: leonav_run_orbit propagates the "
                              "covariance at every IMU record; use covariance_interval_s = 0")
+        if isinstance(P_lead, bool) or not isinstance(P_lead, (int, np.integer)) or not 0 <= P_lead <= self.ndx:
+            raise ValueError(f"P_lead = {P_lead!r}: expected a whole number in [0, {self.ndx}] (0: P whole)")
+        m = int(P_lead) or self.ndx
         recs = np.ascontiguousarray(recs)
         records.check_records(recs, len(self.lib.meas_ids))
         n = recs.size
@@ -229,16 +235,16 @@ class EKF:
                 raise ValueError(f"P_rows: expected increasing record indices in [0, {n})")
             mask = np.zeros(n, dtype=np.uint8)
             mask[rows] = 1
-            p_hist = np.empty((rows.size, self.ndx, self.ndx))
+            p_hist = np.empty((rows.size, m, m))
         else:
-            p_hist = np.empty((n, self.ndx, self.ndx)) if full_P else None
+            p_hist = np.empty((n, m, m)) if full_P else None
         y, S, nis = np.empty(n), np.empty(n), np.empty(n)
         status = np.empty(n, dtype=np.int32)
         out = compiled.RunOut(
             x=_ptr(x_hist), P_diag=_ptr(pd_hist), P=_ptr(p_hist),
             P_mask=None if mask is None else mask.ctypes.data_as(ctypes.POINTER(ctypes.c_uint8)),
             y=_ptr(y), S=_ptr(S), nis=_ptr(nis),
-            status=status.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
+            status=status.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)), P_lead=int(P_lead))
         if orbit is None:
             rc = self.lib.lib.leonav_run(_ptr(self.x), _ptr(self.P), _ptr(self.params), recs.ctypes.data, n,
                                          _ptr(gates), interval, ctypes.byref(out), self._work.ctypes.data)

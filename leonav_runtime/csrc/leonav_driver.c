@@ -444,6 +444,17 @@ void leonav_symmetrize(double *M)
         for (int i = 0; i < j; ++i) M[i + j * NDX] = M[j + i * NDX] = (M[i + j * NDX] + M[j + i * NDX]) / 2;
 }
 
+void leonav_output_P(const leonav_run_out *out, long k, const double *P)
+{
+    long m = out->P_lead > 0 ? out->P_lead : NDX;
+    double *dst = out->P + k * m * m;
+    if (m == NDX) {
+        memcpy(dst, P, sizeof(double) * NMAT);
+        return;
+    }
+    for (long j = 0; j < m; ++j) memcpy(dst + j * m, P + j * NDX, sizeof(double) * m);
+}
+
 /* IMU records whose covariance step is still to come (leonav_run with cov_interval > 0). */
 typedef struct {
     long n;            /* records mechanized since the last covariance step */
@@ -482,7 +493,8 @@ static int ends_interval(const cov_pending *c, double cov_interval, const leonav
 int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, long n,
                const double *gate_nis, double cov_interval, leonav_run_out *out, void *work)
 {
-    if (!x || !P || !p || !out || (n > 0 && !rec) || n < 0 || !(cov_interval >= 0.0) || !isfinite(cov_interval))
+    if (!x || !P || !p || !out || (n > 0 && !rec) || n < 0 || !(cov_interval >= 0.0) || !isfinite(cov_interval)
+        || out->P_lead < 0 || out->P_lead > NDX)
         return LEONAV_ERR_ARG;
     out->n_done = 0;
     out->n_imu = out->n_applied = out->n_gated = out->n_failed = out->n_cv = 0;
@@ -555,7 +567,7 @@ int leonav_run(double *x, double *P, const double *p, const leonav_record *rec, 
             if (P_current) diag(Pc, out->P_diag + i * NDX);
             else for (int k = 0; k < NDX; ++k) out->P_diag[i * NDX + k] = NAN;
         }
-        if (out->P && (!out->P_mask || out->P_mask[i])) memcpy(out->P + (n_P++) * NMAT, Pc, sizeof(double) * NMAT);
+        if (out->P && (!out->P_mask || out->P_mask[i])) leonav_output_P(out, n_P++, Pc);
         if (out->y) out->y[i] = ysn[0];
         if (out->S) out->S[i] = ysn[1];
         if (out->nis) out->nis[i] = ysn[2];

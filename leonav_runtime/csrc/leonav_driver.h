@@ -82,6 +82,9 @@ typedef struct leonav_run_out {
     long n_done;      /* records processed (== n unless an error code was returned) */
     long n_imu, n_applied, n_gated, n_failed;  /* counts; n_failed includes IMU and CV failures */
     long n_cv;        /* constant-velocity predicts applied */
+    long P_lead;      /* 0: each P block written is the full NDX x NDX; m in 1..NDX: only P's leading
+                         m x m block (column-major, m * m doubles each), e.g. the 9D navigation
+                         error's with LEONAV_NNAV, so a caller that needs no more reads no more */
 } leonav_run_out;
 
 /* Workspace size in bytes (maximum over every generated function's work sizes). */
@@ -156,6 +159,10 @@ const char *leonav_meas_unit(int kind);
 
 /* M = (M + M^T) / 2 in place (NDX x NDX, column-major); an exactly symmetric M is unchanged. */
 void leonav_symmetrize(double *M);
+
+/* Write P (NDX x NDX, column-major) as the k-th P block of `out` (whole, or its leading
+ * out->P_lead block; leonav_run_out). The run loops' own output, shared by the orbit-state loop. */
+void leonav_output_P(const leonav_run_out *out, long k, const double *P);
 
 /* Run the filter over n time-ordered records, updating x and P in place (final state); P is
  * symmetrized on entry (leonav_symmetrize).

@@ -350,7 +350,8 @@ static int apply(double *x, double *P, const leonav_record *r, double h, const d
 int leonav_run_orbit(double *x, double *P, const double *p, const leonav_record *rec, long n,
                      const double *gate_nis, leonav_orbit_states *orb, leonav_run_out *out, void *work)
 {
-    if (!x || !P || !p || !out || !valid(orb) || (n > 0 && !rec) || n < 0) return LEONAV_ERR_ARG;
+    if (!x || !P || !p || !out || !valid(orb) || (n > 0 && !rec) || n < 0 || out->P_lead < 0 || out->P_lead > NDX)
+        return LEONAV_ERR_ARG;
     out->n_done = 0;
     out->n_imu = out->n_applied = out->n_gated = out->n_failed = out->n_cv = 0;
     /* the workspace check of the driver's steps (it comes before their kind check) */
@@ -376,7 +377,7 @@ int leonav_run_orbit(double *x, double *P, const double *p, const leonav_record 
         if (out->x) memcpy(out->x + i * NX, x, sizeof(double) * NX);
         if (out->P_diag)
             for (int k = 0; k < NDX; ++k) out->P_diag[i * NDX + k] = P[k + k * NDX];
-        if (out->P && (!out->P_mask || out->P_mask[i])) memcpy(out->P + (n_P++) * NMAT, P, sizeof(double) * NMAT);
+        if (out->P && (!out->P_mask || out->P_mask[i])) leonav_output_P(out, n_P++, P);
         if (out->y) out->y[i] = ysn[0];
         if (out->S) out->S[i] = ysn[1];
         if (out->nis) out->nis[i] = ysn[2];
