@@ -121,8 +121,8 @@ mutant("beacons_signal-03", WF, "hop from the overlap instead of 1 - overlap",
        ("max(1, int(round(n * (1.0 - overlap))))", "max(1, int(round(n * overlap)))"))
 mutant("beacons_signal-04", WF, "slice time at its start, not its centre", ("t = (start + np.arange(ns) * hop + n / 2) / sample_rate_hz",
                                                                           "t = (start + np.arange(ns) * hop) / sample_rate_hz"))
-mutant("beacons_signal-05", RID, "peak SNR in 20 log10 of the power", ("snr_peak = (10 * np.log10(p[rows, cols] / blk.noise_mean[rows]))",
-                                                                     "snr_peak = (20 * np.log10(p[rows, cols] / blk.noise_mean[rows]))"))
+mutant("beacons_signal-05", RID, "peak SNR in 20 log10 of the power", ("snr_peak = (10 * np.log10(power / blk.noise_mean[rows]))",
+                                                                     "snr_peak = (20 * np.log10(power / blk.noise_mean[rows]))"))
 mutant("beacons_signal-06", DOP, "window SNR is the whole ridge's median", ("rows.append((tk, *fit, float(np.median(ridge.snr_db[sel]))))",
                                                                           "rows.append((tk, *fit, float(np.median(ridge.snr_db))))"))
 mutant("beacons_signal-07", DOP, "fit variance divided by n (no degrees of freedom)", ("s2 = float(res @ res) / (n - degree - 1)", "s2 = float(res @ res) / n"))
@@ -140,3 +140,13 @@ mutant("beacons_signal-15", PIP, "measurement CSV lo_offset of the association, 
        ("lo_t = lo.at(m.t_s) if np.isfinite(lo.offset_hz) else", "lo_t = np.full(m.t_s.size, a.lo_offset_hz) if np.isfinite(lo.offset_hz) else"))
 mutant("beacons_signal-16", RID, "ridges shorter than min_duration kept", ("keep = [r for r in ridges if r.duration_s >= self.cfg.min_duration_s]",
                                                                          "keep = [r for r in ridges if r.duration_s >= 0.0]"))
+mutant("beacons_signal-17", RID, "a plateau of equal bins gives no peak (> on both sides)",
+       ("i = i[(v >= flat[i - 1]) & (v > flat[i + 1])]", "i = i[(v > flat[i - 1]) & (v > flat[i + 1])]"))
+mutant("beacons_signal-18", RID, "births weakest first", ("for i in fr[np.argsort(-np.asarray(power, np.float32)[fr])].tolist():",
+                                                        "for i in fr[np.argsort(np.asarray(power, np.float32)[fr])].tolist():"))
+mutant("beacons_signal-19", RID, "a refused birth does not mark its side lobes", ("            k = pk[i]\n            for j in range(bisect_left(pk, k - excl)",
+                                                                               "            k = pk[i] if room > 0 else -10**9\n            for j in range(bisect_left(pk, k - excl)"))
+mutant("beacons_signal-20", RID, "rate fitted over the last second plus one point", ("i0 = bisect_left(t, t[-1] - span_s, max(0, n - 256))",
+                                                                                  "i0 = max(0, bisect_left(t, t[-1] - span_s, max(0, n - 256)) - 1)"))
+mutant("beacons_signal-21", WF, "the block after a join starts one sample late",
+       ("block, buf_start = block[k * hop - buf.size:], buf_start + k * hop", "block, buf_start = block[k * hop - buf.size + 1:], buf_start + k * hop"))

@@ -152,7 +152,8 @@ def test_births_start_the_strongest_peaks_and_skip_their_side_lobes():
     nb = 400
     f_hz = np.arange(nb) * 10.0
     power = np.ones((1, nb), np.float32)
-    strength = {50: 300.0, 54: 900.0, 120: 500.0, 200: 700.0, 300: 100.0}  # 50 is a side lobe of 54
+    # 50 is a side lobe of 54, 124 of 120 (refused: its side lobes are not candidates either)
+    strength = {50: 300.0, 54: 900.0, 120: 500.0, 124: 400.0, 200: 700.0, 300: 100.0}
     for k, v in strength.items():
         power[0, k] = v
     blk = SpectrumBlock(np.array([0.0]), power, np.array([1.0], np.float32), np.array([1.0], np.float32))
@@ -160,7 +161,7 @@ def test_births_start_the_strongest_peaks_and_skip_their_side_lobes():
     tr.add_block(blk)
     started = sorted(round(t.f[0] / 10.0) for t in tr.active)
     assert started == [54, 200]                   # the two strongest, by power
-    assert tr.stats.births == 2 and tr.stats.births_refused == 2  # 120 and 300 refused; 50 excluded by 54
+    assert tr.stats.births == 2 and tr.stats.births_refused == 2  # 120 and 300 refused; 50 and 124 side lobes
 
 
 def test_ridge_rate_is_the_least_squares_slope_of_its_last_second():
