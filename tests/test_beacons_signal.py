@@ -183,11 +183,11 @@ def test_ridge_rate_is_the_least_squares_slope_of_its_last_second():
 def test_slices_do_not_depend_on_how_the_capture_is_split_into_blocks():
     # every slice at j * hop, Hann-windowed, whatever the block sizes: blocks shorter than a slice,
     # just over a slice plus a hop (slices that start in the carried samples come from a join),
-    # and at 75 % overlap more such slices than a spectrum block holds
+    # at 75 % and 95 % overlap more such slices than a spectrum block holds; no overlap
     fs, n = 64e3, 512
     rng = np.random.default_rng(2)
     x = (rng.standard_normal(20000) + 1j * rng.standard_normal(20000)).astype(np.complex64)
-    for overlap, per_block in ((0.5, 64), (0.75, 2), (0.75, 64)):
+    for overlap, per_block in ((0.5, 64), (0.75, 2), (0.75, 64), (0.0, 64), (0.95, 3)):
         cfg = StftConfig.for_rate(fs, 40e3, n, overlap)
         idx, _ = band_bins(cfg, fs)
         starts = np.arange(0, x.size - n + 1, cfg.hop)
