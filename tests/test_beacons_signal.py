@@ -164,6 +164,15 @@ def test_births_start_the_strongest_peaks_and_skip_their_side_lobes():
     assert tr.stats.births == 2 and tr.stats.births_refused == 2  # 120 and 300 refused; 50 and 124 side lobes
 
 
+def test_births_order_float64_power_in_its_own_precision():
+    power = np.ones((1, 64))
+    power[0, 10], power[0, 40] = 1e3, 1e3 + 1e-6   # equal in float32
+    blk = SpectrumBlock(np.array([0.0]), power, np.array([1.0]), np.array([1.0]))
+    tr = RidgeTracker(np.arange(64) * 10.0, TrackerConfig(max_active=1), hop_s=0.01)
+    tr.add_block(blk)
+    assert [round(t.f[0] / 10.0) for t in tr.active] == [40]
+
+
 def test_ridge_rate_is_the_least_squares_slope_of_its_last_second():
     rng = np.random.default_rng(5)
     t = np.cumsum(rng.uniform(0.005, 0.009, 400))
@@ -203,3 +212,12 @@ def test_slices_do_not_depend_on_how_the_capture_is_split_into_blocks():
             assert all(b.power.shape[0] <= per_block for b in got)
             np.testing.assert_array_equal(np.vstack([b.power for b in got]), ref_power, err_msg=f"blocks of {size}")
             np.testing.assert_array_equal(np.concatenate([b.t_s for b in got]), (starts + n / 2) / fs)
+    # a hop longer than the FFT (samples between slices are skipped): the carried samples can
+    # hold a whole slice
+    cfg = StftConfig(32, 64, fs)
+    want = [b.power for b in iter_spectra([x], cfg, fs)]
+    t_want = (np.arange(0, x.size - 32 + 1, 64) + 16) / fs
+    for size in (40, 100, 1960):
+        got = list(iter_spectra([x[i:i + size] for i in range(0, x.size, size)], cfg, fs, slices_per_block=2))
+        np.testing.assert_array_equal(np.vstack([b.power for b in got]), np.vstack(want), err_msg=f"blocks of {size}")
+        np.testing.assert_array_equal(np.concatenate([b.t_s for b in got]), t_want)

@@ -235,8 +235,9 @@ def test_the_c_loop_refuses_a_negative_interval():
     x, P, p = np.zeros(L.NX), np.eye(L.NDX), np.zeros(L.NP)
     out = compiled.RunOut()
     dp = ctypes.POINTER(ctypes.c_double)
+    work = lib.new_workspace()   # held: the C call must not see a freed temporary
     rc = lib.lib.leonav_run(x.ctypes.data_as(dp), P.ctypes.data_as(dp), p.ctypes.data_as(dp), None, 0, None, -1.0,
-                            ctypes.byref(out), lib.new_workspace().ctypes.data)
+                            ctypes.byref(out), work.ctypes.data)
     assert rc == L.ERR_ARG
 
 

@@ -74,8 +74,25 @@ def test_a_bad_leading_size_is_refused(paper_case, bad):
 def test_the_c_loops_refuse_a_leading_size_out_of_range(bad):
     lib = compiled.load()
     x, P, p = np.zeros(L.NX), np.eye(L.NDX), np.zeros(L.NP)
-    out = compiled.RunOut(P_lead=bad)
     dp = ctypes.POINTER(ctypes.c_double)
-    rc = lib.lib.leonav_run(x.ctypes.data_as(dp), P.ctypes.data_as(dp), p.ctypes.data_as(dp), None, 0, None, 0.0,
-                            ctypes.byref(out), lib.new_workspace().ctypes.data)
-    assert rc == L.ERR_ARG
+    work = lib.new_workspace()
+    for lead, want in ((bad, L.ERR_ARG), (L.NNAV, L.OK)):   # the same call with a good size runs
+        out = compiled.RunOut(P_lead=lead)
+        rc = lib.lib.leonav_run(x.ctypes.data_as(dp), P.ctypes.data_as(dp), p.ctypes.data_as(dp), None, 0, None, 0.0,
+                                ctypes.byref(out), work.ctypes.data)
+        assert rc == want
+
+
+@pytest.mark.parametrize("bad", [-1, L.NDX + 1])
+def test_the_orbit_state_loop_refuses_a_leading_size_out_of_range(bad):
+    scn, _, nav, trial = _trial("leo-doppler+alpha+imu", ephemeris_error={"enabled": True, "compensate": "states"})
+    orbit = mc.orbit_states_for(scn, trial.records["kind"], nav)
+    lib = nav.library
+    x, P, p = np.zeros(L.NX), np.eye(L.NDX), np.zeros(L.NP)
+    dp = ctypes.POINTER(ctypes.c_double)
+    work = lib.new_workspace()   # held: the C call must not see a freed temporary
+    for lead, want in ((bad, L.ERR_ARG), (L.NNAV, L.OK)):   # the same call with a good size runs
+        out = compiled.RunOut(P_lead=lead)
+        rc = lib.lib.leonav_run_orbit(x.ctypes.data_as(dp), P.ctypes.data_as(dp), p.ctypes.data_as(dp), None, 0,
+                                      None, ctypes.byref(orbit.c), ctypes.byref(out), work.ctypes.data)
+        assert rc == want

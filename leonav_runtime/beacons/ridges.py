@@ -116,7 +116,8 @@ class _Track:
             self.refit_rate(span_s)
 
     def refit_rate(self, span_s: float) -> None:
-        # the points of the last `span_s` among the last 256: times ascend, so they are a suffix
+        # the points of the last `span_s` among the last 256: the times are slice times, which
+        # ascend, so those points are a suffix
         t = self.t
         n = len(t)
         i0 = bisect_left(t, t[-1] - span_s, max(0, n - 256))
@@ -175,12 +176,14 @@ class RidgeTracker:
         self.active: list[_Track] = []
         self.done: list[_Track] = []
         self.stats = TrackStats()
+        self._power_dtype = np.dtype(np.float32)   # of the blocks' power (add_block)
 
     def add_block(self, blk: SpectrumBlock) -> None:
         cfg = self.cfg
         thr_det = blk.noise_median + cfg.k_detect * blk.noise_mad
         thr_trk = blk.noise_median + cfg.k_track * blk.noise_mad
         p = blk.power
+        self._power_dtype = p.dtype   # births are ordered by power in its own precision
         rows, cols = _local_maxima(p, thr_trk)
         if self.hop_s is None and blk.t_s.size > 1:
             self.hop_s = float(blk.t_s[1] - blk.t_s[0])
@@ -250,7 +253,7 @@ class RidgeTracker:
         excl = cfg.exclusion_bins
         room = cfg.max_active - len(self.active)
         fr = np.asarray(free)
-        for i in fr[np.argsort(-np.asarray(power, np.float32)[fr])].tolist():
+        for i in fr[np.argsort(-np.asarray(power, self._power_dtype)[fr])].tolist():
             if taken[i]:
                 continue
             if room <= 0:

@@ -125,25 +125,33 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
         t = (start + np.arange(ns) * hop + n / 2) / sample_rate_hz
         return SpectrumBlock(t, p, med, mad)
 
+    skip = 0  # samples still to pass before the next slice starts (a hop longer than the FFT)
     for block in blocks:
+        if skip:
+            drop = min(skip, block.size)
+            block, skip = block[drop:], skip - drop
         if buf.size:
             # the few slices that start in the carried samples come from them and this block's
             # head, joined; the rest from the block itself, not from a copy of it joined whole
             k = 1 + (buf.size - 1) // hop        # slices starting in the carried samples
             need = (k - 1) * hop + n - buf.size  # samples of the block the last of them reaches
-            if k <= slices_per_block and block.size >= need + n:
+            # (need < 0: a hop longer than the FFT, the carried samples hold a whole slice)
+            if 0 <= need and k <= slices_per_block and block.size >= need + n:
                 yield emit(np.concatenate([buf, block[:need]]), buf_start)
-                block, buf_start = block[k * hop - buf.size:], buf_start + k * hop
+                advance = k * hop - buf.size
+                skip = max(0, advance - block.size)
+                block, buf_start = block[advance:], buf_start + k * hop
             else:  # a short block (or many slices per carried sample): joined whole
                 block = np.concatenate([buf, block])
         buf = block
         # every whole slice the buffer holds, in blocks of 2..slices_per_block slices (the tracker
-        # takes the slice spacing from its first block): what is carried to the next chunk is
-        # then under two slices. Slices are per-slice computations, so where the blocks split
-        # them changes no value.
+        # takes the slice spacing from its first block; a join above may yield a single slice
+        # later): what is carried to the next chunk is then under two slices. Slices are
+        # per-slice computations, so where the blocks split them changes no value.
         while buf.size >= n + hop:
             ns = min(slices_per_block, 1 + (buf.size - n) // hop)
             yield emit(buf[: n + (ns - 1) * hop], buf_start)
+            skip = max(0, ns * hop - buf.size)
             buf, buf_start = buf[ns * hop:], buf_start + ns * hop
     if buf.size >= n:
         yield emit(buf, buf_start)

@@ -72,8 +72,9 @@ typedef struct leonav_record {
 typedef struct leonav_run_out {
     double *x;        /* n * NX   state after the record */
     double *P_diag;   /* n * NDX  diagonal of P after the record */
-    double *P;        /* full P after the record (column-major, NDX * NDX each): n blocks, or
-                         one block per set flag of P_mask, packed in record order */
+    double *P;        /* full P after the record (column-major, NDX * NDX each, or P_lead *
+                         P_lead with P_lead below): n blocks, or one block per set flag of
+                         P_mask, packed in record order */
     const uint8_t *P_mask;  /* n flags or NULL (every record): which records write P */
     double *y;        /* n  innovation (NaN for IMU records and failures before it exists) */
     double *S;        /* n  innovation variance */
