@@ -22,8 +22,9 @@ MODULES["observability"] = {
     "tests": ["tests/test_observability_information.py", "tests/test_observability.py"]}
 MODULES["beacons_signal"] = {
     "files": ["leonav_runtime/beacons/doppler.py", "leonav_runtime/beacons/ridges.py",
-              "leonav_runtime/beacons/waterfall.py", "leonav_runtime/beacons/pipeline.py"],
-    "tests": ["tests/test_beacons_signal_outputs.py", "tests/test_beacons_signal.py"]}
+              "leonav_runtime/beacons/waterfall.py", "leonav_runtime/beacons/pipeline.py",
+              "leonav_runtime/beacons/row_fft.py"],
+    "tests": ["tests/test_beacons_signal_outputs.py", "tests/test_beacons_signal.py", "tests/test_row_fft.py"]}
 
 # ---------------------------------------------------------------- dataset (+ scoring/errors.py)
 TB, IMU, GNS = "leonav_runtime/dataset/timebase.py", "leonav_runtime/dataset/imu_read.py", "leonav_runtime/dataset/gnss_read.py"
@@ -115,6 +116,7 @@ mutant("observability-13", REP, "CSV rank and n_states swapped", ('rows.append([
 # ---------------------------------------------------------------- beacons: doppler, ridges, waterfall, pipeline
 DOP, RID = "leonav_runtime/beacons/doppler.py", "leonav_runtime/beacons/ridges.py"
 WF, PIP = "leonav_runtime/beacons/waterfall.py", "leonav_runtime/beacons/pipeline.py"
+RFFT = "leonav_runtime/beacons/row_fft.py"
 mutant("beacons_signal-01", WF, "band kept twice as wide (|f| <= band)", ("keep = np.abs(f) <= cfg.band_hz / 2", "keep = np.abs(f) <= cfg.band_hz"))
 mutant("beacons_signal-02", WF, "noise mean = median * ln 2 (SNR off by 3.2 dB)", ("return self.noise_median / _LN2", "return self.noise_median * _LN2"))
 mutant("beacons_signal-03", WF, "hop from the overlap instead of 1 - overlap",
@@ -152,3 +154,8 @@ mutant("beacons_signal-21", WF, "the block after a join starts one sample late",
        ("block, buf_start = block[advance:], buf_start + k * hop", "block, buf_start = block[advance + 1:], buf_start + k * hop"))
 mutant("beacons_signal-22", WF, "a hop longer than the FFT: the samples between slices are not skipped across blocks",
        ("            skip = max(0, ns * hop - buf.size)\n", ""))
+mutant("beacons_signal-23", RFFT, "the extension called for the inverse transform (the check then hands every FFT to scipy.fft)",
+       ("return ext.c2c(frames, (frames.ndim - 1,), True, 0, frames, workers)",
+        "return ext.c2c(frames, (frames.ndim - 1,), False, 0, frames, workers)"))
+mutant("beacons_signal-24", RFFT, "the extension loaded from its file is not registered: a later import of scipy.fft initialises it again",
+       ("    sys.modules[_NAME] = ext\n", ""))

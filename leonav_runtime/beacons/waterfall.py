@@ -19,7 +19,8 @@ import dataclasses
 from typing import Iterable, Iterator
 
 import numpy as np
-import scipy.fft
+
+from leonav_runtime.beacons.row_fft import row_fft
 
 # Noise-only power per bin is exponential with mean mu: median mu*ln 2, MAD mu*ln(phi)
 # (phi the golden ratio, ln(phi) = 0.481).
@@ -111,7 +112,7 @@ def iter_spectra(blocks: Iterable[np.ndarray], cfg: StftConfig, sample_rate_hz: 
         np.multiply(np.lib.stride_tricks.sliding_window_view(b, n)[::hop][:ns], window, out=fr)
         # in place: the frames buffer is refilled for every block, and a fresh 8 MB spectrum per block
         # would cost its page faults again
-        spec = scipy.fft.fft(fr, axis=1, workers=workers, overwrite_x=True)
+        spec = row_fft(fr, workers)
         p = np.empty((ns, idx.size), np.float32)   # |X|^2 of the complex64 spectrum, float32
         for lo, hi, at in runs:
             part = p[:, at:at + hi - lo]
