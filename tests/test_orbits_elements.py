@@ -256,3 +256,15 @@ def test_warnings_can_be_silenced_but_rejections_stay_counted(tmp_path, gps_line
             load_elements(_write(tmp_path, lines))
         warnings.simplefilter("ignore")
         assert len(load_elements(_write(tmp_path, lines)).rejected) == 1
+
+
+def test_the_constellation_is_what_at_least_90_percent_of_the_names_say():
+    from leonav_runtime.orbits.element_checks import guess_constellation
+
+    starlink = [f"STARLINK-{k}" for k in range(9)]
+    assert guess_constellation(starlink + ["ONEWEB-0012"]) == "starlink"         # 9 of 10
+    assert guess_constellation(starlink[:8] + ["ONEWEB-1", "X"]) == "unknown"   # 8 of 10
+    assert guess_constellation(["starlink-1007 [dtc]"]) == "starlink"            # any case, anywhere
+    assert guess_constellation(["GPS BIIR-2  (PRN 13)", "NAVSTAR 43 (USA 132)"]) == "gps"
+    assert guess_constellation(["GPS+BIIR"] * 9 + ["NAV"]) == "gps"
+    assert guess_constellation(["GLONASS"]) == "unknown" and guess_constellation([]) == "unknown"
