@@ -21,6 +21,7 @@ import functools
 import importlib.machinery
 import importlib.util
 import sys
+import threading
 from pathlib import Path
 from typing import Callable
 
@@ -29,6 +30,7 @@ import numpy as np
 _NAME = "scipy.fft._pocketfft.pypocketfft"
 
 RowFft = Callable[[np.ndarray, int], np.ndarray]
+_load_lock = threading.Lock()   # two threads' first FFTs must not both initialise the extension
 
 
 def _extension_path() -> Path | None:
@@ -83,12 +85,13 @@ def _public_fft(frames: np.ndarray, workers: int) -> np.ndarray:
 def row_fft_function() -> RowFft:
     """The function `row_fft` calls: pocketfft's own when it loads and checks out, else scipy.fft's."""
     try:
-        ext = _load_extension()
+        with _load_lock:
+            ext = _load_extension()
         if ext is not None:
             fft = _extension_fft(ext)
             if _passes_check(fft):
                 return fft
-    except (ImportError, OSError, AttributeError, TypeError, ValueError):
+    except (ImportError, OSError, AttributeError, TypeError, ValueError, RuntimeError):
         pass  # a SciPy laid out or called otherwise: the public function below
     return _public_fft
 

@@ -207,8 +207,12 @@ def preload(opts: NavOptions, beacons) -> dict:
     _dt.datetime.strptime("2026-02-23", "%Y-%m-%d")     # and reads the locale's time names once
     if opts.mavlink:
         import encodings.idna  # noqa: F401  (the first send to a host name encodes it)
+    import numpy.ma  # noqa: F401  (np.median and np.unique import it on their first call)
+
     if beacons is None:
         return provenance()
+    from leonav_runtime.beacons.row_fft import row_fft_function
+    row_fft_function()    # the STFT's FFT extension is loaded from its file on the first transform
     if opts.operator_ephemerides:   # the road's consider term and the states from the files
         import leonav_runtime.inputs.consider  # noqa: F401
         import leonav_runtime.orbits.operator_consider  # noqa: F401
