@@ -146,8 +146,8 @@ mutant("beacons_signal-17", RID, "a plateau of equal bins gives no peak (> on bo
        ("i = i[(v >= flat[i - 1]) & (v > flat[i + 1])]", "i = i[(v > flat[i - 1]) & (v > flat[i + 1])]"))
 mutant("beacons_signal-18", RID, "births weakest first", ("for i in fr[np.argsort(-np.asarray(power, self._power_dtype)[fr])].tolist():",
                                                         "for i in fr[np.argsort(np.asarray(power, self._power_dtype)[fr])].tolist():"))
-mutant("beacons_signal-19", RID, "a refused birth (and the one that takes the last free slot) does not mark its side lobes", ("            k = pk[i]\n            for j in range(bisect_left(pk, k - excl)",
-                                                                               "            k = pk[i] if room > 0 else -10**9\n            for j in range(bisect_left(pk, k - excl)"))
+mutant("beacons_signal-19", RID, "a refused birth (and the one that takes the last free slot) does not mark its side lobes", ("            _take_side_lobes(taken, pk, pk[i], excl)",
+                                                                               "            _take_side_lobes(taken, pk, pk[i] if room > 0 else -10**9, excl)"))
 mutant("beacons_signal-20", RID, "rate fitted over the last second plus one point", ("i0 = bisect_left(t, t[-1] - span_s, max(0, n - 256))",
                                                                                   "i0 = max(0, bisect_left(t, t[-1] - span_s, max(0, n - 256)) - 1)"))
 mutant("beacons_signal-21", WF, "the block after a join starts one sample late",

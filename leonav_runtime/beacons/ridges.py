@@ -145,6 +145,12 @@ def _local_maxima(p: np.ndarray, thr: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return np.divmod(i, nb)
 
 
+def _take_side_lobes(taken: list[bool], pk: list[int], k: int, excl: int) -> None:
+    """Mark as taken every peak whose bin in `pk` (ascending) is within `excl` bins of bin k."""
+    for i in range(bisect_left(pk, k - excl), bisect_right(pk, k + excl)):
+        taken[i] = True
+
+
 def interpolate_peak(power_row: np.ndarray, k: int) -> float:
     """Sub-bin offset (in bins, within +/-0.5) of a peak at bin k from its log magnitude."""
     if k <= 0 or k >= power_row.size - 1:
@@ -235,10 +241,8 @@ class RidgeTracker:
                 best = min(cand, key=lambda i: abs(pf[i] - f_pred))
             else:          # rate unknown yet: the strongest peak in the wide gate
                 best = max(cand, key=lambda i: power[i])
-            k = pk[best]
             tr.add(t, f_peak[best], snr_peak[best], cfg.rate_fit_s)
-            for i in range(bisect_left(pk, k - excl), bisect_right(pk, k + excl)):
-                taken[i] = True
+            _take_side_lobes(taken, pk, pk[best], excl)
         # births: strong peaks not explained by a ridge, strongest first, side lobes skipped
         free = [i for i in strong if not taken[i]]
         if free:
@@ -262,9 +266,7 @@ class RidgeTracker:
                 self.active.append(_Track(t, f_peak[i], snr_peak[i]))
                 self.stats.births += 1
                 room -= 1
-            k = pk[i]
-            for j in range(bisect_left(pk, k - excl), bisect_right(pk, k + excl)):
-                taken[j] = True
+            _take_side_lobes(taken, pk, pk[i], excl)
 
     def _end_ridges(self, t: float) -> None:
         """End the ridges not seen for too long at slice time `t` (s)."""
