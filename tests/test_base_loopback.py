@@ -275,5 +275,5 @@ def test_a_signal_during_the_build_stops_the_base_at_once(pair, tmp_path):
     base.stderr.close()
     assert base.returncode == 130, err
     assert "serving" not in out and "interrupted" in err
-    assert total - at_signal < 1.0, (total, at_signal)
+    assert total - at_signal < 1.0, (total, at_signal, err)
     assert not record.exists()

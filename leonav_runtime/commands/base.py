@@ -120,25 +120,48 @@ def run(args: argparse.Namespace) -> int:
     # from then on they set a flag the serving loop reads, since an exception raised at any bytecode
     # could leave the server's lock held (between its acquire and the with block) and the close would
     # wait forever. Installed before the "serving" line: a client that signals on reading it is heard.
+    # One raise is not enough: a library's bare `except:` swallows it where it lands (pynmea2 turns a
+    # field it fails to convert, or an exception in its converter, into the field's text), so after
+    # the signal SIGALRM raises again every REARM_S until the build has unwound.
     stop: list[int] = []
     building = [True]
+    in_main = threading.current_thread() is threading.main_thread()    # (handlers only go there)
+    rearm = in_main and hasattr(signal, "setitimer")
 
     def on_signal(signum, _frame):
         stop.append(signum)
         if building[0]:
+            if rearm:
+                signal.setitimer(signal.ITIMER_REAL, REARM_S, REARM_S)
             raise _Signalled(signum)
 
-    in_main = threading.current_thread() is threading.main_thread()    # (handlers only go there)
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)} if in_main else {}
+    def on_alarm(_signum, _frame):
+        if building[0] and stop:
+            raise _Signalled(stop[0])
+
+    def build():
+        try:
+            try:
+                return build_corrections(folder, pos, tuple(args.tle), args.smooth)
+            finally:
+                building[0] = False
+                if rearm:
+                    signal.setitimer(signal.ITIMER_REAL, 0)
+        except _Signalled:
+            return None
+        except Exception:
+            if stop:        # failed on what a swallowed raise left behind: the signal is the news
+                return None
+            raise
+
+    handlers = {signal.SIGINT: on_signal, signal.SIGTERM: on_signal, **({signal.SIGALRM: on_alarm} if rearm else {})}
+    previous = {s: signal.signal(s, h) for s, h in handlers.items()} if in_main else {}
     code = 0
     try:
-        try:
-            print(f"leonav base: building the corrections of {folder} (seconds) ...", file=sys.stderr, flush=True)
-            corr, epoch_unix, _ = build_corrections(folder, pos, tuple(args.tle), args.smooth)
-            building[0] = False
-        except _Signalled:
-            pass
+        print(f"leonav base: building the corrections of {folder} (seconds) ...", file=sys.stderr, flush=True)
+        built = build()
         if not stop:
+            corr, epoch_unix, _ = built
             code = _serve(args, corr, epoch_unix, f"{folder} at {pos[0]:.7f}, {pos[1]:.7f}, {pos[2]:.2f} m",
                           pos, host, port, stop)
     finally:
@@ -149,6 +172,9 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr, flush=True)
         return 130 if stop[0] == signal.SIGINT else 143
     return code
+
+
+REARM_S = 0.05    # s between the raises after a signal during the build
 
 
 class _Signalled(BaseException):
