@@ -86,7 +86,7 @@ def _nmea_angle_deg(value: str, hemisphere: str, limit_deg: float, hemispheres: 
     return sign * (degrees + minutes / 60.0)
 
 
-def _time_field(msg) -> _dt.time | None:
+def time_field(msg) -> _dt.time | None:
     """`msg.timestamp` as a time, None when empty; BadField when pynmea2 could not read it
     (pynmea2 then hands back the text, e.g. hour 25 or second 61)."""
     tod = msg.timestamp          # pynmea2 parses on each access: read once
@@ -131,7 +131,7 @@ class NmeaFixBuilder:
 
     def _time_tag(self, s: NmeaSentence, kind: str) -> GnssTimeTag | None:
         msg = s.msg
-        tod = _time_field(msg)
+        tod = time_field(msg)
         if kind == "RMC":
             date = msg.datestamp
             if date is not None and date != "" and not isinstance(date, _dt.date):
@@ -173,7 +173,7 @@ class NmeaFixBuilder:
         lon = _nmea_angle_deg(msg.lon, msg.lon_dir, 180.0, "EW")
         if quality < 0 or num_sv < 0:
             raise BadField(BAD_FIELD)
-        tod = _time_field(msg)
+        tod = time_field(msg)
         if lat is None or lon is None:
             return None
         hmsl = _to_float(msg.altitude)

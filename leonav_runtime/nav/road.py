@@ -167,7 +167,8 @@ class StreamingRoad:
         for ep in epochs:
             tab, counts = epoch_fixes(ep, lambda t: self.tmap.to_utc(float(t)), self.epoch_unix, self.origin, notes)
             if count:
-                self.counts["gnss_fixes_unusable"] += counts.get("gnss_fixes_unusable", 0)
+                for key in ("gnss_fixes_unusable", "gst_rmc_unreadable"):
+                    self.counts[key] += counts.get(key, 0)
                 for src, n in counts.get("fix_sigma_source", {}).items():
                     self.counts[f"fix_sigma_{src}"] += n
             tabs.append(tab)

@@ -7,7 +7,8 @@ hAcc/sqrt(2) and vAcc, else `DEFAULT_UERE_M * HDOP` per horizontal axis and twic
 vertically (at least 0.1 m). Horizontal velocity: NAV-PVT, else the RMC speed/course of the
 same epoch (NaN without). A fix without a finite latitude, longitude and height (e.g. a
 GGA with an empty altitude field) is neither the origin nor a measurement; such fixes are
-counted (`gnss_fixes_unusable`).
+counted (`gnss_fixes_unusable`), and so are GST and valid RMC sentences whose time or values
+are empty or unreadable (`gst_rmc_unreadable`; e.g. hour 25, which pynmea2 hands back as text).
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import math
 
 import numpy as np
 
+from leonav.hardware.gnss.nmea import time_field
 from leonav.hardware.records import GnssFix, NmeaSentence
 from leonav_runtime.orbits import geometry
 from leonav_runtime.inputs import FixTable
@@ -43,6 +45,20 @@ def usable_fix(fix) -> bool:
             and math.isfinite(fix.lon_rad) and fix_height_m(fix) is not None)
 
 
+def _epoch_entry(kind: str, msg) -> tuple[int, tuple[float, ...]]:
+    """(time-of-day key, GST 1-sigma latitude/longitude/altitude in m, or RMC (v_E, v_N) in m/s)
+    of a GST or valid RMC sentence; ValueError/TypeError when its time or a value is empty or
+    unreadable."""
+    tod = time_field(msg)               # BadField (a ValueError) for a time pynmea2 could not read
+    if tod is None:
+        raise ValueError("no time of day")
+    if kind == "GST":
+        return _tod_key(tod), (float(msg.std_dev_latitude), float(msg.std_dev_longitude), float(msg.std_dev_altitude))
+    speed = float(msg.spd_over_grnd or 0.0) * 1852.0 / 3600.0
+    course = math.radians(float(msg.true_course or 0.0))
+    return _tod_key(tod), (speed * math.sin(course), speed * math.cos(course))
+
+
 def _positive_finite(v) -> bool:
     return v is not None and math.isfinite(v) and v > 0
 
@@ -51,22 +67,25 @@ def fix_table(gnss_records, to_utc, epoch: float, origin, notes: list[str]) -> t
     """Fixes on the replay axis in ENU at `origin` (rad, rad, m) with their 1-sigma.
 
     Fixes without a finite position (`usable_fix`) are left out and counted."""
-    gst, rmc = {}, {}
+    tables: dict[str, dict] = {"GST": {}, "RMC": {}}
+    unreadable = 0
     for r in gnss_records:
-        if isinstance(r, NmeaSentence) and r.msg is not None:
+        if isinstance(r, NmeaSentence) and r.msg is not None and r.sentence_type in tables \
+                and (r.sentence_type == "GST" or r.msg.status == "A"):
             try:
-                if r.sentence_type == "GST" and r.msg.timestamp is not None:
-                    gst[_tod_key(r.msg.timestamp)] = (float(r.msg.std_dev_latitude), float(r.msg.std_dev_longitude),
-                                                      float(r.msg.std_dev_altitude))
-                elif r.sentence_type == "RMC" and r.msg.timestamp is not None and r.msg.status == "A":
-                    speed = float(r.msg.spd_over_grnd or 0.0) * 1852.0 / 3600.0
-                    course = math.radians(float(r.msg.true_course or 0.0))
-                    rmc[_tod_key(r.msg.timestamp)] = (speed * math.sin(course), speed * math.cos(course))
+                key, value = _epoch_entry(r.sentence_type, r.msg)
             except (TypeError, ValueError):
-                continue          # an empty field: this epoch has no GST/RMC information
+                unreadable += 1       # this epoch has no GST sigmas / RMC velocity
+                continue
+            tables[r.sentence_type][key] = value
+    gst, rmc = tables["GST"], tables["RMC"]
+    if unreadable:
+        notes.append(f"GNSS: {unreadable} GST/RMC sentence(s) with an empty or unreadable time or value left out "
+                     "(their epochs take the NAV-PVT or HDOP sigmas and no RMC velocity)")
     fixes = [r for r in gnss_records if isinstance(r, GnssFix)]
     usable = [f for f in fixes if usable_fix(f)]
-    counts = {"gnss_fixes": len(fixes), "gnss_fixes_unusable": len(fixes) - len(usable), "fix_sigma_source": {}}
+    counts = {"gnss_fixes": len(fixes), "gnss_fixes_unusable": len(fixes) - len(usable), "fix_sigma_source": {},
+              "gst_rmc_unreadable": unreadable}
     if len(usable) < len(fixes):
         notes.append(f"GNSS: {len(fixes) - len(usable)} fix(es) without a finite latitude, longitude and height "
                      "(e.g. an empty GGA altitude field) left out")
