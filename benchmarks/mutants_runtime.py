@@ -25,6 +25,12 @@ MODULES["beacons_signal"] = {
               "leonav_runtime/beacons/waterfall.py", "leonav_runtime/beacons/pipeline.py",
               "leonav_runtime/beacons/row_fft.py"],
     "tests": ["tests/test_beacons_signal_outputs.py", "tests/test_beacons_signal.py", "tests/test_row_fft.py"]}
+MODULES["base_signal"] = {
+    "files": ["leonav_runtime/commands/base.py"],
+    "tests": ["tests/test_base_signal_rearm.py", "tests/test_base_loopback.py"]}
+MODULES["fix_table"] = {
+    "files": ["leonav_runtime/replay/gnss_table.py"],
+    "tests": ["tests/test_gnss_table_fields.py", "tests/test_replay.py"]}
 
 # ---------------------------------------------------------------- dataset (+ scoring/errors.py)
 TB, IMU, GNS = "leonav_runtime/dataset/timebase.py", "leonav_runtime/dataset/imu_read.py", "leonav_runtime/dataset/gnss_read.py"
@@ -159,3 +165,13 @@ mutant("beacons_signal-23", RFFT, "the extension called for the inverse transfor
         "return ext.c2c(frames, (frames.ndim - 1,), False, 0, frames, workers)"))
 mutant("beacons_signal-24", RFFT, "the extension loaded from its file is not registered: a later import of scipy.fft initialises it again",
        ("    sys.modules[_NAME] = ext\n", ""))
+
+BASE_CMD, FIXTAB = "leonav_runtime/commands/base.py", "leonav_runtime/replay/gnss_table.py"
+mutant("base_signal-01", BASE_CMD, "one raise per signal during the build: a library's bare except swallows it and the build runs to its end",
+       ("                signal.setitimer(signal.ITIMER_REAL, REARM_S, REARM_S)\n", "                pass\n"))
+mutant("base_signal-02", BASE_CMD, "a build that fails after a signal reports that failure (exit 1) instead of the signal",
+       ("            if stop:        # failed on", "            if False:        # failed on"))
+mutant("fix_table-01", FIXTAB, "a GST/RMC with an unreadable time or value skipped without being counted",
+       ("                unreadable += 1       # this epoch", "                pass       # this epoch"))
+mutant("fix_table-02", FIXTAB, "pynmea2's text for an unreadable time taken as a time (the crash on hour 25)",
+       ("    tod = time_field(msg)               # BadField", "    tod = msg.timestamp               # BadField"))
