@@ -178,7 +178,8 @@ REARM_S = 0.05    # s between the raises after a signal during the build
 
 
 class _Signalled(BaseException):
-    """SIGINT or SIGTERM while the corrections are built (not an Exception: nothing swallows it)."""
+    """SIGINT or SIGTERM while the corrections are built (not an Exception: `except Exception` lets
+    it through; a bare `except:` does not, hence the re-raise in `run`)."""
 
 
 def _serve(args: argparse.Namespace, corr: list, epoch_unix: float, source: str, pos: tuple, host: str,
