@@ -105,12 +105,12 @@ def kozai_mean_motion_revday(semi_major_axis_km: float, inclination_deg: float,
     return n_kozai * 1440.0 / (2.0 * math.pi)
 
 
-def _entry(name: str, norad_id: int, epoch: _dt.datetime, a_km: float, incl_deg: float,
+def _entry(name: str, norad_id: int, epoch: _dt.datetime, mean_motion_revday: float, incl_deg: float,
            raan_deg: float, mean_anomaly_deg: float) -> str:
     line1, line2 = format_tle(
         norad_id=norad_id, epoch_utc=epoch, inclination_deg=incl_deg, raan_deg=raan_deg,
         eccentricity=_ECCENTRICITY, arg_perigee_deg=0.0, mean_anomaly_deg=mean_anomaly_deg,
-        mean_motion_revday=kozai_mean_motion_revday(a_km, incl_deg),
+        mean_motion_revday=mean_motion_revday,
     )
     return f"{name:<24s}\n{line1}\n{line2}\n"
 
@@ -125,14 +125,15 @@ def walker_tle(shells: tuple[WalkerShell, ...], epoch_utc: _dt.datetime, *, name
         filed = f", filed {shell.planes}x{shell.filed_per_plane}" if shell.filed_per_plane else ""
         parts.append(f"# shell {shell.label}: {shell.altitude_km:g} km, {shell.inclination_deg:g} deg, "
                      f"{shell.planes} planes x {shell.per_plane}{filed}, F={shell.phasing}\n")
-        a_km = R_EQUATOR_KM + shell.altitude_km
+        # one mean motion per shell: its fixed-point iteration is a third of the text's cost
+        n_revday = kozai_mean_motion_revday(R_EQUATOR_KM + shell.altitude_km, shell.inclination_deg)
         for j in range(shell.planes):
             for k in range(shell.per_plane):
                 serial += 1
                 raan = 360.0 * j / shell.planes
                 anomaly = 360.0 * k / shell.per_plane + 360.0 * shell.phasing * j / shell.total
                 name = f"{name_prefix}{round(shell.inclination_deg):02d}-{serial:04d}"
-                parts.append(_entry(name, norad_base + serial - 1, epoch, a_km, shell.inclination_deg,
+                parts.append(_entry(name, norad_base + serial - 1, epoch, n_revday, shell.inclination_deg,
                                     raan, anomaly))
     if norad_base + serial - 1 > 99999:
         raise ValueError("generated NORAD ids exceed the 5-digit range")
@@ -150,6 +151,7 @@ def gps_walker_tle(epoch_utc: _dt.datetime) -> str:
     parts = [f"# leonav generated GPS-like constellation, epoch {epoch.isoformat()}: 6 planes, "
              f"{GPS_INCLINATION_DEG:g} deg, a = {GPS_SEMI_MAJOR_AXIS_KM:g} km\n"]
     total = sum(GPS_PLANE_COUNTS)
+    n_revday = kozai_mean_motion_revday(GPS_SEMI_MAJOR_AXIS_KM, GPS_INCLINATION_DEG)
     prn = 0
     for j, count in enumerate(GPS_PLANE_COUNTS):
         for k in range(count):
@@ -158,7 +160,7 @@ def gps_walker_tle(epoch_utc: _dt.datetime) -> str:
             raan = 60.0 * j
             anomaly = 360.0 * k / count + 360.0 * j / total
             parts.append(_entry(f"GPS-W {plane}{k + 1} (PRN {prn:02d})", GPS_NORAD_BASE + prn - 1, epoch,
-                                GPS_SEMI_MAJOR_AXIS_KM, GPS_INCLINATION_DEG, raan, anomaly))
+                                n_revday, GPS_INCLINATION_DEG, raan, anomaly))
     return "".join(parts)
 
 
