@@ -46,18 +46,27 @@ def _walk(steps: np.ndarray, x0: np.ndarray, phi: np.ndarray) -> np.ndarray:
 
 
 def _starter(block, scn, scale: float, profile, layout):
-    """The block's start as a function of trials' streams -> (B, size) (a prior draw from each
-    stream), its sigma or value worked out once: a block of trials calls it once per trial, so each
-    trial's stream sees its start and then its noise."""
+    """The block's start as a function (stream, out) writing it into the row `out` (size,): a prior
+    draw from the stream, zero, or a scenario value, its sigma or value worked out once. A block of
+    trials calls it once per trial, so each trial's stream sees its start and then its noise; the
+    draw goes straight into its row (a list, a stack and a product per call cost ~12 us)."""
     start = block.truth["start"]
-    if start == "zero":
-        return lambda streams: np.zeros((len(streams), block.size))
     if start == "prior":
         sigma = model.prior_sigmas(layout, profile, 0.0, 0.0, 0.0)[block.error_offset:block.error_offset + block.size]
-        return lambda streams: scale * sigma * np.stack([r.standard_normal(block.size) for r in streams])
-    section, _, key = start.partition(".")
-    value = float(getattr(scn, section)[key])
-    return lambda streams: np.full((len(streams), block.size), value)
+        factor = scale * sigma
+
+        def prior(r: np.random.Generator, out: np.ndarray) -> None:
+            r.standard_normal(out=out)
+            out *= factor
+        return prior
+    value = 0.0
+    if start != "zero":
+        section, _, key = start.partition(".")
+        value = float(getattr(scn, section)[key])
+
+    def fixed(r: np.random.Generator, out: np.ndarray) -> None:
+        out[:] = value
+    return fixed
 
 
 def draw_truth(rng: np.random.Generator, blocks, n: int, dt: float, Phi: np.ndarray, Qd: np.ndarray, scn, profile,
@@ -84,8 +93,13 @@ def draw_truth_many(rngs: list[np.random.Generator], blocks, n: int, dt: float, 
         if drift is not None and drift.name in names:   # an integral pair: exact two-state draw
             d = slice(drift.error_offset, drift.error_offset + drift.error_size)
             start_b, start_d = _starter(b, scn, scale, profile, layout), _starter(drift, scn, scale, profile, layout)
-            parts = [_pair_draws(start_b, start_d, drift, r, n) for r in rs]
-            x_b0, x_d0, w_d, w_b = (np.stack([p[i] for p in parts]) for i in range(4))
+            x_b0, x_d0 = np.empty((len(rs), b.size)), np.empty((len(rs), drift.size))
+            w_d, w_b = np.empty((len(rs), n, drift.size)), np.empty((len(rs), n, b.size))
+            for i, r in enumerate(rs):   # each trial's draws in order: start, drift's start, w_d, w_b
+                start_b(r, x_b0[i])
+                start_d(r, x_d0[i])
+                r.standard_normal(out=w_d[i])
+                r.standard_normal(out=w_b[i])
             l11 = np.sqrt(np.diag(Qd[e, e]))
             l21 = np.diag(Qd[d, e]) / np.where(l11 > 0, l11, 1.0)
             l22 = np.sqrt(np.maximum(np.diag(Qd[d, d]) - l21**2, 0.0))
@@ -98,18 +112,11 @@ def draw_truth_many(rngs: list[np.random.Generator], blocks, n: int, dt: float, 
         x0, w = np.empty((len(rs), b.size)), np.empty((len(rs), n, b.size))
         start = _starter(b, scn, scale, profile, layout)
         for i, r in enumerate(rs):   # each trial's start, then its noise
-            x0[i] = start([r])[0]
+            start(r, x0[i])
             r.standard_normal(out=w[i])
         columnwise(np.multiply, w, scale * np.sqrt(np.diag(Qd[e, e])), w)
         out[b.name] = _walk(w, x0, np.diag(Phi[e, e]).copy())
     return out
-
-
-def _pair_draws(start_b, start_d, drift, r, n):
-    """One trial's draws of an integral pair (block b over its drift; `_starter`s), in order: start,
-    drift's start, w_d, w_b."""
-    x_b0, x_d0 = start_b([r])[0], start_d([r])[0]
-    return x_b0, x_d0, r.standard_normal((n, drift.size)), r.standard_normal((n, x_b0.size))
 
 
 def error_model(nav: navfuncs.NavFunctions, dt: float, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
