@@ -345,6 +345,7 @@ mutant("simulate-32", ERR, "every trial of a block draws the first trial's own-s
         'rs = list(rngs) if b.truth["stream"] == "trial" else [own_stream(rngs[0], b.name)] * len(rngs)'))
 mutant("simulate-33", ERR, "every trial of a block starts its bias walks at the first trial's start",
        ("columnwise(np.add, x0[:, None], np.cumsum", "columnwise(np.add, x0[:1, None], np.cumsum"))
+mutant("simulate-34", ERR, "a block's prior start drawn without its sigma (a unit normal)", ("            out *= factor\n", ""))
 mutant("filter-15", FIL, "record stream not checked", ("        records.check_records(recs, len(self.lib.meas_ids))\n        n = recs.size\n        gates", "        n = recs.size\n        gates"))
 mutant("filter-16", FIL, "applied and gated counts swapped", ("int(out.n_imu), int(out.n_applied), int(out.n_gated),", "int(out.n_imu), int(out.n_gated), int(out.n_applied),"))
 mutant("filter-17", FIL, "a number as gate ignored", ("return np.full(n, float(gate))", "return np.full(n, CHI2_1DOF_999)"))

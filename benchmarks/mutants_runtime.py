@@ -31,6 +31,9 @@ MODULES["base_signal"] = {
 MODULES["fix_table"] = {
     "files": ["leonav_runtime/replay/gnss_table.py"],
     "tests": ["tests/test_gnss_table_fields.py", "tests/test_replay.py"]}
+MODULES["pcrb_stream"] = {
+    "files": ["leonav_runtime/sweep/montecarlo.py"],
+    "tests": ["tests/test_pcrb_records.py"]}
 
 # ---------------------------------------------------------------- dataset (+ scoring/errors.py)
 TB, IMU, GNS = "leonav_runtime/dataset/timebase.py", "leonav_runtime/dataset/imu_read.py", "leonav_runtime/dataset/gnss_read.py"
@@ -175,3 +178,7 @@ mutant("fix_table-01", FIXTAB, "a GST/RMC with an unreadable time or value skipp
        ("                unreadable += 1       # this epoch", "                pass       # this epoch"))
 mutant("fix_table-02", FIXTAB, "pynmea2's text for an unreadable time taken as a time (the crash on hour 25)",
        ("    tod = time_field(msg)               # BadField", "    tod = msg.timestamp               # BadField"))
+MC = "leonav_runtime/sweep/montecarlo.py"
+mutant("pcrb_stream-01", MC, "the PCRB of every count on the first count's records (a template looked up by mode only)",
+       ("    return trial_block.template(setup, nav, mode, count).rec",
+        '    return trial_block.template(setup, nav, mode, setup.scn.starlink["counts"][0]).rec'))
