@@ -180,5 +180,7 @@ mutant("fix_table-02", FIXTAB, "pynmea2's text for an unreadable time taken as a
        ("    tod = time_field(msg)               # BadField", "    tod = msg.timestamp               # BadField"))
 MC = "leonav_runtime/sweep/montecarlo.py"
 mutant("pcrb_stream-01", MC, "the PCRB of every count on the first count's records (a template looked up by mode only)",
-       ("    return trial_block.template(setup, nav, mode, count).rec",
-        '    return trial_block.template(setup, nav, mode, setup.scn.starlink["counts"][0]).rec'))
+       ("    rec = trial_block.template(setup, nav, mode, count).rec.view()",
+        '    rec = trial_block.template(setup, nav, mode, setup.scn.starlink["counts"][0]).rec.view()'))
+mutant("pcrb_stream-02", MC, "the PCRB's records handed out writable: a caller's edit reaches every later trial",
+       ("    rec.flags.writeable = False\n", ""))

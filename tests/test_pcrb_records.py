@@ -40,3 +40,5 @@ def test_pcrb_on_the_template_equals_the_bound_on_the_noise_free_trial(mode, cou
     ref = lfilter.pcrb(want, x_lin, setup.P0, setup.params, library=nav.library)
     assert np.array_equal(res.B_nav, ref.B_nav) and np.array_equal(res.B, ref.B)
     assert not np.array_equal(recs["z"], want["z"])   # the template's z are indices, not values
+    with pytest.raises(ValueError):   # the trials' template cannot be written through it
+        recs["R"][0] = 1.0
