@@ -32,7 +32,7 @@ MODULES["fix_table"] = {
     "files": ["leonav_runtime/replay/gnss_table.py"],
     "tests": ["tests/test_gnss_table_fields.py", "tests/test_replay.py"]}
 MODULES["pcrb_stream"] = {
-    "files": ["leonav_runtime/sweep/montecarlo.py"],
+    "files": ["leonav_runtime/sweep/montecarlo.py", "leonav_runtime/sweep/run.py"],
     "tests": ["tests/test_pcrb_records.py"]}
 
 # ---------------------------------------------------------------- dataset (+ scoring/errors.py)
@@ -184,3 +184,8 @@ mutant("pcrb_stream-01", MC, "the PCRB of every count on the first count's recor
         '    rec = trial_block.template(setup, nav, mode, setup.scn.starlink["counts"][0]).rec.view()'))
 mutant("pcrb_stream-02", MC, "the PCRB's records handed out writable: a caller's edit reaches every later trial",
        ("    rec.flags.writeable = False\n", ""))
+mutant("pcrb_stream-03", MC, "the bound builds a template under a realism switch (kept with the setup, 61 MB a point)",
+       ("    if realism.active(setup.scn):\n        return simulate.trial_records(",
+        "    if False:\n        return simulate.trial_records("))
+mutant("pcrb_stream-04", "leonav_runtime/sweep/run.py", "the sweep builds every template under a realism switch, for nothing",
+       ("    if realism.active(scn):\n        return 0\n", ""))

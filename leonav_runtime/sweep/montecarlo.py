@@ -28,7 +28,7 @@ from scipy import special
 from leonav_runtime.core import compiled, records
 from leonav_runtime.core import filter as lfilter
 from leonav_runtime.core import navfuncs, orbit_states
-from leonav_runtime.simulation import simulate, trial_block
+from leonav_runtime.simulation import realism, simulate, trial_block
 from leonav_runtime.sweep import consistency
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.scenarios.load import Scenario, scenario_from_dict
@@ -284,12 +284,20 @@ def _ptr(a: np.ndarray):
 
 
 def pcrb_records(setup: simulate.Setup, nav: navfuncs.NavFunctions, mode: str, count: int) -> np.ndarray:
-    """The record stream the PCRB of (mode, count) runs on: the block template's (the road on the
-    true increments, made once per setup for the trials anyway). It is a noise-free trial's stream
-    in every field the bound reads (kinds, times, increments, R, aux); only z, which the bound
-    does not read, holds each value's index instead (tests/test_pcrb_records.py). Building the
-    noise-free trial instead cost its draws and the road again, ~3 ms of a point's 13 ms. A
-    read-only view: the trials' streams are copied from the template, which must not change."""
+    """The noise-free record stream the PCRB of (mode, count) runs on.
+
+    Where the trials are built from the block template (no realism switch active), it is the
+    template's records: a noise-free trial's stream in every field the bound reads (kinds, times,
+    increments, R, aux); only z, which the bound does not read, holds each value's index instead
+    (tests/test_pcrb_records.py). That spares drawing the noise-free trial and taking it down the
+    road again, ~3 ms of a point's 13 ms. It is a read-only view: the trials' streams are copied
+    from the template, which must not change. With a realism switch the trials take the road one
+    by one and build no template; building one only for the bound would be slower than the
+    noise-free trial and would stay in memory with the setup (61 MB per point in a passive-phase
+    scenario), so the noise-free trial is drawn as before.
+    """
+    if realism.active(setup.scn):
+        return simulate.trial_records(setup, mode, count, np.random.default_rng(0), nav, noise_free=True).records
     rec = trial_block.template(setup, nav, mode, count).rec.view()
     rec.flags.writeable = False
     return rec
@@ -301,7 +309,8 @@ def pcrb_on_truth(setup: simulate.Setup, nav: navfuncs.NavFunctions, mode: str, 
 
     Each record is linearised where it acts: an IMU record at the start of its interval,
     a measurement at its time. B0 and params default to the filter's prior and parameters.
-    Returns (records, PcrbResult).
+    Returns (records, PcrbResult); the records may be a read-only view (`pcrb_records`): copy
+    them to edit.
     """
     recs = pcrb_records(setup, nav, mode, count)
     k_of = np.rint(recs["t"] * setup.scn.imu_rate_hz).astype(int)

@@ -10,7 +10,7 @@ after its last measurement its columns leave (deleting a state no later record r
 marginal), so the matrix holds the satellites in view, not every satellite of the run.
 
 The recursion is the covariance form of the PCRB along the truth on the noise-free record
-stream of `simulate.trial_records` (the sweep's `pcrb_on_truth` stream): per IMU record the
+stream of `simulate.trial_records` (what the sweep's `pcrb_on_truth` reads): per IMU record the
 generated predict's F and Qd (P_nn = F P_nn F' + Qd, P_no = F P_no; the offsets do not move),
 per measurement epoch one Kalman update with H = [H_nav | H_orbit], H_nav the
 generated Jacobian and H_orbit (per m of offset) central differences of the generated h over
