@@ -185,7 +185,7 @@ mutant("pcrb_stream-01", MC, "the PCRB of every count on the first count's recor
 mutant("pcrb_stream-02", MC, "the PCRB's records handed out writable: a caller's edit reaches every later trial",
        ("    rec.flags.writeable = False\n", ""))
 mutant("pcrb_stream-03", MC, "the bound builds a template under a realism switch (kept with the setup, 61 MB a point)",
-       ("    if realism.active(setup.scn):\n        return simulate.trial_records(",
+       ("    if not trial_block.uses_template(setup.scn):\n        return simulate.trial_records(",
         "    if False:\n        return simulate.trial_records("))
 mutant("pcrb_stream-04", "leonav_runtime/sweep/run.py", "the sweep builds every template under a realism switch, for nothing",
-       ("    if realism.active(scn):\n        return 0\n", ""))
+       ("    if not trial_block.uses_template(scn):\n        return 0\n", ""))

@@ -164,6 +164,12 @@ def template(setup: simulate.Setup, nav: navfuncs.NavFunctions, mode: str, count
     return tpl
 
 
+def uses_template(scn) -> bool:
+    """Whether the trials of `scn` are built from the block template: not with a realism switch
+    active (it changes R and aux per trial, so each trial takes the road; module doc)."""
+    return not realism.active(scn)
+
+
 def satellites_used(parsed) -> list:
     """The satellite observables a parsed mode uses, in the order block_draws makes their parts."""
     return [o for o in simulate.satellites.satellite_observables() if o in parsed.observables]
@@ -174,7 +180,7 @@ def trial_block(setup: simulate.Setup, mode: str, count: int, rngs: list[np.rand
     """Trials of `mode` with `count` Starlink satellites, one per stream in `rngs` (the records,
     x0 and truth `simulate.trial_records` gives for each stream, module doc)."""
     scn, L = setup.scn, nav.layout
-    if realism.active(scn):
+    if not uses_template(scn):
         trials = [simulate.trial_records(setup, mode, count, rng, nav) for rng in rngs]
         if len({t.records.size for t in trials}) > 1:   # e.g. epochs of detected cycle slips dropped
             return TrialBlock(np.stack([t.x0 for t in trials]), np.stack([t.params for t in trials]), trials=trials)

@@ -28,7 +28,7 @@ from scipy import special
 from leonav_runtime.core import compiled, records
 from leonav_runtime.core import filter as lfilter
 from leonav_runtime.core import navfuncs, orbit_states
-from leonav_runtime.simulation import realism, simulate, trial_block
+from leonav_runtime.simulation import simulate, trial_block
 from leonav_runtime.sweep import consistency
 from leonav_runtime.gen import state_layout as L
 from leonav_runtime.scenarios.load import Scenario, scenario_from_dict
@@ -296,7 +296,7 @@ def pcrb_records(setup: simulate.Setup, nav: navfuncs.NavFunctions, mode: str, c
     noise-free trial and would stay in memory with the setup (61 MB per point in a passive-phase
     scenario), so the noise-free trial is drawn as before.
     """
-    if realism.active(setup.scn):
+    if not trial_block.uses_template(setup.scn):
         return simulate.trial_records(setup, mode, count, np.random.default_rng(0), nav, noise_free=True).records
     rec = trial_block.template(setup, nav, mode, count).rec.view()
     rec.flags.writeable = False

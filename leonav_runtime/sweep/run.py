@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from leonav_runtime.simulation import realism, trial_block
+from leonav_runtime.simulation import trial_block
 from leonav_runtime.sweep import montecarlo as mc
 from leonav_runtime.sweep.executors import make_executor, map_in_order
 from leonav_runtime.gen import state_layout as L
@@ -101,7 +101,7 @@ def build_templates(scn: Scenario, setup, nav, tasks: list[tuple]) -> int:
     the workers start; returns how many. None with a realism switch active: its trials take the
     road one by one, and a template (61 MB and ~0.35 s of CPU per point in passive-phase-static)
     would be made for nothing."""
-    if realism.active(scn):
+    if not trial_block.uses_template(scn):
         return 0
     points = list(dict.fromkeys((t[3], t[4]) for t in tasks))
     for mode, count in points:
