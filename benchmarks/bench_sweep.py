@@ -47,7 +47,7 @@ def measure_sweep(scenario: str = "paper", trials: int | None = None, workers: i
     w2, c2 = time.perf_counter(), _cpu()
     t = res.timing
     trials_cpu = 1e-3 * t["trial_cpu_ms"] * t["trials_run"]
-    return {
+    r = {
         "scenario": scn.name, "sets": list(sets), "out": out, "trials_per_point": trials or scn.trials, "trials_run": t["trials_run"],
         "imu_steps_per_trial": t["imu_steps_per_trial"], "c_us_per_imu_step": t["c_us_per_imu_step"],
         "floor_cpu_s": t["floor_cpu_s"], "sweep_cpu_s": t["total_cpu_s"], "cpu_over_floor": t["cpu_over_floor"],
@@ -62,6 +62,31 @@ def measure_sweep(scenario: str = "paper", trials: int | None = None, workers: i
         "peak_rss_main_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "peak_rss_worker_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
     }
+    r["wall_budget"] = wall_budget(r)
+    return r
+
+
+WALL_GOAL_S = 10.0   # issue 25: the paper sweep on 2 cores, quiet machine
+
+
+def wall_budget(r: dict, goal_s: float = WALL_GOAL_S) -> dict:
+    """What the measured parts allow of the wall time, on `r["cores"]` cores shared perfectly.
+
+    serial_s: the wall outside the pool (set-up before the trials, the results folder);
+    bound_s: serial_s + the C floor spread over the cores, the wall if every bit of Python in
+    the trials cost nothing; c_us_for_goal: the C loop's CPU per IMU step at which the sweep,
+    with everything else as measured, would take goal_s (<= 0: no C loop is fast enough);
+    cpu_over_floor_at_goal: the sweep's CPU over its C floor at that C loop, the rest as measured.
+    """
+    serial_s = (r["sweep_wall_s"] - r["trials_wall_s"]) + r["results_wall_s"]
+    other_parallel_s = r["trials_other_cpu_s"] + r["workers_outside_trials_cpu_s"]
+    steps = r["trials_run"] * r["imu_steps_per_trial"]
+    floor_for_goal_s = (goal_s - serial_s) * r["cores"] - other_parallel_s
+    outside_floor_s = r["sweep_cpu_s"] - r["floor_cpu_s"]
+    return {"goal_s": goal_s, "cores": r["cores"], "serial_s": serial_s,
+            "bound_s": serial_s + r["floor_cpu_s"] / r["cores"],
+            "c_us_for_goal": 1e6 * floor_for_goal_s / steps,
+            "cpu_over_floor_at_goal": (1.0 + outside_floor_s / floor_for_goal_s) if floor_for_goal_s > 0 else None}
 
 
 def print_sweep(r: dict) -> None:
@@ -83,6 +108,12 @@ def print_sweep(r: dict) -> None:
     print(f"  wall: set-up and trials {r['sweep_wall_s']:.1f} s (trials {r['trials_wall_s']:.1f} s) + results folder "
           f"{r['results_wall_s']:.1f} s = {r['sweep_wall_s'] + r['results_wall_s']:.1f} s   (goal <= 10 s on 2 cores, "
           f"quiet machine; `leonav sweep` also starts Python and imports, ~1 s)")
+    b = r["wall_budget"]
+    print(f"  wall budget on {b['cores']} cores: serial parts {b['serial_s']:.1f} s + the C floor over the cores "
+          f"= {b['bound_s']:.1f} s even with no Python in the trials; {b['goal_s']:g} s would need the C loop at "
+          f"{b['c_us_for_goal']:.2f} us per IMU step with the rest as measured (now {r['c_us_per_imu_step']:.2f} us)"
+          + (f", and the CPU would then be {b['cpu_over_floor_at_goal']:.1f}x its floor"
+             if b["cpu_over_floor_at_goal"] else ""))
     print(f"  peak RSS main {r['peak_rss_main_mb']:.0f} MB, largest worker {r['peak_rss_worker_mb']:.0f} MB")
 
 

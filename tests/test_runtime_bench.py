@@ -72,3 +72,26 @@ def test_rmse_agreement_names_the_largest_relative_difference(tmp_path):
     (tmp_path / "b" / "rmse.csv").write_text(head + "gps+imu,10,100,2.0,0.5\nleo-alpha+imu,5,100,10.0,1.0\n")
     with pytest.raises(ValueError, match="points differ"):
         rmse_agreement(str(tmp_path / "a"), str(tmp_path / "b"))
+
+
+def test_the_wall_budget_solves_for_the_c_loop_that_meets_the_goal():
+    import sys
+
+    sys.path.insert(0, str(BENCH.parent))
+    from bench_sweep import wall_budget
+
+    # 1,000 trials x 2,000 steps at 4 us: a 8 s floor; 2 s of Python in the trials, 0.5 s in the
+    # workers besides, 1 s of set-up and 3 s of results outside the pool, 2 cores
+    r = {"sweep_wall_s": 7.0, "trials_wall_s": 6.0, "results_wall_s": 3.0, "trials_other_cpu_s": 2.0,
+         "workers_outside_trials_cpu_s": 0.5, "trials_run": 1000, "imu_steps_per_trial": 2000,
+         "floor_cpu_s": 8.0, "sweep_cpu_s": 11.5, "cores": 2}
+    b = wall_budget(r, goal_s=10.0)
+    assert b["serial_s"] == pytest.approx(4.0) and b["bound_s"] == pytest.approx(8.0)
+    steps = r["trials_run"] * r["imu_steps_per_trial"]
+    # at the C loop it names, the serial parts plus the pool's CPU over the cores give the goal
+    c_s = 1e-6 * b["c_us_for_goal"] * steps
+    assert b["serial_s"] + (c_s + 2.5) / 2 == pytest.approx(10.0)
+    assert b["cpu_over_floor_at_goal"] == pytest.approx((c_s + 3.5) / c_s)
+    # a goal below the serial parts leaves no C loop fast enough
+    none = wall_budget(r, goal_s=3.0)
+    assert none["c_us_for_goal"] < 0 and none["cpu_over_floor_at_goal"] is None
