@@ -6,7 +6,9 @@ CPU clock around each C loop). Against it: the sweep's total CPU (this process, 
 included, plus the pool's worker processes, from CPU clocks) and, separately, the CPU of
 writing the results folder. Wall times are named as wall times; the machine's load average
 is printed before and after, since other jobs slow the C loop and Python alike. Goals
-(issue 25, quiet machine): total CPU <= 1.25x the floor; wall <= 10 s on 2 cores.
+(issue 25, quiet machine): total CPU <= 1.25x the floor; wall <= 10 s on 2 cores. The last lines
+give the run's wall budget (`wall_budget`): the wall even with no Python in the trials, and the C
+loop per IMU step that 10 s would need with the rest as measured.
 
     python benchmarks/bench_sweep.py [--workers N] [--trials N] [--scenario NAME] [--figures] [--out DIR]
 
@@ -57,7 +59,7 @@ def measure_sweep(scenario: str = "paper", trials: int | None = None, workers: i
         "main_process_cpu_s": t["process_cpu_s"], "setup_cpu_s": t["setup_cpu_s"],
         "results_cpu_s": (c2[0] - c1[0]) + (c2[1] - c1[1]), "figures": figures,
         "sweep_wall_s": w1 - w0, "trials_wall_s": t["trials_wall_s"], "results_wall_s": w2 - w1,
-        "executor": t["executor"], "cores": os.cpu_count(),
+        "executor": t["executor"], "cores": os.cpu_count(), "processes": min(workers or os.cpu_count(), os.cpu_count()),
         "load_average_before": load_before[0], "load_average_after": os.getloadavg()[0],
         "peak_rss_main_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "peak_rss_worker_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
@@ -70,10 +72,10 @@ WALL_GOAL_S = 10.0   # issue 25: the paper sweep on 2 cores, quiet machine
 
 
 def wall_budget(r: dict, goal_s: float = WALL_GOAL_S) -> dict:
-    """What the measured parts allow of the wall time, on `r["cores"]` cores shared perfectly.
+    """What the measured parts allow of the wall time, the pool's `r["processes"]` sharing the trials perfectly.
 
     serial_s: the wall outside the pool (set-up before the trials, the results folder);
-    bound_s: serial_s + the C floor spread over the cores, the wall if every bit of Python in
+    bound_s: serial_s + the C floor spread over the processes, the wall if every bit of Python in
     the trials cost nothing; c_us_for_goal: the C loop's CPU per IMU step at which the sweep,
     with everything else as measured, would take goal_s (<= 0: no C loop is fast enough);
     cpu_over_floor_at_goal: the sweep's CPU over its C floor at that C loop, the rest as measured.
@@ -81,10 +83,10 @@ def wall_budget(r: dict, goal_s: float = WALL_GOAL_S) -> dict:
     serial_s = (r["sweep_wall_s"] - r["trials_wall_s"]) + r["results_wall_s"]
     other_parallel_s = r["trials_other_cpu_s"] + r["workers_outside_trials_cpu_s"]
     steps = r["trials_run"] * r["imu_steps_per_trial"]
-    floor_for_goal_s = (goal_s - serial_s) * r["cores"] - other_parallel_s
+    floor_for_goal_s = (goal_s - serial_s) * r["processes"] - other_parallel_s
     outside_floor_s = r["sweep_cpu_s"] - r["floor_cpu_s"]
-    return {"goal_s": goal_s, "cores": r["cores"], "serial_s": serial_s,
-            "bound_s": serial_s + r["floor_cpu_s"] / r["cores"],
+    return {"goal_s": goal_s, "processes": r["processes"], "serial_s": serial_s,
+            "bound_s": serial_s + r["floor_cpu_s"] / r["processes"],
             "c_us_for_goal": 1e6 * floor_for_goal_s / steps,
             "cpu_over_floor_at_goal": (1.0 + outside_floor_s / floor_for_goal_s) if floor_for_goal_s > 0 else None}
 
@@ -109,7 +111,7 @@ def print_sweep(r: dict) -> None:
           f"{r['results_wall_s']:.1f} s = {r['sweep_wall_s'] + r['results_wall_s']:.1f} s   (goal <= 10 s on 2 cores, "
           f"quiet machine; `leonav sweep` also starts Python and imports, ~1 s)")
     b = r["wall_budget"]
-    print(f"  wall budget on {b['cores']} cores: serial parts {b['serial_s']:.1f} s + the C floor over the cores "
+    print(f"  wall budget with {b['processes']} processes: serial parts {b['serial_s']:.1f} s + the C floor over them "
           f"= {b['bound_s']:.1f} s even with no Python in the trials; {b['goal_s']:g} s would need the C loop at "
           f"{b['c_us_for_goal']:.2f} us per IMU step with the rest as measured (now {r['c_us_per_imu_step']:.2f} us)"
           + (f", and the CPU would then be {b['cpu_over_floor_at_goal']:.1f}x its floor"

@@ -81,10 +81,10 @@ def test_the_wall_budget_solves_for_the_c_loop_that_meets_the_goal():
     from bench_sweep import wall_budget
 
     # 1,000 trials x 2,000 steps at 4 us: a 8 s floor; 2 s of Python in the trials, 0.5 s in the
-    # workers besides, 1 s of set-up and 3 s of results outside the pool, 2 cores
+    # workers besides, 1 s of set-up and 3 s of results outside the pool, 2 worker processes
     r = {"sweep_wall_s": 7.0, "trials_wall_s": 6.0, "results_wall_s": 3.0, "trials_other_cpu_s": 2.0,
          "workers_outside_trials_cpu_s": 0.5, "trials_run": 1000, "imu_steps_per_trial": 2000,
-         "floor_cpu_s": 8.0, "sweep_cpu_s": 11.5, "cores": 2}
+         "floor_cpu_s": 8.0, "sweep_cpu_s": 11.5, "cores": 4, "processes": 2}
     b = wall_budget(r, goal_s=10.0)
     assert b["serial_s"] == pytest.approx(4.0) and b["bound_s"] == pytest.approx(8.0)
     steps = r["trials_run"] * r["imu_steps_per_trial"]
