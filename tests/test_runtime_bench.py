@@ -88,7 +88,7 @@ def test_the_wall_budget_solves_for_the_c_loop_that_meets_the_goal():
     b = wall_budget(r, goal_s=10.0)
     assert b["serial_s"] == pytest.approx(4.0) and b["bound_s"] == pytest.approx(8.0)
     steps = r["trials_run"] * r["imu_steps_per_trial"]
-    # at the C loop it names, the serial parts plus the pool's CPU over the cores give the goal
+    # at the C loop it names, the serial parts plus the pool's CPU over its processes give the goal
     c_s = 1e-6 * b["c_us_for_goal"] * steps
     assert b["serial_s"] + (c_s + 2.5) / 2 == pytest.approx(10.0)
     assert b["cpu_over_floor_at_goal"] == pytest.approx((c_s + 3.5) / c_s)

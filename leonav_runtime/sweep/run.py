@@ -98,8 +98,8 @@ def _tasks(scn: Scenario, trials: int) -> list[tuple]:
 
 def build_templates(scn: Scenario, setup, nav, tasks: list[tuple]) -> int:
     """Build the block template of every (mode, count) of `tasks` on `setup` (trial_block.py), before
-    the workers start; returns how many. None with a realism switch active: its trials take the
-    road one by one, and a template (61 MB and ~0.35 s of CPU per point in passive-phase-static)
+    the workers start; returns how many. It builds none (0) with a realism switch active: its trials
+    take the road one by one, and a template (61 MB and ~0.35 s of CPU per point in passive-phase-static)
     would be made for nothing."""
     if not trial_block.uses_template(scn):
         return 0
